@@ -1,0 +1,34 @@
+use thiserror::Error;
+
+/// Errors raised when building core types from user-supplied sizes or data.
+#[derive(Debug, Error, Clone, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum CoreError {
+    /// A grid axis has length zero.
+    #[error("grid axis {axis} has length 0 (dimensions {dims:?})")]
+    EmptyAxis {
+        /// The axis (0 = x, 1 = y, 2 = z).
+        axis: usize,
+        /// The dimensions that were asked for.
+        dims: [usize; 3],
+    },
+    /// The grid has more voxels, or longer diagonals, than the 32-bit
+    /// indices and squared distances can represent.
+    #[error("grid {dims:?} is too large: {reason}")]
+    TooLarge {
+        /// The dimensions that were asked for.
+        dims: [usize; 3],
+        /// Which limit was exceeded.
+        reason: &'static str,
+    },
+    /// A data buffer does not have one element per voxel.
+    #[error("grid {dims:?} needs {expected} elements, got {actual}")]
+    LengthMismatch {
+        /// The dimensions of the grid.
+        dims: [usize; 3],
+        /// Number of voxels the dimensions imply.
+        expected: usize,
+        /// Number of elements supplied.
+        actual: usize,
+    },
+}

@@ -1,0 +1,27 @@
+//! Core types shared by every edtmap backend and front end.
+//!
+//! The crate holds plain data and no algorithms: dense grids
+//! ([`Grid3`]), voxel states ([`VoxelState`]), the result of a batch
+//! Euclidean distance transform ([`EdtField`]) and its parameters
+//! ([`EdtParams`]). Backends (`edtmap-cpu`, later `edtmap-gpu`) compute on
+//! these types and must agree on them bit for bit.
+//!
+//! # Conventions
+//! * A dense grid has dimensions `[nx, ny, nz]` with `x` varying fastest:
+//!   the linear index of voxel `(x, y, z)` is `x + nx * (y + ny * z)`. A C-order
+//!   array of shape `(a0, a1, a2)` is the grid `[a2, a1, a0]`; a 2D array of
+//!   shape `(a0, a1)` is the grid `[a1, a0, 1]`.
+//! * Distances are integer squared distances in voxel units
+//!   (`dist_sq_vox`); a voxel with no obstacle anywhere in the grid holds
+//!   [`UNREACHABLE_DIST_SQ`] and no nearest obstacle.
+#![warn(missing_docs)]
+
+mod edt;
+mod error;
+mod grid;
+mod state;
+
+pub use edt::{dist_sq_to_vox, EdtField, EdtParams, NO_SITE, UNREACHABLE_DIST_SQ};
+pub use error::CoreError;
+pub use grid::Grid3;
+pub use state::VoxelState;

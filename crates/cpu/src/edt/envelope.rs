@@ -1,0 +1,207 @@
+//! One-dimensional exact distance kernels.
+//!
+//! Both kernels work on squared distances in voxel units and carry, for
+//! every element, the linear index of its nearest obstacle.
+
+use edtmap_core::{NO_SITE, UNREACHABLE_DIST_SQ};
+
+/// First scan along a contiguous row (the paper's `INITSCAN`): the squared
+/// 1D distance from each element to the nearest obstacle in its row.
+///
+/// `row_base` is the linear index of the row's first voxel.
+pub(super) fn sweep_row(
+    is_obstacle: impl Fn(usize) -> bool,
+    row_base: u32,
+    dist: &mut [u32],
+    near: &mut [u32],
+) {
+    // Forward: remember the last obstacle at or before x.
+    let mut last = NO_SITE;
+    for (x, slot) in near.iter_mut().enumerate() {
+        if is_obstacle(x) {
+            last = x as u32;
+        }
+        *slot = last;
+    }
+    // Backward: keep the closer of the last obstacle before and the next one
+    // after x.
+    let mut next = NO_SITE;
+    for x in (0..near.len()).rev() {
+        let before = near[x];
+        if before == x as u32 {
+            next = x as u32;
+        }
+        let x32 = x as u32;
+        let site = match (before, next) {
+            (NO_SITE, NO_SITE) => NO_SITE,
+            (NO_SITE, n) => n,
+            (b, NO_SITE) => b,
+            (b, n) => {
+                if x32 - b <= n - x32 {
+                    b
+                } else {
+                    n
+                }
+            }
+        };
+        if site == NO_SITE {
+            dist[x] = UNREACHABLE_DIST_SQ;
+            near[x] = NO_SITE;
+        } else {
+            let d = x32.abs_diff(site);
+            dist[x] = d * d;
+            near[x] = row_base + site;
+        }
+    }
+}
+
+/// Working memory of [`envelope`], reused across lines.
+#[derive(Debug, Default)]
+pub(super) struct EnvelopeScratch {
+    /// Positions of the parabolas in the lower envelope.
+    pos: Vec<i64>,
+    /// `f(p) + p²` of each parabola: its value once the `x²` term cancels.
+    offset: Vec<i64>,
+    /// Start of each parabola's interval, as the fraction `num / den`.
+    start_num: Vec<i64>,
+    start_den: Vec<i64>,
+}
+
+impl EnvelopeScratch {
+    fn reserve(&mut self, n: usize) {
+        for v in [&mut self.pos, &mut self.offset, &mut self.start_num, &mut self.start_den] {
+            if v.len() < n {
+                v.resize(n, 0);
+            }
+        }
+    }
+}
+
+/// Auxiliary scan along one line (the paper's `AUXSCAN`, eq. 5): for each x,
+/// `min_i (x - i)² + f[i]` over the elements i with finite `f[i]`, and the
+/// nearest obstacle `site[i]` of the minimising element.
+///
+/// The lower envelope of parabolas of Felzenszwalb and Huttenlocher, with
+/// the intersections kept as exact fractions and compared by
+/// cross-multiplication: integer arithmetic only, no division. Parabolas
+/// that win nowhere on `[0, n)` are never inserted.
+pub(super) fn envelope(
+    f: &[u32],
+    site: &[u32],
+    out_f: &mut [u32],
+    out_site: &mut [u32],
+    s: &mut EnvelopeScratch,
+) {
+    let n = f.len();
+    s.reserve(n);
+    let k = build_envelope(f, s);
+    if k == 0 {
+        out_f.fill(UNREACHABLE_DIST_SQ);
+        out_site.fill(NO_SITE);
+        return;
+    }
+    let mut j = 0;
+    for x in 0..n {
+        let xi = x as i64;
+        // Advance while the next parabola is strictly lower at x.
+        while j + 1 < k && s.start_num[j + 1] < xi * s.start_den[j + 1] {
+            j += 1;
+        }
+        let p = s.pos[j];
+        let d = xi - p;
+        out_f[x] = (d * d) as u32 + f[p as usize];
+        out_site[x] = site[p as usize];
+    }
+}
+
+/// Builds the lower envelope of the finite parabolas of `f` into `s`;
+/// returns the number of parabolas in it.
+#[inline]
+fn build_envelope(f: &[u32], s: &mut EnvelopeScratch) -> usize {
+    let last = f.len() as i64 - 1;
+    let mut k = 0usize;
+    for (q, &fq) in f.iter().enumerate() {
+        if fq == UNREACHABLE_DIST_SQ {
+            continue;
+        }
+        let q = q as i64;
+        let gq = i64::from(fq) + q * q;
+        loop {
+            if k == 0 {
+                (s.pos[0], s.offset[0], s.start_num[0], s.start_den[0]) = (q, gq, 0, 1);
+                k = 1;
+                break;
+            }
+            // q is lower than the top parabola p for every x > num / den.
+            let top = k - 1;
+            let num = gq - s.offset[top];
+            let den = 2 * (q - s.pos[top]);
+            if num * s.start_den[top] <= s.start_num[top] * den {
+                // q is lower from where p starts: p is hidden.
+                k -= 1;
+                continue;
+            }
+            if num < last * den {
+                (s.pos[k], s.offset[k], s.start_num[k], s.start_den[k]) = (q, gq, num, den);
+                k += 1;
+            }
+            break;
+        }
+    }
+    k
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn brute(f: &[u32]) -> Vec<u32> {
+        (0..f.len())
+            .map(|x| {
+                f.iter()
+                    .enumerate()
+                    .filter(|(_, &v)| v != UNREACHABLE_DIST_SQ)
+                    .map(|(i, &v)| (x as u64).abs_diff(i as u64).pow(2) as u32 + v)
+                    .min()
+                    .unwrap_or(UNREACHABLE_DIST_SQ)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn envelope_matches_brute_force_on_small_lines() {
+        // Every line of length up to 6 over the values {0, 1, 4, 9, inf}.
+        let vals = [0, 1, 4, 9, UNREACHABLE_DIST_SQ];
+        let mut s = EnvelopeScratch::default();
+        for n in 1..=6usize {
+            for code in 0..vals.len().pow(n as u32) {
+                let f: Vec<u32> =
+                    (0..n).map(|i| vals[code / vals.len().pow(i as u32) % vals.len()]).collect();
+                let site: Vec<u32> = (0..n as u32).collect();
+                let (mut out, mut out_site) = (vec![0; n], vec![0; n]);
+                envelope(&f, &site, &mut out, &mut out_site, &mut s);
+                assert_eq!(out, brute(&f), "line {f:?}");
+                for (x, (&d, &p)) in out.iter().zip(&out_site).enumerate() {
+                    if d != UNREACHABLE_DIST_SQ {
+                        let p = p as usize;
+                        assert_eq!(d, (x.abs_diff(p).pow(2)) as u32 + f[p], "line {f:?} x {x}");
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn sweep_row_finds_nearest_in_row() {
+        let row = [false, true, false, false, false, true, false];
+        let (mut d, mut n) = (vec![0; 7], vec![0; 7]);
+        sweep_row(|x| row[x], 100, &mut d, &mut n);
+        assert_eq!(d, [1, 0, 1, 4, 1, 0, 1]);
+        assert_eq!(n[0], 101);
+        assert_eq!(n[6], 105);
+        let (mut d, mut n) = (vec![0; 3], vec![0; 3]);
+        sweep_row(|_| false, 0, &mut d, &mut n);
+        assert_eq!(d, [UNREACHABLE_DIST_SQ; 3]);
+        assert_eq!(n, [NO_SITE; 3]);
+    }
+}

@@ -1,0 +1,7 @@
+//! Exact batch Euclidean distance transform of dense grids.
+
+mod envelope;
+mod passes;
+mod shared;
+
+pub use passes::{batch_edt, edt_with, ScanLayout, DEFAULT_TILE_LANES};

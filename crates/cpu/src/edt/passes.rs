@@ -1,0 +1,208 @@
+//! The 3D orchestration of the separable scans (paper Algorithm 1).
+
+use edtmap_core::{EdtField, EdtParams, Grid3, VoxelState};
+use rayon::prelude::*;
+
+use super::envelope::{envelope, sweep_row, EnvelopeScratch};
+use super::shared::SharedBuf;
+use crate::CpuError;
+
+/// Lines per tile of the default [`ScanLayout::Tiled`], chosen by the
+/// `edt_layout` benchmark (`cargo bench -p edtmap-cpu --bench edt`).
+pub const DEFAULT_TILE_LANES: usize = 16;
+
+/// Rows of the first scan handed to one task, so short rows are batched.
+const MIN_VOXELS_PER_TASK: usize = 1 << 14;
+
+/// How scans along the strided axes (`y`, `z`) touch memory.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ScanLayout {
+    /// One strided line at a time: each element read is a new cache line
+    /// (the paper's uncoalesced variant, kept for comparison).
+    PerLine,
+    /// `lanes` neighbouring lines at a time, gathered into a contiguous
+    /// buffer so that every cache line read feeds all lanes (the CPU
+    /// counterpart of the paper's coalesced transposes).
+    Tiled {
+        /// Number of lines gathered together.
+        lanes: usize,
+    },
+}
+
+impl Default for ScanLayout {
+    fn default() -> Self {
+        ScanLayout::Tiled { lanes: DEFAULT_TILE_LANES }
+    }
+}
+
+impl ScanLayout {
+    fn lanes(self) -> usize {
+        match self {
+            ScanLayout::PerLine => 1,
+            ScanLayout::Tiled { lanes } => lanes.max(1),
+        }
+    }
+}
+
+/// Exact EDT of a grid of occupancy states: obstacles are occupied voxels,
+/// plus unknown ones when `params.unknown_as_occupied` is set.
+pub fn batch_edt(states: &Grid3<VoxelState>, params: &EdtParams) -> Result<EdtField, CpuError> {
+    let unknown = params.unknown_as_occupied;
+    edt_with(states, |s| s.is_obstacle(unknown), ScanLayout::default())
+}
+
+/// Exact EDT of any grid: `is_obstacle` says which voxels are obstacles.
+///
+/// Every voxel gets its exact squared Euclidean distance in voxel units to
+/// the nearest obstacle and that obstacle's linear index; a grid without
+/// obstacles yields `UNREACHABLE_DIST_SQ` and `NO_SITE` everywhere.
+///
+/// ```
+/// use edtmap_core::Grid3;
+/// use edtmap_cpu::edt::{edt_with, ScanLayout};
+///
+/// // One obstacle at (1, 2) in a 4 x 3 image.
+/// let grid = Grid3::from_fn([4, 3, 1], |x, y, _| x == 1 && y == 2).unwrap();
+/// let edt = edt_with(&grid, |&o| o, ScanLayout::default()).unwrap();
+/// assert_eq!(edt.dist_sq_vox()[grid.linear([3, 0, 0])], 2 * 2 + 2 * 2);
+/// assert_eq!(edt.nearest_coords(0), Some([1, 2, 0]));
+/// ```
+pub fn edt_with<T: Sync>(
+    grid: &Grid3<T>,
+    is_obstacle: impl Fn(&T) -> bool + Sync,
+    layout: ScanLayout,
+) -> Result<EdtField, CpuError> {
+    let dims = grid.dims();
+    let count = EdtField::check_dims(dims)?;
+    let mut dist = vec![0u32; count];
+    let mut near = vec![0u32; count];
+    scan_x(grid.as_slice(), &is_obstacle, dims[0], &mut dist, &mut near);
+    let [nx, ny, nz] = dims;
+    let lanes = layout.lanes();
+    // Scan y within each z slab, then z across slabs; a length-1 axis is
+    // already exact.
+    if ny > 1 {
+        let lines = LineSet { outer: nz, outer_stride: nx * ny, len: ny, stride: nx, nx };
+        scan_strided(&lines, lanes, &mut dist, &mut near);
+    }
+    if nz > 1 {
+        let lines = LineSet { outer: ny, outer_stride: nx, len: nz, stride: nx * ny, nx };
+        scan_strided(&lines, lanes, &mut dist, &mut near);
+    }
+    Ok(EdtField::from_parts(dims, dist, near)?)
+}
+
+/// First scan: every contiguous row along x, rows in parallel.
+fn scan_x<T: Sync>(
+    voxels: &[T],
+    is_obstacle: &(impl Fn(&T) -> bool + Sync),
+    nx: usize,
+    dist: &mut [u32],
+    near: &mut [u32],
+) {
+    let rows_per_task = (MIN_VOXELS_PER_TASK / nx).max(1);
+    let chunk = rows_per_task * nx;
+    dist.par_chunks_mut(chunk)
+        .zip(near.par_chunks_mut(chunk))
+        .zip(voxels.par_chunks(chunk))
+        .enumerate()
+        .for_each(|(task, ((dist, near), voxels))| {
+            let rows = dist.chunks_mut(nx).zip(near.chunks_mut(nx)).zip(voxels.chunks(nx));
+            for (r, ((dist, near), row)) in rows.enumerate() {
+                let base = ((task * rows_per_task + r) * nx) as u32;
+                sweep_row(|x| is_obstacle(&row[x]), base, dist, near);
+            }
+        });
+}
+
+/// A family of parallel lines along one strided axis.
+///
+/// Line `(o, x)` starts at voxel `o * outer_stride + x` for `o < outer`,
+/// `x < nx`, and its `len` elements are `stride` apart.
+struct LineSet {
+    outer: usize,
+    outer_stride: usize,
+    len: usize,
+    stride: usize,
+    nx: usize,
+}
+
+/// Per-task buffers of one tile: `lanes` lines of `len` elements each,
+/// lane-major so every line is contiguous.
+#[derive(Default)]
+struct TileScratch {
+    f: Vec<u32>,
+    site: Vec<u32>,
+    out_f: Vec<u32>,
+    out_site: Vec<u32>,
+    envelope: EnvelopeScratch,
+}
+
+/// Auxiliary scan of every line of `lines`, tiles of `lanes` neighbouring
+/// lines in parallel.
+fn scan_strided(lines: &LineSet, lanes: usize, dist: &mut [u32], near: &mut [u32]) {
+    let tiles_per_outer = lines.nx.div_ceil(lanes);
+    let (dist, near) = (SharedBuf::new(dist), SharedBuf::new(near));
+    (0..lines.outer * tiles_per_outer).into_par_iter().for_each_init(
+        TileScratch::default,
+        |scratch, tile| {
+            let outer = tile / tiles_per_outer;
+            let x0 = (tile % tiles_per_outer) * lanes;
+            let start = outer * lines.outer_stride + x0;
+            let width = lanes.min(lines.nx - x0);
+            // SAFETY: tile `(outer, x0)` covers the voxels
+            // `start + i * stride + w` for `i < len`, `w < width`. Distinct
+            // tiles differ in `outer` (disjoint planes or rows) or in `x0`
+            // (disjoint x ranges), so no two tasks touch the same voxel.
+            unsafe { scan_tile(lines, start, width, dist, near, scratch) };
+        },
+    );
+}
+
+/// Gathers one tile into `scratch`, scans each lane, scatters it back.
+///
+/// # Safety
+/// The tile's voxels are in bounds and accessed by no other task.
+unsafe fn scan_tile(
+    lines: &LineSet,
+    start: usize,
+    width: usize,
+    dist: SharedBuf,
+    near: SharedBuf,
+    s: &mut TileScratch,
+) {
+    let len = lines.len;
+    for buf in [&mut s.f, &mut s.site, &mut s.out_f, &mut s.out_site] {
+        buf.resize(width * len, 0);
+    }
+    for i in 0..len {
+        let row = start + i * lines.stride;
+        for w in 0..width {
+            // SAFETY: the caller owns the tile.
+            unsafe {
+                s.f[w * len + i] = dist.read(row + w);
+                s.site[w * len + i] = near.read(row + w);
+            }
+        }
+    }
+    for w in 0..width {
+        let lane = w * len..(w + 1) * len;
+        envelope(
+            &s.f[lane.clone()],
+            &s.site[lane.clone()],
+            &mut s.out_f[lane.clone()],
+            &mut s.out_site[lane],
+            &mut s.envelope,
+        );
+    }
+    for i in 0..len {
+        let row = start + i * lines.stride;
+        for w in 0..width {
+            // SAFETY: the caller owns the tile.
+            unsafe {
+                dist.write(row + w, s.out_f[w * len + i]);
+                near.write(row + w, s.out_site[w * len + i]);
+            }
+        }
+    }
+}

@@ -1,0 +1,11 @@
+use edtmap_core::CoreError;
+use thiserror::Error;
+
+/// Errors of the CPU backend.
+#[derive(Debug, Error, Clone, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum CpuError {
+    /// The input grid or parameters were rejected by a core type.
+    #[error(transparent)]
+    Core(#[from] CoreError),
+}

@@ -1,0 +1,22 @@
+//! edtmap: occupancy mapping and exact Euclidean distance transforms for
+//! robot motion planning, following the GIE-mapping pipeline (paper Fig. 1):
+//! sensor frame → occupancy → batch EDT of the local volume → global
+//! integration → queries.
+//!
+//! This facade re-exports the core types and the backends. The batch EDT
+//! (paper §IV-B) is available now:
+//!
+//! ```
+//! use edtmap::{cpu, EdtParams, Grid3, VoxelState};
+//!
+//! let states = Grid3::from_fn([8, 8, 8], |x, y, z| {
+//!     if (x, y, z) == (4, 4, 4) { VoxelState::Occupied } else { VoxelState::Free }
+//! }).unwrap();
+//! let edt = cpu::edt::batch_edt(&states, &EdtParams::default()).unwrap();
+//! assert_eq!(edt.distance_vox(states.linear([4, 4, 7])), 3.0);
+//! ```
+#![warn(missing_docs)]
+
+pub use edtmap_core::*;
+/// The CPU backend (rayon), the reference implementation.
+pub use edtmap_cpu as cpu;
