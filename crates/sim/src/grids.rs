@@ -25,9 +25,9 @@ pub struct PillarField {
 }
 
 impl PillarField {
-    /// A field of `dims` with about one pillar per 400 floor voxels.
+    /// A field of `dims` with about one pillar per 800 floor voxels.
     pub fn new(dims: [usize; 3], seed: u64) -> Self {
-        let pillars = (dims[0] * dims[1] / 400).max(1);
+        let pillars = (dims[0] * dims[1] / 800).max(1);
         let r_max = (dims[0].min(dims[1]) as f64 / 24.0).max(1.0);
         PillarField { dims, pillars, radius_vox: (r_max / 2.0, r_max), seed }
     }

@@ -1,0 +1,94 @@
+//! `edtmap edt`: exact EDT of an `.npy` grid.
+
+use std::path::PathBuf;
+
+use anyhow::{Context, Result};
+use clap::{Args, ValueEnum};
+use edtmap::cpu::edt::{edt_with, ScanLayout};
+use edtmap_io::npy::{self, ObstacleNpy};
+
+use crate::memory::ensure_fits;
+use crate::timing::RunTimes;
+
+/// Arguments of `edtmap edt`.
+#[derive(Args, Debug)]
+pub(crate) struct EdtArgs {
+    /// Input grid: bool or integer dtype, 2 or 3 axes, nonzero = obstacle.
+    input: PathBuf,
+    /// Output: float32 distance in voxels (0 on obstacles, inf if none).
+    output: PathBuf,
+    /// Also write the nearest obstacle's index (int32, trailing axis of
+    /// length ndim; -1 where there is none).
+    #[arg(long, value_name = "IDX.npy")]
+    nearest: Option<PathBuf>,
+    /// Run the transform K times and print one JSON line of timings.
+    #[arg(long, value_name = "K", value_parser = clap::value_parser!(u32).range(1..))]
+    repeat: Option<u32>,
+    /// Compute backend.
+    #[arg(long, value_enum, default_value_t = Backend::Cpu)]
+    backend: Backend,
+    /// Scan layout on the strided axes (for benchmarking).
+    #[arg(long, value_enum, default_value_t = Layout::Tiled)]
+    layout: Layout,
+}
+
+/// Backends `edtmap edt` can run on.
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum Backend {
+    /// All cores with rayon.
+    Cpu,
+}
+
+/// Scan layouts, see `edtmap_cpu::edt::ScanLayout`.
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum Layout {
+    /// Tiles of neighbouring lines gathered into contiguous buffers.
+    Tiled,
+    /// One strided line at a time.
+    PerLine,
+}
+
+/// Bytes per voxel the transform holds at its peak besides the input file's
+/// elements: the obstacle mask, squared distances and nearest indices, the
+/// float32 output.
+const WORK_BYTES_PER_VOXEL: u64 = 1 + 4 + 4 + 4;
+
+pub(crate) fn run(args: &EdtArgs) -> Result<()> {
+    let Backend::Cpu = args.backend;
+    let file = ObstacleNpy::open(&args.input)?;
+    let layout = file.layout().clone();
+    let ndim = layout.shape().len() as u64;
+    let idx_bytes = if args.nearest.is_some() { 4 * ndim } else { 0 };
+    let per_voxel = WORK_BYTES_PER_VOXEL + file.item_size() as u64 + idx_bytes;
+    ensure_fits(
+        &format!("{}: a grid of shape {:?}", args.input.display(), layout.shape()),
+        per_voxel.saturating_mul(layout.len() as u64),
+    )?;
+    let grid = file.read()?;
+    let scan = match args.layout {
+        Layout::Tiled => ScanLayout::default(),
+        Layout::PerLine => ScanLayout::PerLine,
+    };
+    let want_nearest = args.nearest.is_some();
+    let (result, times) = RunTimes::measure(args.repeat.unwrap_or(1) as usize, || {
+        let field = edt_with(&grid, |&o| o, scan)?;
+        let dist = npy::distance_array(&field);
+        let idx = want_nearest.then(|| npy::nearest_array(&layout, &field));
+        anyhow::Ok((dist, idx))
+    });
+    let (dist, idx) = result.with_context(|| format!("{}", args.input.display()))?;
+    npy::write_distances(&args.output, &layout, &dist)?;
+    if let (Some(path), Some(idx)) = (&args.nearest, idx) {
+        npy::write_nearest(path, &layout, &idx)?;
+    }
+    if args.repeat.is_some() {
+        let line = serde_json::json!({
+            "runs": times.runs(),
+            "min_ms": times.min_ms(),
+            "median_ms": times.median_ms(),
+            "voxels": layout.len(),
+        });
+        println!("{line}");
+    }
+    Ok(())
+}

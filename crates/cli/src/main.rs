@@ -1,0 +1,42 @@
+//! The `edtmap` command-line program.
+
+mod demo;
+mod edt;
+mod memory;
+mod timing;
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+/// Volumetric mapping for motion planning: occupancy and exact Euclidean
+/// distance transforms.
+#[derive(Parser)]
+#[command(name = "edtmap", version, about)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Run the built-in demonstration and write pictures to ./edtmap-out/.
+    Demo(demo::DemoArgs),
+    /// Exact Euclidean distance transform of a 2D or 3D .npy grid.
+    Edt(edt::EdtArgs),
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Demo(args) => demo::run(&args),
+        Command::Edt(args) => edt::run(&args),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("edtmap: error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}

@@ -1,0 +1,75 @@
+use std::path::PathBuf;
+
+use thiserror::Error;
+
+/// Errors reading or writing edtmap's files. Each names the file.
+#[derive(Debug, Error)]
+#[non_exhaustive]
+pub enum IoError {
+    /// The file could not be opened, read or written.
+    #[error("{}: {source}", path.display())]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// What the operating system said.
+        source: std::io::Error,
+    },
+    /// The file is not a valid `.npy` file.
+    #[error("{}: not an npy file ({reason})", path.display())]
+    NotNpy {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong with the header.
+        reason: String,
+    },
+    /// The array's element type is not accepted.
+    #[error("{}: unsupported dtype '{dtype}' (expected bool or an integer type)", path.display())]
+    UnsupportedDtype {
+        /// The file.
+        path: PathBuf,
+        /// The dtype as written in the header.
+        dtype: String,
+    },
+    /// The array's shape is not accepted.
+    #[error("{}: shape {shape:?} is not accepted: {reason}", path.display())]
+    BadShape {
+        /// The file.
+        path: PathBuf,
+        /// The shape as written in the header.
+        shape: Vec<u64>,
+        /// Why it is refused.
+        reason: String,
+    },
+    /// The file holds less data than its header promises.
+    #[error("{}: truncated data: the header promises {expected} bytes, the file has {actual}", path.display())]
+    Truncated {
+        /// The file.
+        path: PathBuf,
+        /// Bytes of data the header implies.
+        expected: u64,
+        /// Bytes of data present.
+        actual: u64,
+    },
+    /// Data handed to a writer does not match the shape.
+    #[error("{}: {reason}", path.display())]
+    BadData {
+        /// The file.
+        path: PathBuf,
+        /// What does not match.
+        reason: String,
+    },
+    /// PNG encoding failed.
+    #[error("{}: PNG encoding failed: {source}", path.display())]
+    Png {
+        /// The file.
+        path: PathBuf,
+        /// The encoder's message.
+        source: png::EncodingError,
+    },
+}
+
+impl IoError {
+    pub(crate) fn io(path: &std::path::Path, source: std::io::Error) -> Self {
+        IoError::Io { path: path.to_path_buf(), source }
+    }
+}

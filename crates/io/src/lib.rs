@@ -1,0 +1,20 @@
+//! File formats of edtmap.
+//!
+//! * [`npy`]: dense grids in NumPy's `.npy` format (the `edtmap edt`
+//!   command). The header is parsed by the `npyz` crate; the data is read as
+//!   raw element bytes, so any bool or integer dtype of either byte order
+//!   is accepted (an element is an obstacle when any of its bytes is
+//!   nonzero). C and Fortran order are both supported; outputs keep the
+//!   input's order.
+//! * [`picture`]: PNG pictures of 2D slices with a colour bar.
+//!
+//! Every error names the file and the problem; nothing here panics on bad
+//! input.
+#![warn(missing_docs)]
+
+mod error;
+mod font;
+pub mod npy;
+pub mod picture;
+
+pub use error::IoError;
