@@ -131,7 +131,8 @@ def machine_line():
                   if l.startswith("model name")), platform.processor() or "unknown CPU")
     nproc = subprocess.run(["nproc"], capture_output=True, text=True).stdout.strip()
     return (f"Machine: {nproc} cores (nproc), {model}; Python {platform.python_version()}, "
-            f"numpy {np.__version__}, scipy {version('scipy')}, edt {version('edt')}")
+            f"numpy {np.__version__}, scipy {version('scipy')}, edt {version('edt')}; "
+            f"load average at start {os.getloadavg()[0]:.2f}")
 
 
 def main():

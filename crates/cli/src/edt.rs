@@ -4,7 +4,8 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
-use edtmap::cpu::edt::{edt_with, ScanLayout};
+use edtmap::cpu::edt::{edt_into, ScanLayout};
+use edtmap::EdtField;
 use edtmap_io::npy::{self, ObstacleNpy};
 
 use crate::memory::ensure_fits;
@@ -69,16 +70,20 @@ pub(crate) fn run(args: &EdtArgs) -> Result<()> {
         Layout::Tiled => ScanLayout::default(),
         Layout::PerLine => ScanLayout::PerLine,
     };
-    let want_nearest = args.nearest.is_some();
+    // Buffers are reused across repeats, as a mapper reuses them per frame.
+    let mut field = EdtField::empty();
+    let (mut dist, mut idx) = (Vec::new(), Vec::new());
     let (result, times) = RunTimes::measure(args.repeat.unwrap_or(1) as usize, || {
-        let field = edt_with(&grid, |&o| o, scan)?;
-        let dist = npy::distance_array(&field);
-        let idx = want_nearest.then(|| npy::nearest_array(&layout, &field));
-        anyhow::Ok((dist, idx))
+        edt_into(&grid, |&o| o, scan, &mut field)?;
+        npy::distance_array(&field, &mut dist);
+        if args.nearest.is_some() {
+            npy::nearest_array(&layout, &field, &mut idx);
+        }
+        anyhow::Ok(())
     });
-    let (dist, idx) = result.with_context(|| format!("{}", args.input.display()))?;
+    result.with_context(|| format!("{}", args.input.display()))?;
     npy::write_distances(&args.output, &layout, &dist)?;
-    if let (Some(path), Some(idx)) = (&args.nearest, idx) {
+    if let Some(path) = &args.nearest {
         npy::write_nearest(path, &layout, &idx)?;
     }
     if args.repeat.is_some() {

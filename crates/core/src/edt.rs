@@ -63,6 +63,24 @@ impl EdtField {
         Ok(EdtField { dims, dist_sq_vox, nearest })
     }
 
+    /// An empty field (dimensions `[0, 0, 0]`), to be filled by
+    /// [`prepare`](Self::prepare) and a backend; reusing one field across
+    /// frames avoids reallocating and re-faulting its memory.
+    pub fn empty() -> Self {
+        EdtField { dims: [0; 3], dist_sq_vox: Vec::new(), nearest: Vec::new() }
+    }
+
+    /// Resizes the field for a grid of `dims`, keeping its allocations, and
+    /// returns its squared distances and nearest indices for a backend to
+    /// overwrite entirely (their contents are unspecified until then).
+    pub fn prepare(&mut self, dims: [usize; 3]) -> Result<(&mut [u32], &mut [u32]), CoreError> {
+        let count = Self::check_dims(dims)?;
+        self.dims = dims;
+        self.dist_sq_vox.resize(count, UNREACHABLE_DIST_SQ);
+        self.nearest.resize(count, NO_SITE);
+        Ok((&mut self.dist_sq_vox, &mut self.nearest))
+    }
+
     /// Dimensions `[nx, ny, nz]` in voxels.
     #[inline]
     pub fn dims(&self) -> [usize; 3] {

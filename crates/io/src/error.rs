@@ -7,12 +7,12 @@ use thiserror::Error;
 #[non_exhaustive]
 pub enum IoError {
     /// The file could not be opened, read or written.
-    #[error("{}: {source}", path.display())]
+    #[error("{}: {error}", path.display())]
     Io {
         /// The file.
         path: PathBuf,
         /// What the operating system said.
-        source: std::io::Error,
+        error: std::io::Error,
     },
     /// The file is not a valid `.npy` file.
     #[error("{}: not an npy file ({reason})", path.display())]
@@ -23,7 +23,7 @@ pub enum IoError {
         reason: String,
     },
     /// The array's element type is not accepted.
-    #[error("{}: unsupported dtype '{dtype}' (expected bool or an integer type)", path.display())]
+    #[error("{}: unsupported dtype {dtype} (expected bool or an integer type)", path.display())]
     UnsupportedDtype {
         /// The file.
         path: PathBuf,
@@ -59,17 +59,17 @@ pub enum IoError {
         reason: String,
     },
     /// PNG encoding failed.
-    #[error("{}: PNG encoding failed: {source}", path.display())]
+    #[error("{}: PNG encoding failed: {error}", path.display())]
     Png {
         /// The file.
         path: PathBuf,
         /// The encoder's message.
-        source: png::EncodingError,
+        error: png::EncodingError,
     },
 }
 
 impl IoError {
     pub(crate) fn io(path: &std::path::Path, source: std::io::Error) -> Self {
-        IoError::Io { path: path.to_path_buf(), source }
+        IoError::Io { path: path.to_path_buf(), error: source }
     }
 }

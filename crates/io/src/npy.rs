@@ -169,7 +169,7 @@ fn checked_layout(path: &Path, header: &NpyHeader) -> Result<ArrayLayout, IoErro
     let shape = header.shape().to_vec();
     let bad = |reason: String| IoError::BadShape { path: path.into(), shape: shape.clone(), reason };
     if shape.len() != 2 && shape.len() != 3 {
-        return Err(bad(format!("{} axes, expected 2 or 3", shape.len())));
+        return Err(bad(format!("ndim {}, expected 2 or 3", shape.len())));
     }
     if let Some(axis) = shape.iter().position(|&n| n == 0) {
         return Err(bad(format!("axis {axis} has length 0")));
@@ -188,15 +188,17 @@ fn checked_layout(path: &Path, header: &NpyHeader) -> Result<ArrayLayout, IoErro
 }
 
 /// Distances in voxels as `f32`, in the grid's (and the file's) order:
-/// `0` on obstacles, `inf` where the grid has no obstacle.
-pub fn distance_array(field: &EdtField) -> Vec<f32> {
-    field.dist_sq_vox().par_iter().map(|&d| dist_sq_to_vox(d)).collect()
+/// `0` on obstacles, `inf` where the grid has no obstacle. `out` is
+/// overwritten, keeping its allocation.
+pub fn distance_array(field: &EdtField, out: &mut Vec<f32>) {
+    out.resize(field.dist_sq_vox().len(), 0.0);
+    out.par_iter_mut().zip(field.dist_sq_vox()).for_each(|(o, &d)| *o = dist_sq_to_vox(d));
 }
 
 /// Nearest-obstacle array indices as `i32`, in file order for an array of
 /// shape `layout.shape() + (ndim,)` in the layout's order. Voxels without an
-/// obstacle get `-1`.
-pub fn nearest_array(layout: &ArrayLayout, field: &EdtField) -> Vec<i32> {
+/// obstacle get `-1`. `out` is overwritten, keeping its allocation.
+pub fn nearest_array(layout: &ArrayLayout, field: &EdtField, out: &mut Vec<i32>) {
     let ndim = layout.shape.len();
     let split = CoordSplit::new(field.dims());
     let coords = |site: u32, k: usize| -> i32 {
@@ -207,22 +209,22 @@ pub fn nearest_array(layout: &ArrayLayout, field: &EdtField) -> Vec<i32> {
         }
     };
     let nearest = field.nearest();
+    out.resize(nearest.len() * ndim, 0);
     match layout.order {
         // Trailing axis fastest: the ndim indices of a voxel are adjacent.
         ArrayOrder::C => {
-            let mut out = vec![0i32; nearest.len() * ndim];
             out.par_chunks_mut(ndim).zip(nearest.par_iter()).for_each(|(o, &site)| {
                 for (k, v) in o.iter_mut().enumerate() {
                     *v = coords(site, k);
                 }
             });
-            out
         }
         // Trailing axis slowest: one plane of indices per array axis.
-        ArrayOrder::Fortran => (0..ndim * nearest.len())
-            .into_par_iter()
-            .map(|i| coords(nearest[i % nearest.len()], i / nearest.len()))
-            .collect(),
+        ArrayOrder::Fortran => {
+            out.par_chunks_mut(nearest.len()).enumerate().for_each(|(k, plane)| {
+                plane.iter_mut().zip(nearest).for_each(|(v, &site)| *v = coords(site, k));
+            });
+        }
     }
 }
 

@@ -101,7 +101,7 @@ impl Canvas {
     /// Writes the canvas as an 8-bit RGB PNG.
     pub fn save_png(&self, path: &Path) -> Result<(), IoError> {
         let file = File::create(path).map_err(|e| IoError::io(path, e))?;
-        let png_err = |source| IoError::Png { path: path.into(), source };
+        let png_err = |error| IoError::Png { path: path.into(), error };
         let mut enc = png::Encoder::new(BufWriter::new(file), self.width as u32, self.height as u32);
         enc.set_color(png::ColorType::Rgb);
         enc.set_depth(png::BitDepth::Eight);

@@ -4,4 +4,4 @@ mod envelope;
 mod passes;
 mod shared;
 
-pub use passes::{batch_edt, edt_with, ScanLayout, DEFAULT_TILE_LANES};
+pub use passes::{batch_edt, edt_into, edt_with, ScanLayout, DEFAULT_TILE_LANES};

@@ -72,24 +72,35 @@ pub fn edt_with<T: Sync>(
     is_obstacle: impl Fn(&T) -> bool + Sync,
     layout: ScanLayout,
 ) -> Result<EdtField, CpuError> {
+    let mut field = EdtField::empty();
+    edt_into(grid, is_obstacle, layout, &mut field)?;
+    Ok(field)
+}
+
+/// [`edt_with`] into an existing field, reusing its memory: the form to
+/// call once per frame.
+pub fn edt_into<T: Sync>(
+    grid: &Grid3<T>,
+    is_obstacle: impl Fn(&T) -> bool + Sync,
+    layout: ScanLayout,
+    field: &mut EdtField,
+) -> Result<(), CpuError> {
     let dims = grid.dims();
-    let count = EdtField::check_dims(dims)?;
-    let mut dist = vec![0u32; count];
-    let mut near = vec![0u32; count];
-    scan_x(grid.as_slice(), &is_obstacle, dims[0], &mut dist, &mut near);
+    let (dist, near) = field.prepare(dims)?;
+    scan_x(grid.as_slice(), &is_obstacle, dims[0], dist, near);
     let [nx, ny, nz] = dims;
     let lanes = layout.lanes();
     // Scan y within each z slab, then z across slabs; a length-1 axis is
     // already exact.
     if ny > 1 {
         let lines = LineSet { outer: nz, outer_stride: nx * ny, len: ny, stride: nx, nx };
-        scan_strided(&lines, lanes, &mut dist, &mut near);
+        scan_strided(&lines, lanes, dist, near);
     }
     if nz > 1 {
         let lines = LineSet { outer: ny, outer_stride: nx, len: nz, stride: nx * ny, nx };
-        scan_strided(&lines, lanes, &mut dist, &mut near);
+        scan_strided(&lines, lanes, dist, near);
     }
-    Ok(EdtField::from_parts(dims, dist, near)?)
+    Ok(())
 }
 
 /// First scan: every contiguous row along x, rows in parallel.
