@@ -58,33 +58,29 @@ pub(super) fn sweep_row(
 /// Working memory of [`envelope`], reused across lines.
 #[derive(Debug, Default)]
 pub(super) struct EnvelopeScratch {
-    /// Positions of the parabolas in the lower envelope.
-    pos: Vec<i64>,
-    /// `f(p) + p²` of each parabola: its value once the `x²` term cancels.
-    offset: Vec<i64>,
-    /// Start of each parabola's interval, as the fraction `num / den`.
-    start_num: Vec<i64>,
-    start_den: Vec<i64>,
+    /// The parabolas of the lower envelope, left to right, plus a sentinel.
+    stack: Vec<Parabola>,
 }
 
-impl EnvelopeScratch {
-    fn reserve(&mut self, n: usize) {
-        for v in [&mut self.pos, &mut self.offset, &mut self.start_num, &mut self.start_den] {
-            if v.len() < n {
-                v.resize(n, 0);
-            }
-        }
-    }
+/// One parabola `(x - pos)² + f` of the lower envelope, owning the integers
+/// `start..` up to the next parabola's start.
+#[derive(Debug, Default, Clone, Copy)]
+struct Parabola {
+    pos: i64,
+    f: i64,
+    start: i64,
+    /// The parabola's value at `start`.
+    at_start: i64,
 }
 
 /// Auxiliary scan along one line (the paper's `AUXSCAN`, eq. 5): for each x,
 /// `min_i (x - i)² + f[i]` over the elements i with finite `f[i]`, and the
 /// nearest obstacle `site[i]` of the minimising element.
 ///
-/// The lower envelope of parabolas of Felzenszwalb and Huttenlocher, with
-/// the intersections kept as exact fractions and compared by
-/// cross-multiplication: integer arithmetic only, no division. Parabolas
-/// that win nowhere on `[0, n)` are never inserted.
+/// Meijster et al.'s integer lower envelope: a parabola is kept only if it
+/// is strictly lowest at one integer at least, so every `x` advances the
+/// envelope by at most one parabola and the output loop has no
+/// data-dependent branch. Ties keep the leftmost parabola.
 pub(super) fn envelope(
     f: &[u32],
     site: &[u32],
@@ -93,59 +89,62 @@ pub(super) fn envelope(
     s: &mut EnvelopeScratch,
 ) {
     let n = f.len();
-    s.reserve(n);
-    let k = build_envelope(f, s);
+    if s.stack.len() < n + 1 {
+        s.stack.resize(n + 1, Parabola::default());
+    }
+    let k = build_envelope(f, &mut s.stack);
     if k == 0 {
         out_f.fill(UNREACHABLE_DIST_SQ);
         out_site.fill(NO_SITE);
         return;
     }
+    // Sentinel: no parabola starts inside the line after the last one.
+    s.stack[k].start = n as i64;
     let mut j = 0;
     for x in 0..n {
-        let xi = x as i64;
-        // Advance while the next parabola is strictly lower at x.
-        while j + 1 < k && s.start_num[j + 1] < xi * s.start_den[j + 1] {
-            j += 1;
-        }
-        let p = s.pos[j];
-        let d = xi - p;
-        out_f[x] = (d * d) as u32 + f[p as usize];
-        out_site[x] = site[p as usize];
+        j += usize::from(s.stack[j + 1].start == x as i64);
+        let p = s.stack[j];
+        let d = x as i64 - p.pos;
+        out_f[x] = (d * d + p.f) as u32;
+        out_site[x] = site[p.pos as usize];
     }
 }
 
-/// Builds the lower envelope of the finite parabolas of `f` into `s`;
+/// Builds the lower envelope of the finite parabolas of `f` into `stack`;
 /// returns the number of parabolas in it.
 #[inline]
-fn build_envelope(f: &[u32], s: &mut EnvelopeScratch) -> usize {
-    let last = f.len() as i64 - 1;
+fn build_envelope(f: &[u32], stack: &mut [Parabola]) -> usize {
+    let n = f.len() as i64;
     let mut k = 0usize;
     for (q, &fq) in f.iter().enumerate() {
         if fq == UNREACHABLE_DIST_SQ {
             continue;
         }
-        let q = q as i64;
-        let gq = i64::from(fq) + q * q;
-        loop {
-            if k == 0 {
-                (s.pos[0], s.offset[0], s.start_num[0], s.start_den[0]) = (q, gq, 0, 1);
-                k = 1;
+        let (q, fq) = (q as i64, i64::from(fq));
+        // Drop the parabolas that q beats strictly where they start.
+        while k > 0 {
+            let top = stack[k - 1];
+            let d = top.start - q;
+            if top.at_start > d * d + fq {
+                k -= 1;
+            } else {
                 break;
             }
-            // q is lower than the top parabola p for every x > num / den.
-            let top = k - 1;
-            let num = gq - s.offset[top];
-            let den = 2 * (q - s.pos[top]);
-            if num * s.start_den[top] <= s.start_num[top] * den {
-                // q is lower from where p starts: p is hidden.
-                k -= 1;
-                continue;
+        }
+        let start = match k {
+            0 => 0,
+            _ => {
+                let top = stack[k - 1];
+                // q is strictly lower than top from the first x with
+                // x > ((fq + q²) - (f + p²)) / (2 (q - p)).
+                let num = fq + q * q - top.f - top.pos * top.pos;
+                1 + num.div_euclid(2 * (q - top.pos))
             }
-            if num < last * den {
-                (s.pos[k], s.offset[k], s.start_num[k], s.start_den[k]) = (q, gq, num, den);
-                k += 1;
-            }
-            break;
+        };
+        if start < n {
+            let d = start - q;
+            stack[k] = Parabola { pos: q, f: fq, start, at_start: d * d + fq };
+            k += 1;
         }
     }
     k
