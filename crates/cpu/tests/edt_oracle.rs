@@ -146,3 +146,21 @@ fn unknown_voxels_are_free_unless_asked() {
         assert_matches_oracle(&sites, &edt);
     }
 }
+
+#[test]
+fn empty_rows_and_planes_between_dense_ones() {
+    // Obstacles only in some z planes and, within those, some y rows: the
+    // y and z scans see rows with no obstacle between rows with small
+    // distances, the case the windowed scan handles specially.
+    let dense = random_grid([40, 24, 30], 0.3, 5).expect("valid dims");
+    let grid = Grid3::from_fn([40, 24, 30], |x, y, z| {
+        let keep_plane = z % 7 == 2 || z == 29;
+        let keep_row = y % 5 != 1;
+        keep_plane && keep_row && dense.as_slice()[dense.linear([x, y, z])]
+    })
+    .expect("valid dims");
+    for layout in LAYOUTS {
+        let edt = edt_with(&grid, |&o| o, layout).expect("edt");
+        assert_matches_oracle(&grid, &edt);
+    }
+}

@@ -81,21 +81,25 @@ struct Parabola {
 /// is strictly lowest at one integer at least, so every `x` advances the
 /// envelope by at most one parabola and the output loop has no
 /// data-dependent branch. Ties keep the leftmost parabola.
+///
+/// Element `i` of the line is at index `i * stride` of every slice, so one
+/// lane of a tile can be scanned in place; `n` is the line's length.
 pub(super) fn envelope(
-    f: &[u32],
-    site: &[u32],
+    line: Line<'_>,
     out_f: &mut [u32],
     out_site: &mut [u32],
     s: &mut EnvelopeScratch,
 ) {
-    let n = f.len();
+    let Line { site, stride, n, .. } = line;
     if s.stack.len() < n + 1 {
         s.stack.resize(n + 1, Parabola::default());
     }
-    let k = build_envelope(f, &mut s.stack);
+    let k = build_envelope(line, &mut s.stack);
     if k == 0 {
-        out_f.fill(UNREACHABLE_DIST_SQ);
-        out_site.fill(NO_SITE);
+        for x in 0..n {
+            out_f[x * stride] = UNREACHABLE_DIST_SQ;
+            out_site[x * stride] = NO_SITE;
+        }
         return;
     }
     // Sentinel: no parabola starts inside the line after the last one.
@@ -105,18 +109,29 @@ pub(super) fn envelope(
         j += usize::from(s.stack[j + 1].start == x as i64);
         let p = s.stack[j];
         let d = x as i64 - p.pos;
-        out_f[x] = (d * d + p.f) as u32;
-        out_site[x] = site[p.pos as usize];
+        out_f[x * stride] = (d * d + p.f) as u32;
+        out_site[x * stride] = site[p.pos as usize * stride];
     }
+}
+
+/// One line of squared distances `f` and nearest obstacles `site`, element
+/// `i` at index `i * stride`.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Line<'a> {
+    pub(super) f: &'a [u32],
+    pub(super) site: &'a [u32],
+    pub(super) stride: usize,
+    pub(super) n: usize,
 }
 
 /// Builds the lower envelope of the finite parabolas of `f` into `stack`;
 /// returns the number of parabolas in it.
 #[inline]
-fn build_envelope(f: &[u32], stack: &mut [Parabola]) -> usize {
-    let n = f.len() as i64;
+fn build_envelope(line: Line<'_>, stack: &mut [Parabola]) -> usize {
+    let n = line.n as i64;
     let mut k = 0usize;
-    for (q, &fq) in f.iter().enumerate() {
+    for q in 0..line.n {
+        let fq = line.f[q * line.stride];
         if fq == UNREACHABLE_DIST_SQ {
             continue;
         }
@@ -178,7 +193,8 @@ mod tests {
                     (0..n).map(|i| vals[code / vals.len().pow(i as u32) % vals.len()]).collect();
                 let site: Vec<u32> = (0..n as u32).collect();
                 let (mut out, mut out_site) = (vec![0; n], vec![0; n]);
-                envelope(&f, &site, &mut out, &mut out_site, &mut s);
+                let line = Line { f: &f, site: &site, stride: 1, n };
+                envelope(line, &mut out, &mut out_site, &mut s);
                 assert_eq!(out, brute(&f), "line {f:?}");
                 for (x, (&d, &p)) in out.iter().zip(&out_site).enumerate() {
                     if d != UNREACHABLE_DIST_SQ {

@@ -3,5 +3,6 @@
 mod envelope;
 mod passes;
 mod shared;
+mod window;
 
 pub use passes::{batch_edt, edt_into, edt_with, ScanLayout, DEFAULT_TILE_LANES};

@@ -3,16 +3,21 @@
 use edtmap_core::{EdtField, EdtParams, Grid3, VoxelState};
 use rayon::prelude::*;
 
-use super::envelope::{envelope, sweep_row, EnvelopeScratch};
+use super::envelope::{envelope, sweep_row, EnvelopeScratch, Line};
+use super::window::{scan_windowed, Tile, Windows};
 use super::shared::SharedBuf;
 use crate::CpuError;
 
 /// Lines per tile of the default [`ScanLayout::Tiled`], chosen by the
 /// `edt_layout` benchmark (`cargo bench -p edtmap-cpu --bench edt`).
-pub const DEFAULT_TILE_LANES: usize = 16;
+pub const DEFAULT_TILE_LANES: usize = 64;
 
-/// Rows of the first scan handed to one task, so short rows are batched.
+/// Voxels of the first scan handed to one task, so short rows are batched.
 const MIN_VOXELS_PER_TASK: usize = 1 << 14;
+
+/// z slabs per thread from which the x and y scans are fused slab by slab
+/// (fewer slabs would leave threads idle).
+const FUSE_MIN_SLABS_PER_THREAD: usize = 4;
 
 /// How scans along the strided axes (`y`, `z`) touch memory.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -87,15 +92,30 @@ pub fn edt_into<T: Sync>(
 ) -> Result<(), CpuError> {
     let dims = grid.dims();
     let (dist, near) = field.prepare(dims)?;
-    scan_x(grid.as_slice(), &is_obstacle, dims[0], dist, near);
     let [nx, ny, nz] = dims;
     let lanes = layout.lanes();
-    // Scan y within each z slab, then z across slabs; a length-1 axis is
-    // already exact.
-    if ny > 1 {
-        let lines = LineSet { outer: nz, outer_stride: nx * ny, len: ny, stride: nx, nx };
-        scan_strided(&lines, lanes, dist, near);
+    let y_lines = |outer| LineSet { outer, outer_stride: nx * ny, len: ny, stride: nx, nx };
+    if nz >= FUSE_MIN_SLABS_PER_THREAD * rayon::current_num_threads() {
+        // Scan x then y one z slab at a time, so the y scan reads the slab
+        // from cache.
+        let slab = nx * ny;
+        dist.par_chunks_mut(slab)
+            .zip(near.par_chunks_mut(slab))
+            .zip(grid.as_slice().par_chunks(slab))
+            .enumerate()
+            .for_each_init(TileScratch::default, |scratch, (z, ((dist, near), voxels))| {
+                scan_x_rows(voxels, &is_obstacle, nx, z * slab, dist, near);
+                if ny > 1 {
+                    scan_strided_serial(&y_lines(1), lanes, dist, near, scratch);
+                }
+            });
+    } else {
+        scan_x(grid.as_slice(), &is_obstacle, nx, dist, near);
+        if ny > 1 {
+            scan_strided(&y_lines(nz), lanes, dist, near);
+        }
     }
+    // The z scan across slabs; a length-1 axis is already exact.
     if nz > 1 {
         let lines = LineSet { outer: ny, outer_stride: nx, len: nz, stride: nx * ny, nx };
         scan_strided(&lines, lanes, dist, near);
@@ -111,19 +131,29 @@ fn scan_x<T: Sync>(
     dist: &mut [u32],
     near: &mut [u32],
 ) {
-    let rows_per_task = (MIN_VOXELS_PER_TASK / nx).max(1);
-    let chunk = rows_per_task * nx;
+    let chunk = (MIN_VOXELS_PER_TASK / nx).max(1) * nx;
     dist.par_chunks_mut(chunk)
         .zip(near.par_chunks_mut(chunk))
         .zip(voxels.par_chunks(chunk))
         .enumerate()
         .for_each(|(task, ((dist, near), voxels))| {
-            let rows = dist.chunks_mut(nx).zip(near.chunks_mut(nx)).zip(voxels.chunks(nx));
-            for (r, ((dist, near), row)) in rows.enumerate() {
-                let base = ((task * rows_per_task + r) * nx) as u32;
-                sweep_row(|x| is_obstacle(&row[x]), base, dist, near);
-            }
+            scan_x_rows(voxels, is_obstacle, nx, task * chunk, dist, near);
         });
+}
+
+/// First scan of consecutive rows whose first voxel has linear index `base`.
+fn scan_x_rows<T>(
+    voxels: &[T],
+    is_obstacle: &impl Fn(&T) -> bool,
+    nx: usize,
+    base: usize,
+    dist: &mut [u32],
+    near: &mut [u32],
+) {
+    let rows = dist.chunks_mut(nx).zip(near.chunks_mut(nx)).zip(voxels.chunks(nx));
+    for (r, ((dist, near), row)) in rows.enumerate() {
+        sweep_row(|x| is_obstacle(&row[x]), (base + r * nx) as u32, dist, near);
+    }
 }
 
 /// A family of parallel lines along one strided axis.
@@ -139,7 +169,8 @@ struct LineSet {
 }
 
 /// Per-task buffers of one tile: `lanes` lines of `len` elements each,
-/// lane-major so every line is contiguous.
+/// element-major (element `i` of lane `w` at `i * lanes + w`), so that a
+/// voxel row of the volume is one contiguous run of the buffer.
 #[derive(Default)]
 struct TileScratch {
     f: Vec<u32>,
@@ -147,6 +178,7 @@ struct TileScratch {
     out_f: Vec<u32>,
     out_site: Vec<u32>,
     envelope: EnvelopeScratch,
+    windows: Windows,
 }
 
 /// Auxiliary scan of every line of `lines`, tiles of `lanes` neighbouring
@@ -156,63 +188,85 @@ fn scan_strided(lines: &LineSet, lanes: usize, dist: &mut [u32], near: &mut [u32
     let (dist, near) = (SharedBuf::new(dist), SharedBuf::new(near));
     (0..lines.outer * tiles_per_outer).into_par_iter().for_each_init(
         TileScratch::default,
-        |scratch, tile| {
-            let outer = tile / tiles_per_outer;
-            let x0 = (tile % tiles_per_outer) * lanes;
-            let start = outer * lines.outer_stride + x0;
-            let width = lanes.min(lines.nx - x0);
-            // SAFETY: tile `(outer, x0)` covers the voxels
-            // `start + i * stride + w` for `i < len`, `w < width`. Distinct
-            // tiles differ in `outer` (disjoint planes or rows) or in `x0`
-            // (disjoint x ranges), so no two tasks touch the same voxel.
-            unsafe { scan_tile(lines, start, width, dist, near, scratch) };
-        },
+        // SAFETY: distinct tiles own disjoint voxels (see `tile_extent`).
+        |scratch, tile| unsafe { scan_tile(lines, tile, lanes, dist, near, scratch) },
     );
 }
 
-/// Gathers one tile into `scratch`, scans each lane, scatters it back.
+/// [`scan_strided`] on the calling thread only.
+fn scan_strided_serial(
+    lines: &LineSet,
+    lanes: usize,
+    dist: &mut [u32],
+    near: &mut [u32],
+    scratch: &mut TileScratch,
+) {
+    let (dist, near) = (SharedBuf::new(dist), SharedBuf::new(near));
+    for tile in 0..lines.outer * lines.nx.div_ceil(lanes) {
+        // SAFETY: this thread has exclusive access to the buffers.
+        unsafe { scan_tile(lines, tile, lanes, dist, near, scratch) };
+    }
+}
+
+/// First voxel and number of lanes of tile number `tile`.
+///
+/// Tile `(outer, x0)` covers the voxels `start + i * stride + w` for
+/// `i < len`, `w < width`. Distinct tiles differ in `outer` (disjoint planes
+/// or rows) or in `x0` (disjoint x ranges), so they share no voxel.
+fn tile_extent(lines: &LineSet, tile: usize, lanes: usize) -> (usize, usize) {
+    let tiles_per_outer = lines.nx.div_ceil(lanes);
+    let (outer, x0) = (tile / tiles_per_outer, (tile % tiles_per_outer) * lanes);
+    (outer * lines.outer_stride + x0, lanes.min(lines.nx - x0))
+}
+
+/// Gathers one tile into `scratch`, scans it, scatters it back.
 ///
 /// # Safety
 /// The tile's voxels are in bounds and accessed by no other task.
 unsafe fn scan_tile(
     lines: &LineSet,
-    start: usize,
-    width: usize,
+    tile: usize,
+    lanes: usize,
     dist: SharedBuf,
     near: SharedBuf,
     s: &mut TileScratch,
 ) {
+    let (start, width) = tile_extent(lines, tile, lanes);
     let len = lines.len;
     for buf in [&mut s.f, &mut s.site, &mut s.out_f, &mut s.out_site] {
-        buf.resize(width * len, 0);
+        buf.resize(lanes * len, 0);
     }
     for i in 0..len {
         let row = start + i * lines.stride;
+        let (f, site) = (&mut s.f[i * lanes..][..lanes], &mut s.site[i * lanes..][..lanes]);
         for w in 0..width {
             // SAFETY: the caller owns the tile.
             unsafe {
-                s.f[w * len + i] = dist.read(row + w);
-                s.site[w * len + i] = near.read(row + w);
+                f[w] = dist.read(row + w);
+                site[w] = near.read(row + w);
             }
         }
+        // Padding lanes of a narrow tile repeat lane 0, so they change
+        // neither the windows nor which rows are empty; their results are
+        // discarded.
+        let (f0, site0) = (f[0], site[0]);
+        f[width..].fill(f0);
+        site[width..].fill(site0);
     }
-    for w in 0..width {
-        let lane = w * len..(w + 1) * len;
-        envelope(
-            &s.f[lane.clone()],
-            &s.site[lane.clone()],
-            &mut s.out_f[lane.clone()],
-            &mut s.out_site[lane],
-            &mut s.envelope,
-        );
+    let tile = Tile { f: &s.f, site: &s.site, lanes };
+    if !scan_windowed(&tile, &mut s.out_f, &mut s.out_site, &mut s.windows) {
+        for w in 0..width {
+            let line = Line { f: &s.f[w..], site: &s.site[w..], stride: lanes, n: len };
+            envelope(line, &mut s.out_f[w..], &mut s.out_site[w..], &mut s.envelope);
+        }
     }
     for i in 0..len {
         let row = start + i * lines.stride;
         for w in 0..width {
             // SAFETY: the caller owns the tile.
             unsafe {
-                dist.write(row + w, s.out_f[w * len + i]);
-                near.write(row + w, s.out_site[w * len + i]);
+                dist.write(row + w, s.out_f[i * lanes + w]);
+                near.write(row + w, s.out_site[i * lanes + w]);
             }
         }
     }
