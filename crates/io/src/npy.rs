@@ -201,29 +201,40 @@ pub fn distance_array(field: &EdtField, out: &mut Vec<f32>) {
 pub fn nearest_array(layout: &ArrayLayout, field: &EdtField, out: &mut Vec<i32>) {
     let ndim = layout.shape.len();
     let split = CoordSplit::new(field.dims());
-    let coords = |site: u32, k: usize| -> i32 {
+    // Array axis k of the nearest obstacle of a voxel whose site is `site`.
+    let array_coords = |site: u32| -> [i32; 3] {
         if site == NO_SITE {
-            -1
-        } else {
-            layout.axis_coord(split.coords(site), k) as i32
+            return [-1; 3];
         }
+        let voxel = split.coords(site);
+        std::array::from_fn(|k| if k < ndim { layout.axis_coord(voxel, k) as i32 } else { 0 })
     };
     let nearest = field.nearest();
     out.resize(nearest.len() * ndim, 0);
+    const CHUNK: usize = 1 << 12;
     match layout.order {
         // Trailing axis fastest: the ndim indices of a voxel are adjacent.
         ArrayOrder::C => {
-            out.par_chunks_mut(ndim).zip(nearest.par_iter()).for_each(|(o, &site)| {
-                for (k, v) in o.iter_mut().enumerate() {
-                    *v = coords(site, k);
+            let chunks = out.par_chunks_mut(ndim * CHUNK).zip(nearest.par_chunks(CHUNK));
+            chunks.for_each(|(out, sites)| {
+                for (o, &site) in out.chunks_exact_mut(ndim).zip(sites) {
+                    o.copy_from_slice(&array_coords(site)[..ndim]);
                 }
             });
         }
         // Trailing axis slowest: one plane of indices per array axis.
         ArrayOrder::Fortran => {
-            out.par_chunks_mut(nearest.len()).enumerate().for_each(|(k, plane)| {
-                plane.iter_mut().zip(nearest).for_each(|(v, &site)| *v = coords(site, k));
-            });
+            let (first, rest) = out.split_at_mut(nearest.len());
+            let (second, third) = rest.split_at_mut(nearest.len());
+            let mut planes = [first, second, third];
+            let planes = &mut planes[..ndim];
+            for (k, plane) in planes.iter_mut().enumerate() {
+                plane.par_chunks_mut(CHUNK).zip(nearest.par_chunks(CHUNK)).for_each(|(o, sites)| {
+                    for (v, &site) in o.iter_mut().zip(sites) {
+                        *v = array_coords(site)[k];
+                    }
+                });
+            }
         }
     }
 }

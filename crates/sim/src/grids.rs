@@ -3,10 +3,11 @@ use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 
 /// A grid whose voxels are obstacles independently with probability
-/// `density` (clamped to `[0, 1]`).
+/// `density` (clamped to `[0, 1]`; NaN gives no obstacle).
 pub fn random_grid(dims: [usize; 3], density: f64, seed: u64) -> Result<Grid3<bool>, CoreError> {
     let mut rng = StdRng::seed_from_u64(seed);
-    let density = density.clamp(0.0, 1.0);
+    // NaN counts as no obstacles.
+    let density = if density.is_nan() { 0.0 } else { density.clamp(0.0, 1.0) };
     Grid3::from_fn(dims, |_, _, _| rng.random_bool(density))
 }
 
@@ -35,12 +36,15 @@ impl PillarField {
 
 /// Rasterises a [`PillarField`]: `true` marks an obstacle voxel.
 pub fn pillar_field(field: &PillarField) -> Result<Grid3<bool>, CoreError> {
+    Grid3::<bool>::voxel_count(field.dims)?;
     let [nx, ny, _] = field.dims;
     let mut rng = StdRng::seed_from_u64(field.seed);
     let (r_lo, r_hi) = field.radius_vox;
+    let (r_lo, r_hi) = (r_lo.max(0.0), r_hi.max(0.0));
     let pillars: Vec<(f64, f64, f64)> = (0..field.pillars)
         .map(|_| {
             let r = if r_hi > r_lo { rng.random_range(r_lo..r_hi) } else { r_lo };
+            // Non-empty ranges: the axes were checked above.
             (rng.random_range(0.0..nx as f64), rng.random_range(0.0..ny as f64), r)
         })
         .collect();
@@ -67,6 +71,16 @@ mod tests {
         assert_eq!(a, b);
         let frac = a.as_slice().iter().filter(|&&o| o).count() as f64 / a.len() as f64;
         assert!((frac - 0.1).abs() < 0.01, "density {frac}");
+        let none = random_grid([4, 4, 4], f64::NAN, 7).expect("valid dims");
+        assert!(none.as_slice().iter().all(|&o| !o));
+    }
+
+    #[test]
+    fn pillar_field_refuses_an_empty_axis() {
+        assert!(pillar_field(&PillarField::new([8, 0, 8], 1)).is_err());
+        let mut odd = PillarField::new([8, 8, 8], 1);
+        odd.radius_vox = (f64::NAN, -3.0);
+        assert!(pillar_field(&odd).is_ok());
     }
 
     #[test]
