@@ -22,8 +22,13 @@ use edtmap_core::{NO_SITE, UNREACHABLE_DIST_SQ};
 /// of empty rows, which any real candidate beats.
 const MAX_VALUE: u32 = 1 << 30;
 
-/// Window positions per voxel above which the envelope is cheaper.
-const MAX_WINDOW_PER_VOXEL: usize = 40;
+/// Window positions per voxel (before the early exit) above which the
+/// envelope is used instead; measured on random, structured and nearly
+/// empty 256³ grids (docs/results.md).
+const MAX_WINDOW_PER_VOXEL: usize = 256;
+
+/// Window offsets between two checks for an early end of the window.
+const EARLY_EXIT_EVERY: usize = 2;
 
 /// A tile stored element-major: element `i` of lane `w` at `i * lanes + w`.
 pub(super) struct Tile<'a> {
@@ -101,6 +106,11 @@ fn scan_windowed_with(
         }
         for d in 1..=radius[i] {
             let dd = (d * d) as u32;
+            // Candidates d or more away are worth at least d²: once that
+            // reaches every lane's best, none can improve.
+            if d % EARLY_EXIT_EVERY == 0 && dd >= best.iter().copied().fold(0, u32::max) {
+                break;
+            }
             if let Some(j) = i.checked_sub(d).filter(|&j| !empty[j]) {
                 relax(best, best_site, row(tile, j), dd);
             }
