@@ -60,7 +60,7 @@ fn density() -> impl Strategy<Value = f64> {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(96))]
+    #![proptest_config(ProptestConfig::with_cases(256))]
 
     #[test]
     fn random_3d_grids_match_oracle(
@@ -76,6 +76,22 @@ proptest! {
     fn random_2d_grids_match_oracle(
         nx in 1usize..=64, ny in 1usize..=64,
         density in density(), seed in any::<u64>(), layout in 0..LAYOUTS.len(),
+    ) {
+        let grid = random_grid([nx, ny, 1], density, seed).expect("valid dims");
+        let edt = edt_with(&grid, |&o| o, LAYOUTS[layout]).expect("edt");
+        assert_matches_oracle(&grid, &edt);
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(48))]
+
+    /// Long sparse y lines: windows too long for the windowed scan, so the
+    /// lower envelope (or a mix) runs.
+    #[test]
+    fn long_2d_lines_match_oracle(
+        nx in 1usize..=9, ny in 200usize..=420,
+        density in 0.0..0.02f64, seed in any::<u64>(), layout in 0..LAYOUTS.len(),
     ) {
         let grid = random_grid([nx, ny, 1], density, seed).expect("valid dims");
         let edt = edt_with(&grid, |&o| o, LAYOUTS[layout]).expect("edt");
@@ -162,5 +178,22 @@ fn empty_rows_and_planes_between_dense_ones() {
     for layout in LAYOUTS {
         let edt = edt_with(&grid, |&o| o, layout).expect("edt");
         assert_matches_oracle(&grid, &edt);
+    }
+}
+
+#[test]
+fn long_sparse_lines_use_the_envelope() {
+    // Lines of 300 to 700 voxels with few obstacles: the windows would be
+    // longer than the windowed scan's budget, so these tiles go through the
+    // lower envelope (and mixed tiles through both).
+    let shapes = [[4, 600, 3], [3, 2, 700], [2, 300, 300], [70, 1, 330]];
+    for (k, dims) in shapes.into_iter().enumerate() {
+        for density in [0.0005, 0.003, 0.02] {
+            let grid = random_grid(dims, density, 40 + k as u64).expect("valid dims");
+            for layout in [ScanLayout::PerLine, ScanLayout::default()] {
+                let edt = edt_with(&grid, |&o| o, layout).expect("edt");
+                assert_matches_oracle(&grid, &edt);
+            }
+        }
     }
 }
