@@ -11,11 +11,15 @@
 //! afterwards.
 //!
 //! The paper transposes the volume between scans so that GPU threads read
-//! coalesced memory. The CPU counterpart is [`edt::ScanLayout::Tiled`]:
-//! a task gathers a tile of neighbouring lines, so every cache line it loads
-//! is used by all lanes, scans them from a small contiguous buffer and
-//! scatters the results back. `ScanLayout::PerLine` (one strided line at a
-//! time) is kept for the comparison in the benchmarks.
+//! coalesced memory. The CPU counterpart is to gather a *tile* of
+//! neighbouring lines, so every cache line loaded is used by all lanes,
+//! scan them from a small contiguous buffer and scatter the results back
+//! ([`edt::ScanLayout::TiledEnvelope`]). The default,
+//! [`edt::ScanLayout::Tiled`], also replaces the envelope by an exact
+//! windowed minimum vectorised across the tile's lanes wherever the
+//! distances are short, which is most of the last scan and much of the
+//! second; `ScanLayout::PerLine` (one strided line at a time) is the
+//! paper's uncoalesced baseline, kept for the benchmarks.
 #![warn(missing_docs)]
 
 pub mod edt;

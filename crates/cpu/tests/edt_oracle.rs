@@ -42,8 +42,10 @@ fn assert_matches_oracle(grid: &Grid3<bool>, edt: &EdtField) {
     }
 }
 
-const LAYOUTS: [ScanLayout; 4] = [
+const LAYOUTS: [ScanLayout; 6] = [
     ScanLayout::PerLine,
+    ScanLayout::TiledEnvelope { lanes: 5 },
+    ScanLayout::TiledEnvelope { lanes: 16 },
     ScanLayout::Tiled { lanes: 3 },
     ScanLayout::Tiled { lanes: 16 },
     ScanLayout::Tiled { lanes: 64 },

@@ -19,15 +19,24 @@ const MIN_VOXELS_PER_TASK: usize = 1 << 14;
 /// (fewer slabs would leave threads idle).
 const FUSE_MIN_SLABS_PER_THREAD: usize = 4;
 
-/// How scans along the strided axes (`y`, `z`) touch memory.
+/// How scans along the strided axes (`y`, `z`) touch memory, and which 1D
+/// kernel they run.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ScanLayout {
-    /// One strided line at a time: each element read is a new cache line
-    /// (the paper's uncoalesced variant, kept for comparison).
+    /// One strided line at a time through the lower envelope: each element
+    /// read is a new cache line (the paper's uncoalesced variant, kept for
+    /// comparison).
     PerLine,
-    /// `lanes` neighbouring lines at a time, gathered into a contiguous
-    /// buffer so that every cache line read feeds all lanes (the CPU
-    /// counterpart of the paper's coalesced transposes).
+    /// `lanes` neighbouring lines gathered into a contiguous buffer so that
+    /// every cache line read feeds all lanes (the CPU counterpart of the
+    /// paper's coalesced transposes), each lane through the lower envelope.
+    TiledEnvelope {
+        /// Number of lines gathered together.
+        lanes: usize,
+    },
+    /// Tiles as in `TiledEnvelope`, scanned with the windowed minimum
+    /// vectorised across lanes where the windows are short, and with the
+    /// envelope elsewhere. The default.
     Tiled {
         /// Number of lines gathered together.
         lanes: usize,
@@ -44,8 +53,12 @@ impl ScanLayout {
     fn lanes(self) -> usize {
         match self {
             ScanLayout::PerLine => 1,
-            ScanLayout::Tiled { lanes } => lanes.max(1),
+            ScanLayout::TiledEnvelope { lanes } | ScanLayout::Tiled { lanes } => lanes.max(1),
         }
+    }
+
+    fn windowed(self) -> bool {
+        matches!(self, ScanLayout::Tiled { .. })
     }
 }
 
@@ -93,7 +106,6 @@ pub fn edt_into<T: Sync>(
     let dims = grid.dims();
     let (dist, near) = field.prepare(dims)?;
     let [nx, ny, nz] = dims;
-    let lanes = layout.lanes();
     let y_lines = |outer| LineSet { outer, outer_stride: nx * ny, len: ny, stride: nx, nx };
     if nz >= FUSE_MIN_SLABS_PER_THREAD * rayon::current_num_threads() {
         // Scan x then y one z slab at a time, so the y scan reads the slab
@@ -106,19 +118,19 @@ pub fn edt_into<T: Sync>(
             .for_each_init(TileScratch::default, |scratch, (z, ((dist, near), voxels))| {
                 scan_x_rows(voxels, &is_obstacle, nx, z * slab, dist, near);
                 if ny > 1 {
-                    scan_strided_serial(&y_lines(1), lanes, dist, near, scratch);
+                    scan_strided_serial(&y_lines(1), layout, dist, near, scratch);
                 }
             });
     } else {
         scan_x(grid.as_slice(), &is_obstacle, nx, dist, near);
         if ny > 1 {
-            scan_strided(&y_lines(nz), lanes, dist, near);
+            scan_strided(&y_lines(nz), layout, dist, near);
         }
     }
     // The z scan across slabs; a length-1 axis is already exact.
     if nz > 1 {
         let lines = LineSet { outer: ny, outer_stride: nx, len: nz, stride: nx * ny, nx };
-        scan_strided(&lines, lanes, dist, near);
+        scan_strided(&lines, layout, dist, near);
     }
     Ok(())
 }
@@ -183,28 +195,28 @@ struct TileScratch {
 
 /// Auxiliary scan of every line of `lines`, tiles of `lanes` neighbouring
 /// lines in parallel.
-fn scan_strided(lines: &LineSet, lanes: usize, dist: &mut [u32], near: &mut [u32]) {
-    let tiles_per_outer = lines.nx.div_ceil(lanes);
+fn scan_strided(lines: &LineSet, layout: ScanLayout, dist: &mut [u32], near: &mut [u32]) {
+    let tiles_per_outer = lines.nx.div_ceil(layout.lanes());
     let (dist, near) = (SharedBuf::new(dist), SharedBuf::new(near));
     (0..lines.outer * tiles_per_outer).into_par_iter().for_each_init(
         TileScratch::default,
         // SAFETY: distinct tiles own disjoint voxels (see `tile_extent`).
-        |scratch, tile| unsafe { scan_tile(lines, tile, lanes, dist, near, scratch) },
+        |scratch, tile| unsafe { scan_tile(lines, tile, layout, dist, near, scratch) },
     );
 }
 
 /// [`scan_strided`] on the calling thread only.
 fn scan_strided_serial(
     lines: &LineSet,
-    lanes: usize,
+    layout: ScanLayout,
     dist: &mut [u32],
     near: &mut [u32],
     scratch: &mut TileScratch,
 ) {
     let (dist, near) = (SharedBuf::new(dist), SharedBuf::new(near));
-    for tile in 0..lines.outer * lines.nx.div_ceil(lanes) {
+    for tile in 0..lines.outer * lines.nx.div_ceil(layout.lanes()) {
         // SAFETY: this thread has exclusive access to the buffers.
-        unsafe { scan_tile(lines, tile, lanes, dist, near, scratch) };
+        unsafe { scan_tile(lines, tile, layout, dist, near, scratch) };
     }
 }
 
@@ -226,11 +238,12 @@ fn tile_extent(lines: &LineSet, tile: usize, lanes: usize) -> (usize, usize) {
 unsafe fn scan_tile(
     lines: &LineSet,
     tile: usize,
-    lanes: usize,
+    layout: ScanLayout,
     dist: SharedBuf,
     near: SharedBuf,
     s: &mut TileScratch,
 ) {
+    let lanes = layout.lanes();
     let (start, width) = tile_extent(lines, tile, lanes);
     let len = lines.len;
     for buf in [&mut s.f, &mut s.site, &mut s.out_f, &mut s.out_site] {
@@ -254,7 +267,8 @@ unsafe fn scan_tile(
         site[width..].fill(site0);
     }
     let tile = Tile { f: &s.f, site: &s.site, lanes };
-    if !scan_windowed(&tile, &mut s.out_f, &mut s.out_site, &mut s.windows) {
+    let windowed = layout.windowed();
+    if !(windowed && scan_windowed(&tile, &mut s.out_f, &mut s.out_site, &mut s.windows)) {
         for w in 0..width {
             let line = Line { f: &s.f[w..], site: &s.site[w..], stride: lanes, n: len };
             envelope(line, &mut s.out_f[w..], &mut s.out_site[w..], &mut s.envelope);
