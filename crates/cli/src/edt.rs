@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
-use edtmap::cpu::edt::{edt_into, ScanLayout};
+use edtmap::cpu::edt::{edt_into, ScanLayout, DEFAULT_TILE_LANES};
 use edtmap::EdtField;
 use edtmap_io::npy::{self, ObstacleNpy};
 
@@ -43,9 +43,11 @@ enum Backend {
 /// Scan layouts, see `edtmap_cpu::edt::ScanLayout`.
 #[derive(Clone, Copy, Debug, ValueEnum)]
 enum Layout {
-    /// Tiles of neighbouring lines gathered into contiguous buffers.
+    /// Tiles of neighbouring lines, windowed minimum or lower envelope.
     Tiled,
-    /// One strided line at a time.
+    /// Tiles of neighbouring lines, lower envelope only.
+    TiledEnvelope,
+    /// One strided line at a time, lower envelope.
     PerLine,
 }
 
@@ -68,6 +70,7 @@ pub(crate) fn run(args: &EdtArgs) -> Result<()> {
     let grid = file.read()?;
     let scan = match args.layout {
         Layout::Tiled => ScanLayout::default(),
+        Layout::TiledEnvelope => ScanLayout::TiledEnvelope { lanes: DEFAULT_TILE_LANES },
         Layout::PerLine => ScanLayout::PerLine,
     };
     // Buffers are reused across repeats, as a mapper reuses them per frame.

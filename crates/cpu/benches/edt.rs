@@ -35,7 +35,11 @@ fn grids(c: &mut Criterion) {
 fn layouts(c: &mut Criterion) {
     let grid = random_grid([256, 256, 256], 0.01, 1).expect("valid dims");
     run(c, "edt_layout", "per_line", &grid, ScanLayout::PerLine);
-    for lanes in [4, 8, 16, 32, 64] {
+    for lanes in [8, 16, 64] {
+        let layout = ScanLayout::TiledEnvelope { lanes };
+        run(c, "edt_layout", &format!("tiled_envelope{lanes}"), &grid, layout);
+    }
+    for lanes in [8, 16, 32, 64, 128] {
         run(c, "edt_layout", &format!("tiled{lanes}"), &grid, ScanLayout::Tiled { lanes });
     }
 }
