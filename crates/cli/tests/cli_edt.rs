@@ -312,24 +312,27 @@ fn empty_axis_is_refused() {
     assert!(expect_error(&input).contains("axis 1 has length 0"));
 }
 
+/// A `|u1` npy file of `shape` whose data is a sparse hole of `data_bytes`,
+/// so that the header's size check passes without using disk.
+fn sparse_npy(case: &Case, name: &str, shape: &str, data_bytes: u64) -> PathBuf {
+    let input = case.path(name);
+    write_raw_npy(&input, "'|u1'", shape, false, &[]);
+    let f = fs::OpenOptions::new().write(true).open(&input).expect("open");
+    f.set_len(128 + data_bytes).expect("sparse file");
+    input
+}
+
 #[test]
 fn grid_beyond_index_limits_is_refused() {
     let case = Case::new();
-    let input = case.path("huge.npy");
-    write_raw_npy(&input, "'|u1'", "(3000, 3000, 3000)", false, &[]);
-    // A sparse file as long as the header promises, so the size check passes.
-    let f = fs::OpenOptions::new().write(true).open(&input).expect("open");
-    f.set_len(128 + 27_000_000_000).expect("sparse file");
+    let input = sparse_npy(&case, "huge.npy", "(3000, 3000, 3000)", 27_000_000_000);
     assert!(expect_error(&input).contains("too large"));
 }
 
 #[test]
 fn grid_beyond_memory_is_refused() {
     let case = Case::new();
-    let input = case.path("big.npy");
-    write_raw_npy(&input, "'|u1'", "(1600, 1600, 1600)", false, &[]);
-    let f = fs::OpenOptions::new().write(true).open(&input).expect("open");
-    f.set_len(128 + 4_096_000_000).expect("sparse file");
     // 4.1 G voxels need about 53 GiB of working memory.
+    let input = sparse_npy(&case, "big.npy", "(1600, 1600, 1600)", 4_096_000_000);
     assert!(expect_error(&input).contains("GiB of memory"));
 }
