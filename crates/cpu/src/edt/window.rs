@@ -37,11 +37,13 @@ pub(super) struct Tile<'a> {
     pub(super) lanes: usize,
 }
 
-/// Per-row window of a tile: radius, and whether the row is empty.
+/// Per-row window of a tile (radius, whether the row is empty) and the
+/// scratch that plans it, reused from tile to tile.
 #[derive(Debug, Default)]
 pub(super) struct Windows {
     radius: Vec<usize>,
     empty: Vec<bool>,
+    bound: Vec<u64>,
 }
 
 /// Scans `tile` into `out_f` / `out_site` (same layout) and returns true,
@@ -92,7 +94,7 @@ fn scan_windowed_with(
     if !plan_windows(tile, len, windows) {
         return false;
     }
-    let Windows { radius, empty } = windows;
+    let Windows { radius, empty, .. } = windows;
     let rows_f = tile.f.chunks_exact(lanes);
     let rows_site = tile.site.chunks_exact(lanes);
     let out_rows = out_f.chunks_exact_mut(lanes).zip(out_site.chunks_exact_mut(lanes));
@@ -127,48 +129,47 @@ fn scan_windowed_with(
 /// should go to the envelope instead: windows too long, values too large,
 /// a row empty in some lanes only, or no non-empty row at all.
 fn plan_windows(tile: &Tile<'_>, len: usize, w: &mut Windows) -> bool {
-    w.radius.clear();
-    w.empty.clear();
-    // Largest value of each row (its window bound), or None for empty rows.
-    let mut bound: Vec<Option<u64>> = Vec::with_capacity(len);
+    let Windows { radius, empty, bound } = w;
+    radius.clear();
+    empty.clear();
+    bound.clear();
+    // A row's bound is its largest value; empty rows are filled in below.
     for f in tile.f.chunks_exact(tile.lanes) {
         let max = f.iter().copied().fold(0, u32::max);
-        let row = match max {
-            UNREACHABLE_DIST_SQ if f.iter().all(|&v| v == UNREACHABLE_DIST_SQ) => None,
-            m if m < MAX_VALUE => Some(u64::from(m)),
-            _ => return false,
-        };
-        w.empty.push(row.is_none());
-        bound.push(row);
+        let is_empty = max == UNREACHABLE_DIST_SQ && f.iter().all(|&v| v == UNREACHABLE_DIST_SQ);
+        if !is_empty && max >= MAX_VALUE {
+            return false;
+        }
+        empty.push(is_empty);
+        bound.push(if is_empty { u64::MAX } else { u64::from(max) });
     }
-    // An empty row's bound: the cheapest way to reach a non-empty row.
-    let mut last: Option<usize> = None;
-    let mut via_prev = vec![u64::MAX; len];
+    // An empty row's bound: the cheapest way to reach a non-empty row, from
+    // the nearest one before it, then the nearest one after it.
+    let reach = |from: usize, to: usize, b: u64| (from.abs_diff(to) as u64).pow(2) + b;
+    let mut last = None;
     for i in 0..len {
-        if bound[i].is_some() {
-            last = Some(i);
-        } else if let Some(j) = last {
-            via_prev[i] = ((i - j) as u64).pow(2) + bound[j].unwrap_or(0);
+        match (empty[i], last) {
+            (false, _) => last = Some(i),
+            (true, Some(j)) => bound[i] = reach(i, j, bound[j]),
+            (true, None) => {}
         }
     }
-    let mut next: Option<usize> = None;
+    let mut next = None;
     for i in (0..len).rev() {
-        if bound[i].is_some() {
-            next = Some(i);
-        } else {
-            let via_next = next.map_or(u64::MAX, |j| ((j - i) as u64).pow(2) + bound[j].unwrap_or(0));
-            bound[i] = Some(via_prev[i].min(via_next));
+        match (empty[i], next) {
+            (false, _) => next = Some(i),
+            (true, Some(j)) => bound[i] = bound[i].min(reach(i, j, bound[j])),
+            (true, None) => {}
         }
     }
     let mut cost = 0;
-    for b in bound {
-        let b = b.unwrap_or(u64::MAX);
+    for &b in bound.iter() {
         if b >= u64::from(MAX_VALUE) {
             return false;
         }
         let r = ((b as f64).sqrt() as usize).min(len - 1);
         cost += 2 * r + 1;
-        w.radius.push(r);
+        radius.push(r);
     }
     cost <= MAX_WINDOW_PER_VOXEL * len
 }
