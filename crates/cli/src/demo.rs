@@ -9,7 +9,7 @@ use std::path::PathBuf;
 use anyhow::{Context, Result};
 use clap::Args;
 use edtmap::cpu::edt::{edt_into, ScanLayout};
-use edtmap::EdtField;
+use edtmap::{EdtField, Grid3};
 use edtmap_io::picture::{write_slice_png, Slice, SliceStyle};
 use edtmap_sim::{pillar_field, PillarField};
 
@@ -49,7 +49,7 @@ pub(crate) fn run(args: &DemoArgs) -> Result<()> {
         args.voxel_size_m
     );
     let dims = [args.dims[0], args.dims[1], args.dims[2]];
-    let voxels = dims.iter().try_fold(1u64, |n, &d| n.checked_mul(d as u64)).unwrap_or(u64::MAX);
+    let voxels = Grid3::<bool>::voxel_count(dims).context("--dims")? as u64;
     ensure_fits(&format!("a demo grid of {dims:?} voxels"), voxels.saturating_mul(DEMO_BYTES_PER_VOXEL))?;
     let grid = pillar_field(&PillarField::new(dims, args.seed)).context("--dims")?;
     let obstacles = grid.as_slice().iter().filter(|&&o| o).count();
@@ -62,10 +62,10 @@ pub(crate) fn run(args: &DemoArgs) -> Result<()> {
     // The first run allocates the field; later ones reuse it, as a mapper
     // does from frame to frame.
     let mut field = EdtField::empty();
-    let (first, cold) = RunTimes::measure(1, || edt_into(&grid, |&o| o, ScanLayout::default(), &mut field));
+    let mut run = || edt_into(&grid, |&o| o, ScanLayout::default(), &mut field);
+    let (first, cold) = RunTimes::measure(1, &mut run);
     first?;
-    let (warm, times) =
-        RunTimes::measure(TIMED_RUNS, || edt_into(&grid, |&o| o, ScanLayout::default(), &mut field));
+    let (warm, times) = RunTimes::measure(TIMED_RUNS, &mut run);
     warm?;
     println!(
         "batch EDT with nearest obstacles (CPU, {} threads): first run {:.1} ms, then median {:.1} ms, min {:.1} ms over {} runs ({:.0} Mvoxel/s)",
