@@ -31,4 +31,20 @@ pub enum CoreError {
         /// Number of elements supplied.
         actual: usize,
     },
+    /// A parameter is out of its valid range.
+    #[error("invalid {field} = {value}: {reason}")]
+    InvalidParam {
+        /// The parameter's name.
+        field: &'static str,
+        /// The value given, as text.
+        value: String,
+        /// What the value must be.
+        reason: &'static str,
+    },
+    /// A pose is not a rigid transform.
+    #[error("invalid pose: {0}")]
+    BadPose(String),
+    /// A measurement does not fit the sensor it claims to come from.
+    #[error("measurement does not fit the sensor: {0}")]
+    BadMeasurement(String),
 }

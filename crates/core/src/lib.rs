@@ -19,9 +19,16 @@
 mod edt;
 mod error;
 mod grid;
+mod index;
+mod occupancy;
+pub mod sensor;
 mod state;
+mod volume;
 
 pub use edt::{dist_sq_to_vox, EdtField, EdtParams, NO_SITE, UNREACHABLE_DIST_SQ};
 pub use error::CoreError;
 pub use grid::Grid3;
+pub use index::{BlockKey, VoxelIndex, BLOCK_SIDE, BLOCK_VOXELS};
+pub use occupancy::{BlockMap, LogOdds, OccupancyBlock, OccupancyMap, OccupancyParams, OBS_HIT, OBS_MISS, OBS_NONE, UNOBSERVED};
+pub use volume::{check_voxel_size, LocalVolume, VolumeParams};
 pub use state::VoxelState;

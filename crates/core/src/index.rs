@@ -1,0 +1,85 @@
+//! World voxel and block indices.
+//!
+//! A point `p` (metres, world frame) lies in voxel `floor(p / voxel_size_m)`;
+//! voxels are grouped into blocks of [`BLOCK_SIDE`]³, and a voxel's block
+//! key is its index divided (rounding down) by [`BLOCK_SIDE`].
+
+/// Voxels along each side of a block.
+pub const BLOCK_SIDE: i32 = 8;
+/// Voxels in one block.
+pub const BLOCK_VOXELS: usize = (BLOCK_SIDE * BLOCK_SIDE * BLOCK_SIDE) as usize;
+
+/// Index of a voxel in the unbounded world grid.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Default)]
+pub struct VoxelIndex(pub [i32; 3]);
+
+/// Key of an 8³ block in the unbounded world grid.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Default)]
+pub struct BlockKey(pub [i32; 3]);
+
+impl VoxelIndex {
+    /// The voxel holding world point `p` (metres), or `None` when `p` is not
+    /// finite or lies outside the `i32` index range.
+    pub fn containing(p: [f64; 3], voxel_size_m: f64) -> Option<VoxelIndex> {
+        let mut out = [0i32; 3];
+        for (o, &c) in out.iter_mut().zip(&p) {
+            let v = (c / voxel_size_m).floor();
+            if !v.is_finite() || v < i32::MIN as f64 || v > i32::MAX as f64 {
+                return None;
+            }
+            *o = v as i32;
+        }
+        Some(VoxelIndex(out))
+    }
+
+    /// Centre of the voxel in metres.
+    pub fn centre(self, voxel_size_m: f64) -> [f64; 3] {
+        self.0.map(|i| (i as f64 + 0.5) * voxel_size_m)
+    }
+
+    /// The block holding this voxel.
+    pub fn block(self) -> BlockKey {
+        BlockKey(self.0.map(|i| i.div_euclid(BLOCK_SIDE)))
+    }
+
+    /// Position of this voxel inside its block, `x + 8 (y + 8 z)`.
+    pub fn offset_in_block(self) -> usize {
+        let [x, y, z] = self.0.map(|i| i.rem_euclid(BLOCK_SIDE) as usize);
+        x + 8 * (y + 8 * z)
+    }
+}
+
+impl BlockKey {
+    /// The block's first voxel (lowest coordinates).
+    pub fn first_voxel(self) -> VoxelIndex {
+        VoxelIndex(self.0.map(|b| b * BLOCK_SIDE))
+    }
+
+    /// The voxel at `offset` (as from [`VoxelIndex::offset_in_block`]).
+    pub fn voxel(self, offset: usize) -> VoxelIndex {
+        let side = BLOCK_SIDE as usize;
+        let local = [offset % side, (offset / side) % side, offset / (side * side)];
+        let first = self.first_voxel().0;
+        VoxelIndex([0, 1, 2].map(|a| first[a] + local[a] as i32))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn negative_coordinates_round_down() {
+        let v = VoxelIndex::containing([-0.05, 0.05, -0.2], 0.1).expect("finite");
+        assert_eq!(v, VoxelIndex([-1, 0, -2]));
+        assert_eq!(v.block(), BlockKey([-1, 0, -1]));
+        assert_eq!(v.offset_in_block(), 7 + 8 * (0 + 8 * 6));
+        assert_eq!(v.block().voxel(v.offset_in_block()), v);
+    }
+
+    #[test]
+    fn non_finite_points_have_no_voxel() {
+        assert_eq!(VoxelIndex::containing([f64::NAN, 0.0, 0.0], 0.1), None);
+        assert_eq!(VoxelIndex::containing([1e12, 0.0, 0.0], 0.1), None);
+    }
+}

@@ -1,0 +1,234 @@
+//! Occupancy: log-odds fusion and the unbounded map of 8³ blocks.
+//!
+//! Each voxel holds its log-odds as an `f32`; [`UNOBSERVED`] marks a voxel
+//! no sensor has seen. A frame contributes at most one observation per voxel
+//! (a hit wins over a miss, as in OctoMap), so the fused value does not
+//! depend on the order in which rays or threads touched the voxel.
+
+use crate::{BlockKey, CoreError, VoxelIndex, VoxelState, BLOCK_VOXELS};
+use serde::{Deserialize, Serialize};
+use std::collections::HashMap;
+
+/// Log-odds of a voxel never observed.
+pub const UNOBSERVED: f32 = f32::NEG_INFINITY;
+
+/// Observation code: the voxel was not seen this frame.
+pub const OBS_NONE: u8 = 0;
+/// Observation code: a ray passed through the voxel.
+pub const OBS_MISS: u8 = 1;
+/// Observation code: a return fell in the voxel.
+pub const OBS_HIT: u8 = 2;
+
+/// Occupancy probabilities (OctoMap's defaults).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct OccupancyParams {
+    /// Probability that a voxel holding a return is occupied.
+    pub prob_hit: f64,
+    /// Probability that a voxel a ray passed through is occupied.
+    pub prob_miss: f64,
+    /// Lower clamp of the fused probability.
+    pub clamp_min: f64,
+    /// Upper clamp of the fused probability.
+    pub clamp_max: f64,
+    /// A voxel above this probability is occupied, at or below it free.
+    pub occupied_threshold: f64,
+}
+
+impl Default for OccupancyParams {
+    fn default() -> Self {
+        OccupancyParams { prob_hit: 0.7, prob_miss: 0.4, clamp_min: 0.12, clamp_max: 0.97, occupied_threshold: 0.5 }
+    }
+}
+
+/// Validated occupancy parameters in log-odds form.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LogOdds {
+    /// Added on a hit (> 0).
+    pub hit: f32,
+    /// Added on a miss (< 0).
+    pub miss: f32,
+    /// Lower clamp.
+    pub min: f32,
+    /// Upper clamp.
+    pub max: f32,
+    /// Occupied above this.
+    pub occupied: f32,
+}
+
+fn logit(p: f64) -> f32 {
+    (p / (1.0 - p)).ln() as f32
+}
+
+impl OccupancyParams {
+    /// Checks the probabilities and converts them to log-odds.
+    pub fn log_odds(&self) -> Result<LogOdds, CoreError> {
+        let open = |field: &'static str, p: f64| {
+            if p.is_finite() && p > 0.0 && p < 1.0 {
+                Ok(p)
+            } else {
+                Err(CoreError::InvalidParam { field, value: p.to_string(), reason: "must be a probability strictly between 0 and 1" })
+            }
+        };
+        let hit = open("prob_hit", self.prob_hit)?;
+        let miss = open("prob_miss", self.prob_miss)?;
+        let (lo, hi) = (open("clamp_min", self.clamp_min)?, open("clamp_max", self.clamp_max)?);
+        let occ = open("occupied_threshold", self.occupied_threshold)?;
+        if hit <= 0.5 {
+            return Err(CoreError::InvalidParam { field: "prob_hit", value: hit.to_string(), reason: "must be above 0.5" });
+        }
+        if miss >= 0.5 {
+            return Err(CoreError::InvalidParam { field: "prob_miss", value: miss.to_string(), reason: "must be below 0.5" });
+        }
+        if !(lo < occ && occ < hi) {
+            return Err(CoreError::InvalidParam { field: "occupied_threshold", value: occ.to_string(), reason: "must lie strictly between clamp_min and clamp_max" });
+        }
+        Ok(LogOdds { hit: logit(hit), miss: logit(miss), min: logit(lo), max: logit(hi), occupied: logit(occ) })
+    }
+}
+
+impl LogOdds {
+    /// The voxel's value after observation `obs` ([`OBS_NONE`], [`OBS_MISS`]
+    /// or [`OBS_HIT`]).
+    #[inline]
+    pub fn update(&self, value: f32, obs: u8) -> f32 {
+        let prior = if value == UNOBSERVED { 0.0 } else { value };
+        match obs {
+            OBS_HIT => (prior + self.hit).min(self.max),
+            OBS_MISS => (prior + self.miss).max(self.min),
+            _ => value,
+        }
+    }
+
+    /// The state a log-odds value stands for.
+    #[inline]
+    pub fn state(&self, value: f32) -> VoxelState {
+        if value == UNOBSERVED {
+            VoxelState::Unknown
+        } else if value > self.occupied {
+            VoxelState::Occupied
+        } else {
+            VoxelState::Free
+        }
+    }
+}
+
+/// One 8³ block of occupancy, voxels at [`VoxelIndex::offset_in_block`].
+#[derive(Debug, Clone, PartialEq)]
+#[repr(C)]
+pub struct OccupancyBlock {
+    /// Log-odds per voxel, [`UNOBSERVED`] where never seen.
+    pub log_odds: [f32; BLOCK_VOXELS],
+}
+
+impl Default for OccupancyBlock {
+    fn default() -> Self {
+        OccupancyBlock { log_odds: [UNOBSERVED; BLOCK_VOXELS] }
+    }
+}
+
+/// An unbounded map of blocks, allocated as they are first touched.
+#[derive(Debug, Clone)]
+pub struct BlockMap<B> {
+    blocks: HashMap<BlockKey, Box<B>>,
+    voxel_size_m: f64,
+}
+
+/// The global occupancy map.
+pub type OccupancyMap = BlockMap<OccupancyBlock>;
+
+impl<B: Default> BlockMap<B> {
+    /// An empty map with voxels of `voxel_size_m` metres.
+    pub fn new(voxel_size_m: f64) -> Result<Self, CoreError> {
+        crate::check_voxel_size(voxel_size_m)?;
+        Ok(BlockMap { blocks: HashMap::new(), voxel_size_m })
+    }
+
+    /// Voxel edge length in metres.
+    pub fn voxel_size_m(&self) -> f64 {
+        self.voxel_size_m
+    }
+
+    /// Number of allocated blocks.
+    pub fn len(&self) -> usize {
+        self.blocks.len()
+    }
+
+    /// Whether no block is allocated.
+    pub fn is_empty(&self) -> bool {
+        self.blocks.is_empty()
+    }
+
+    /// The block at `key`, if allocated.
+    pub fn get(&self, key: BlockKey) -> Option<&B> {
+        self.blocks.get(&key).map(|b| &**b)
+    }
+
+    /// The block at `key`, allocated if missing.
+    pub fn get_or_insert(&mut self, key: BlockKey) -> &mut B {
+        self.blocks.entry(key).or_default()
+    }
+
+    /// Takes the blocks at `keys` out of the map (allocating missing ones)
+    /// so they can be updated in parallel; give them back with [`Self::restore`].
+    pub fn take(&mut self, keys: &[BlockKey]) -> Vec<(BlockKey, Box<B>)> {
+        keys.iter().map(|&k| (k, self.blocks.remove(&k).unwrap_or_default())).collect()
+    }
+
+    /// Puts back blocks taken with [`Self::take`].
+    pub fn restore(&mut self, blocks: Vec<(BlockKey, Box<B>)>) {
+        self.blocks.extend(blocks);
+    }
+
+    /// Every allocated block, in no particular order.
+    pub fn iter(&self) -> impl Iterator<Item = (BlockKey, &B)> {
+        self.blocks.iter().map(|(k, b)| (*k, &**b))
+    }
+}
+
+impl OccupancyMap {
+    /// Log-odds of voxel `v`, [`UNOBSERVED`] if its block is not allocated.
+    pub fn log_odds(&self, v: VoxelIndex) -> f32 {
+        self.get(v.block()).map_or(UNOBSERVED, |b| b.log_odds[v.offset_in_block()])
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn octomap_defaults_clamp_and_threshold() {
+        let lo = OccupancyParams::default().log_odds().expect("defaults are valid");
+        assert!((lo.hit - 0.8473).abs() < 1e-3 && (lo.miss + 0.4055).abs() < 1e-3);
+        let mut v = UNOBSERVED;
+        assert_eq!(lo.state(v), VoxelState::Unknown);
+        v = lo.update(v, OBS_MISS);
+        assert_eq!(lo.state(v), VoxelState::Free);
+        for _ in 0..10 {
+            v = lo.update(v, OBS_HIT);
+        }
+        assert_eq!(v, lo.max);
+        assert_eq!(lo.state(v), VoxelState::Occupied);
+        assert_eq!(lo.update(v, OBS_NONE), v);
+    }
+
+    #[test]
+    fn bad_probabilities_name_the_field() {
+        let p = OccupancyParams { prob_hit: 0.4, ..Default::default() };
+        assert!(p.log_odds().expect_err("hit below half").to_string().contains("prob_hit"));
+        let p = OccupancyParams { clamp_max: 1.0, ..Default::default() };
+        assert!(p.log_odds().expect_err("clamp 1").to_string().contains("clamp_max"));
+    }
+
+    #[test]
+    fn take_and_restore_keep_blocks() {
+        let mut m = OccupancyMap::new(0.1).expect("valid");
+        m.get_or_insert(BlockKey([0, 0, 0])).log_odds[3] = 1.0;
+        let taken = m.take(&[BlockKey([0, 0, 0]), BlockKey([1, 0, 0])]);
+        assert_eq!(m.len(), 0);
+        m.restore(taken);
+        assert_eq!(m.len(), 2);
+        assert_eq!(m.log_odds(BlockKey([0, 0, 0]).voxel(3)), 1.0);
+    }
+}

@@ -1,0 +1,150 @@
+//! Pinhole depth camera: intrinsics and depth images.
+
+use super::{check_range, RangeLimits, SensorRay};
+use crate::CoreError;
+use serde::{Deserialize, Serialize};
+
+/// A pinhole depth camera. Optical frame: x right, y down, z forward; pixel
+/// `(u, v)` has its centre at `u`, `v` (the OpenCV convention). Depth is the
+/// z coordinate of the surface point, not its range.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PinholeCamera {
+    /// Focal length along x, pixels.
+    pub fx: f64,
+    /// Focal length along y, pixels.
+    pub fy: f64,
+    /// Principal point x, pixels.
+    pub cx: f64,
+    /// Principal point y, pixels.
+    pub cy: f64,
+    /// Image width, pixels.
+    pub width: u32,
+    /// Image height, pixels.
+    pub height: u32,
+    /// Valid depth range in metres.
+    pub range: RangeLimits,
+}
+
+/// Depth values of an image, row-major.
+#[derive(Debug, Clone, PartialEq)]
+pub enum DepthData {
+    /// Depth in metres.
+    Metres(Vec<f32>),
+    /// Raw 16-bit depth: metres = value × `metres_per_unit`; 0 is no return.
+    U16 {
+        /// The raw values.
+        values: Vec<u16>,
+        /// Scale to metres (0.001 for millimetres).
+        metres_per_unit: f32,
+    },
+}
+
+/// A depth image: `width × height` depths, row-major.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DepthImage {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// The depths.
+    pub data: DepthData,
+}
+
+impl DepthImage {
+    /// Depth in metres of pixel index `i`, or NaN for no return.
+    #[inline]
+    pub fn depth_m(&self, i: usize) -> f32 {
+        match &self.data {
+            DepthData::Metres(d) => d[i],
+            DepthData::U16 { values, metres_per_unit } => match values[i] {
+                0 => f32::NAN,
+                v => v as f32 * metres_per_unit,
+            },
+        }
+    }
+
+    fn len(&self) -> usize {
+        match &self.data {
+            DepthData::Metres(d) => d.len(),
+            DepthData::U16 { values, .. } => values.len(),
+        }
+    }
+}
+
+impl PinholeCamera {
+    /// Checks the intrinsics.
+    pub fn validate(&self) -> Result<(), CoreError> {
+        for (field, v) in [("fx", self.fx), ("fy", self.fy)] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(CoreError::InvalidParam { field, value: v.to_string(), reason: "focal length must be positive" });
+            }
+        }
+        for (field, v) in [("cx", self.cx), ("cy", self.cy)] {
+            if !v.is_finite() {
+                return Err(CoreError::InvalidParam { field, value: v.to_string(), reason: "must be finite" });
+            }
+        }
+        if self.width == 0 || self.height == 0 {
+            return Err(CoreError::InvalidParam { field: "width/height", value: format!("{}x{}", self.width, self.height), reason: "image must have pixels" });
+        }
+        check_range(&self.range)
+    }
+
+    /// Checks that `image` has this camera's size and a valid scale.
+    pub fn check(&self, image: &DepthImage) -> Result<(), CoreError> {
+        if (image.width, image.height) != (self.width, self.height) {
+            return Err(CoreError::BadMeasurement(format!(
+                "depth image is {}x{}, the camera intrinsics say {}x{}",
+                image.width, image.height, self.width, self.height
+            )));
+        }
+        if image.len() != (image.width * image.height) as usize {
+            return Err(CoreError::BadMeasurement(format!("depth image {}x{} has {} values", image.width, image.height, image.len())));
+        }
+        if let DepthData::U16 { metres_per_unit, .. } = image.data {
+            if !(metres_per_unit.is_finite() && metres_per_unit > 0.0) {
+                return Err(CoreError::BadMeasurement(format!("depth scale {metres_per_unit} must be positive")));
+            }
+        }
+        Ok(())
+    }
+
+    /// Unnormalised ray of pixel `(u, v)` with z = 1.
+    #[inline]
+    pub fn pixel_ray(&self, u: u32, v: u32) -> [f64; 3] {
+        [(u as f64 - self.cx) / self.fx, (v as f64 - self.cy) / self.fy, 1.0]
+    }
+
+    /// Pixel index whose centre is nearest to the projection of `p`
+    /// (optical frame), if in front of the camera and inside the image.
+    #[inline]
+    pub fn project(&self, p: [f32; 3]) -> Option<usize> {
+        if p[2] <= 0.0 {
+            return None;
+        }
+        let u = (self.fx as f32 * p[0] / p[2] + self.cx as f32 + 0.5).floor();
+        let v = (self.fy as f32 * p[1] / p[2] + self.cy as f32 + 0.5).floor();
+        if u < 0.0 || v < 0.0 || u >= self.width as f32 || v >= self.height as f32 {
+            return None;
+        }
+        Some(u as usize + self.width as usize * v as usize)
+    }
+
+    /// One ray per pixel (see [`super::Sensor::rays`]).
+    pub(super) fn rays(&self, image: &DepthImage, clear_no_return: bool, out: &mut Vec<SensorRay>) {
+        for v in 0..self.height {
+            for u in 0..self.width {
+                let d = image.depth_m((u + self.width * v) as usize);
+                let ray = self.pixel_ray(u, v);
+                let norm = (ray[0] * ray[0] + ray[1] * ray[1] + 1.0).sqrt();
+                let dir = ray.map(|c| (c / norm) as f32);
+                let valid = d.is_finite() && d >= self.range.min_m && d <= self.range.max_m;
+                if valid {
+                    out.push(SensorRay { dir, range_m: d * norm as f32, hit: true });
+                } else if clear_no_return {
+                    out.push(SensorRay { dir, range_m: self.range.max_m * norm as f32, hit: false });
+                }
+            }
+        }
+    }
+}
