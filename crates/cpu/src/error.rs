@@ -8,4 +8,7 @@ pub enum CpuError {
     /// The input grid or parameters were rejected by a core type.
     #[error(transparent)]
     Core(#[from] CoreError),
+    /// The requested operation does not apply to this input.
+    #[error("not supported: {0}")]
+    Unsupported(String),
 }

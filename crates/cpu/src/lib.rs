@@ -23,6 +23,7 @@
 #![warn(missing_docs)]
 
 pub mod edt;
+pub mod occupancy;
 mod error;
 
 pub use error::CpuError;

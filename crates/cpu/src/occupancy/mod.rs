@@ -1,0 +1,93 @@
+//! Occupancy mapping (paper §IV-A): a frame's observations of the local
+//! volume, by ray casting or volumetric projection, fused into the global
+//! log-odds map.
+//!
+//! Both constructions write one observation per voxel per frame (a hit wins
+//! over a miss), so the fused map does not depend on thread scheduling.
+
+mod dda;
+mod fuse;
+mod observe;
+mod project;
+mod raycast;
+
+pub use dda::traverse;
+pub use fuse::{fuse, read_states, state_at, FuseReport};
+pub use observe::Observations;
+pub use project::project_volume;
+pub use raycast::cast_rays;
+
+use crate::CpuError;
+use edtmap_core::sensor::{Frame, Measurement, Sensor, SensorRay};
+use edtmap_core::LocalVolume;
+
+/// How a frame's occupancy is built.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Construction {
+    /// Projection where the sensor model allows it, else ray casting.
+    #[default]
+    Auto,
+    /// Ray casting (3D DDA) from the sensor to each return.
+    RayCasting,
+    /// Volumetric projection of every voxel into the measurement.
+    Projection,
+}
+
+/// Options of the occupancy stage.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OgmOptions {
+    /// Which construction runs.
+    pub construction: Construction,
+    /// Whether a ray with no return clears space up to the maximum range.
+    pub clear_no_return: bool,
+    /// Projection: a voxel within this range of the return is a hit, metres.
+    pub hit_tolerance_m: f32,
+    /// Projection of planar scans: voxels within this height of the scan
+    /// plane are observed, metres.
+    pub planar_half_thickness_m: f32,
+}
+
+impl OgmOptions {
+    /// Defaults for a voxel size: half a voxel of tolerance and thickness.
+    pub fn for_voxel_size(voxel_size_m: f64) -> Self {
+        let half = (voxel_size_m / 2.0) as f32;
+        OgmOptions { construction: Construction::Auto, clear_no_return: false, hit_tolerance_m: half, planar_half_thickness_m: half }
+    }
+}
+
+/// The occupancy stage with its buffers, reused from frame to frame.
+#[derive(Debug)]
+pub struct OccupancyStage {
+    obs: Option<Observations>,
+    rays: Vec<SensorRay>,
+}
+
+impl Default for OccupancyStage {
+    fn default() -> Self {
+        OccupancyStage { obs: None, rays: Vec::new() }
+    }
+}
+
+impl OccupancyStage {
+    /// Observes `frame` (already checked against `sensor`) over `volume`.
+    pub fn observe(&mut self, sensor: &Sensor, frame: &Frame, volume: LocalVolume, opts: &OgmOptions) -> Result<&Observations, CpuError> {
+        if let Some(o) = &mut self.obs {
+            o.reset(volume);
+        }
+        let obs = self.obs.get_or_insert_with(|| Observations::new(volume));
+        let projectable = sensor.supports_projection() && !matches!(frame.measurement, Measurement::Points(_));
+        let project = match opts.construction {
+            Construction::Auto => projectable,
+            Construction::RayCasting => false,
+            Construction::Projection if projectable => true,
+            Construction::Projection => return Err(CpuError::Unsupported(format!("volumetric projection of a {} from a {}", frame.measurement.kind(), sensor.kind()))),
+        };
+        if project {
+            project_volume(obs, sensor, frame, opts);
+        } else {
+            sensor.rays(&frame.measurement, opts.clear_no_return, &mut self.rays);
+            cast_rays(obs, &frame.t_world_sensor, &self.rays);
+        }
+        Ok(obs)
+    }
+}
