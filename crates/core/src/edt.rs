@@ -9,7 +9,8 @@ pub const UNREACHABLE_DIST_SQ: u32 = u32::MAX;
 pub const NO_SITE: u32 = u32::MAX;
 
 /// Parameters of the batch EDT.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields, default)]
 pub struct EdtParams {
     /// Treat unknown voxels as obstacles (default: unknown counts as free).
     pub unknown_as_occupied: bool,

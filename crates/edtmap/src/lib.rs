@@ -3,8 +3,13 @@
 //! sensor frame → occupancy → batch EDT of the local volume → global
 //! integration → queries.
 //!
-//! This facade re-exports the core types and the backends. The batch EDT
-//! (paper §IV-B) is available now:
+//! [`Mapper`] runs the pipeline one [`sensor::Frame`] at a time:
+//! occupancy by ray casting or volumetric projection, fused into an
+//! unbounded log-odds map of 8³ blocks (paper §IV-A), then the exact batch
+//! EDT of the local volume around the sensor (§IV-B). [`config::Config`]
+//! reads the whole setup from a TOML file.
+//!
+//! The batch EDT is also available on its own:
 //!
 //! ```
 //! use edtmap::{cpu, EdtParams, Grid3, VoxelState};
@@ -17,6 +22,12 @@
 //! ```
 #![warn(missing_docs)]
 
+pub mod config;
+mod error;
+mod mapper;
+
 pub use edtmap_core::*;
 /// The CPU backend (rayon), the reference implementation.
 pub use edtmap_cpu as cpu;
+pub use error::MapError;
+pub use mapper::{FrameStats, Mapper, MapperParams};
