@@ -23,6 +23,7 @@
 #![warn(missing_docs)]
 
 pub mod config;
+pub mod eval;
 mod error;
 mod mapper;
 

@@ -6,6 +6,7 @@ use std::path::Path;
 
 use crate::font::{self, glyph};
 use crate::IoError;
+use edtmap_core::VoxelState;
 
 /// An RGB colour.
 pub type Rgb = [u8; 3];
@@ -202,6 +203,49 @@ pub fn write_slice_png(path: &Path, slice: Slice<'_>, style: &SliceStyle) -> Res
     render_slice(slice, style).save_png(path)
 }
 
+/// Colours of the occupancy states: unknown, free, occupied.
+pub const STATE_RGB: [Rgb; 3] = [[150, 150, 150], [245, 245, 235], [20, 20, 20]];
+
+/// Renders a slice of occupancy states (unknown grey, free white, occupied
+/// black; `y` upwards) with a legend.
+pub fn render_states(width: usize, height: usize, states: &[VoxelState], title: &str) -> Canvas {
+    let scale = (512 / width.max(height)).max(1);
+    let (map_w, map_h) = (width * scale, height * scale);
+    let text_h = font::HEIGHT * TEXT_SCALE;
+    let top = MARGIN + text_h + MARGIN;
+    let names = ["unknown", "free", "occupied"];
+    let legend_w = names.iter().map(|n| Canvas::text_width(n, TEXT_SCALE)).max().unwrap_or(0) + text_h + 6;
+    let canvas_w = (MARGIN + map_w + MARGIN + legend_w + MARGIN).max(MARGIN + Canvas::text_width(title, TEXT_SCALE) + MARGIN);
+    let canvas_h = top + map_h.max(3 * (text_h + MARGIN)) + MARGIN;
+    let mut canvas = Canvas::new(canvas_w, canvas_h);
+    canvas.text(MARGIN, MARGIN, title, TEXT_SCALE, TEXT_RGB);
+    for y in 0..height {
+        for x in 0..width {
+            let color = STATE_RGB[states[y * width + x] as usize];
+            canvas.fill_rect(MARGIN + x * scale, top + (height - 1 - y) * scale, scale, scale, color);
+        }
+    }
+    let lx = MARGIN + map_w + MARGIN;
+    for (i, name) in names.iter().enumerate() {
+        let y = top + i * (text_h + MARGIN);
+        canvas.fill_rect(lx, y, text_h, text_h, TEXT_RGB);
+        canvas.fill_rect(lx + 1, y + 1, text_h - 2, text_h - 2, STATE_RGB[i]);
+        canvas.text(lx + text_h + 6, y, name, TEXT_SCALE, TEXT_RGB);
+    }
+    canvas
+}
+
+/// Renders a slice of states (see [`render_states`]) and writes it as a PNG.
+pub fn write_states_png(path: &Path, width: usize, height: usize, states: &[VoxelState], title: &str) -> Result<(), IoError> {
+    if states.len() != width * height || states.is_empty() {
+        return Err(IoError::BadData {
+            path: path.into(),
+            reason: format!("slice of {width} x {height} cells needs {} states, got {}", width * height, states.len()),
+        });
+    }
+    render_states(width, height, states, title).save_png(path)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -228,5 +272,17 @@ mod tests {
         assert_eq!(c.pixel(MARGIN + scale + scale / 2, bottom), Some(VIRIDIS[10]));
         assert_eq!(c.pixel(MARGIN + scale / 2, top + scale / 2), Some(NO_VALUE_RGB));
         assert_eq!(c.pixel(MARGIN + scale + scale / 2, top + scale / 2), Some(viridis(0.5)));
+    }
+
+    #[test]
+    fn state_slice_colours_each_state() {
+        let states = [VoxelState::Unknown, VoxelState::Free, VoxelState::Occupied, VoxelState::Free];
+        let c = render_states(2, 2, &states, "occupancy");
+        let scale = 256;
+        let top = MARGIN + font::HEIGHT * TEXT_SCALE + MARGIN;
+        let bottom = top + scale + scale / 2;
+        assert_eq!(c.pixel(MARGIN + scale / 2, bottom), Some(STATE_RGB[0]));
+        assert_eq!(c.pixel(MARGIN + scale + scale / 2, bottom), Some(STATE_RGB[1]));
+        assert_eq!(c.pixel(MARGIN + scale / 2, top + scale / 2), Some(STATE_RGB[2]));
     }
 }
