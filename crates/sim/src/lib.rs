@@ -3,6 +3,7 @@
 //! takes a seed and gives the same grid for the same seed.
 #![warn(missing_docs)]
 
+pub mod geometry;
 mod grids;
 
 pub use grids::{pillar_field, random_grid, PillarField};
