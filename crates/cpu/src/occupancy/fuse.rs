@@ -23,7 +23,7 @@ pub struct FuseReport {
 /// locks) and put back.
 pub fn fuse(map: &mut OccupancyMap, obs: &Observations, lo: &LogOdds) -> FuseReport {
     let vol = *obs.volume();
-    let keys: Vec<BlockKey> = vol.blocks().into_par_iter().filter(|&k| block_observed(obs, &vol, k)).collect();
+    let keys: Vec<BlockKey> = vol.blocks().into_par_iter().filter(|&k| obs.block_touched(k) && block_observed(obs, &vol, k)).collect();
     let before = map.len();
     let mut blocks = map.take(&keys);
     let blocks_allocated = keys.len() - (before - map.len());

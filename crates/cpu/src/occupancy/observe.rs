@@ -1,35 +1,62 @@
 //! Per-frame observations of the local volume.
 
-use edtmap_core::{LocalVolume, OBS_HIT, OBS_MISS, OBS_NONE};
+use edtmap_core::{BlockKey, LocalVolume, OBS_HIT, OBS_MISS, OBS_NONE};
 use rayon::prelude::*;
-use std::sync::atomic::{AtomicU8, Ordering::Relaxed};
+use std::sync::atomic::{AtomicBool, AtomicU8, Ordering::Relaxed};
+
+/// Side of the cells that track which parts of the volume were touched.
+const CELL: usize = 8;
 
 /// What one frame saw of each voxel of the local volume: a bit set of
 /// [`OBS_MISS`] and [`OBS_HIT`]. Rays update it concurrently with `fetch_or`,
 /// which commutes, so the result does not depend on thread scheduling; a
 /// voxel with both bits set counts as a hit.
+///
+/// Cells of 8³ voxels (aligned to the volume) remember whether they were
+/// touched, so clearing and fusion visit only what a frame saw: a LiDAR
+/// sweep touches a small part of a volume that spans its whole range.
 #[derive(Debug)]
 pub struct Observations {
     volume: LocalVolume,
-    cells: Vec<AtomicU8>,
+    voxels: Vec<AtomicU8>,
+    cell_dims: [usize; 3],
+    touched: Vec<AtomicBool>,
 }
 
 impl Observations {
     /// Empty observations of `volume`.
     pub fn new(volume: LocalVolume) -> Self {
-        let mut o = Observations { volume, cells: Vec::new() };
+        let mut o = Observations { volume, voxels: Vec::new(), cell_dims: [0; 3], touched: Vec::new() };
         o.reset(volume);
         o
     }
 
-    /// Clears every cell and moves to `volume`, reusing the buffer.
+    /// Clears every cell and moves to `volume`, reusing the buffers.
     pub fn reset(&mut self, volume: LocalVolume) {
-        self.volume = volume;
-        let n = volume.len();
-        if self.cells.len() != n {
-            self.cells = (0..n).map(|_| AtomicU8::new(OBS_NONE)).collect();
+        if self.voxels.len() != volume.len() || self.volume.dims != volume.dims {
+            self.voxels = (0..volume.len()).map(|_| AtomicU8::new(OBS_NONE)).collect();
+            self.cell_dims = volume.dims.map(|d| d.div_ceil(CELL));
+            self.touched = (0..self.cell_dims.iter().product()).map(|_| AtomicBool::new(false)).collect();
         } else {
-            self.cells.par_iter().with_min_len(1 << 14).for_each(|c| c.store(OBS_NONE, Relaxed));
+            let this = &*self;
+            this.touched.par_iter().enumerate().filter(|(_, t)| t.load(Relaxed)).for_each(|(cell, t)| {
+                this.for_each_in_cell(cell, |i| this.voxels[i].store(OBS_NONE, Relaxed));
+                t.store(false, Relaxed);
+            });
+        }
+        self.volume = volume;
+    }
+
+    fn for_each_in_cell(&self, cell: usize, mut f: impl FnMut(usize)) {
+        let [cx, cy] = [self.cell_dims[0], self.cell_dims[1]];
+        let c = [cell % cx, (cell / cx) % cy, cell / (cx * cy)];
+        let [nx, ny, nz] = self.volume.dims;
+        let range = |a: usize, n: usize| c[a] * CELL..((c[a] + 1) * CELL).min(n);
+        for z in range(2, nz) {
+            for y in range(1, ny) {
+                let row = nx * (y + ny * z);
+                range(0, nx).for_each(|x| f(row + x));
+            }
         }
     }
 
@@ -42,7 +69,7 @@ impl Observations {
     /// [`OBS_MISS`] or [`OBS_HIT`].
     #[inline]
     pub fn get(&self, i: usize) -> u8 {
-        let bits = self.cells[i].load(Relaxed);
+        let bits = self.voxels[i].load(Relaxed);
         if bits & OBS_HIT != 0 {
             OBS_HIT
         } else {
@@ -50,32 +77,34 @@ impl Observations {
         }
     }
 
-    /// Records a miss at linear index `i` (a no-op if already recorded).
+    /// Adds observation bit `obs` to the voxel at local coordinates `c`.
     #[inline]
-    pub(super) fn miss(&self, i: usize) {
-        let c = &self.cells[i];
-        if c.load(Relaxed) & OBS_MISS == 0 {
-            c.fetch_or(OBS_MISS, Relaxed);
+    pub(super) fn mark(&self, c: [usize; 3], obs: u8) {
+        let [nx, ny, _] = self.volume.dims;
+        let v = &self.voxels[c[0] + nx * (c[1] + ny * c[2])];
+        if v.load(Relaxed) & obs == 0 {
+            v.fetch_or(obs, Relaxed);
+            let [cx, cy, _] = self.cell_dims;
+            let t = &self.touched[c[0] / CELL + cx * (c[1] / CELL + cy * (c[2] / CELL))];
+            if !t.load(Relaxed) {
+                t.store(true, Relaxed);
+            }
         }
     }
 
-    /// Records a hit at linear index `i`.
-    #[inline]
-    pub(super) fn hit(&self, i: usize) {
-        let c = &self.cells[i];
-        if c.load(Relaxed) & OBS_HIT == 0 {
-            c.fetch_or(OBS_HIT, Relaxed);
+    /// Whether any voxel of world block `key` may have been observed.
+    pub fn block_touched(&self, key: BlockKey) -> bool {
+        let span = self.volume.block_span(key);
+        if span.iter().any(|r| r.is_empty()) {
+            return false;
         }
-    }
-
-    /// The cells of z-plane `z`.
-    pub(super) fn plane(&self, z: usize) -> &[AtomicU8] {
-        let n = self.volume.dims[0] * self.volume.dims[1];
-        &self.cells[z * n..(z + 1) * n]
+        let [cx, cy, _] = self.cell_dims;
+        let cells = span.map(|r| r.start / CELL..=(r.end - 1) / CELL);
+        cells[2].clone().any(|z| cells[1].clone().any(|y| cells[0].clone().any(|x| self.touched[x + cx * (y + cy * z)].load(Relaxed))))
     }
 
     /// Number of voxels observed (hit or miss).
     pub fn observed_count(&self) -> usize {
-        self.cells.par_iter().filter(|c| c.load(Relaxed) != OBS_NONE).count()
+        self.voxels.par_iter().filter(|c| c.load(Relaxed) != OBS_NONE).count()
     }
 }

@@ -20,11 +20,10 @@ pub fn project_volume(obs: &Observations, sensor: &Sensor, frame: &Frame, opts: 
     let corner = Vector3::from(vol.min_corner_m());
     let planar = matches!(sensor, Sensor::Planar);
     (0..nz).into_par_iter().for_each(|z| {
-        let plane = obs.plane(z);
         for y in 0..ny {
             let first = corner + Vector3::new(0.5 * vs, (y as f64 + 0.5) * vs, (z as f64 + 0.5) * vs);
             let mut p = inv.transform_point(&first.into()).coords;
-            for cell in &plane[y * nx..(y + 1) * nx] {
+            for x in 0..nx {
                 let ps = [p.x as f32, p.y as f32, p.z as f32];
                 let obs_code = if planar && ps[2].abs() > opts.planar_half_thickness_m {
                     OBS_NONE
@@ -32,7 +31,7 @@ pub fn project_volume(obs: &Observations, sensor: &Sensor, frame: &Frame, opts: 
                     classify(sensor.project(&frame.measurement, ps), opts)
                 };
                 if obs_code != OBS_NONE {
-                    cell.store(obs_code, std::sync::atomic::Ordering::Relaxed);
+                    obs.mark([x, y, z], obs_code);
                 }
                 p += step_x;
             }

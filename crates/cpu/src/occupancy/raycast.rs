@@ -4,6 +4,7 @@
 
 use super::{dda, Observations};
 use edtmap_core::sensor::SensorRay;
+use edtmap_core::{OBS_HIT, OBS_MISS};
 use nalgebra::{Isometry3, Point3, Vector3};
 use rayon::prelude::*;
 
@@ -18,7 +19,6 @@ pub fn cast_rays(obs: &Observations, t_world_sensor: &Isometry3<f64>, rays: &[Se
     let corner = Vector3::from(vol.min_corner_m());
     let origin = (t_world_sensor.translation.vector - corner) * inv;
     let rot = t_world_sensor.rotation.to_rotation_matrix();
-    let [nx, ny, _] = vol.dims;
     rays.par_chunks(RAYS_PER_TASK).for_each(|chunk| {
         for ray in chunk {
             let dir = Vector3::new(ray.dir[0] as f64, ray.dir[1] as f64, ray.dir[2] as f64);
@@ -27,11 +27,11 @@ pub fn cast_rays(obs: &Observations, t_world_sensor: &Isometry3<f64>, rays: &[Se
             let end_cell = ray.hit.then(|| vol.local(local_voxel(b, vol.origin.0))).flatten();
             dda::traverse(a.coords.into(), b.coords.into(), vol.dims, |c| {
                 if Some(c) != end_cell {
-                    obs.miss(c[0] + nx * (c[1] + ny * c[2]));
+                    obs.mark(c, OBS_MISS);
                 }
             });
             if let Some(c) = end_cell {
-                obs.hit(c[0] + nx * (c[1] + ny * c[2]));
+                obs.mark(c, OBS_HIT);
             }
         }
     });
