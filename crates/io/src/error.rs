@@ -58,6 +58,46 @@ pub enum IoError {
         /// What does not match.
         reason: String,
     },
+    /// A PCD file's header is malformed or inconsistent (missing or
+    /// repeated keywords, FIELDS/SIZE/TYPE/COUNT of different lengths, bad
+    /// numbers, WIDTH × HEIGHT ≠ POINTS, ...).
+    #[error("{}: bad PCD header: {reason}", path.display())]
+    PcdHeader {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong, naming the keyword or field and the value.
+        reason: String,
+    },
+    /// A PCD file lacks one of the coordinate fields x, y, z, or stores it
+    /// in a way that is not supported (only `F` of size 4 or 8, count 1).
+    #[error("{}: PCD field {field}: {reason}", path.display())]
+    PcdField {
+        /// The file.
+        path: PathBuf,
+        /// The field: `x`, `y` or `z`.
+        field: String,
+        /// What is wrong with it.
+        reason: String,
+    },
+    /// The PCD file's DATA encoding is not supported.
+    #[error("{}: PCD DATA {encoding} is not supported (only ascii and binary are)", path.display())]
+    PcdUnsupportedData {
+        /// The file.
+        path: PathBuf,
+        /// The encoding named by the DATA line.
+        encoding: String,
+    },
+    /// The ascii data of a PCD file is malformed: a bad number, a line
+    /// with the wrong number of values, or fewer points than POINTS.
+    #[error("{}: line {line}: {reason}", path.display())]
+    PcdAscii {
+        /// The file.
+        path: PathBuf,
+        /// Line number in the file, 1-based, header lines included.
+        line: usize,
+        /// What is wrong, naming the field and the value.
+        reason: String,
+    },
     /// PNG encoding failed.
     #[error("{}: PNG encoding failed: {error}", path.display())]
     Png {

@@ -6,6 +6,8 @@
 //!   is accepted (an element is an obstacle when any of its bytes is
 //!   nonzero). C and Fortran order are both supported; outputs keep the
 //!   input's order.
+//! * [`pcd`]: point clouds in PCL's PCD format ([`read_pcd`]), ascii or
+//!   binary data, float32 or float64 coordinates.
 //! * [`picture`]: PNG pictures of 2D slices with a colour bar.
 //!
 //! Every error names the file and the problem; nothing here panics on bad
@@ -15,6 +17,8 @@
 mod error;
 mod font;
 pub mod npy;
+pub mod pcd;
 pub mod picture;
 
 pub use error::IoError;
+pub use pcd::read_pcd;
