@@ -79,13 +79,51 @@ fn reach_m(sensor: &Sensor) -> f64 {
     }
 }
 
+fn candidate(solid: Primitive, origin: [f64; 3]) -> Candidate {
+    let b = solid.bounds();
+    let near_m = b.distance(origin);
+    if b.min.iter().chain(&b.max).any(|v| !v.is_finite()) {
+        return Candidate { solid, near_m, centre: [0.0; 3], radius_sq: f64::INFINITY };
+    }
+    let centre = [0, 1, 2].map(|a| 0.5 * (b.min[a] + b.max[a]) - origin[a]);
+    let half = [0, 1, 2].map(|a| 0.5 * (b.max[a] - b.min[a]));
+    let dist_sq = centre[0] * centre[0] + centre[1] * centre[1] + centre[2] * centre[2];
+    // Widened past the rounding of `may_hit`, so it never culls a graze.
+    let radius_sq = (half[0] * half[0] + half[1] * half[1] + half[2] * half[2]) + 1e-9 * (1.0 + dist_sq);
+    Candidate { solid, near_m, centre, radius_sq }
+}
+
 fn norm(v: [f64; 3]) -> f64 {
     (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
 }
 
+/// A solid within reach, with what its culling tests need.
+struct Candidate {
+    solid: Primitive,
+    /// Distance from the sensor to the solid's box, metres.
+    near_m: f64,
+    /// Centre of the box's bounding sphere relative to the sensor, and its
+    /// squared radius (infinite for unbounded solids).
+    centre: [f64; 3],
+    radius_sq: f64,
+}
+
+impl Candidate {
+    /// Whether the unit ray from the sensor along `d` may meet the
+    /// bounding sphere (no divisions, unlike the exact test).
+    #[inline]
+    fn may_hit(&self, d: [f64; 3]) -> bool {
+        let c = self.centre;
+        let along = c[0] * d[0] + c[1] * d[1] + c[2] * d[2];
+        let off_sq = c[0] * c[0] + c[1] * c[1] + c[2] * c[2] - along * along;
+        off_sq <= self.radius_sq && (along >= 0.0 || along * along <= self.radius_sq)
+    }
+}
+
 /// Casts sensor-frame rays into the solids within reach of one pose.
 struct Caster {
-    solids: Vec<Primitive>,
+    /// The solids within reach, nearest box first.
+    solids: Vec<Candidate>,
     origin: [f64; 3],
     rotation: Matrix3<f64>,
     noise: RayNoise,
@@ -94,8 +132,8 @@ struct Caster {
 impl Caster {
     fn new(solids: Vec<Primitive>, pose: &Isometry3<f64>, reach_m: f64, noise: RayNoise) -> Caster {
         let origin: [f64; 3] = pose.translation.vector.into();
-        // Culling: a solid whose box is out of reach cannot be hit.
-        let solids = solids.into_iter().filter(|s| s.bounds().distance(origin) <= reach_m).collect();
+        let mut solids: Vec<Candidate> = solids.into_iter().map(|s| candidate(s, origin)).filter(|c| c.near_m <= reach_m).collect();
+        solids.sort_by(|a, b| a.near_m.total_cmp(&b.near_m));
         Caster { solids, origin, rotation: pose.rotation.to_rotation_matrix().into_inner(), noise }
     }
 
@@ -105,8 +143,15 @@ impl Caster {
         let d: [f64; 3] = (self.rotation * Vector3::from(dir)).into();
         let mut best = max_m;
         let mut hit = None;
-        for s in &self.solids {
-            if let Some(t) = s.ray_hit(self.origin, d, best) {
+        for c in &self.solids {
+            if c.near_m > best {
+                // Every later solid is farther than the hit so far.
+                break;
+            }
+            if !c.may_hit(d) {
+                continue;
+            }
+            if let Some(t) = c.solid.ray_hit(self.origin, d, best) {
                 (best, hit) = (t, Some(t));
             }
         }

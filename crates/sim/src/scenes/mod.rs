@@ -12,6 +12,8 @@ use crate::trajectory::Trajectory;
 use crate::SceneName;
 use edtmap_core::sensor::Sensor;
 use rand::rngs::StdRng;
+use rand::Rng;
+use std::ops::Range;
 
 /// Everything that makes a scene.
 #[derive(Debug, Clone)]
@@ -50,6 +52,12 @@ pub(crate) fn build(name: SceneName, seed: u64) -> Layout {
         SceneName::Room => room::build(seed),
         SceneName::Planar => planar::build(seed),
     }
+}
+
+/// A draw from `range` rounded to whole centimetres: with
+/// [`crate::WORLD_SHIFT_M`], random faces keep off common voxel grids too.
+fn cm(rng: &mut StdRng, range: Range<f64>) -> f64 {
+    (rng.random_range(range) * 100.0).round() / 100.0
 }
 
 /// A box from two corners.

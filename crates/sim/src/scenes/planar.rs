@@ -5,12 +5,12 @@
 //! cuts them. The drone flies a 13 × 13 m rounded square at 1 m height and
 //! 1.5 m/s, at least 1 m from any clutter.
 
-use super::{block, scatter, KeepOut, Layout};
+use super::{block, cm, scatter, KeepOut, Layout};
 use crate::geometry::{Cylinder, Ground, Primitive};
 use crate::trajectory::{Heading, Path, Trajectory};
 use edtmap_core::sensor::Sensor;
 use rand::rngs::StdRng;
-use rand::{Rng, SeedableRng};
+use rand::SeedableRng;
 
 const HALF_M: f64 = 10.0;
 const WALL_M: f64 = 0.2;
@@ -33,13 +33,13 @@ pub(super) fn build(seed: u64) -> Layout {
     statics.extend(walls());
     let h = HALF_M - 0.4;
     statics.extend(scatter(&mut rng, BOXES, &keep, |r| {
-        let (x, y) = (r.random_range(-h..h), r.random_range(-h..h));
-        let (w, d) = (r.random_range(0.3..1.2), r.random_range(0.3..1.2));
-        block([x, y, 0.0], [x + w, y + d, r.random_range(2.0..2.6)])
+        let (x, y) = (cm(r, -h..h), cm(r, -h..h));
+        let (w, d) = (cm(r, 0.3..1.2), cm(r, 0.3..1.2));
+        block([x, y, 0.0], [x + w, y + d, cm(r, 2.0..2.6)])
     }));
     statics.extend(scatter(&mut rng, CYLINDERS, &keep, |r| {
-        let centre_xy = [r.random_range(-h..h), r.random_range(-h..h)];
-        Cylinder { centre_xy, radius_m: r.random_range(0.15..0.5), z_min: 0.0, z_max: r.random_range(2.0..2.6) }.into()
+        let centre_xy = [cm(r, -h..h), cm(r, -h..h)];
+        Cylinder { centre_xy, radius_m: cm(r, 0.15..0.5), z_min: 0.0, z_max: cm(r, 2.0..2.6) }.into()
     }));
     Layout { statics, walkers: Vec::new(), trajectory, sensor: Sensor::Planar, frame_period_s: 0.1, default_frames: 120 }
 }

@@ -7,12 +7,12 @@
 //! at 1.5 m radius and 0.6 m/s, 1.35–1.55 m high, always looking at the
 //! middle of the room; the seed nudges the loose furniture.
 
-use super::{block, Layout};
+use super::{block, cm, Layout};
 use crate::geometry::{Cylinder, Primitive, Sphere};
 use crate::trajectory::{Heading, Path, Trajectory};
 use edtmap_core::sensor::{PinholeCamera, RangeLimits, Sensor};
 use rand::rngs::StdRng;
-use rand::{Rng, SeedableRng};
+use rand::SeedableRng;
 
 /// Inner half extents (x, y) and height of the room, metres.
 const HALF: [f64; 2] = [3.0, 2.5];
@@ -41,7 +41,7 @@ pub(super) fn build(seed: u64) -> Layout {
 }
 
 fn jitter(rng: &mut StdRng, m: f64) -> [f64; 2] {
-    [rng.random_range(-m..m), rng.random_range(-m..m)]
+    [cm(rng, -m..m), cm(rng, -m..m)]
 }
 
 /// Floor, ceiling and four walls.
