@@ -70,7 +70,6 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let mut map = OccupancyMap::new(args.voxel_size_m)?;
         let t = Instant::now();
         let obs = stage.observe(&sensor, &frame, volume, &opts)?;
-        if std::env::var_os("EDTMAP_SPLIT").is_some() { eprintln!("observe {:.1} ms", t.elapsed().as_secs_f64() * 1e3); }
         let report = fuse(&mut map, obs, &lo);
         times.push(t.elapsed().as_secs_f64() * 1e3);
         last = Some((map, report));

@@ -1,58 +1,61 @@
 //! 3D digital differential analyser (Amanatides & Woo, 1987): the voxels a
 //! segment passes through, in order, clipped to a box of voxels.
 
-/// Calls `visit` with the local coordinates of every voxel of the box
-/// `[0, dims)` that the segment `a → b` passes through, in order from `a`.
-/// Coordinates are in voxel units relative to the box's lowest corner.
-/// Returns the number of voxels visited.
-pub fn traverse(a: [f64; 3], b: [f64; 3], dims: [usize; 3], mut visit: impl FnMut([usize; 3])) -> usize {
-    let Some((t0, t1)) = clip(a, b, dims) else { return 0 };
+/// Calls `visit(coords, linear)` for every voxel of the box `[0, dims)` that
+/// the segment `a → b` passes through, in order from `a`; `linear` is
+/// `x + nx (y + ny z)`. Coordinates are in voxel units relative to the
+/// box's lowest corner. Returns the number of voxels visited and whether the
+/// walk ended at `b` (false when the box clipped the segment's end).
+pub fn traverse(a: [f64; 3], b: [f64; 3], dims: [usize; 3], mut visit: impl FnMut([usize; 3], usize)) -> (usize, bool) {
+    let Some((t0, t1)) = clip(a, b, dims) else { return (0, false) };
     let d = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
-    let start = [0, 1, 2].map(|k| a[k] + t0 * d[k]);
-    let mut cell = [0usize; 3];
-    let mut step = [0i64; 3];
+    let cell_at = |t: f64| [0, 1, 2].map(|k| ((a[k] + t * d[k]).floor().max(0.0) as usize).min(dims[k] - 1));
+    let (mut cell, last) = (cell_at(t0), cell_at(t1));
+    let plane = [1, dims[0], dims[0] * dims[1]];
+    let mut stride = [0usize; 3];
+    let mut step = [0usize; 3];
     let mut t_max = [f64::INFINITY; 3];
     let mut t_delta = [f64::INFINITY; 3];
     for k in 0..3 {
-        let c = (start[k].floor().max(0.0) as usize).min(dims[k] - 1);
-        cell[k] = c;
         if d[k] > 0.0 {
-            step[k] = 1;
+            (step[k], stride[k]) = (1, plane[k]);
             t_delta[k] = 1.0 / d[k];
-            t_max[k] = ((c + 1) as f64 - a[k]) / d[k];
+            t_max[k] = ((cell[k] + 1) as f64 - a[k]) / d[k];
         } else if d[k] < 0.0 {
-            step[k] = -1;
+            // Steps of -1 as wrapping additions.
+            (step[k], stride[k]) = (usize::MAX, plane[k].wrapping_neg());
             t_delta[k] = -1.0 / d[k];
-            t_max[k] = (c as f64 - a[k]) / d[k];
+            t_max[k] = (cell[k] as f64 - a[k]) / d[k];
         }
     }
-    let limit = dims.iter().sum::<usize>() + 3;
-    let mut visited = 0;
-    loop {
-        visit(cell);
-        visited += 1;
+    // The walk crosses exactly this many voxel faces; counting them replaces
+    // a comparison with t1 and a step limit in the loop.
+    let crossings: usize = (0..3).map(|k| cell[k].abs_diff(last[k])).sum();
+    let mut linear = cell[0] + plane[1] * cell[1] + plane[2] * cell[2];
+    for visited in 0..crossings {
+        visit(cell, linear);
         let k = argmin(t_max);
-        if t_max[k] > t1 || visited >= limit {
-            return visited;
+        let next = cell[k].wrapping_add(step[k]);
+        // Rounding at a near-tie may aim past the box: stop there.
+        if next >= dims[k] {
+            return (visited + 1, false);
         }
-        let next = cell[k] as i64 + step[k];
-        if next < 0 || next >= dims[k] as i64 {
-            return visited;
-        }
-        cell[k] = next as usize;
+        cell[k] = next;
+        linear = linear.wrapping_add(stride[k]);
         t_max[k] += t_delta[k];
     }
+    visit(cell, linear);
+    (crossings + 1, t1 >= 1.0)
 }
 
+/// Index of the smallest of three values, without branches: the axis a ray
+/// crosses next is unpredictable.
 #[inline(always)]
 fn argmin(t: [f64; 3]) -> usize {
-    if t[0] <= t[1] {
-        if t[0] <= t[2] { 0 } else { 2 }
-    } else if t[1] <= t[2] {
-        1
-    } else {
-        2
-    }
+    let a = usize::from(t[1] < t[0]);
+    let m = if a == 1 { t[1] } else { t[0] };
+    let b = usize::from(t[2] < m);
+    a + b * (2 - a)
 }
 
 /// The parameter interval `[t0, t1] ⊆ [0, 1]` of the segment inside the
@@ -88,20 +91,26 @@ mod tests {
     #[test]
     fn axis_aligned_segment_visits_each_voxel_once() {
         let mut seen = Vec::new();
-        traverse([0.5, 0.5, 0.5], [4.5, 0.5, 0.5], [8, 2, 2], |c| seen.push(c));
+        let (n, reached) = traverse([0.5, 0.5, 0.5], [4.5, 0.5, 0.5], [8, 2, 2], |c, i| {
+            assert_eq!(i, c[0] + 8 * (c[1] + 2 * c[2]));
+            seen.push(c)
+        });
         assert_eq!(seen, (0..5).map(|x| [x, 0, 0]).collect::<Vec<_>>());
+        assert_eq!((n, reached), (5, true));
     }
 
     #[test]
     fn segments_outside_the_box_visit_nothing() {
-        assert_eq!(traverse([-3.0, 0.5, 0.5], [-1.0, 0.5, 0.5], [4, 4, 4], |_| {}), 0);
-        assert_eq!(traverse([f64::NAN, 0.5, 0.5], [1.0, 0.5, 0.5], [4, 4, 4], |_| {}), 0);
+        assert_eq!(traverse([-3.0, 0.5, 0.5], [-1.0, 0.5, 0.5], [4, 4, 4], |_, _| {}), (0, false));
+        assert_eq!(traverse([f64::NAN, 0.5, 0.5], [1.0, 0.5, 0.5], [4, 4, 4], |_, _| {}), (0, false));
     }
 
     #[test]
     fn clipped_segment_starts_at_the_box() {
         let mut seen = Vec::new();
-        traverse([-5.5, 1.5, 1.5], [1.5, 1.5, 1.5], [4, 4, 4], |c| seen.push(c));
+        traverse([-5.5, 1.5, 1.5], [1.5, 1.5, 1.5], [4, 4, 4], |c, _| seen.push(c));
         assert_eq!(seen, vec![[0, 1, 1], [1, 1, 1]]);
+        let (_, reached) = traverse([1.5, 1.5, 1.5], [9.5, 1.5, 1.5], [4, 4, 4], |_, _| {});
+        assert!(!reached);
     }
 }

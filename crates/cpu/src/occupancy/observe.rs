@@ -77,11 +77,11 @@ impl Observations {
         }
     }
 
-    /// Adds observation bit `obs` to the voxel at local coordinates `c`.
+    /// Adds observation bit `obs` to the voxel at local coordinates `c`,
+    /// linear index `i`.
     #[inline]
-    pub(super) fn mark(&self, c: [usize; 3], obs: u8) {
-        let [nx, ny, _] = self.volume.dims;
-        let v = &self.voxels[c[0] + nx * (c[1] + ny * c[2])];
+    pub(super) fn mark(&self, c: [usize; 3], i: usize, obs: u8) {
+        let v = &self.voxels[i];
         if v.load(Relaxed) & obs == 0 {
             v.fetch_or(obs, Relaxed);
             let [cx, cy, _] = self.cell_dims;

@@ -31,7 +31,7 @@ pub fn project_volume(obs: &Observations, sensor: &Sensor, frame: &Frame, opts: 
                     classify(sensor.project(&frame.measurement, ps), opts)
                 };
                 if obs_code != OBS_NONE {
-                    obs.mark([x, y, z], obs_code);
+                    obs.mark([x, y, z], x + nx * (y + ny * z), obs_code);
                 }
                 p += step_x;
             }

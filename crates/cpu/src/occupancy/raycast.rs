@@ -5,7 +5,7 @@
 use super::{dda, Observations};
 use edtmap_core::sensor::SensorRay;
 use edtmap_core::{OBS_HIT, OBS_MISS};
-use nalgebra::{Isometry3, Point3, Vector3};
+use nalgebra::{Isometry3, Vector3};
 use rayon::prelude::*;
 
 /// Rays per rayon task: enough to amortise scheduling, small enough to
@@ -23,25 +23,16 @@ pub fn cast_rays(obs: &Observations, t_world_sensor: &Isometry3<f64>, rays: &[Se
         for ray in chunk {
             let dir = Vector3::new(ray.dir[0] as f64, ray.dir[1] as f64, ray.dir[2] as f64);
             let end = origin + rot * dir * (ray.range_m as f64 * inv);
-            let (a, b) = (Point3::from(origin), Point3::from(end));
-            let end_cell = ray.hit.then(|| vol.local(local_voxel(b, vol.origin.0))).flatten();
-            dda::traverse(a.coords.into(), b.coords.into(), vol.dims, |c| {
-                if Some(c) != end_cell {
-                    obs.mark(c, OBS_MISS);
-                }
+            // Every voxel on the way is a miss; the last one is the return's
+            // when the walk reached it, and then a hit wins over the miss.
+            let mut last = None;
+            let (_, reached) = dda::traverse(origin.into(), end.into(), vol.dims, |c, i| {
+                obs.mark(c, i, OBS_MISS);
+                last = Some((c, i));
             });
-            if let Some(c) = end_cell {
-                obs.mark(c, OBS_HIT);
+            if let (true, true, Some((c, i))) = (ray.hit, reached, last) {
+                obs.mark(c, i, OBS_HIT);
             }
         }
     });
-}
-
-/// The world voxel of local point `p` (voxel units from the volume corner).
-fn local_voxel(p: Point3<f64>, origin: [i32; 3]) -> edtmap_core::VoxelIndex {
-    let f = |k: usize| {
-        let v = p[k].floor();
-        if v.is_finite() { (v as i64 + origin[k] as i64).clamp(i32::MIN as i64, i32::MAX as i64) as i32 } else { i32::MIN }
-    };
-    edtmap_core::VoxelIndex([f(0), f(1), f(2)])
 }
