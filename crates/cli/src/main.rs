@@ -3,6 +3,10 @@
 mod demo;
 mod edt;
 mod memory;
+mod pictures;
+mod report;
+mod run;
+mod scenes;
 mod timing;
 
 use std::process::ExitCode;
@@ -24,6 +28,8 @@ enum Command {
     Demo(demo::DemoArgs),
     /// Exact Euclidean distance transform of a 2D or 3D .npy grid.
     Edt(edt::EdtArgs),
+    /// Replay a built-in scene through the mapping pipeline; writes report.json and pictures.
+    Run(run::RunArgs),
 }
 
 fn main() -> ExitCode {
@@ -31,6 +37,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Demo(args) => demo::run(&args),
         Command::Edt(args) => edt::run(&args),
+        Command::Run(args) => run::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

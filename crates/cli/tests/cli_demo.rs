@@ -1,40 +1,56 @@
-//! `edtmap demo` end to end on a small scene.
+//! `edtmap demo` and `edtmap run` end to end on short runs.
 
 use std::process::Command;
 
+fn edtmap(args: &[&str], out: &std::path::Path) -> (bool, String, String) {
+    let o = Command::new(env!("CARGO_BIN_EXE_edtmap")).args(args).arg("--out").arg(out).output().expect("edtmap runs");
+    (o.status.success(), String::from_utf8_lossy(&o.stdout).into(), String::from_utf8_lossy(&o.stderr).into())
+}
+
+fn is_png(path: &std::path::Path) -> bool {
+    std::fs::read(path).map(|b| b.starts_with(b"\x89PNG\r\n\x1a\n")).unwrap_or(false)
+}
+
 #[test]
-fn demo_writes_a_png_slice_and_reports_timing() {
+fn demo_writes_report_and_pictures() {
     let dir = tempfile::tempdir().expect("tempdir");
-    let out = dir.path().join("pictures");
-    let o = Command::new(env!("CARGO_BIN_EXE_edtmap"))
-        .args(["demo", "--dims", "48", "40", "24", "--voxel-size-m", "0.2", "--out"])
-        .arg(&out)
-        .output()
-        .expect("edtmap runs");
-    let stdout = String::from_utf8_lossy(&o.stdout);
-    assert!(o.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&o.stderr));
-    assert!(stdout.contains("batch EDT") && stdout.contains("median"), "{stdout}");
-    let png = std::fs::read(out.join("edt_slice.png")).expect("picture written");
-    assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
+    let out = dir.path().join("out");
+    let (ok, stdout, stderr) = edtmap(&["demo", "--frames", "4"], &out);
+    assert!(ok, "{stdout}\n{stderr}");
+    assert!(stdout.contains("batch EDT median") && stdout.contains("precision"), "{stdout}");
+    assert!(is_png(&out.join("edt_slice.png")) && is_png(&out.join("occupancy_slice.png")));
+    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).expect("report")).expect("json");
+    assert_eq!(report["scene"], "uav_pillars");
+    assert_eq!(report["frames"].as_array().map(Vec::len), Some(4));
+    let frame = &report["frames"][3];
+    for key in ["ogm_ms", "batch_edt_ms", "total_ms", "voxels_updated", "precision", "recall"] {
+        assert!(frame[key].is_number(), "frame lacks {key}: {frame}");
+    }
+    assert!(report["summary"]["ogm_ms"]["p95"].is_number());
 }
 
 #[test]
-fn demo_refuses_a_bad_voxel_size() {
-    let o = Command::new(env!("CARGO_BIN_EXE_edtmap"))
-        .args(["demo", "--voxel-size-m=-1"])
-        .output()
-        .expect("edtmap runs");
-    assert!(!o.status.success());
-    assert!(String::from_utf8_lossy(&o.stderr).contains("--voxel-size-m"));
+fn run_every_scene_briefly() {
+    for scene in ["uav_pillars", "ugv_corridor", "room", "planar"] {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let (ok, stdout, stderr) = edtmap(&["run", "--scene", scene, "--frames", "2", "--construction", "raycast"], dir.path());
+        assert!(ok, "{scene}: {stdout}\n{stderr}");
+        assert!(dir.path().join("report.json").exists(), "{scene}");
+        assert!(!stdout.contains("precision"), "no --eval, no scores: {stdout}");
+    }
 }
 
 #[test]
-fn demo_refuses_an_empty_axis() {
-    let o = Command::new(env!("CARGO_BIN_EXE_edtmap"))
-        .args(["demo", "--dims", "8", "0", "8"])
-        .output()
-        .expect("edtmap runs");
-    assert!(!o.status.success());
-    let stderr = String::from_utf8_lossy(&o.stderr);
-    assert!(stderr.contains("length 0") && !stderr.contains("panicked"), "{stderr}");
+fn run_refuses_bad_arguments() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (ok, _, stderr) = edtmap(&["run", "--scene", "moon"], dir.path());
+    assert!(!ok && stderr.contains("moon") && stderr.contains("uav_pillars"), "{stderr}");
+    let (ok, _, stderr) = edtmap(&["run"], dir.path());
+    assert!(!ok && stderr.contains("--scene"), "{stderr}");
+    let bad = dir.path().join("bad.toml");
+    std::fs::write(&bad, "[sensor]\nkind = \"lidar\"\n").expect("write");
+    let (ok, _, stderr) = edtmap(&["run", "--config", bad.to_str().expect("utf-8")], dir.path());
+    assert!(!ok && stderr.contains("bad.toml") && !stderr.contains("panicked"), "{stderr}");
+    let (ok, _, stderr) = edtmap(&["run", "--scene", "planar", "--frames", "0"], dir.path());
+    assert!(!ok && stderr.contains("--frames"), "{stderr}");
 }

@@ -84,7 +84,7 @@ pub struct SensorSection {
     pub min_range_m: f32,
     /// Longest valid return, metres.
     pub max_range_m: f32,
-    /// Projection: distance from the return that still counts as a hit, metres (default half a voxel).
+    /// Projection: the return along the beam through a voxel centre makes it a hit within this distance of the centre per axis, metres (default half a voxel).
     pub hit_tolerance_m: Option<f32>,
     /// Planar projection: half thickness of the observed slab, metres (default half a voxel).
     pub planar_half_thickness_m: Option<f32>,

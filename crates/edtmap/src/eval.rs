@@ -1,46 +1,80 @@
 //! Scores of a map against ground truth, for `--eval` and the tests.
+//!
+//! * **Precision**: of the voxels the map holds occupied, the fraction whose
+//!   closed cube meets a solid of the scene. A mapped obstacle that touches
+//!   no solid is wrong, whatever the resolution.
+//! * **Recall**: of the voxels holding a surface point that the frame's
+//!   beams hit in the exact scene (the surface the sensor saw, noise-free),
+//!   the fraction the map holds occupied.
+//! * **Strict recall**: of the observed voxels whose cube meets a solid,
+//!   the fraction mapped occupied. It is lower and says less: a voxel that a
+//!   surface only clips (the far side of a pillar poking out beside its
+//!   silhouette, say) is partly free, and beams that pass through its free
+//!   part rightly call it free.
 
 use edtmap_core::VoxelState;
 
-/// Occupied-voxel precision and recall over the voxels a map has observed.
+/// Occupancy scores of one volume (or the sum of several).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct OccupancyScores {
-    /// Observed voxels mapped occupied that are occupied in truth.
-    pub true_positives: usize,
-    /// Observed voxels mapped occupied that are free in truth.
-    pub false_positives: usize,
-    /// Observed voxels mapped free that are occupied in truth.
-    pub false_negatives: usize,
+    /// Voxels mapped occupied.
+    pub mapped_occupied: usize,
+    /// Voxels mapped occupied whose cube meets a solid.
+    pub mapped_occupied_true: usize,
+    /// Voxels holding a surface point the beams hit.
+    pub seen_surface: usize,
+    /// Of those, voxels mapped occupied.
+    pub seen_surface_mapped: usize,
+    /// Observed voxels whose cube meets a solid.
+    pub truth_observed: usize,
+    /// Of those, voxels mapped occupied.
+    pub truth_observed_mapped: usize,
     /// Voxels the map has observed (free or occupied).
     pub observed: usize,
 }
 
 impl OccupancyScores {
-    /// Compares mapped `states` with `truth` (`true` = occupied), voxel by
-    /// voxel; unknown voxels are left out.
-    pub fn compare(states: &[VoxelState], truth: &[bool]) -> Self {
+    /// Compares mapped `states` with `truth` (cube meets a solid) and
+    /// `seen` (holds a surface point the beams hit), voxel by voxel.
+    pub fn compare(states: &[VoxelState], truth: &[bool], seen: &[bool]) -> Self {
         let mut s = OccupancyScores::default();
-        for (&state, &occupied) in states.iter().zip(truth) {
-            match (state, occupied) {
-                (VoxelState::Unknown, _) => continue,
-                (VoxelState::Occupied, true) => s.true_positives += 1,
-                (VoxelState::Occupied, false) => s.false_positives += 1,
-                (VoxelState::Free, true) => s.false_negatives += 1,
-                (VoxelState::Free, false) => {}
-            }
-            s.observed += 1;
+        for ((&state, &solid), &hit) in states.iter().zip(truth).zip(seen) {
+            let occupied = state == VoxelState::Occupied;
+            s.observed += usize::from(state != VoxelState::Unknown);
+            s.mapped_occupied += usize::from(occupied);
+            s.mapped_occupied_true += usize::from(occupied && solid);
+            s.seen_surface += usize::from(hit);
+            s.seen_surface_mapped += usize::from(hit && occupied);
+            s.truth_observed += usize::from(solid && state != VoxelState::Unknown);
+            s.truth_observed_mapped += usize::from(solid && occupied);
         }
         s
     }
 
-    /// Fraction of mapped-occupied voxels that are occupied, if any.
-    pub fn precision(&self) -> Option<f64> {
-        ratio(self.true_positives, self.true_positives + self.false_positives)
+    /// Adds another volume's counts.
+    pub fn add(&mut self, o: &OccupancyScores) {
+        self.mapped_occupied += o.mapped_occupied;
+        self.mapped_occupied_true += o.mapped_occupied_true;
+        self.seen_surface += o.seen_surface;
+        self.seen_surface_mapped += o.seen_surface_mapped;
+        self.truth_observed += o.truth_observed;
+        self.truth_observed_mapped += o.truth_observed_mapped;
+        self.observed += o.observed;
     }
 
-    /// Fraction of truly occupied observed voxels mapped occupied, if any.
+    /// Fraction of mapped-occupied voxels that meet a solid, if any.
+    pub fn precision(&self) -> Option<f64> {
+        ratio(self.mapped_occupied_true, self.mapped_occupied)
+    }
+
+    /// Fraction of the seen surface's voxels mapped occupied, if any.
     pub fn recall(&self) -> Option<f64> {
-        ratio(self.true_positives, self.true_positives + self.false_negatives)
+        ratio(self.seen_surface_mapped, self.seen_surface)
+    }
+
+    /// Fraction of observed solid-meeting voxels mapped occupied, if any.
+    pub fn strict_recall(&self) -> Option<f64> {
+        ratio(self.truth_observed_mapped, self.truth_observed)
     }
 }
 
@@ -51,14 +85,14 @@ fn ratio(a: usize, b: usize) -> Option<f64> {
 /// Fraction of the voxels observed in both `a` and `b` whose states agree,
 /// and how many there were.
 pub fn agreement(a: &[VoxelState], b: &[VoxelState]) -> (f64, usize) {
-    let both: Vec<bool> = a
-        .iter()
-        .zip(b)
-        .filter(|(x, y)| **x != VoxelState::Unknown && **y != VoxelState::Unknown)
-        .map(|(x, y)| x == y)
-        .collect();
-    let same = both.iter().filter(|&&s| s).count();
-    (ratio(same, both.len()).unwrap_or(1.0), both.len())
+    let (mut same, mut both) = (0usize, 0usize);
+    for (x, y) in a.iter().zip(b) {
+        if *x != VoxelState::Unknown && *y != VoxelState::Unknown {
+            both += 1;
+            same += usize::from(x == y);
+        }
+    }
+    (ratio(same, both).unwrap_or(1.0), both)
 }
 
 #[cfg(test)]
@@ -67,12 +101,15 @@ mod tests {
     use VoxelState::*;
 
     #[test]
-    fn scores_count_only_observed_voxels() {
-        let states = [Occupied, Occupied, Free, Free, Unknown];
-        let truth = [true, false, true, false, true];
-        let s = OccupancyScores::compare(&states, &truth);
-        assert_eq!((s.true_positives, s.false_positives, s.false_negatives, s.observed), (1, 1, 1, 4));
-        assert_eq!(s.precision(), Some(0.5));
+    fn scores_count_each_kind_of_voxel() {
+        let states = [Occupied, Occupied, Free, Free, Unknown, Occupied];
+        let truth = [true, false, true, false, true, true];
+        let seen = [true, false, true, false, false, false];
+        let s = OccupancyScores::compare(&states, &truth, &seen);
+        assert_eq!(s.precision(), Some(2.0 / 3.0));
+        assert_eq!(s.recall(), Some(0.5));
+        assert_eq!(s.strict_recall(), Some(2.0 / 3.0));
+        assert_eq!(s.observed, 5);
         assert_eq!(OccupancyScores::default().recall(), None);
         assert_eq!(agreement(&[Free, Occupied, Unknown], &[Free, Free, Free]), (0.5, 2));
     }

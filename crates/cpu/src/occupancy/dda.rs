@@ -1,12 +1,13 @@
 //! 3D digital differential analyser (Amanatides & Woo, 1987): the voxels a
 //! segment passes through, in order, clipped to a box of voxels.
 
-/// Calls `visit(coords, linear)` for every voxel of the box `[0, dims)` that
-/// the segment `a → b` passes through, in order from `a`; `linear` is
-/// `x + nx (y + ny z)`. Coordinates are in voxel units relative to the
+/// Calls `visit(coords, linear, t_exit)` for every voxel of the box
+/// `[0, dims)` that the segment `a → b` passes through, in order from `a`;
+/// `linear` is `x + nx (y + ny z)` and `t_exit` the segment parameter
+/// (0 at `a`, 1 at `b`) where the segment leaves the voxel. Coordinates are in voxel units relative to the
 /// box's lowest corner. Returns the number of voxels visited and whether the
 /// walk ended at `b` (false when the box clipped the segment's end).
-pub fn traverse(a: [f64; 3], b: [f64; 3], dims: [usize; 3], mut visit: impl FnMut([usize; 3], usize)) -> (usize, bool) {
+pub fn traverse(a: [f64; 3], b: [f64; 3], dims: [usize; 3], mut visit: impl FnMut([usize; 3], usize, f64)) -> (usize, bool) {
     let Some((t0, t1)) = clip(a, b, dims) else { return (0, false) };
     let d = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
     let cell_at = |t: f64| [0, 1, 2].map(|k| ((a[k] + t * d[k]).floor().max(0.0) as usize).min(dims[k] - 1));
@@ -33,8 +34,8 @@ pub fn traverse(a: [f64; 3], b: [f64; 3], dims: [usize; 3], mut visit: impl FnMu
     let crossings: usize = (0..3).map(|k| cell[k].abs_diff(last[k])).sum();
     let mut linear = cell[0] + plane[1] * cell[1] + plane[2] * cell[2];
     for visited in 0..crossings {
-        visit(cell, linear);
         let k = argmin(t_max);
+        visit(cell, linear, t_max[k]);
         let next = cell[k].wrapping_add(step[k]);
         // Rounding at a near-tie may aim past the box: stop there.
         if next >= dims[k] {
@@ -44,7 +45,7 @@ pub fn traverse(a: [f64; 3], b: [f64; 3], dims: [usize; 3], mut visit: impl FnMu
         linear = linear.wrapping_add(stride[k]);
         t_max[k] += t_delta[k];
     }
-    visit(cell, linear);
+    visit(cell, linear, t1);
     (crossings + 1, t1 >= 1.0)
 }
 
@@ -91,7 +92,7 @@ mod tests {
     #[test]
     fn axis_aligned_segment_visits_each_voxel_once() {
         let mut seen = Vec::new();
-        let (n, reached) = traverse([0.5, 0.5, 0.5], [4.5, 0.5, 0.5], [8, 2, 2], |c, i| {
+        let (n, reached) = traverse([0.5, 0.5, 0.5], [4.5, 0.5, 0.5], [8, 2, 2], |c, i, _| {
             assert_eq!(i, c[0] + 8 * (c[1] + 2 * c[2]));
             seen.push(c)
         });
@@ -101,16 +102,16 @@ mod tests {
 
     #[test]
     fn segments_outside_the_box_visit_nothing() {
-        assert_eq!(traverse([-3.0, 0.5, 0.5], [-1.0, 0.5, 0.5], [4, 4, 4], |_, _| {}), (0, false));
-        assert_eq!(traverse([f64::NAN, 0.5, 0.5], [1.0, 0.5, 0.5], [4, 4, 4], |_, _| {}), (0, false));
+        assert_eq!(traverse([-3.0, 0.5, 0.5], [-1.0, 0.5, 0.5], [4, 4, 4], |_, _, _| {}), (0, false));
+        assert_eq!(traverse([f64::NAN, 0.5, 0.5], [1.0, 0.5, 0.5], [4, 4, 4], |_, _, _| {}), (0, false));
     }
 
     #[test]
     fn clipped_segment_starts_at_the_box() {
         let mut seen = Vec::new();
-        traverse([-5.5, 1.5, 1.5], [1.5, 1.5, 1.5], [4, 4, 4], |c, _| seen.push(c));
+        traverse([-5.5, 1.5, 1.5], [1.5, 1.5, 1.5], [4, 4, 4], |c, _, _| seen.push(c));
         assert_eq!(seen, vec![[0, 1, 1], [1, 1, 1]]);
-        let (_, reached) = traverse([1.5, 1.5, 1.5], [9.5, 1.5, 1.5], [4, 4, 4], |_, _| {});
+        let (_, reached) = traverse([1.5, 1.5, 1.5], [9.5, 1.5, 1.5], [4, 4, 4], |_, _, _| {});
         assert!(!reached);
     }
 }

@@ -40,18 +40,33 @@ pub struct OgmOptions {
     pub construction: Construction,
     /// Whether a ray with no return clears space up to the maximum range.
     pub clear_no_return: bool,
-    /// Projection: a voxel within this range of the return is a hit, metres.
+    /// Projection: a voxel is a hit when the return along the beam through
+    /// its centre lies within this distance of the centre along every world
+    /// axis (half a voxel: inside the voxel), metres.
     pub hit_tolerance_m: f32,
+    /// Both constructions: a voxel is free only if it lies more than this
+    /// in front of the return (ray casting: the ray leaves it that far
+    /// before the return), metres. Voxels between are left unobserved, as
+    /// the surface is only located to a voxel.
+    pub free_margin_m: f32,
     /// Projection of planar scans: voxels within this height of the scan
     /// plane are observed, metres.
     pub planar_half_thickness_m: f32,
 }
 
 impl OgmOptions {
-    /// Defaults for a voxel size: half a voxel of tolerance and thickness.
+    /// Defaults for a voxel size: half a voxel of hit tolerance and planar
+    /// thickness, half a voxel diagonal of free margin.
     pub fn for_voxel_size(voxel_size_m: f64) -> Self {
         let half = (voxel_size_m / 2.0) as f32;
-        OgmOptions { construction: Construction::Auto, clear_no_return: false, hit_tolerance_m: half, planar_half_thickness_m: half }
+        let half_diagonal = (voxel_size_m * 3f64.sqrt() / 2.0) as f32;
+        OgmOptions {
+            construction: Construction::Auto,
+            clear_no_return: false,
+            hit_tolerance_m: half,
+            free_margin_m: half_diagonal,
+            planar_half_thickness_m: half,
+        }
     }
 }
 
@@ -86,7 +101,7 @@ impl OccupancyStage {
             project_volume(obs, sensor, frame, opts);
         } else {
             sensor.rays(&frame.measurement, opts.clear_no_return, &mut self.rays);
-            cast_rays(obs, &frame.t_world_sensor, &self.rays);
+            cast_rays(obs, &frame.t_world_sensor, &self.rays, opts.free_margin_m);
         }
         Ok(obs)
     }

@@ -1,6 +1,6 @@
 //! Occupancy by ray casting (paper §IV-A): a 3D DDA from the sensor to each
 //! return, clipped to the local volume; the return's voxel gets a hit, the
-//! voxels before it a miss.
+//! voxels well before it a miss.
 
 use super::{dda, Observations};
 use edtmap_core::sensor::SensorRay;
@@ -13,7 +13,11 @@ use rayon::prelude::*;
 const RAYS_PER_TASK: usize = 256;
 
 /// Casts every ray (sensor frame) from the pose into `obs`.
-pub fn cast_rays(obs: &Observations, t_world_sensor: &Isometry3<f64>, rays: &[SensorRay]) {
+///
+/// A voxel is a miss only if the ray leaves it more than `free_margin_m`
+/// before the return: the surface is located to a voxel, so a voxel the
+/// ray crosses just before it may hold part of the surface.
+pub fn cast_rays(obs: &Observations, t_world_sensor: &Isometry3<f64>, rays: &[SensorRay], free_margin_m: f32) {
     let vol = *obs.volume();
     let inv = 1.0 / vol.voxel_size_m;
     let corner = Vector3::from(vol.min_corner_m());
@@ -25,9 +29,13 @@ pub fn cast_rays(obs: &Observations, t_world_sensor: &Isometry3<f64>, rays: &[Se
             let end = origin + rot * dir * (ray.range_m as f64 * inv);
             // Every voxel on the way is a miss; the last one is the return's
             // when the walk reached it, and then a hit wins over the miss.
+            let margin = if ray.hit { free_margin_m / ray.range_m.max(f32::MIN_POSITIVE) } else { 0.0 };
+            let free_until = 1.0 - margin as f64;
             let mut last = None;
-            let (_, reached) = dda::traverse(origin.into(), end.into(), vol.dims, |c, i| {
-                obs.mark(c, i, OBS_MISS);
+            let (_, reached) = dda::traverse(origin.into(), end.into(), vol.dims, |c, i, t_exit| {
+                if t_exit <= free_until {
+                    obs.mark(c, i, OBS_MISS);
+                }
                 last = Some((c, i));
             });
             if let (true, true, Some((c, i))) = (ray.hit, reached, last) {

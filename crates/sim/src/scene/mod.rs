@@ -3,6 +3,7 @@
 
 mod name;
 mod render;
+mod seen;
 mod truth;
 
 pub use name::{SceneName, SceneOptions};

@@ -1,0 +1,91 @@
+//! `report.json`: per-frame stage times and counts, and their summary.
+
+use serde_json::{json, Map, Value};
+
+/// One frame's record.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct FrameRecord {
+    pub(crate) index: usize,
+    pub(crate) stamp_s: f64,
+    pub(crate) ogm_ms: f64,
+    pub(crate) batch_edt_ms: f64,
+    pub(crate) total_ms: f64,
+    pub(crate) voxels_updated: usize,
+    pub(crate) voxels_changed: usize,
+    pub(crate) changed_blocks: usize,
+    pub(crate) precision: Option<f64>,
+    pub(crate) recall: Option<f64>,
+    pub(crate) strict_recall: Option<f64>,
+}
+
+impl FrameRecord {
+    fn to_json(&self) -> Value {
+        let mut v = json!({
+            "index": self.index,
+            "stamp_s": self.stamp_s,
+            "ogm_ms": self.ogm_ms,
+            "batch_edt_ms": self.batch_edt_ms,
+            "total_ms": self.total_ms,
+            "voxels_updated": self.voxels_updated,
+            "voxels_changed": self.voxels_changed,
+            "changed_blocks": self.changed_blocks,
+        });
+        if let Some(obj) = v.as_object_mut() {
+            for (key, value) in [("precision", self.precision), ("recall", self.recall), ("strict_recall", self.strict_recall)] {
+                if let Some(x) = value {
+                    obj.insert(key.into(), json!(x));
+                }
+            }
+        }
+        v
+    }
+}
+
+/// Mean, median and 95th percentile (nearest rank) of `values`.
+pub(crate) fn stats(values: &[f64]) -> Value {
+    if values.is_empty() {
+        return Value::Null;
+    }
+    let mut v = values.to_vec();
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    let median = if n % 2 == 1 { v[n / 2] } else { (v[n / 2 - 1] + v[n / 2]) / 2.0 };
+    let p95 = v[((0.95 * n as f64).ceil() as usize).clamp(1, n) - 1];
+    json!({ "mean": v.iter().sum::<f64>() / n as f64, "median": median, "p95": p95, "min": v[0], "max": v[n - 1] })
+}
+
+/// The whole report: `header` fields, the frames and their summary.
+pub(crate) fn report(header: Map<String, Value>, frames: &[FrameRecord]) -> Value {
+    let col = |f: fn(&FrameRecord) -> Option<f64>| frames.iter().filter_map(f).collect::<Vec<f64>>();
+    let mut summary = Map::new();
+    summary.insert("frames".into(), json!(frames.len()));
+    summary.insert("ogm_ms".into(), stats(&col(|f| Some(f.ogm_ms))));
+    summary.insert("batch_edt_ms".into(), stats(&col(|f| Some(f.batch_edt_ms))));
+    summary.insert("total_ms".into(), stats(&col(|f| Some(f.total_ms))));
+    summary.insert("voxels_updated".into(), stats(&col(|f| Some(f.voxels_updated as f64))));
+    if frames.iter().any(|f| f.precision.is_some()) {
+        summary.insert("precision".into(), stats(&col(|f| f.precision)));
+        summary.insert("recall".into(), stats(&col(|f| f.recall)));
+        summary.insert("strict_recall".into(), stats(&col(|f| f.strict_recall)));
+    }
+    let mut out = header;
+    out.insert("frames".into(), Value::Array(frames.iter().map(FrameRecord::to_json).collect()));
+    out.insert("summary".into(), Value::Object(summary));
+    Value::Object(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn summary_statistics() {
+        let s = stats(&[4.0, 1.0, 3.0, 2.0]);
+        assert_eq!(s["mean"], 2.5);
+        assert_eq!(s["median"], 2.5);
+        assert_eq!(s["p95"], 4.0);
+        let s = stats(&(1..=100).map(f64::from).collect::<Vec<_>>());
+        assert_eq!(s["p95"], 95.0);
+        assert_eq!(stats(&[]), Value::Null);
+    }
+}

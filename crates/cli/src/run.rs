@@ -1,0 +1,220 @@
+//! `edtmap run`: replays a built-in scene through the mapping pipeline and
+//! writes `report.json` and pictures.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context, Result};
+use clap::{Args, ValueEnum};
+use edtmap::config::{Config, ConstructionName};
+use edtmap::eval::OccupancyScores;
+use edtmap::sensor::{Frame, Sensor};
+use edtmap::Mapper;
+use edtmap_sim::{Scene, SceneName, SceneOptions};
+use indicatif::{ProgressBar, ProgressStyle};
+use serde_json::{json, Map};
+
+use crate::pictures::write_slices;
+use crate::report::{report, FrameRecord};
+use crate::scenes::builtin_config;
+
+/// Arguments of `edtmap run`.
+#[derive(Args, Debug, Clone)]
+pub(crate) struct RunArgs {
+    /// Built-in scene to replay: uav_pillars, ugv_corridor, room or planar.
+    #[arg(long)]
+    pub(crate) scene: Option<String>,
+    /// Configuration file (TOML); default: the scene's own, as in configs/.
+    #[arg(long)]
+    pub(crate) config: Option<PathBuf>,
+    /// Frames to replay (default: the config's, else the scene's length).
+    #[arg(long)]
+    pub(crate) frames: Option<usize>,
+    /// Folder for report.json and the pictures.
+    #[arg(long, default_value = "edtmap-out")]
+    pub(crate) out: PathBuf,
+    /// Score occupancy against the scene's ground truth every frame.
+    #[arg(long)]
+    pub(crate) eval: bool,
+    /// Override the config's [sensor] construction.
+    #[arg(long, value_enum)]
+    pub(crate) construction: Option<ConstructionArg>,
+}
+
+/// Values of `--construction`.
+#[derive(ValueEnum, Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum ConstructionArg {
+    /// Projection when the sensor model allows it, else ray casting.
+    Auto,
+    /// Volumetric projection.
+    Projection,
+    /// Ray casting.
+    Raycast,
+}
+
+/// Loads the configuration the arguments name, with its origin for messages.
+fn load_config(args: &RunArgs) -> Result<(Config, String)> {
+    let (mut config, origin) = match (&args.config, &args.scene) {
+        (Some(path), _) => (Config::load(path)?, path.display().to_string()),
+        (None, Some(scene)) => {
+            let text = builtin_config(scene).with_context(|| format!("unknown scene {scene:?}: choose one of {}", scene_names()))?;
+            (Config::parse(text, &format!("built-in configs/{scene}.toml"))?, format!("configs/{scene}.toml (built in)"))
+        }
+        (None, None) => bail!("give --scene NAME ({}) or --config FILE", scene_names()),
+    };
+    if let Some(c) = args.construction {
+        config.sensor.construction = match c {
+            ConstructionArg::Auto => ConstructionName::Auto,
+            ConstructionArg::Projection => ConstructionName::Projection,
+            ConstructionArg::Raycast => ConstructionName::Raycast,
+        };
+        config.mapper_params().context("--construction")?;
+    }
+    Ok((config, origin))
+}
+
+fn scene_names() -> String {
+    SceneName::ALL.iter().map(|s| s.to_string()).collect::<Vec<_>>().join(", ")
+}
+
+/// What a finished run measured, for the demo's summary.
+pub(crate) struct RunOutcome {
+    pub(crate) frames: Vec<FrameRecord>,
+    pub(crate) report_path: PathBuf,
+    pub(crate) pictures: Vec<PathBuf>,
+}
+
+/// Runs `edtmap run` and prints its summary.
+pub(crate) fn run(args: &RunArgs) -> Result<()> {
+    let outcome = execute(args, false)?;
+    print_summary(&outcome);
+    Ok(())
+}
+
+/// Replays the scene; `progress` draws a progress bar on a terminal.
+pub(crate) fn execute(args: &RunArgs, progress: bool) -> Result<RunOutcome> {
+    let (config, origin) = load_config(args)?;
+    let section = config.scene.clone();
+    let name = args.scene.clone().or_else(|| section.as_ref().map(|s| s.name.clone()));
+    let name = name.with_context(|| format!("{origin} has no [scene] section: give --scene NAME"))?;
+    let scene_name: SceneName = name.parse().map_err(|e| anyhow::anyhow!("{e}"))?;
+    let section = section.unwrap_or_else(|| edtmap::config::SceneSection { name: name.clone(), frames: None, seed: 7, range_noise_m: 0.0, dropout: 0.0 });
+    let options = SceneOptions { seed: section.seed, range_noise_m: section.range_noise_m, dropout: section.dropout };
+    let scene = Scene::new(scene_name, &options).context("[scene]")?;
+    let (sensor, params) = config.mapper_params()?;
+    let frames = args.frames.or(section.frames).unwrap_or_else(|| scene.default_frames());
+    if frames == 0 {
+        bail!("--frames must be at least 1");
+    }
+    let mut mapper = Mapper::new(sensor.clone(), params.clone())?;
+    std::fs::create_dir_all(&args.out).with_context(|| format!("cannot create {}", args.out.display()))?;
+    let bar = progress_bar(frames, progress);
+    let mut records = Vec::with_capacity(frames);
+    let mut truth = (Vec::new(), Vec::new());
+    let mut last_z = 0.0;
+    for i in 0..frames {
+        let frame = scene.frame(&sensor, i).with_context(|| format!("simulating frame {i}"))?;
+        let stats = mapper.integrate_frame(&frame).with_context(|| format!("frame {i}"))?;
+        let mut rec = FrameRecord {
+            index: i,
+            stamp_s: frame.stamp_s,
+            ogm_ms: stats.ogm_ms,
+            batch_edt_ms: stats.batch_edt_ms,
+            total_ms: stats.total_ms,
+            voxels_updated: stats.voxels_updated,
+            voxels_changed: stats.voxels_changed,
+            changed_blocks: stats.changed_blocks.len(),
+            ..Default::default()
+        };
+        if args.eval {
+            let scores = score(&scene, &sensor, &frame, &mapper, &mut truth);
+            (rec.precision, rec.recall, rec.strict_recall) = (scores.precision(), scores.recall(), scores.strict_recall());
+        }
+        last_z = frame.t_world_sensor.translation.vector.z;
+        records.push(rec);
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    let slice_z = config.output.slice_height_m.unwrap_or(last_z);
+    let pictures = write_slices(&mapper, slice_z, &args.out)?;
+    let mut header = Map::new();
+    header.insert("edtmap_version".into(), json!(env!("CARGO_PKG_VERSION")));
+    header.insert("scene".into(), json!(name));
+    header.insert("config".into(), json!(origin));
+    header.insert("backend".into(), json!("cpu"));
+    header.insert("threads".into(), json!(rayon::current_num_threads()));
+    header.insert("sensor".into(), json!(sensor.kind()));
+    header.insert("construction".into(), json!(construction_name(&sensor, &config)));
+    header.insert("voxel_size_m".into(), json!(params.voxel_size_m));
+    header.insert("local_dims".into(), json!(mapper.local_volume().map(|v| v.dims)));
+    header.insert("map_blocks".into(), json!(mapper.map().len()));
+    let report_path = args.out.join("report.json");
+    write_json(&report_path, &report(header, &records))?;
+    Ok(RunOutcome { frames: records, report_path, pictures })
+}
+
+fn construction_name(sensor: &Sensor, config: &Config) -> &'static str {
+    match config.sensor.construction {
+        ConstructionName::Raycast => "raycast",
+        ConstructionName::Projection => "projection",
+        ConstructionName::Auto if sensor.supports_projection() => "projection",
+        ConstructionName::Auto => "raycast",
+    }
+}
+
+/// Occupancy scores of the mapper's local volume against the scene.
+fn score(scene: &Scene, sensor: &Sensor, frame: &Frame, mapper: &Mapper, buffers: &mut (Vec<bool>, Vec<bool>)) -> OccupancyScores {
+    match mapper.local_volume() {
+        Some(volume) => {
+            scene.ground_truth(volume, frame.stamp_s, &mut buffers.0);
+            scene.seen_surface(sensor, frame, volume, &mut buffers.1);
+            OccupancyScores::compare(mapper.local_states().as_slice(), &buffers.0, &buffers.1)
+        }
+        None => OccupancyScores::default(),
+    }
+}
+
+fn progress_bar(frames: usize, show: bool) -> ProgressBar {
+    if !show {
+        return ProgressBar::hidden();
+    }
+    // Draws on stderr only when it is a terminal.
+    let bar = ProgressBar::new(frames as u64);
+    if let Ok(style) = ProgressStyle::with_template("{bar:40} {pos}/{len} frames  {per_sec}  ETA {eta}") {
+        bar.set_style(style);
+    }
+    bar
+}
+
+fn write_json(path: &Path, value: &serde_json::Value) -> Result<()> {
+    let text = serde_json::to_string_pretty(value)?;
+    std::fs::write(path, text + "\n").with_context(|| format!("cannot write {}", path.display()))
+}
+
+/// Prints the per-stage medians and what was written.
+pub(crate) fn print_summary(outcome: &RunOutcome) {
+    let f = &outcome.frames;
+    let median = |g: fn(&FrameRecord) -> f64| {
+        let mut v: Vec<f64> = f.iter().map(g).collect();
+        v.sort_by(f64::total_cmp);
+        v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
+    };
+    println!(
+        "{} frames: occupancy median {:.2} ms, batch EDT median {:.2} ms, total median {:.2} ms per frame",
+        f.len(),
+        median(|r| r.ogm_ms),
+        median(|r| r.batch_edt_ms),
+        median(|r| r.total_ms)
+    );
+    let mean = |g: fn(&FrameRecord) -> Option<f64>| {
+        let v: Vec<f64> = f.iter().filter_map(g).collect();
+        (!v.is_empty()).then(|| v.iter().sum::<f64>() / v.len() as f64)
+    };
+    if let (Some(p), Some(r), Some(rs)) = (mean(|r| r.precision), mean(|r| r.recall), mean(|r| r.strict_recall)) {
+        println!("occupancy vs ground truth (mean over frames): precision {p:.3}, recall of the seen surface {r:.3} (strict recall {rs:.3})");
+    }
+    println!("wrote {}", outcome.report_path.display());
+    for p in &outcome.pictures {
+        println!("wrote {}", p.display());
+    }
+}
+
