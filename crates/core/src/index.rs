@@ -73,7 +73,7 @@ mod tests {
         let v = VoxelIndex::containing([-0.05, 0.05, -0.2], 0.1).expect("finite");
         assert_eq!(v, VoxelIndex([-1, 0, -2]));
         assert_eq!(v.block(), BlockKey([-1, 0, -1]));
-        assert_eq!(v.offset_in_block(), 7 + 8 * (0 + 8 * 6));
+        assert_eq!(v.offset_in_block(), 7 + 8 * 8 * 6);
         assert_eq!(v.block().voxel(v.offset_in_block()), v);
     }
 

@@ -65,12 +65,12 @@ impl LocalVolume {
     /// Local coordinates of world voxel `v`, if inside.
     pub fn local(&self, v: VoxelIndex) -> Option<[usize; 3]> {
         let mut out = [0usize; 3];
-        for a in 0..3 {
+        for (a, o) in out.iter_mut().enumerate() {
             let d = v.0[a] as i64 - self.origin.0[a] as i64;
             if d < 0 || d >= self.dims[a] as i64 {
                 return None;
             }
-            out[a] = d as usize;
+            *o = d as usize;
         }
         Some(out)
     }
@@ -127,13 +127,12 @@ pub fn check_voxel_size(voxel_size_m: f64) -> Result<(), CoreError> {
 
 fn volume_dims(params: &VolumeParams, voxel_size_m: f64) -> Result<[usize; 3], CoreError> {
     let mut dims = [0usize; 3];
-    for a in 0..3 {
-        let s = params.size_m[a];
+    for (d, &s) in dims.iter_mut().zip(&params.size_m) {
         let n = (s / voxel_size_m).round();
-        if !(s.is_finite() && s > 0.0) || !(1.0..=1e6).contains(&n.max(1.0)) {
+        if !(s.is_finite() && s > 0.0 && (1.0..=1e6).contains(&n.max(1.0))) {
             return Err(CoreError::InvalidParam { field: "size_m", value: format!("{:?}", params.size_m), reason: "each edge must be positive, finite and under a million voxels" });
         }
-        dims[a] = n.max(1.0) as usize;
+        *d = n.max(1.0) as usize;
     }
     crate::Grid3::<u8>::voxel_count(dims)?;
     Ok(dims)

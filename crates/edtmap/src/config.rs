@@ -84,8 +84,8 @@ pub struct SensorSection {
     pub min_range_m: f32,
     /// Longest valid return, metres.
     pub max_range_m: f32,
-    /// Projection: the return along the beam through a voxel centre makes it a hit within this distance of the centre per axis, metres (default half a voxel).
-    pub hit_tolerance_m: Option<f32>,
+    /// Both constructions: a voxel is free only when it lies more than this in front of the return, metres (default half a voxel diagonal).
+    pub free_margin_m: Option<f32>,
     /// Planar projection: half thickness of the observed slab, metres (default half a voxel).
     pub planar_half_thickness_m: Option<f32>,
     /// LiDAR: number of evenly spread rings.
@@ -194,7 +194,7 @@ impl Config {
         edtmap_core::LocalVolume::centred(&volume, occ.voxel_size_m, [0.0; 3]).map_err(in_occ)?;
         let sensor = self.sensor.model().map_err(|source| MapError::Config { section: "sensor", source })?;
         let ogm = self.sensor.ogm_options(occ.voxel_size_m, &sensor).map_err(|source| MapError::Config { section: "sensor", source })?;
-        let params = MapperParams { voxel_size_m: occ.voxel_size_m, volume, occupancy: occ.probabilities.clone(), ogm, edt: self.edt.clone() };
+        let params = MapperParams { voxel_size_m: occ.voxel_size_m, volume, occupancy: occ.probabilities.clone(), ogm, edt: self.edt };
         Ok((sensor, params))
     }
 }
@@ -256,7 +256,7 @@ impl SensorSection {
             }
         };
         for (field, v, slot) in [
-            ("hit_tolerance_m", self.hit_tolerance_m, &mut o.hit_tolerance_m),
+            ("free_margin_m", self.free_margin_m, &mut o.free_margin_m),
             ("planar_half_thickness_m", self.planar_half_thickness_m, &mut o.planar_half_thickness_m),
         ] {
             if let Some(v) = v {

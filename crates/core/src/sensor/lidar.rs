@@ -107,6 +107,20 @@ impl SpinningLidar {
         ((rings[best] - el).abs() <= half).then_some(best)
     }
 
+    /// See [`super::Sensor::beam_passes_within`].
+    pub(super) fn ring_passes_within(&self, p: [f32; 3], radius_m: f32) -> bool {
+        let horiz = (p[0] * p[0] + p[1] * p[1]).sqrt() as f64;
+        let r = (horiz * horiz + (p[2] as f64).powi(2)).sqrt();
+        if r <= radius_m as f64 {
+            return true;
+        }
+        let el = (p[2] as f64).atan2(horiz);
+        let reach = (radius_m as f64 / r).asin();
+        let rings = &self.ring_elevations_rad;
+        let i = rings.partition_point(|&e| e < el);
+        [i.checked_sub(1), (i < rings.len()).then_some(i)].into_iter().flatten().any(|k| (rings[k] - el).abs() <= reach)
+    }
+
     pub(super) fn rays(&self, scan: &LidarScan, clear_no_return: bool, out: &mut Vec<SensorRay>) {
         for r in 0..self.ring_elevations_rad.len() {
             for b in 0..self.azimuth_bins {

@@ -215,6 +215,19 @@ impl Sensor {
     }
 }
 
+impl Sensor {
+    /// Whether the beam nearest to the direction of `p` passes within
+    /// `radius_m` of `p`. A LiDAR's rings are sparse: a voxel between two
+    /// rings is crossed by no beam, and the nearest ring says nothing about
+    /// it. Pixels and planar beams are dense enough to be taken as passing.
+    pub fn beam_passes_within(&self, p: [f32; 3], radius_m: f32) -> bool {
+        match self {
+            Sensor::Lidar(l) => l.ring_passes_within(p, radius_m),
+            _ => true,
+        }
+    }
+}
+
 impl Measurement {
     /// Short name of the measurement kind.
     pub fn kind(&self) -> &'static str {

@@ -56,7 +56,7 @@ pub(super) fn scan_windowed(
     radius: &mut Windows,
 ) -> bool {
     #[cfg(target_arch = "x86_64")]
-    if tile.lanes % 8 == 0 && std::arch::is_x86_feature_detected!("avx2") {
+    if tile.lanes.is_multiple_of(8) && std::arch::is_x86_feature_detected!("avx2") {
         // SAFETY: the CPU supports AVX2 and `lanes` is a multiple of 8.
         return unsafe { scan_windowed_avx2(tile, out_f, out_site, radius) };
     }
@@ -214,7 +214,7 @@ unsafe fn relax_avx2(
         _mm256_set1_epi32, _mm256_storeu_si256,
     };
     let n = best.len();
-    debug_assert!(n % 8 == 0 && best_site.len() == n && f.len() == n && site.len() == n);
+    debug_assert!(n.is_multiple_of(8) && best_site.len() == n && f.len() == n && site.len() == n);
     let vdd = _mm256_set1_epi32(dd as i32);
     for k in (0..n).step_by(8) {
         // SAFETY: `k + 8 <= n` for all four slices (the caller's contract),

@@ -40,10 +40,6 @@ pub struct OgmOptions {
     pub construction: Construction,
     /// Whether a ray with no return clears space up to the maximum range.
     pub clear_no_return: bool,
-    /// Projection: a voxel is a hit when the return along the beam through
-    /// its centre lies within this distance of the centre along every world
-    /// axis (half a voxel: inside the voxel), metres.
-    pub hit_tolerance_m: f32,
     /// Both constructions: a voxel is free only if it lies more than this
     /// in front of the return (ray casting: the ray leaves it that far
     /// before the return), metres. Voxels between are left unobserved, as
@@ -55,15 +51,14 @@ pub struct OgmOptions {
 }
 
 impl OgmOptions {
-    /// Defaults for a voxel size: half a voxel of hit tolerance and planar
-    /// thickness, half a voxel diagonal of free margin.
+    /// Defaults for a voxel size: half a voxel of planar thickness, half a
+    /// voxel diagonal of free margin.
     pub fn for_voxel_size(voxel_size_m: f64) -> Self {
         let half = (voxel_size_m / 2.0) as f32;
         let half_diagonal = (voxel_size_m * 3f64.sqrt() / 2.0) as f32;
         OgmOptions {
             construction: Construction::Auto,
             clear_no_return: false,
-            hit_tolerance_m: half,
             free_margin_m: half_diagonal,
             planar_half_thickness_m: half,
         }
@@ -71,16 +66,10 @@ impl OgmOptions {
 }
 
 /// The occupancy stage with its buffers, reused from frame to frame.
-#[derive(Debug)]
+#[derive(Debug, Default)]
 pub struct OccupancyStage {
     obs: Option<Observations>,
     rays: Vec<SensorRay>,
-}
-
-impl Default for OccupancyStage {
-    fn default() -> Self {
-        OccupancyStage { obs: None, rays: Vec::new() }
-    }
 }
 
 impl OccupancyStage {
@@ -98,7 +87,7 @@ impl OccupancyStage {
             Construction::Projection => return Err(CpuError::Unsupported(format!("volumetric projection of a {} from a {}", frame.measurement.kind(), sensor.kind()))),
         };
         if project {
-            project_volume(obs, sensor, frame, opts);
+            project_volume(obs, sensor, frame, opts, &mut self.rays);
         } else {
             sensor.rays(&frame.measurement, opts.clear_no_return, &mut self.rays);
             cast_rays(obs, &frame.t_world_sensor, &self.rays, opts.free_margin_m);
