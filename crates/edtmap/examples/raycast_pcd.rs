@@ -61,7 +61,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let sensor = Sensor::Points(range);
     let frame = Frame { stamp_s: 0.0, t_world_sensor: Isometry3::identity(), measurement: Measurement::Points(cloud) };
     sensor.check(&frame)?;
-    let opts = OgmOptions { construction: Construction::RayCasting, clear_no_return: true, ..OgmOptions::for_voxel_size(args.voxel_size_m) };
+    // OctoMap frees every voxel before the return: no free margin.
+    let opts = OgmOptions { construction: Construction::RayCasting, clear_no_return: true, free_margin_m: 0.0, ..OgmOptions::for_voxel_size(args.voxel_size_m) };
     let lo = OccupancyParams::default().log_odds()?;
     let mut stage = OccupancyStage::default();
     let mut times = Vec::new();

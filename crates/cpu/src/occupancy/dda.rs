@@ -4,59 +4,63 @@
 /// Calls `visit(coords, linear, t_exit)` for every voxel of the box
 /// `[0, dims)` that the segment `a → b` passes through, in order from `a`;
 /// `linear` is `x + nx (y + ny z)` and `t_exit` the segment parameter
-/// (0 at `a`, 1 at `b`) where the segment leaves the voxel. Coordinates are in voxel units relative to the
-/// box's lowest corner. Returns the number of voxels visited and whether the
+/// (0 at `a`, 1 at `b`) where the segment leaves the voxel. Coordinates
+/// are in voxel units relative to the box's lowest corner. Returns the number of voxels visited and whether the
 /// walk ended at `b` (false when the box clipped the segment's end).
 pub fn traverse(a: [f64; 3], b: [f64; 3], dims: [usize; 3], mut visit: impl FnMut([usize; 3], usize, f64)) -> (usize, bool) {
     let Some((t0, t1)) = clip(a, b, dims) else { return (0, false) };
     let d = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
     let cell_at = |t: f64| [0, 1, 2].map(|k| ((a[k] + t * d[k]).floor().max(0.0) as usize).min(dims[k] - 1));
-    let (mut cell, last) = (cell_at(t0), cell_at(t1));
+    let (cell, last) = (cell_at(t0), cell_at(t1));
     let plane = [1, dims[0], dims[0] * dims[1]];
-    let mut stride = [0usize; 3];
-    let mut step = [0usize; 3];
-    let mut t_max = [f64::INFINITY; 3];
-    let mut t_delta = [f64::INFINITY; 3];
-    for k in 0..3 {
+    // Per axis: step (as a wrapping add), linear stride, next crossing and
+    // crossing interval, as separate scalars so they stay in registers:
+    // indexing small arrays by the chosen axis went through memory and put
+    // a store-to-load round trip on every step.
+    let axis = |k: usize| -> (usize, usize, f64, f64) {
         if d[k] > 0.0 {
-            (step[k], stride[k]) = (1, plane[k]);
-            t_delta[k] = 1.0 / d[k];
-            t_max[k] = ((cell[k] + 1) as f64 - a[k]) / d[k];
+            (1, plane[k], ((cell[k] + 1) as f64 - a[k]) / d[k], 1.0 / d[k])
         } else if d[k] < 0.0 {
-            // Steps of -1 as wrapping additions.
-            (step[k], stride[k]) = (usize::MAX, plane[k].wrapping_neg());
-            t_delta[k] = -1.0 / d[k];
-            t_max[k] = (cell[k] as f64 - a[k]) / d[k];
+            (usize::MAX, plane[k].wrapping_neg(), (cell[k] as f64 - a[k]) / d[k], -1.0 / d[k])
+        } else {
+            (0, 0, f64::INFINITY, f64::INFINITY)
         }
-    }
+    };
+    let ((sx, wx, mut tx, dx), (sy, wy, mut ty, dy), (sz, wz, mut tz, dz)) = (axis(0), axis(1), axis(2));
+    let [mut cx, mut cy, mut cz] = cell;
     // The walk crosses exactly this many voxel faces; counting them replaces
     // a comparison with t1 and a step limit in the loop.
     let crossings: usize = (0..3).map(|k| cell[k].abs_diff(last[k])).sum();
-    let mut linear = cell[0] + plane[1] * cell[1] + plane[2] * cell[2];
+    let mut linear = cx + plane[1] * cy + plane[2] * cz;
     for visited in 0..crossings {
-        let k = argmin(t_max);
-        visit(cell, linear, t_max[k]);
-        let next = cell[k].wrapping_add(step[k]);
+        let (px, py) = (tx <= ty && tx <= tz, ty < tx && ty <= tz);
+        let pz = !(px || py);
+        // The exit parameter of this voxel, the chosen axis's next crossing
+        // (plain selects: `f64::min` would add NaN handling to every step).
+        let t_exit = if px { tx } else if py { ty } else { tz };
+        visit([cx, cy, cz], linear, t_exit);
+        // Branch-free step along the chosen axis: the axis a ray crosses
+        // next is unpredictable.
+        cx = cx.wrapping_add(sx & mask(px));
+        cy = cy.wrapping_add(sy & mask(py));
+        cz = cz.wrapping_add(sz & mask(pz));
+        linear = linear.wrapping_add((wx & mask(px)) | (wy & mask(py)) | (wz & mask(pz)));
+        tx += if px { dx } else { 0.0 };
+        ty += if py { dy } else { 0.0 };
+        tz += if pz { dz } else { 0.0 };
         // Rounding at a near-tie may aim past the box: stop there.
-        if next >= dims[k] {
+        if cx >= dims[0] || cy >= dims[1] || cz >= dims[2] {
             return (visited + 1, false);
         }
-        cell[k] = next;
-        linear = linear.wrapping_add(stride[k]);
-        t_max[k] += t_delta[k];
     }
-    visit(cell, linear, t1);
+    visit([cx, cy, cz], linear, t1);
     (crossings + 1, t1 >= 1.0)
 }
 
-/// Index of the smallest of three values, without branches: the axis a ray
-/// crosses next is unpredictable.
+/// All ones when `b`, else zero.
 #[inline(always)]
-fn argmin(t: [f64; 3]) -> usize {
-    let a = usize::from(t[1] < t[0]);
-    let m = if a == 1 { t[1] } else { t[0] };
-    let b = usize::from(t[2] < m);
-    a + b * (2 - a)
+fn mask(b: bool) -> usize {
+    (b as usize).wrapping_neg()
 }
 
 /// The parameter interval `[t0, t1] ⊆ [0, 1]` of the segment inside the
