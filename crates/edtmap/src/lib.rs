@@ -9,6 +9,29 @@
 //! EDT of the local volume around the sensor (§IV-B). [`config::Config`]
 //! reads the whole setup from a TOML file.
 //!
+//! ```
+//! use edtmap::sensor::{Frame, Measurement, PointCloud, RangeLimits, Sensor};
+//! use edtmap::{Mapper, MapperParams, VoxelIndex, VoxelState};
+//! use nalgebra::Isometry3;
+//!
+//! let sensor = Sensor::Points(RangeLimits { min_m: 0.1, max_m: 20.0 });
+//! let mut mapper = Mapper::new(sensor, MapperParams::for_voxel_size(0.1))?;
+//! let frame = Frame {
+//!     stamp_s: 0.0,
+//!     t_world_sensor: Isometry3::translation(0.0, 0.0, 1.0),
+//!     measurement: Measurement::Points(PointCloud { points: vec![[2.05, 0.05, 0.05]] }),
+//! };
+//! let stats = mapper.integrate_frame(&frame)?;
+//! assert_eq!(mapper.state(VoxelIndex([20, 0, 10])), VoxelState::Occupied);
+//! assert_eq!(mapper.state(VoxelIndex([10, 0, 10])), VoxelState::Free);
+//! assert!(stats.voxels_updated >= 19);
+//! // The exact EDT of the 10 x 10 x 3 m volume around the sensor.
+//! let volume = mapper.local_volume().expect("one frame integrated");
+//! let here = volume.local(VoxelIndex([17, 0, 10])).expect("inside");
+//! assert_eq!(mapper.local_edt().distance_vox(volume.linear(here)), 3.0);
+//! # Ok::<(), edtmap::MapError>(())
+//! ```
+//!
 //! The batch EDT is also available on its own:
 //!
 //! ```
