@@ -139,3 +139,26 @@ fn ugv_corridor_pedestrians_leave_free_space() {
     assert!(checked > 50, "the pedestrians should vacate voxels in view ({checked})");
     assert!((stale as f64) <= 0.05 * checked as f64, "{stale} of {checked} vacated voxels still occupied after {FEW} frames");
 }
+
+/// The fused map is bit-identical whatever the number of threads, for both
+/// constructions (observations are `fetch_or`s, which commute).
+#[test]
+fn maps_do_not_depend_on_thread_count() {
+    let (scene, sensor, params) = setup("ugv_corridor");
+    let run = |threads: usize, construction: Construction| {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("pool");
+        pool.install(|| {
+            let mut m = mapper(&sensor, &params, construction);
+            for i in 0..6 {
+                m.integrate_frame(&scene.frame(&sensor, i * 5).expect("frame")).expect("frame");
+            }
+            let mut blocks: Vec<_> = m.map().iter().map(|(k, b)| (k, b.log_odds.map(f32::to_bits))).collect();
+            blocks.sort_by_key(|(k, _)| *k);
+            (blocks, m.local_edt().dist_sq_vox().to_vec())
+        })
+    };
+    for construction in [Construction::RayCasting, Construction::Projection] {
+        let one = run(1, construction);
+        assert!(one == run(3, construction), "{construction:?}: 1 and 3 threads differ");
+    }
+}
