@@ -126,11 +126,7 @@ impl SpinningLidar {
             for b in 0..self.azimuth_bins {
                 let d = scan.ranges[r * self.azimuth_bins + b];
                 let dir = self.direction(r, b).map(|c| c as f32);
-                if self.range.accepts(d) {
-                    out.push(SensorRay { dir, range_m: d, hit: true });
-                } else if clear_no_return {
-                    out.push(SensorRay { dir, range_m: self.range.max_m, hit: false });
-                }
+                out.extend(SensorRay::from_range(dir, d, &self.range, clear_no_return));
             }
         }
     }

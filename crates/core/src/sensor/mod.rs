@@ -99,6 +99,20 @@ pub struct SensorRay {
     pub hit: bool,
 }
 
+impl SensorRay {
+    /// The ray of a beam along `dir` that measured `d`: a return when `d` is
+    /// valid, else a clearing ray to the maximum range when
+    /// `clear_no_return`, else none.
+    #[inline]
+    pub fn from_range(dir: [f32; 3], d: f32, range: &RangeLimits, clear_no_return: bool) -> Option<SensorRay> {
+        if range.accepts(d) {
+            Some(SensorRay { dir, range_m: d, hit: true })
+        } else {
+            clear_no_return.then_some(SensorRay { dir, range_m: range.max_m, hit: false })
+        }
+    }
+}
+
 /// Where a point falls in a measurement, for volumetric projection.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Projection {

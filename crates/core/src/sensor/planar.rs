@@ -50,11 +50,7 @@ impl LaserScan {
         for (i, &d) in self.ranges.iter().enumerate() {
             let a = self.angle_min_rad + i as f64 * self.angle_increment_rad;
             let dir = [a.cos() as f32, a.sin() as f32, 0.0];
-            if self.range.accepts(d) {
-                out.push(SensorRay { dir, range_m: d, hit: true });
-            } else if clear_no_return {
-                out.push(SensorRay { dir, range_m: self.range.max_m, hit: false });
-            }
+            out.extend(SensorRay::from_range(dir, d, &self.range, clear_no_return));
         }
     }
 }
