@@ -5,10 +5,11 @@
 /// `[0, dims)` that the segment `a → b` passes through, in order from `a`;
 /// `linear` is `x + nx (y + ny z)` and `t_exit` the segment parameter
 /// (0 at `a`, 1 at `b`) where the segment leaves the voxel. Coordinates
-/// are in voxel units relative to the box's lowest corner. Returns the number of voxels visited and whether the
-/// walk ended at `b` (false when the box clipped the segment's end).
-pub fn traverse(a: [f64; 3], b: [f64; 3], dims: [usize; 3], mut visit: impl FnMut([usize; 3], usize, f64)) -> (usize, bool) {
-    let Some((t0, t1)) = clip(a, b, dims) else { return (0, false) };
+/// are in voxel units relative to the box's lowest corner. Returns how many
+/// voxels were visited and, when the walk reached `b` (the box did not clip
+/// the segment's end), `b`'s voxel.
+pub fn traverse(a: [f64; 3], b: [f64; 3], dims: [usize; 3], mut visit: impl FnMut([usize; 3], usize, f64)) -> Walk {
+    let Some((t0, t1)) = clip(a, b, dims) else { return Walk { visited: 0, end: None } };
     let d = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
     let cell_at = |t: f64| [0, 1, 2].map(|k| ((a[k] + t * d[k]).floor().max(0.0) as usize).min(dims[k] - 1));
     let (cell, last) = (cell_at(t0), cell_at(t1));
@@ -50,11 +51,21 @@ pub fn traverse(a: [f64; 3], b: [f64; 3], dims: [usize; 3], mut visit: impl FnMu
         tz += if pz { dz } else { 0.0 };
         // Rounding at a near-tie may aim past the box: stop there.
         if cx >= dims[0] || cy >= dims[1] || cz >= dims[2] {
-            return (visited + 1, false);
+            return Walk { visited: visited + 1, end: None };
         }
     }
     visit([cx, cy, cz], linear, t1);
-    (crossings + 1, t1 >= 1.0)
+    Walk { visited: crossings + 1, end: (t1 >= 1.0).then_some(([cx, cy, cz], linear)) }
+}
+
+/// The outcome of [`traverse`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Walk {
+    /// Voxels visited.
+    pub visited: usize,
+    /// Coordinates and linear index of the segment end's voxel, when the
+    /// walk reached it inside the box.
+    pub end: Option<([usize; 3], usize)>,
 }
 
 /// All ones when `b`, else zero.
@@ -96,18 +107,19 @@ mod tests {
     #[test]
     fn axis_aligned_segment_visits_each_voxel_once() {
         let mut seen = Vec::new();
-        let (n, reached) = traverse([0.5, 0.5, 0.5], [4.5, 0.5, 0.5], [8, 2, 2], |c, i, _| {
+        let walk = traverse([0.5, 0.5, 0.5], [4.5, 0.5, 0.5], [8, 2, 2], |c, i, _| {
             assert_eq!(i, c[0] + 8 * (c[1] + 2 * c[2]));
             seen.push(c)
         });
         assert_eq!(seen, (0..5).map(|x| [x, 0, 0]).collect::<Vec<_>>());
-        assert_eq!((n, reached), (5, true));
+        assert_eq!(walk, Walk { visited: 5, end: Some(([4, 0, 0], 4)) });
     }
 
     #[test]
     fn segments_outside_the_box_visit_nothing() {
-        assert_eq!(traverse([-3.0, 0.5, 0.5], [-1.0, 0.5, 0.5], [4, 4, 4], |_, _, _| {}), (0, false));
-        assert_eq!(traverse([f64::NAN, 0.5, 0.5], [1.0, 0.5, 0.5], [4, 4, 4], |_, _, _| {}), (0, false));
+        let none = Walk { visited: 0, end: None };
+        assert_eq!(traverse([-3.0, 0.5, 0.5], [-1.0, 0.5, 0.5], [4, 4, 4], |_, _, _| {}), none);
+        assert_eq!(traverse([f64::NAN, 0.5, 0.5], [1.0, 0.5, 0.5], [4, 4, 4], |_, _, _| {}), none);
     }
 
     #[test]
@@ -115,7 +127,7 @@ mod tests {
         let mut seen = Vec::new();
         traverse([-5.5, 1.5, 1.5], [1.5, 1.5, 1.5], [4, 4, 4], |c, _, _| seen.push(c));
         assert_eq!(seen, vec![[0, 1, 1], [1, 1, 1]]);
-        let (_, reached) = traverse([1.5, 1.5, 1.5], [9.5, 1.5, 1.5], [4, 4, 4], |_, _, _| {});
-        assert!(!reached);
+        let clipped = traverse([1.5, 1.5, 1.5], [9.5, 1.5, 1.5], [4, 4, 4], |_, _, _| {});
+        assert_eq!(clipped, Walk { visited: 3, end: None });
     }
 }

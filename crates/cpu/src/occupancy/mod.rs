@@ -11,7 +11,7 @@ mod observe;
 mod project;
 mod raycast;
 
-pub use dda::traverse;
+pub use dda::{traverse, Walk};
 pub use fuse::{fuse, read_states, state_at, FuseReport};
 pub use observe::Observations;
 pub use project::project_volume;

@@ -31,14 +31,12 @@ pub fn cast_rays(obs: &Observations, t_world_sensor: &Isometry3<f64>, rays: &[Se
             // when the walk reached it, and then a hit wins over the miss.
             let margin = if ray.hit { free_margin_m / ray.range_m.max(f32::MIN_POSITIVE) } else { 0.0 };
             let free_until = 1.0 - margin as f64;
-            let mut last = None;
-            let (_, reached) = dda::traverse(origin.into(), end.into(), vol.dims, |c, i, t_exit| {
+            let walk = dda::traverse(origin.into(), end.into(), vol.dims, |c, i, t_exit| {
                 if t_exit <= free_until {
                     obs.mark(c, i, OBS_MISS);
                 }
-                last = Some((c, i));
             });
-            if let (true, true, Some((c, i))) = (ray.hit, reached, last) {
+            if let (true, Some((c, i))) = (ray.hit, walk.end) {
                 obs.mark(c, i, OBS_HIT);
             }
         }
