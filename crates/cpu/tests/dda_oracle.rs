@@ -26,7 +26,7 @@ fn overlap(a: [f64; 3], b: [f64; 3], lo: [usize; 3], grow: f64) -> Option<f64> {
 
 fn check(a: [f64; 3], b: [f64; 3], dims: [usize; 3]) -> Result<(), TestCaseError> {
     let mut seen = Vec::new();
-    traverse(a, b, dims, |c, _, _| seen.push(c));
+    traverse(a, b, dims, false, |c, _| seen.push(c));
     for w in seen.windows(2) {
         let steps: usize = (0..3).map(|k| w[0][k].abs_diff(w[1][k])).sum();
         prop_assert_eq!(steps, 1, "consecutive voxels {:?} are not face neighbours", w);
@@ -77,7 +77,7 @@ proptest! {
 /// the segment (inside the box) must lie in a visited voxel.
 fn check_degenerate(a: [f64; 3], b: [f64; 3], dims: [usize; 3]) {
     let mut seen = Vec::new();
-    traverse(a, b, dims, |c, _, _| seen.push(c));
+    traverse(a, b, dims, false, |c, _| seen.push(c));
     for c in &seen {
         assert!(overlap(a, b, *c, 1e-9).is_some(), "voxel {c:?} off the segment");
     }

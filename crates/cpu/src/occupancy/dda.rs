@@ -1,14 +1,13 @@
 //! 3D digital differential analyser (Amanatides & Woo, 1987): the voxels a
 //! segment passes through, in order, clipped to a box of voxels.
 
-/// Calls `visit(coords, linear, t_exit)` for every voxel of the box
-/// `[0, dims)` that the segment `a → b` passes through, in order from `a`;
-/// `linear` is `x + nx (y + ny z)` and `t_exit` the segment parameter
-/// (0 at `a`, 1 at `b`) where the segment leaves the voxel. Coordinates
+/// Calls `visit(coords, linear)` for every voxel of the box `[0, dims)`
+/// that the segment `a → b` passes through, in order from `a`, except `b`'s
+/// own voxel when `skip_last` and `b` lies in the box; `linear` is `x + nx (y + ny z)`. Coordinates
 /// are in voxel units relative to the box's lowest corner. Returns how many
-/// voxels were visited and, when the walk reached `b` (the box did not clip
+/// voxels the walk crossed and, when it reached `b` (the box did not clip
 /// the segment's end), `b`'s voxel.
-pub fn traverse(a: [f64; 3], b: [f64; 3], dims: [usize; 3], mut visit: impl FnMut([usize; 3], usize, f64)) -> Walk {
+pub fn traverse(a: [f64; 3], b: [f64; 3], dims: [usize; 3], skip_last: bool, mut visit: impl FnMut([usize; 3], usize)) -> Walk {
     let Some((t0, t1)) = clip(a, b, dims) else { return Walk { visited: 0, end: None } };
     let d = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
     let cell_at = |t: f64| [0, 1, 2].map(|k| ((a[k] + t * d[k]).floor().max(0.0) as usize).min(dims[k] - 1));
@@ -36,10 +35,7 @@ pub fn traverse(a: [f64; 3], b: [f64; 3], dims: [usize; 3], mut visit: impl FnMu
     for visited in 0..crossings {
         let (px, py) = (tx <= ty && tx <= tz, ty < tx && ty <= tz);
         let pz = !(px || py);
-        // The exit parameter of this voxel, the chosen axis's next crossing
-        // (plain selects: `f64::min` would add NaN handling to every step).
-        let t_exit = if px { tx } else if py { ty } else { tz };
-        visit([cx, cy, cz], linear, t_exit);
+        visit([cx, cy, cz], linear);
         // Branch-free step along the chosen axis: the axis a ray crosses
         // next is unpredictable.
         cx = cx.wrapping_add(sx & mask(px));
@@ -54,7 +50,9 @@ pub fn traverse(a: [f64; 3], b: [f64; 3], dims: [usize; 3], mut visit: impl FnMu
             return Walk { visited: visited + 1, end: None };
         }
     }
-    visit([cx, cy, cz], linear, t1);
+    if !(skip_last && t1 >= 1.0) {
+        visit([cx, cy, cz], linear);
+    }
     Walk { visited: crossings + 1, end: (t1 >= 1.0).then_some(([cx, cy, cz], linear)) }
 }
 
@@ -107,7 +105,7 @@ mod tests {
     #[test]
     fn axis_aligned_segment_visits_each_voxel_once() {
         let mut seen = Vec::new();
-        let walk = traverse([0.5, 0.5, 0.5], [4.5, 0.5, 0.5], [8, 2, 2], |c, i, _| {
+        let walk = traverse([0.5, 0.5, 0.5], [4.5, 0.5, 0.5], [8, 2, 2], false, |c, i| {
             assert_eq!(i, c[0] + 8 * (c[1] + 2 * c[2]));
             seen.push(c)
         });
@@ -118,16 +116,16 @@ mod tests {
     #[test]
     fn segments_outside_the_box_visit_nothing() {
         let none = Walk { visited: 0, end: None };
-        assert_eq!(traverse([-3.0, 0.5, 0.5], [-1.0, 0.5, 0.5], [4, 4, 4], |_, _, _| {}), none);
-        assert_eq!(traverse([f64::NAN, 0.5, 0.5], [1.0, 0.5, 0.5], [4, 4, 4], |_, _, _| {}), none);
+        assert_eq!(traverse([-3.0, 0.5, 0.5], [-1.0, 0.5, 0.5], [4, 4, 4], false, |_, _| {}), none);
+        assert_eq!(traverse([f64::NAN, 0.5, 0.5], [1.0, 0.5, 0.5], [4, 4, 4], false, |_, _| {}), none);
     }
 
     #[test]
     fn clipped_segment_starts_at_the_box() {
         let mut seen = Vec::new();
-        traverse([-5.5, 1.5, 1.5], [1.5, 1.5, 1.5], [4, 4, 4], |c, _, _| seen.push(c));
+        traverse([-5.5, 1.5, 1.5], [1.5, 1.5, 1.5], [4, 4, 4], false, |c, _| seen.push(c));
         assert_eq!(seen, vec![[0, 1, 1], [1, 1, 1]]);
-        let clipped = traverse([1.5, 1.5, 1.5], [9.5, 1.5, 1.5], [4, 4, 4], |_, _, _| {});
+        let clipped = traverse([1.5, 1.5, 1.5], [9.5, 1.5, 1.5], [4, 4, 4], false, |_, _| {});
         assert_eq!(clipped, Walk { visited: 3, end: None });
     }
 }

@@ -25,20 +25,32 @@ pub fn cast_rays(obs: &Observations, t_world_sensor: &Isometry3<f64>, rays: &[Se
     let rot = t_world_sensor.rotation.to_rotation_matrix();
     rays.par_chunks(RAYS_PER_TASK).for_each(|chunk| {
         for ray in chunk {
-            let dir = Vector3::new(ray.dir[0] as f64, ray.dir[1] as f64, ray.dir[2] as f64);
-            let end = origin + rot * dir * (ray.range_m as f64 * inv);
-            // Every voxel on the way is a miss; the last one is the return's
-            // when the walk reached it, and then a hit wins over the miss.
-            let margin = if ray.hit { free_margin_m / ray.range_m.max(f32::MIN_POSITIVE) } else { 0.0 };
-            let free_until = 1.0 - margin as f64;
-            let walk = dda::traverse(origin.into(), end.into(), vol.dims, |c, i, t_exit| {
-                if t_exit <= free_until {
-                    obs.mark(c, i, OBS_MISS);
+            let dir = rot * Vector3::new(ray.dir[0] as f64, ray.dir[1] as f64, ray.dir[2] as f64) * inv;
+            let end = origin + dir * ray.range_m as f64;
+            // Voxels the ray leaves before `free_end` are misses: walk to it
+            // and, for a return, leave out its own voxel, which the ray
+            // leaves beyond it.
+            let margin = if ray.hit { free_margin_m.min(ray.range_m) as f64 } else { 0.0 };
+            let free_end = origin + dir * (ray.range_m as f64 - margin);
+            dda::traverse(origin.into(), free_end.into(), vol.dims, ray.hit, |c, i| obs.mark(c, i, OBS_MISS));
+            if ray.hit {
+                if let Some(c) = local_cell(end.into(), vol.dims) {
+                    obs.mark(c, vol.linear(c), OBS_HIT);
                 }
-            });
-            if let (true, Some((c, i))) = (ray.hit, walk.end) {
-                obs.mark(c, i, OBS_HIT);
             }
         }
     });
+}
+
+/// The cell of `p` (voxel units from the volume's corner), if inside.
+fn local_cell(p: [f64; 3], dims: [usize; 3]) -> Option<[usize; 3]> {
+    let mut c = [0usize; 3];
+    for k in 0..3 {
+        let f = p[k].floor();
+        if !(f >= 0.0 && f < dims[k] as f64) {
+            return None;
+        }
+        c[k] = f as usize;
+    }
+    Some(c)
 }
