@@ -2,7 +2,7 @@
 //! read-back of the local volume's states for the batch EDT.
 
 use super::Observations;
-use edtmap_core::{BlockKey, CoreError, Grid3, LocalVolume, LogOdds, OccupancyMap, VoxelIndex, VoxelState, BLOCK_SIDE, OBS_NONE};
+use edtmap_core::{BlockKey, CoreError, Grid3, LocalVolume, LogOdds, OccupancyMap, VoxelState, BLOCK_SIDE, OBS_NONE};
 use rayon::prelude::*;
 
 /// What one fusion changed.
@@ -107,9 +107,4 @@ pub fn read_states(map: &OccupancyMap, vol: &LocalVolume, lo: &LogOdds, out: &mu
         }
     });
     Ok(())
-}
-
-/// The state of world voxel `v` in `map`.
-pub fn state_at(map: &OccupancyMap, v: VoxelIndex, lo: &LogOdds) -> VoxelState {
-    lo.state(map.log_odds(v))
 }

@@ -12,7 +12,7 @@ mod project;
 mod raycast;
 
 pub use dda::{traverse, Walk};
-pub use fuse::{fuse, read_states, state_at, FuseReport};
+pub use fuse::{fuse, read_states, FuseReport};
 pub use observe::Observations;
 pub use project::project_volume;
 pub use raycast::cast_rays;
