@@ -18,8 +18,10 @@
 
 mod edt;
 mod error;
+mod global;
 mod grid;
 mod index;
+mod obstacles;
 mod occupancy;
 pub mod sensor;
 mod state;
@@ -27,7 +29,9 @@ mod volume;
 
 pub use edt::{dist_sq_to_vox, EdtField, EdtParams, NO_SITE, UNREACHABLE_DIST_SQ};
 pub use error::CoreError;
+pub use global::{Connectivity, Cutoff, EdtBlock, EdtMap, ForbiddenZone, GlobalParams, IntegrationMode, DEFAULT_MAX_DISTANCE_M, FAR_DIST_SQ, NO_OBSTACLE};
 pub use grid::Grid3;
+pub use obstacles::{Obstacles, StaticBlock, StaticMap, MAX_STATIC_BLOCKS};
 pub use index::{BlockKey, VoxelIndex, BLOCK_SIDE, BLOCK_VOXELS};
 pub use occupancy::{BlockMap, LogOdds, OccupancyBlock, OccupancyMap, OccupancyParams, OBS_HIT, OBS_MISS, OBS_NONE, UNOBSERVED};
 pub use volume::{check_voxel_size, LocalVolume, VolumeParams};

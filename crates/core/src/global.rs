@@ -1,0 +1,236 @@
+//! The global EDT: per voxel, the squared distance to the nearest obstacle
+//! and that obstacle's full world index, in the same 8³ blocks as the
+//! occupancy (paper §IV-C), plus the parameters of its integration.
+
+use crate::{BlockMap, CoreError, VoxelIndex, BLOCK_VOXELS};
+use serde::{Deserialize, Serialize};
+
+/// Squared distance of a voxel with no obstacle within the cutoff.
+pub const FAR_DIST_SQ: u32 = u32::MAX;
+
+/// Nearest obstacle of a voxel with no obstacle within the cutoff.
+pub const NO_OBSTACLE: VoxelIndex = VoxelIndex([i32::MIN; 3]);
+
+/// Default cutoff of the global EDT, metres (GIE-mapping's cow-and-lady
+/// configuration).
+pub const DEFAULT_MAX_DISTANCE_M: f64 = 2.0;
+
+/// One 8³ block of the global EDT, voxels at [`VoxelIndex::offset_in_block`].
+#[derive(Debug, Clone, PartialEq)]
+#[repr(C)]
+pub struct EdtBlock {
+    /// Squared distance in voxel units, [`FAR_DIST_SQ`] beyond the cutoff.
+    pub dist_sq: [u32; BLOCK_VOXELS],
+    /// World index of the nearest obstacle, [`NO_OBSTACLE`] beyond the cutoff.
+    pub nearest: [VoxelIndex; BLOCK_VOXELS],
+}
+
+impl Default for EdtBlock {
+    fn default() -> Self {
+        EdtBlock { dist_sq: [FAR_DIST_SQ; BLOCK_VOXELS], nearest: [NO_OBSTACLE; BLOCK_VOXELS] }
+    }
+}
+
+impl EdtBlock {
+    /// Whether no voxel of the block has an obstacle within the cutoff.
+    pub fn is_far(&self) -> bool {
+        self.dist_sq.iter().all(|&d| d == FAR_DIST_SQ)
+    }
+}
+
+/// The global EDT: unbounded, blocks allocated where some voxel has an
+/// obstacle within the cutoff. A missing block is all [`FAR_DIST_SQ`].
+pub type EdtMap = BlockMap<EdtBlock>;
+
+impl EdtMap {
+    /// Squared distance and nearest obstacle of voxel `v`.
+    pub fn entry(&self, v: VoxelIndex) -> (u32, VoxelIndex) {
+        match self.get(v.block()) {
+            Some(b) => {
+                let i = v.offset_in_block();
+                (b.dist_sq[i], b.nearest[i])
+            }
+            None => (FAR_DIST_SQ, NO_OBSTACLE),
+        }
+    }
+}
+
+/// Which neighbours a wavefront reaches in one step.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(try_from = "u8", into = "u8")]
+pub enum Connectivity {
+    /// Face neighbours (GIE-mapping's only choice).
+    Six,
+    /// Face and edge neighbours.
+    Eighteen,
+    /// Face, edge and corner neighbours.
+    #[default]
+    TwentySix,
+}
+
+impl Connectivity {
+    /// The neighbour offsets, faces first.
+    pub fn offsets(self) -> Vec<[i32; 3]> {
+        let max_nonzero = match self {
+            Connectivity::Six => 1,
+            Connectivity::Eighteen => 2,
+            Connectivity::TwentySix => 3,
+        };
+        let mut out = Vec::new();
+        for dz in -1i32..=1 {
+            for dy in -1i32..=1 {
+                for dx in -1i32..=1 {
+                    let n = dx.abs() + dy.abs() + dz.abs();
+                    if n >= 1 && n <= max_nonzero {
+                        out.push([dx, dy, dz]);
+                    }
+                }
+            }
+        }
+        out.sort_by_key(|o| o.iter().map(|c| c.abs()).sum::<i32>());
+        out
+    }
+}
+
+impl TryFrom<u8> for Connectivity {
+    type Error = String;
+    fn try_from(n: u8) -> Result<Self, String> {
+        match n {
+            6 => Ok(Connectivity::Six),
+            18 => Ok(Connectivity::Eighteen),
+            26 => Ok(Connectivity::TwentySix),
+            _ => Err(format!("connectivity = {n}: must be 6, 18 or 26")),
+        }
+    }
+}
+
+impl From<Connectivity> for u8 {
+    fn from(c: Connectivity) -> u8 {
+        match c {
+            Connectivity::Six => 6,
+            Connectivity::Eighteen => 18,
+            Connectivity::TwentySix => 26,
+        }
+    }
+}
+
+/// How each frame's batch EDT is merged into the global EDT.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum IntegrationMode {
+    /// The paper's Algorithms 2 and 3: the batch EDT inside the window,
+    /// raise and lower wavefronts outside it. Fast; off by a fraction of a
+    /// voxel where a Voronoi cell is not connected through the neighbourhood.
+    #[default]
+    Wavefront,
+    /// Recompute the exact EDT of every voxel the frame could affect (the
+    /// window padded by the cutoff) from the global occupancy. Exact.
+    Exact,
+}
+
+/// A box of space that counts as an obstacle whatever the sensors say
+/// (paper §III, domain knowledge), world metres.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ForbiddenZone {
+    /// Lowest corner, metres.
+    pub min_m: [f64; 3],
+    /// Highest corner, metres.
+    pub max_m: [f64; 3],
+}
+
+/// Parameters of the global EDT.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct GlobalParams {
+    /// Cutoff: no distance beyond this is stored or propagated, metres.
+    pub max_distance_m: f64,
+    /// Neighbourhood of the wavefronts.
+    pub connectivity: Connectivity,
+    /// Wavefront (the paper's) or exact integration.
+    pub mode: IntegrationMode,
+    /// Boxes that always count as obstacles.
+    pub forbidden: Vec<ForbiddenZone>,
+}
+
+impl Default for GlobalParams {
+    fn default() -> Self {
+        GlobalParams {
+            max_distance_m: DEFAULT_MAX_DISTANCE_M,
+            connectivity: Connectivity::default(),
+            mode: IntegrationMode::default(),
+            forbidden: Vec::new(),
+        }
+    }
+}
+
+impl GlobalParams {
+    /// The cutoff as a squared distance and a reach per axis, in voxels of
+    /// `voxel_size_m`; fails on a cutoff that is not positive and finite,
+    /// below one voxel, or beyond 10 000 voxels.
+    pub fn cutoff(&self, voxel_size_m: f64) -> Result<Cutoff, CoreError> {
+        // The tolerance keeps 0.6 m / 0.2 m at 3 voxels, not 2.999….
+        let vox = self.max_distance_m / voxel_size_m * (1.0 + 1e-9);
+        if !(vox >= 1.0 && vox <= 10_000.0) {
+            return Err(CoreError::InvalidParam {
+                field: "max_distance_m",
+                value: self.max_distance_m.to_string(),
+                reason: "must be at least one voxel and at most 10000 voxels",
+            });
+        }
+        let max_dist_sq = (vox * vox).floor() as u32;
+        Ok(Cutoff { max_dist_sq, reach: vox.floor() as i32 })
+    }
+
+    /// Checks every forbidden zone: finite corners, min below max.
+    pub fn check_forbidden(&self) -> Result<(), CoreError> {
+        for z in &self.forbidden {
+            let ok = (0..3).all(|a| z.min_m[a].is_finite() && z.max_m[a].is_finite() && z.min_m[a] < z.max_m[a]);
+            if !ok {
+                return Err(CoreError::InvalidParam {
+                    field: "forbidden",
+                    value: format!("{{ min_m = {:?}, max_m = {:?} }}", z.min_m, z.max_m),
+                    reason: "corners must be finite with min_m < max_m on every axis",
+                });
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The cutoff in voxel units.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Cutoff {
+    /// Largest squared distance stored, voxels².
+    pub max_dist_sq: u32,
+    /// Largest distance along one axis, voxels: every voxel within the
+    /// cutoff of `v` lies within `reach` of it on each axis.
+    pub reach: i32,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn connectivity_counts() {
+        assert_eq!(Connectivity::Six.offsets().len(), 6);
+        assert_eq!(Connectivity::Eighteen.offsets().len(), 18);
+        assert_eq!(Connectivity::TwentySix.offsets().len(), 26);
+        assert!(Connectivity::try_from(8).is_err());
+    }
+
+    #[test]
+    fn cutoff_in_voxels() {
+        let p = GlobalParams { max_distance_m: 2.0, ..Default::default() };
+        let c = p.cutoff(0.2).expect("valid");
+        assert_eq!((c.max_dist_sq, c.reach), (100, 10));
+        let c = GlobalParams { max_distance_m: 0.6, ..Default::default() }.cutoff(0.2).expect("valid");
+        assert_eq!((c.max_dist_sq, c.reach), (9, 3));
+        let c = p.cutoff(0.3).expect("valid");
+        assert_eq!((c.max_dist_sq, c.reach), (44, 6));
+        assert!(p.cutoff(5.0).is_err());
+        let bad = GlobalParams { max_distance_m: f64::NAN, ..Default::default() };
+        assert!(bad.cutoff(0.1).unwrap_err().to_string().contains("max_distance_m"));
+    }
+}
