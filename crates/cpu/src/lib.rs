@@ -23,6 +23,7 @@
 #![warn(missing_docs)]
 
 pub mod edt;
+pub mod integrate;
 pub mod occupancy;
 mod error;
 

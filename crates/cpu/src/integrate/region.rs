@@ -1,0 +1,287 @@
+//! The dense working region of one integration: the blocks of the global
+//! EDT a frame can affect, copied into flat arrays, worked on in parallel
+//! and written back where they changed.
+//!
+//! A voxel's value is packed in a `u64`: the squared distance in the high
+//! 32 bits and the nearest obstacle's linear index in the *source box*
+//! (the region padded by the cutoff's reach, so it holds every obstacle
+//! within the cutoff of a region voxel) in the low 32. Comparing packed
+//! values orders by distance first, then by obstacle, so an atomic minimum
+//! is deterministic. The 32-bit index limits the region, never the map.
+
+use edtmap_core::{BlockKey, CoreError, Cutoff, EdtMap, LocalVolume, VoxelIndex, BLOCK_SIDE, FAR_DIST_SQ, NO_OBSTACLE};
+use rayon::prelude::*;
+use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
+
+/// Packed value of a voxel with no obstacle within the cutoff.
+pub const FAR: u64 = u64::MAX;
+
+/// A box of world voxels.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Region {
+    /// World index of the lowest corner voxel.
+    pub origin: [i32; 3],
+    /// Voxels along x, y, z.
+    pub dims: [usize; 3],
+}
+
+impl Region {
+    /// The local volume `w` grown by `pad` voxels on every side.
+    pub fn around(w: &LocalVolume, pad: i32) -> Region {
+        Region { origin: w.origin.0, dims: w.dims }.grown(pad)
+    }
+
+    /// This box grown by `pad` voxels on every side.
+    pub fn grown(&self, pad: i32) -> Region {
+        Region { origin: self.origin.map(|o| o - pad), dims: self.dims.map(|d| d + 2 * pad as usize) }
+    }
+
+    /// Number of voxels.
+    pub fn len(&self) -> usize {
+        self.dims.iter().product()
+    }
+
+    /// Linear index of local coordinates `c` (x fastest).
+    #[inline]
+    pub fn linear(&self, c: [usize; 3]) -> usize {
+        c[0] + self.dims[0] * (c[1] + self.dims[1] * c[2])
+    }
+
+    /// Local coordinates of linear index `i`.
+    #[inline]
+    pub fn coords(&self, i: usize) -> [usize; 3] {
+        let [nx, ny, _] = self.dims;
+        [i % nx, (i / nx) % ny, i / (nx * ny)]
+    }
+
+    /// Local coordinates of world voxel `v`, if inside.
+    #[inline]
+    pub fn local(&self, v: VoxelIndex) -> Option<[usize; 3]> {
+        let mut c = [0; 3];
+        for a in 0..3 {
+            let d = i64::from(v.0[a]) - i64::from(self.origin[a]);
+            if d < 0 || d >= self.dims[a] as i64 {
+                return None;
+            }
+            c[a] = d as usize;
+        }
+        Some(c)
+    }
+
+    /// World voxel at local coordinates `c`.
+    #[inline]
+    pub fn world(&self, c: [usize; 3]) -> VoxelIndex {
+        VoxelIndex([0, 1, 2].map(|a| self.origin[a] + c[a] as i32))
+    }
+
+    /// The blocks this box overlaps.
+    pub fn blocks(&self) -> Vec<BlockKey> {
+        let lo = VoxelIndex(self.origin).block().0;
+        let hi = VoxelIndex([0, 1, 2].map(|a| self.origin[a] + self.dims[a] as i32 - 1)).block().0;
+        let mut keys = Vec::new();
+        for z in lo[2]..=hi[2] {
+            for y in lo[1]..=hi[1] {
+                for x in lo[0]..=hi[0] {
+                    keys.push(BlockKey([x, y, z]));
+                }
+            }
+        }
+        keys
+    }
+}
+
+/// A working region and its source box, with the cutoff.
+#[derive(Debug, Clone, Copy)]
+pub struct Packing {
+    /// The voxels worked on.
+    pub region: Region,
+    /// The region grown by the cutoff's reach: where obstacles may lie.
+    pub source: Region,
+    /// The cutoff.
+    pub cutoff: Cutoff,
+}
+
+impl Packing {
+    /// The packing for `region`; fails when the source box has more than
+    /// 2^32 − 1 voxels.
+    pub fn new(region: Region, cutoff: Cutoff) -> Result<Self, CoreError> {
+        let source = region.grown(cutoff.reach);
+        if source.len() >= u32::MAX as usize {
+            return Err(CoreError::TooLarge { dims: source.dims, reason: "integration region beyond 2^32 voxels; lower max_distance_m or the local volume" });
+        }
+        Ok(Packing { region, source, cutoff })
+    }
+
+    /// Packs a squared distance and an obstacle's world index.
+    #[inline]
+    pub fn pack(&self, dist_sq: u32, obstacle: VoxelIndex) -> u64 {
+        match self.source.local(obstacle) {
+            Some(c) if dist_sq <= self.cutoff.max_dist_sq => (u64::from(dist_sq) << 32) | self.source.linear(c) as u64,
+            _ => FAR,
+        }
+    }
+
+    /// Squared distance and obstacle world index of a packed value.
+    #[inline]
+    pub fn unpack(&self, value: u64) -> (u32, VoxelIndex) {
+        if value == FAR {
+            return (FAR_DIST_SQ, NO_OBSTACLE);
+        }
+        ((value >> 32) as u32, self.source.world(self.source.coords(value as u32 as usize)))
+    }
+
+    /// Source-box coordinates of a packed value's obstacle.
+    #[inline]
+    pub fn source_coords(&self, value: u64) -> [usize; 3] {
+        self.source.coords(value as u32 as usize)
+    }
+
+    /// Source-box coordinates of region voxel `c`.
+    #[inline]
+    pub fn region_in_source(&self, c: [usize; 3]) -> [usize; 3] {
+        c.map(|x| x + self.cutoff.reach as usize)
+    }
+}
+
+/// Fills `old` and `cur` with the packed values of `p.region` from `map`.
+pub fn copy_in(map: &EdtMap, p: &Packing, old: &mut Vec<u64>, cur: &mut Vec<AtomicU64>) {
+    let n = p.region.len();
+    old.resize(n, FAR);
+    if cur.len() < n {
+        cur.resize_with(n, || AtomicU64::new(FAR));
+    }
+    cur.truncate(n);
+    let [nx, ny, _] = p.region.dims;
+    old.par_chunks_mut(nx * ny).zip(cur.par_chunks_mut(nx * ny)).enumerate().for_each(|(z, (old, cur))| {
+        for y in 0..ny {
+            let mut x = 0;
+            while x < nx {
+                let v = p.region.world([x, y, z]);
+                let end = (x + (BLOCK_SIDE - v.0[0].rem_euclid(BLOCK_SIDE)) as usize).min(nx);
+                let block = map.get(v.block());
+                let base = v.offset_in_block();
+                for k in 0..end - x {
+                    let value = block.map_or(FAR, |b| p.pack(b.dist_sq[base + k], b.nearest[base + k]));
+                    old[y * nx + x + k] = value;
+                    cur[y * nx + x + k].store(value, Relaxed);
+                }
+                x = end;
+            }
+        }
+    });
+}
+
+/// What writing a region back changed.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct WriteBack {
+    /// Voxels whose distance or nearest obstacle changed.
+    pub voxels_changed: usize,
+    /// Sum over those voxels of |new − old| distance in voxels, distances
+    /// truncated at the cutoff (the numerator of the paper's change score).
+    pub change_sum_vox: f64,
+    /// Blocks holding a changed voxel, sorted.
+    pub changed_blocks: Vec<BlockKey>,
+}
+
+/// Writes the voxels of `p.region` whose value differs from `old` into
+/// `map`, allocating blocks as needed and dropping blocks left all far.
+pub fn write_back(map: &mut EdtMap, p: &Packing, old: &[u64], cur: &[AtomicU64]) -> WriteBack {
+    let truncated = |v: u64| {
+        let reach = f64::from(p.cutoff.max_dist_sq).sqrt();
+        if v == FAR { reach } else { ((v >> 32) as f64).sqrt().min(reach) }
+    };
+    let per_block: Vec<(BlockKey, usize, f64)> = p
+        .region
+        .blocks()
+        .into_par_iter()
+        .map(|key| {
+            let (mut changed, mut sum) = (0, 0.0);
+            for_region_voxels(p, key, |i, _| {
+                let (o, n) = (old[i], cur[i].load(Relaxed));
+                if o != n {
+                    changed += 1;
+                    sum += (truncated(n) - truncated(o)).abs();
+                }
+            });
+            (key, changed, sum)
+        })
+        .filter(|&(_, changed, _)| changed > 0)
+        .collect();
+    let keys: Vec<BlockKey> = per_block.iter().map(|b| b.0).collect();
+    let mut taken = map.take(&keys);
+    taken.par_iter_mut().for_each(|(key, block)| {
+        for_region_voxels(p, *key, |i, offset| {
+            let (d, o) = p.unpack(cur[i].load(Relaxed));
+            block.dist_sq[offset] = d;
+            block.nearest[offset] = o;
+        });
+    });
+    taken.retain(|(_, b)| !b.is_far());
+    map.restore(taken);
+    WriteBack {
+        voxels_changed: per_block.iter().map(|b| b.1).sum(),
+        change_sum_vox: per_block.iter().map(|b| b.2).sum(),
+        changed_blocks: keys,
+    }
+}
+
+/// Calls `f(region_linear, offset_in_block)` for every voxel of block
+/// `key` inside the region.
+fn for_region_voxels(p: &Packing, key: BlockKey, mut f: impl FnMut(usize, usize)) {
+    let first = key.first_voxel().0;
+    let r = &p.region;
+    let span = |a: usize| {
+        let lo = (first[a] - r.origin[a]).max(0);
+        let hi = (first[a] + BLOCK_SIDE - r.origin[a]).min(r.dims[a] as i32);
+        lo..hi
+    };
+    let (xs, ys, zs) = (span(0), span(1), span(2));
+    for z in zs {
+        for y in ys.clone() {
+            for x in xs.clone() {
+                let c = [x as usize, y as usize, z as usize];
+                let offset = (x + r.origin[0] - first[0]) + 8 * ((y + r.origin[1] - first[1]) + 8 * (z + r.origin[2] - first[2]));
+                f(r.linear(c), offset as usize);
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pack_round_trip_and_order() {
+        let cutoff = Cutoff { max_dist_sq: 25, reach: 5 };
+        let p = Packing::new(Region { origin: [-3, 4, -20], dims: [10, 7, 3] }, cutoff).expect("small");
+        let o = VoxelIndex([-8, 0, -17]);
+        let v = p.pack(16, o);
+        assert_eq!(p.unpack(v), (16, o));
+        assert!(p.pack(9, VoxelIndex([6, 15, -14])) < v, "nearer sorts first");
+        assert_eq!(p.pack(26, o), FAR, "beyond the cutoff");
+        assert_eq!(p.pack(4, VoxelIndex([-9, 0, -17])), FAR, "outside the source box");
+    }
+
+    #[test]
+    fn write_back_then_copy_in_round_trips() {
+        let cutoff = Cutoff { max_dist_sq: 100, reach: 10 };
+        let p = Packing::new(Region { origin: [-5, -9, 2], dims: [13, 6, 9] }, cutoff).expect("small");
+        let mut map = EdtMap::new(0.1).expect("voxel size");
+        let (mut old, mut cur) = (Vec::new(), Vec::new());
+        copy_in(&map, &p, &mut old, &mut cur);
+        assert!(old.iter().all(|&v| v == FAR));
+        let obstacle = VoxelIndex([0, -4, 5]);
+        for (i, c) in cur.iter().enumerate() {
+            let v = p.region.world(p.region.coords(i));
+            let d: i64 = (0..3).map(|a| i64::from(v.0[a] - obstacle.0[a]).pow(2)).sum();
+            c.store(p.pack(d as u32, obstacle), Relaxed);
+        }
+        let wb = write_back(&mut map, &p, &old, &cur);
+        assert_eq!(wb.voxels_changed, p.region.len());
+        assert_eq!(map.entry(VoxelIndex([3, -4, 5])), (9, obstacle));
+        let (mut again, mut cur2) = (Vec::new(), Vec::new());
+        copy_in(&map, &p, &mut again, &mut cur2);
+        assert_eq!(again, cur.iter().map(|c| c.load(Relaxed)).collect::<Vec<_>>());
+    }
+}

@@ -1,0 +1,181 @@
+//! Wavefront integration (paper §IV-C, Algorithms 2 and 3) on the dense
+//! working region: the window `W` grown by the cutoff's reach plus one.
+//!
+//! 1. *Raise* (frontier A and its in-window twin): every voxel whose nearest
+//!    obstacle lies in `W` and is an obstacle no more loses its value. The
+//!    whole region is scanned rather than walked from the vanished
+//!    obstacles, so a Voronoi cell that is not connected is still raised.
+//! 2. *Window*: each voxel of `W` takes the minimum of the batch EDT
+//!    (exact for obstacles inside `W`) and its old value if that is still
+//!    valid, which keeps obstacles outside `W` that the batch cannot see
+//!    (frontier C, the paper's limited observation).
+//! 3. *Seeds*: every voxel whose value went down (frontier B: new obstacles,
+//!    nearer ones) and every valid neighbour of a voxel whose value went up
+//!    (the raised region's border, to re-lower it).
+//! 4. *Lower* (Algorithm 3's twin): level-synchronous waves in parallel. A
+//!    level reads its frontier's values as they stood when it began and
+//!    lowers neighbours with an atomic minimum of packed (distance,
+//!    obstacle), so every level — and the result — is the same for any
+//!    thread count. Nothing beyond the cutoff is written.
+
+use super::region::{copy_in, write_back, Packing, Region, WriteBack, FAR};
+use edtmap_core::{EdtField, EdtMap, LocalVolume, NO_SITE};
+use rayon::prelude::*;
+use std::sync::atomic::{AtomicU32, AtomicU64, Ordering::Relaxed};
+
+/// Counters of one wavefront integration.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct WaveCounts {
+    /// Voxels whose nearest obstacle vanished (frontier A and inside `W`).
+    pub raised: usize,
+    /// Window voxels that kept a nearer obstacle from outside the window
+    /// (frontier C).
+    pub kept_outside: usize,
+    /// Voxels the lowering waves started from.
+    pub seeds: usize,
+    /// Levels the lowering waves took.
+    pub levels: usize,
+    /// Successful lowerings (a voxel can be lowered more than once).
+    pub lowered: usize,
+}
+
+/// Reusable buffers of the wavefront.
+#[derive(Debug, Default)]
+pub struct WaveBuffers {
+    old: Vec<u64>,
+    cur: Vec<AtomicU64>,
+    stamp: Vec<AtomicU32>,
+}
+
+/// Merges the batch EDT of `window` into `map`.
+pub fn integrate_wavefront(
+    map: &mut EdtMap,
+    window: &LocalVolume,
+    batch: &EdtField,
+    packing: &Packing,
+    offsets: &[[i32; 3]],
+    buf: &mut WaveBuffers,
+) -> (WriteBack, WaveCounts) {
+    copy_in(map, packing, &mut buf.old, &mut buf.cur);
+    let mut counts = merge_window(window, batch, packing, &buf.old, &buf.cur);
+    buf.stamp.resize_with(packing.region.len(), || AtomicU32::new(0));
+    buf.stamp.par_iter().for_each(|s| s.store(0, Relaxed));
+    let seeds = seed(packing, offsets, &buf.old, &buf.cur, &buf.stamp);
+    counts.seeds = seeds.len();
+    (counts.levels, counts.lowered) = lower(packing, offsets, seeds, &buf.cur, &buf.stamp);
+    (write_back(map, packing, &buf.old, &buf.cur), counts)
+}
+
+/// Steps 1 and 2: raise vanished obstacles' voxels and merge the window.
+fn merge_window(window: &LocalVolume, batch: &EdtField, p: &Packing, old: &[u64], cur: &[AtomicU64]) -> WaveCounts {
+    let w = Region { origin: window.origin.0, dims: window.dims };
+    let (dist, near) = (batch.dist_sq_vox(), batch.nearest());
+    let pad = (w.origin[0] - p.region.origin[0]) as usize;
+    let in_window = |c: [usize; 3]| (0..3).all(|a| c[a] >= pad && c[a] < pad + w.dims[a]);
+    let window_of_source = |s: [usize; 3]| {
+        let lead = pad + p.cutoff.reach as usize;
+        (0..3).all(|a| s[a] >= lead && s[a] < lead + w.dims[a]).then(|| w.linear(s.map(|x| x - lead)))
+    };
+    let [nx, ny, _] = p.region.dims;
+    let (raised, kept) = (0..p.region.dims[2])
+        .into_par_iter()
+        .map(|z| {
+            let (mut raised, mut kept) = (0, 0);
+            for i in z * nx * ny..(z + 1) * nx * ny {
+                let value = old[i];
+                let src_in_window = (value != FAR).then(|| window_of_source(p.source_coords(value))).flatten();
+                let vanished = src_in_window.is_some_and(|s| dist[s] != 0);
+                raised += usize::from(vanished);
+                let valid = if vanished { FAR } else { value };
+                let c = p.region.coords(i);
+                let new = if in_window(c) {
+                    let l = w.linear(c.map(|x| x - pad));
+                    let b = if near[l] == NO_SITE { FAR } else { p.pack(dist[l], window.world(w.coords(near[l] as usize))) };
+                    kept += usize::from(valid < b && src_in_window.is_none());
+                    b.min(valid)
+                } else {
+                    valid
+                };
+                cur[i].store(new, Relaxed);
+            }
+            (raised, kept)
+        })
+        .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
+    WaveCounts { raised, kept_outside: kept, ..Default::default() }
+}
+
+/// Step 3: voxels that went down, and valid neighbours of voxels that went up.
+fn seed(p: &Packing, offsets: &[[i32; 3]], old: &[u64], cur: &[AtomicU64], stamp: &[AtomicU32]) -> Vec<(u32, u64)> {
+    let mark = |i: usize| stamp[i].swap(1, Relaxed) != 1;
+    let ids: Vec<u32> = (0..p.region.len())
+        .into_par_iter()
+        .fold(Vec::new, |mut acc, i| {
+            let new = cur[i].load(Relaxed);
+            if new < old[i] && mark(i) {
+                acc.push(i as u32);
+            } else if new > old[i] {
+                for_neighbours(&p.region, i, offsets, |n| {
+                    if cur[n].load(Relaxed) != FAR && mark(n) {
+                        acc.push(n as u32);
+                    }
+                });
+            }
+            acc
+        })
+        .flatten()
+        .collect();
+    ids.into_par_iter().map(|i| (i, cur[i as usize].load(Relaxed))).collect()
+}
+
+/// Step 4: lowering waves until no voxel changes; returns (levels, lowerings).
+fn lower(p: &Packing, offsets: &[[i32; 3]], mut frontier: Vec<(u32, u64)>, cur: &[AtomicU64], stamp: &[AtomicU32]) -> (usize, usize) {
+    let (mut levels, mut lowered) = (0, 0);
+    let max = p.cutoff.max_dist_sq as i64;
+    while !frontier.is_empty() {
+        levels += 1;
+        let level = levels as u32 + 1;
+        let (next, count): (Vec<u32>, usize) = frontier
+            .par_iter()
+            .fold(
+                || (Vec::new(), 0),
+                |(mut acc, mut count), &(i, value)| {
+                    let src = p.source_coords(value).map(|x| x as i64);
+                    let reach = p.cutoff.reach as i64;
+                    for_neighbours(&p.region, i as usize, offsets, |n| {
+                        let c = p.region.coords(n);
+                        let d: i64 = (0..3).map(|a| (c[a] as i64 + reach - src[a]).pow(2)).sum();
+                        if d > max {
+                            return;
+                        }
+                        let cand = ((d as u64) << 32) | (value & 0xffff_ffff);
+                        if cand < cur[n].load(Relaxed) && cand < cur[n].fetch_min(cand, Relaxed) {
+                            count += 1;
+                            if stamp[n].swap(level, Relaxed) != level {
+                                acc.push(n as u32);
+                            }
+                        }
+                    });
+                    (acc, count)
+                },
+            )
+            .reduce(|| (Vec::new(), 0), |(mut a, x), (b, y)| {
+                a.extend(b);
+                (a, x + y)
+            });
+        lowered += count;
+        frontier = next.into_par_iter().map(|i| (i, cur[i as usize].load(Relaxed))).collect();
+    }
+    (levels, lowered)
+}
+
+/// Calls `f` with the linear index of each neighbour of voxel `i` inside `r`.
+#[inline]
+fn for_neighbours(r: &Region, i: usize, offsets: &[[i32; 3]], mut f: impl FnMut(usize)) {
+    let c = r.coords(i);
+    for o in offsets {
+        let n = [0, 1, 2].map(|a| c[a] as i64 + i64::from(o[a]));
+        if (0..3).all(|a| n[a] >= 0 && n[a] < r.dims[a] as i64) {
+            f(r.linear(n.map(|x| x as usize)));
+        }
+    }
+}
