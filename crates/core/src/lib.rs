@@ -19,6 +19,7 @@
 mod edt;
 mod error;
 mod global;
+mod global_map;
 mod grid;
 mod index;
 mod obstacles;
@@ -30,6 +31,7 @@ mod volume;
 pub use edt::{dist_sq_to_vox, EdtField, EdtParams, NO_SITE, UNREACHABLE_DIST_SQ};
 pub use error::CoreError;
 pub use global::{Connectivity, Cutoff, EdtBlock, EdtMap, ForbiddenZone, GlobalParams, IntegrationMode, DEFAULT_MAX_DISTANCE_M, FAR_DIST_SQ, NO_OBSTACLE};
+pub use global_map::GlobalMap;
 pub use grid::Grid3;
 pub use obstacles::{Obstacles, StaticBlock, StaticMap, MAX_STATIC_BLOCKS};
 pub use index::{BlockKey, VoxelIndex, BLOCK_SIDE, BLOCK_VOXELS};
