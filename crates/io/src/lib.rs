@@ -9,6 +9,8 @@
 //! * [`pcd`]: point clouds in PCL's PCD format ([`read_pcd`]), ascii or
 //!   binary data, float32 or float64 coordinates.
 //! * [`picture`]: PNG pictures of 2D slices with a colour bar.
+//! * [`plot`]: PNG line and scatter charts of results ([`Chart`]), drawn
+//!   with the same canvas and bitmap font, without a plotting dependency.
 //!
 //! Every error names the file and the problem; nothing here panics on bad
 //! input.
@@ -19,6 +21,8 @@ mod font;
 pub mod npy;
 pub mod pcd;
 pub mod picture;
+pub mod plot;
 
 pub use error::IoError;
 pub use pcd::read_pcd;
+pub use plot::Chart;
