@@ -146,7 +146,7 @@ pub(crate) fn execute(args: &RunArgs, progress: bool) -> Result<RunOutcome> {
     header.insert("construction".into(), json!(construction_name(&sensor, &config)));
     header.insert("voxel_size_m".into(), json!(params.voxel_size_m));
     header.insert("local_dims".into(), json!(mapper.local_volume().map(|v| v.dims)));
-    header.insert("map_blocks".into(), json!(mapper.map().len()));
+    header.insert("map_blocks".into(), json!(mapper.map().occupancy.len()));
     let report_path = args.out.join("report.json");
     write_json(&report_path, &report(header, &records))?;
     Ok(RunOutcome { frames: records, report_path, pictures })

@@ -171,7 +171,7 @@ impl GlobalParams {
     pub fn cutoff(&self, voxel_size_m: f64) -> Result<Cutoff, CoreError> {
         // The tolerance keeps 0.6 m / 0.2 m at 3 voxels, not 2.999….
         let vox = self.max_distance_m / voxel_size_m * (1.0 + 1e-9);
-        if !(vox >= 1.0 && vox <= 10_000.0) {
+        if !(1.0..=10_000.0).contains(&vox) {
             return Err(CoreError::InvalidParam {
                 field: "max_distance_m",
                 value: self.max_distance_m.to_string(),

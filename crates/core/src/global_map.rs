@@ -32,6 +32,7 @@ impl GlobalMap {
     /// An empty map, checking every parameter; forbidden zones are laid
     /// down as fixed obstacles.
     pub fn new(voxel_size_m: f64, occupancy_params: OccupancyParams, params: GlobalParams) -> Result<Self, CoreError> {
+        crate::check_voxel_size(voxel_size_m)?;
         let log_odds = occupancy_params.log_odds()?;
         let cutoff = params.cutoff(voxel_size_m)?;
         params.check_forbidden()?;

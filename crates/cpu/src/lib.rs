@@ -25,6 +25,7 @@
 pub mod edt;
 pub mod integrate;
 pub mod occupancy;
+pub mod query;
 mod error;
 
 pub use error::CpuError;

@@ -20,7 +20,7 @@
 
 use crate::{MapError, MapperParams};
 use edtmap_core::sensor::{PinholeCamera, RangeLimits, Sensor, SpinningLidar};
-use edtmap_core::{CoreError, EdtParams, OccupancyParams, VolumeParams};
+use edtmap_core::{CoreError, EdtParams, GlobalParams, OccupancyParams, VolumeParams};
 use edtmap_cpu::occupancy::{Construction, OgmOptions};
 use serde::Deserialize;
 use std::path::Path;
@@ -39,6 +39,9 @@ pub struct Config {
     /// Batch EDT.
     #[serde(default)]
     pub edt: EdtParams,
+    /// Global EDT: cutoff, connectivity, integration mode, forbidden zones.
+    #[serde(default)]
+    pub global: GlobalParams,
     /// Pictures and reports.
     #[serde(default)]
     pub output: OutputSection,
@@ -194,7 +197,11 @@ impl Config {
         edtmap_core::LocalVolume::centred(&volume, occ.voxel_size_m, [0.0; 3]).map_err(in_occ)?;
         let sensor = self.sensor.model().map_err(|source| MapError::Config { section: "sensor", source })?;
         let ogm = self.sensor.ogm_options(occ.voxel_size_m, &sensor).map_err(|source| MapError::Config { section: "sensor", source })?;
-        let params = MapperParams { voxel_size_m: occ.voxel_size_m, volume, occupancy: occ.probabilities.clone(), ogm, edt: self.edt };
+        let in_global = |source| MapError::Config { section: "global", source };
+        self.global.cutoff(occ.voxel_size_m).map_err(in_global)?;
+        self.global.check_forbidden().map_err(in_global)?;
+        let global = self.global.clone();
+        let params = MapperParams { voxel_size_m: occ.voxel_size_m, volume, occupancy: occ.probabilities.clone(), ogm, edt: self.edt, global };
         Ok((sensor, params))
     }
 }

@@ -3,11 +3,15 @@
 use crate::MapError;
 use edtmap_core::sensor::{Frame, Sensor};
 use edtmap_core::{
-    BlockKey, EdtField, EdtParams, Grid3, LocalVolume, LogOdds, OccupancyMap, OccupancyParams, VolumeParams, VoxelIndex,
-    VoxelState,
+    BlockKey, EdtField, EdtParams, GlobalMap, GlobalParams, Grid3, LocalVolume, OccupancyParams, VolumeParams,
+    VoxelIndex, VoxelState,
 };
 use edtmap_cpu::edt::{edt_into, ScanLayout};
+use edtmap_cpu::integrate::exact::fill_mask;
+use edtmap_cpu::integrate::region::Region;
+use edtmap_cpu::integrate::{IntegrateReport, Integrator, WaveCounts};
 use edtmap_cpu::occupancy::{fuse, read_states, OccupancyStage, OgmOptions};
+use edtmap_cpu::query::{self, Distance, PointState};
 use std::time::Instant;
 
 /// Everything a [`Mapper`] needs to know besides the sensor.
@@ -23,6 +27,8 @@ pub struct MapperParams {
     pub ogm: OgmOptions,
     /// Batch EDT options.
     pub edt: EdtParams,
+    /// Global EDT: cutoff, connectivity, mode, forbidden zones.
+    pub global: GlobalParams,
 }
 
 impl MapperParams {
@@ -35,6 +41,7 @@ impl MapperParams {
             occupancy: OccupancyParams::default(),
             ogm: OgmOptions::for_voxel_size(voxel_size_m),
             edt: EdtParams::default(),
+            global: GlobalParams::default(),
         }
     }
 }
@@ -46,6 +53,8 @@ pub struct FrameStats {
     pub ogm_ms: f64,
     /// Batch EDT of the local volume, ms.
     pub batch_edt_ms: f64,
+    /// Integration into the global EDT, ms.
+    pub integrate_ms: f64,
     /// Whole frame, ms.
     pub total_ms: f64,
     /// Voxels that received an observation.
@@ -54,6 +63,19 @@ pub struct FrameStats {
     pub voxels_changed: usize,
     /// Blocks holding a voxel whose state changed, sorted.
     pub changed_blocks: Vec<BlockKey>,
+    /// Global EDT voxels whose distance or nearest obstacle changed.
+    pub edt_voxels_changed: usize,
+    /// The paper's change score V (eq. 6): the mean over the mapped voxels
+    /// of |Δ distance|, metres, distances truncated at the cutoff.
+    pub change_score_m: f64,
+    /// Voxels of the region the integration worked on.
+    pub integrate_region_voxels: usize,
+    /// Wavefront counters (frontiers A, B, C, levels).
+    pub waves: WaveCounts,
+    /// Blocks of the global map: occupancy, EDT and fixed obstacles.
+    pub map_blocks: usize,
+    /// Memory those blocks hold, bytes.
+    pub map_bytes: usize,
 }
 
 /// Builds the occupancy map and the local EDT from a stream of frames.
@@ -61,25 +83,50 @@ pub struct FrameStats {
 pub struct Mapper {
     params: MapperParams,
     sensor: Sensor,
-    log_odds: LogOdds,
-    map: OccupancyMap,
+    map: GlobalMap,
     occupancy: OccupancyStage,
+    integrator: Integrator,
     volume: Option<LocalVolume>,
     local_states: Grid3<VoxelState>,
+    local_mask: Grid3<bool>,
     local_edt: EdtField,
+    /// The batch EDT with unknown voxels free, when `local_edt` is not.
+    global_batch: Option<(Grid3<bool>, EdtField)>,
 }
 
 impl Mapper {
     /// A mapper for `sensor`, checking every parameter.
     pub fn new(sensor: Sensor, params: MapperParams) -> Result<Self, MapError> {
         sensor.validate()?;
-        let log_odds = params.occupancy.log_odds()?;
-        let map = OccupancyMap::new(params.voxel_size_m)?;
+        let map = GlobalMap::new(params.voxel_size_m, params.occupancy.clone(), params.global.clone())?;
+        Self::with_map(sensor, params, map)
+    }
+
+    /// A mapper that goes on from `map` (a loaded map file, say); the map's
+    /// voxel size, probabilities and global parameters replace those of
+    /// `params`.
+    pub fn with_map(sensor: Sensor, mut params: MapperParams, map: GlobalMap) -> Result<Self, MapError> {
+        sensor.validate()?;
+        params.voxel_size_m = map.voxel_size_m();
+        params.occupancy = map.occupancy_params.clone();
+        params.global = map.params.clone();
         // Fails early on a bad size rather than at the first frame.
         LocalVolume::centred(&params.volume, params.voxel_size_m, [0.0; 3])?;
-        let local_states = Grid3::from_vec([1, 1, 1], vec![VoxelState::Unknown])?;
-        let occupancy = OccupancyStage::default();
-        Ok(Mapper { params, sensor, log_odds, map, occupancy, volume: None, local_states, local_edt: EdtField::empty() })
+        let integrator = Integrator::new(&params.global, params.voxel_size_m)?;
+        let mask = Grid3::from_vec([1, 1, 1], vec![false])?;
+        let global_batch = params.edt.unknown_as_occupied.then(|| (mask.clone(), EdtField::empty()));
+        Ok(Mapper {
+            sensor,
+            map,
+            occupancy: OccupancyStage::default(),
+            integrator,
+            volume: None,
+            local_states: Grid3::from_vec([1, 1, 1], vec![VoxelState::Unknown])?,
+            local_mask: mask,
+            local_edt: EdtField::empty(),
+            global_batch,
+            params,
+        })
     }
 
     /// Adds one frame. A frame that does not fit the sensor, or has a bad
@@ -90,23 +137,56 @@ impl Mapper {
         let volume = LocalVolume::centred(&self.params.volume, self.params.voxel_size_m, frame.t_world_sensor.translation.vector.into())?;
         // §IV-A: occupancy of the local volume, fused into the global map.
         let obs = self.occupancy.observe(&self.sensor, frame, volume, &self.params.ogm)?;
-        let fused = fuse(&mut self.map, obs, &self.log_odds);
-        read_states(&self.map, &volume, &self.log_odds, &mut self.local_states)?;
+        let fused = fuse(&mut self.map.occupancy, obs, &self.map.log_odds);
+        read_states(&self.map.occupancy, &volume, &self.map.log_odds, &mut self.local_states)?;
         let ogm_ms = ms_since(start);
         // §IV-B, Alg. 1: exact batch EDT of the local volume.
-        let edt_start = Instant::now();
-        let unknown = self.params.edt.unknown_as_occupied;
-        edt_into(&self.local_states, |s| s.is_obstacle(unknown), ScanLayout::default(), &mut self.local_edt)?;
-        let batch_edt_ms = ms_since(edt_start);
+        let t = Instant::now();
+        self.batch_edt(&volume)?;
+        let batch_edt_ms = ms_since(t);
+        // §IV-C, Alg. 2 and 3: the batch EDT merged into the global EDT.
+        let t = Instant::now();
+        let merged = self.integrate(&volume)?;
+        let integrate_ms = ms_since(t);
         self.volume = Some(volume);
+        let mapped_voxels = (self.map.occupancy.len() * edtmap_core::BLOCK_VOXELS).max(1);
         Ok(FrameStats {
             ogm_ms,
             batch_edt_ms,
+            integrate_ms,
             total_ms: ms_since(start),
             voxels_updated: fused.voxels_updated,
             voxels_changed: fused.voxels_changed,
             changed_blocks: fused.changed_blocks,
+            edt_voxels_changed: merged.voxels_changed,
+            change_score_m: merged.change_sum_vox * self.params.voxel_size_m / mapped_voxels as f64,
+            integrate_region_voxels: merged.region_voxels,
+            waves: merged.waves,
+            map_blocks: self.map.occupancy.len() + self.map.edt.len() + self.map.fixed.len(),
+            map_bytes: self.map.bytes(),
         })
+    }
+
+    /// The exact EDT of the window's obstacles into `local_edt` (and, when
+    /// unknown voxels are obstacles locally, the one the global map needs).
+    fn batch_edt(&mut self, volume: &LocalVolume) -> Result<(), MapError> {
+        let region = Region { origin: volume.origin.0, dims: volume.dims };
+        let mut obstacles = self.map.obstacles();
+        obstacles.unknown_as_occupied = self.params.edt.unknown_as_occupied;
+        fill_mask(&obstacles, &region, &mut self.local_mask)?;
+        edt_into(&self.local_mask, |&o| o, ScanLayout::default(), &mut self.local_edt)?;
+        if let Some((mask, field)) = &mut self.global_batch {
+            fill_mask(&self.map.obstacles(), &region, mask)?;
+            edt_into(mask, |&o| o, ScanLayout::default(), field)?;
+        }
+        Ok(())
+    }
+
+    fn integrate(&mut self, volume: &LocalVolume) -> Result<IntegrateReport, MapError> {
+        let batch = self.global_batch.as_ref().map_or(&self.local_edt, |(_, f)| f);
+        let GlobalMap { occupancy, edt, fixed, log_odds, .. } = &mut self.map;
+        let obstacles = edtmap_core::Obstacles { occupancy, log_odds, fixed, unknown_as_occupied: false };
+        Ok(self.integrator.integrate(edt, &obstacles, volume, batch)?)
     }
 
     /// The parameters in use.
@@ -119,14 +199,70 @@ impl Mapper {
         &self.sensor
     }
 
-    /// The global occupancy map.
-    pub fn map(&self) -> &OccupancyMap {
+    /// The global map: occupancy, EDT, fixed obstacles.
+    pub fn map(&self) -> &GlobalMap {
         &self.map
+    }
+
+    /// Gives the global map up (to save it, say).
+    pub fn into_map(self) -> GlobalMap {
+        self.map
     }
 
     /// The state of world voxel `v`.
     pub fn state(&self, v: VoxelIndex) -> VoxelState {
-        self.log_odds.state(self.map.log_odds(v))
+        self.map.state(v)
+    }
+
+    /// Makes every occupied voxel of `prior` (a map built before, say) a
+    /// fixed obstacle of this map, with its fixed obstacles; returns how
+    /// many voxels were added. The global EDT takes them in at the next
+    /// frames, as the window passes over them.
+    pub fn add_prior(&mut self, prior: &GlobalMap) -> Result<usize, MapError> {
+        if (prior.voxel_size_m() - self.map.voxel_size_m()).abs() > 1e-9 * self.map.voxel_size_m() {
+            return Err(MapError::Core(edtmap_core::CoreError::InvalidParam {
+                field: "prior map voxel_size_m",
+                value: prior.voxel_size_m().to_string(),
+                reason: "must equal the mapper's voxel size",
+            }));
+        }
+        let mut added = 0;
+        for (key, block) in prior.occupancy.iter() {
+            for (offset, &value) in block.log_odds.iter().enumerate() {
+                let v = key.voxel(offset);
+                if prior.log_odds.state(value) == VoxelState::Occupied || prior.fixed.contains(v) {
+                    self.map.fixed.insert(v);
+                    added += 1;
+                }
+            }
+        }
+        Ok(added)
+    }
+
+    /// Distance to the nearest obstacle at world point `p` (metres), with
+    /// its gradient, interpolated between voxel centres.
+    pub fn distance(&self, p: [f64; 3]) -> Distance {
+        query::distance(&self.map, p, false)
+    }
+
+    /// [`Self::distance`] with negative values inside obstacles.
+    pub fn signed_distance(&self, p: [f64; 3]) -> Distance {
+        query::distance(&self.map, p, true)
+    }
+
+    /// [`Self::distance`] of many points, in parallel.
+    pub fn distances(&self, points: &[[f64; 3]]) -> Vec<Distance> {
+        query::distances(&self.map, points, false)
+    }
+
+    /// State of the voxel holding world point `p`.
+    pub fn state_at(&self, p: [f64; 3]) -> PointState {
+        query::point_state(&self.map, p)
+    }
+
+    /// Exploration frontiers: observed free voxels next to unknown ones.
+    pub fn frontiers(&self) -> Vec<VoxelIndex> {
+        self.map.frontiers()
     }
 
     /// The latest local volume, once a frame has been integrated.
@@ -139,7 +275,8 @@ impl Mapper {
         &self.local_states
     }
 
-    /// Exact EDT of the latest local volume, in its voxel units.
+    /// Exact EDT of the latest local volume, in its voxel units: the
+    /// high-rate local distance field of the paper, for local planners.
     pub fn local_edt(&self) -> &EdtField {
         &self.local_edt
     }

@@ -60,6 +60,13 @@ pub fn exact_region(obstacles: &Obstacles<'_>, region: &Region, cutoff: Cutoff) 
 
 /// The batch EDT of `source` from the global obstacles.
 fn exact_field(obstacles: &Obstacles<'_>, source: &Region, mask: &mut Grid3<bool>, field: &mut EdtField) -> Result<(), CpuError> {
+    fill_mask(obstacles, source, mask)?;
+    edt_into(mask, |&o| o, ScanLayout::default(), field)
+}
+
+/// Fills `mask` (resized to `region`) with the obstacles of `region`.
+pub fn fill_mask(obstacles: &Obstacles<'_>, region: &Region, mask: &mut Grid3<bool>) -> Result<(), CpuError> {
+    let source = region;
     if mask.dims() != source.dims {
         *mask = Grid3::from_vec(source.dims, vec![false; Grid3::<bool>::voxel_count(source.dims)?])?;
     }
@@ -68,5 +75,5 @@ fn exact_field(obstacles: &Obstacles<'_>, source: &Region, mask: &mut Grid3<bool
         let (y, z) = (row % source.dims[1], row / source.dims[1]);
         obstacles.fill_row(source.world([0, y, z]), out);
     });
-    edt_into(mask, |&o| o, ScanLayout::default(), field)
+    Ok(())
 }
