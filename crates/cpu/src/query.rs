@@ -166,15 +166,20 @@ pub struct DistanceBox {
 /// Most voxels one box export may hold.
 pub const MAX_BOX_VOXELS: usize = 1 << 28;
 
-/// Every voxel overlapping the box from `min_m` to `max_m` (metres).
+/// Every voxel overlapping the box `[min_m, max_m)` (metres).
 pub fn distance_box(map: &GlobalMap, min_m: [f64; 3], max_m: [f64; 3], signed: bool) -> Result<DistanceBox, CpuError> {
     let vs = map.voxel_size_m();
     let bad = |reason| CoreError::InvalidParam { field: "box", value: format!("{min_m:?} .. {max_m:?}"), reason };
-    let lo = VoxelIndex::containing(min_m, vs).ok_or(bad("corners must be finite"))?;
-    let hi = VoxelIndex::containing(max_m, vs).ok_or(bad("corners must be finite"))?;
-    if (0..3).any(|a| min_m[a] >= max_m[a]) {
-        return Err(bad("min must be below max on every axis").into());
+    if (0..3).any(|a| !(min_m[a] < max_m[a])) {
+        return Err(bad("corners must be finite with min below max on every axis").into());
     }
+    let lo = VoxelIndex::containing(min_m, vs).ok_or(bad("corners must be finite"))?;
+    // The last voxel overlapping [min, max) on each axis.
+    let last = max_m.map(|m| (m / vs).ceil() - 1.0);
+    if last.iter().any(|&l| !(l >= f64::from(i32::MIN) && l <= f64::from(i32::MAX))) {
+        return Err(bad("corners must lie in the voxel index range").into());
+    }
+    let hi = VoxelIndex(last.map(|l| l as i32));
     let dims = [0, 1, 2].map(|a| (i64::from(hi.0[a]) - i64::from(lo.0[a]) + 1) as usize);
     if dims.iter().try_fold(1usize, |acc, &d| acc.checked_mul(d)).is_none_or(|n| n > MAX_BOX_VOXELS) {
         return Err(bad("more than 2^28 voxels").into());

@@ -12,7 +12,10 @@
 //!   silhouette, say) is partly free, and beams that pass through its free
 //!   part rightly call it free.
 
-use edtmap_core::VoxelState;
+use crate::MapError;
+use edtmap_core::{GlobalMap, VoxelState, FAR_DIST_SQ};
+use edtmap_cpu::integrate::exact::exact_region;
+use edtmap_cpu::integrate::region::Region;
 
 /// Occupancy scores of one volume (or the sum of several).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -113,4 +116,49 @@ mod tests {
         assert_eq!(OccupancyScores::default().recall(), None);
         assert_eq!(agreement(&[Free, Occupied, Unknown], &[Free, Free, Free]), (0.5, 2));
     }
+}
+
+/// Error of a global EDT against the exact EDT of the same map's obstacles
+/// (the paper's RMS error, with the mapper's own occupancy as the truth).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct EdtErrors {
+    /// Root mean square of the distance error, metres.
+    pub rms_m: f64,
+    /// Largest distance error, metres.
+    pub max_m: f64,
+    /// Fraction of the voxels compared whose squared distance is wrong.
+    pub wrong_fraction: f64,
+    /// Voxels compared: those with an obstacle within the cutoff in either.
+    pub voxels: usize,
+}
+
+/// [`EdtErrors`] of `map`'s EDT over the box `region`, against an exact
+/// EDT computed from its obstacles. Distances beyond the cutoff count as
+/// the cutoff.
+pub fn edt_errors(map: &GlobalMap, region: &Region) -> Result<EdtErrors, MapError> {
+    let exact = exact_region(&map.obstacles(), region, map.cutoff)?;
+    let vs = map.voxel_size_m();
+    let cap = f64::from(map.cutoff.max_dist_sq).sqrt();
+    let metres = |d: u32| if d == FAR_DIST_SQ { cap * vs } else { f64::from(d).sqrt() * vs };
+    let (mut sum_sq, mut max, mut wrong, mut voxels) = (0.0, 0.0f64, 0usize, 0usize);
+    for (i, &truth) in exact.iter().enumerate() {
+        let (stored, _) = map.entry(region.world(region.coords(i)));
+        if stored == FAR_DIST_SQ && truth == FAR_DIST_SQ {
+            continue;
+        }
+        let err = (metres(stored) - metres(truth)).abs();
+        (sum_sq, max, voxels) = (sum_sq + err * err, max.max(err), voxels + 1);
+        wrong += usize::from(stored != truth);
+    }
+    let n = voxels.max(1) as f64;
+    Ok(EdtErrors { rms_m: (sum_sq / n).sqrt(), max_m: max, wrong_fraction: wrong as f64 / n, voxels })
+}
+
+/// The box spanned by `map`'s EDT blocks, if any.
+pub fn edt_extent(map: &GlobalMap) -> Option<Region> {
+    let mut keys = map.edt.iter().map(|(k, _)| k.0);
+    let first = keys.next()?;
+    let (lo, hi) = keys.fold((first, first), |(lo, hi), k| ([0, 1, 2].map(|a| lo[a].min(k[a])), [0, 1, 2].map(|a| hi[a].max(k[a]))));
+    let side = edtmap_core::BLOCK_SIDE;
+    Some(Region { origin: lo.map(|b| b * side), dims: [0, 1, 2].map(|a| ((hi[a] - lo[a] + 1) * side) as usize) })
 }
