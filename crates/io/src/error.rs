@@ -115,6 +115,16 @@ pub enum IoError {
         /// The encoder's message.
         error: png::EncodingError,
     },
+    /// A `.edtmap` map file cannot be read (not a map file, a newer format
+    /// version, truncated, corrupt, invalid parameters) or a map cannot be
+    /// saved (its contents fail the same checks).
+    #[error("{}: {error}", path.display())]
+    MapFile {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong.
+        error: crate::mapfile::MapFileError,
+    },
 }
 
 impl IoError {

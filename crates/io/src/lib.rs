@@ -9,6 +9,9 @@
 //! * [`pcd`]: point clouds in PCL's PCD format ([`read_pcd`]), ascii or
 //!   binary data, float32 or float64 coordinates.
 //! * [`picture`]: PNG pictures of 2D slices with a colour bar.
+//! * [`mapfile`]: the versioned `.edtmap` map file ([`write_map`],
+//!   [`read_map`]): occupancy, global EDT, fixed obstacles and parameters,
+//!   saved bit for bit, checksummed, written atomically.
 //! * [`plot`]: PNG line and scatter charts of results ([`Chart`]), drawn
 //!   with the same canvas and bitmap font, without a plotting dependency.
 //!
@@ -18,11 +21,13 @@
 
 mod error;
 mod font;
+pub mod mapfile;
 pub mod npy;
 pub mod pcd;
 pub mod picture;
 pub mod plot;
 
 pub use error::IoError;
+pub use mapfile::{read_map, write_map, MapContents};
 pub use pcd::read_pcd;
 pub use plot::Chart;

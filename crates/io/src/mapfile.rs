@@ -1,0 +1,323 @@
+//! The `.edtmap` map file: a whole global map (occupancy, global EDT and
+//! fixed obstacles) with the parameters needed to read it, saved and
+//! loaded bit for bit.
+//!
+//! The layout is specified byte by byte in `docs/FORMAT.md`. In short: an
+//! 8-byte magic, the format version, flags, the file's total length, the
+//! voxel size, the parameters as TOML text, then three sections of blocks
+//! (occupancy, EDT, fixed obstacles) in sorted key order, and a CRC-32 of
+//! everything before it. The same map always gives the same bytes.
+//!
+//! Design choices:
+//! * The parameters are TOML (the sections `[occupancy]` and `[global]` of
+//!   the configuration), so a file stays readable with `head` and a field
+//!   added later with a default still reads old files. The voxel size is a
+//!   binary `f64`, exact.
+//! * Block payloads are the blocks' raw little-endian values, with no
+//!   compression: saving and loading are as fast as the disk, and `f32`
+//!   log-odds (−∞ for unobserved voxels included) come back bit-identical.
+//! * Loading trusts nothing: the magic, version, length and checksum are
+//!   checked before anything else is read, every count is checked against
+//!   the bytes that remain before anything is allocated, and the contents
+//!   must pass the same checks as a map being saved (valid parameters,
+//!   sorted unique keys, EDT entries that agree with their nearest
+//!   obstacle). Nothing here panics on any input. [`read_map`] reads the
+//!   whole file into memory, so the checksum is verified before anything
+//!   is parsed.
+//! * [`write_map`] writes a temporary file in the target's folder, syncs it
+//!   and renames it over the target, so a crash never leaves a half-written
+//!   map under the map's name. Maps are streamed to disk, not built in
+//!   memory first.
+//!
+//! ```
+//! use edtmap_core::{BlockKey, EdtMap, GlobalParams, OccupancyMap, OccupancyParams, StaticMap};
+//! use edtmap_io::mapfile::{read_map, write_map, MapContents};
+//!
+//! let voxel_size_m = 0.1;
+//! let mut map = MapContents {
+//!     voxel_size_m,
+//!     occupancy_params: OccupancyParams::default(),
+//!     global_params: GlobalParams::default(),
+//!     occupancy: OccupancyMap::new(voxel_size_m)?,
+//!     edt: EdtMap::new(voxel_size_m)?,
+//!     fixed: StaticMap::new(voxel_size_m)?,
+//! };
+//! map.occupancy.get_or_insert(BlockKey([0, 0, 0])).log_odds[0] = 0.85;
+//! let path = std::env::temp_dir().join(format!("edtmap_doc_{}.edtmap", std::process::id()));
+//! write_map(&path, &map)?;
+//! let back = read_map(&path)?;
+//! assert_eq!(back.occupancy.get(BlockKey([0, 0, 0])), map.occupancy.get(BlockKey([0, 0, 0])));
+//! # std::fs::remove_file(&path).ok();
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+
+mod check;
+mod decode;
+mod encode;
+mod layout;
+
+use std::ffi::OsString;
+use std::fs::{self, File, OpenOptions};
+use std::io::{self, BufWriter};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use edtmap_core::{EdtMap, GlobalMap, GlobalParams, OccupancyMap, OccupancyParams, StaticMap};
+use thiserror::Error;
+
+use crate::IoError;
+
+/// The format version this build writes; it reads versions 1 to this one.
+pub const MAP_FORMAT_VERSION: u32 = 1;
+
+/// The first 8 bytes of every map file. The CR LF pair makes a file that
+/// went through a text-mode line-ending conversion fail the magic check.
+pub const MAP_MAGIC: [u8; 8] = *b"EDTMAP\r\n";
+
+/// Everything a saved map holds.
+#[derive(Debug, Clone)]
+pub struct MapContents {
+    /// Voxel edge length in metres; the three maps must use it too.
+    pub voxel_size_m: f64,
+    /// The probabilities behind the log-odds.
+    pub occupancy_params: OccupancyParams,
+    /// Parameters of the global EDT (cutoff, connectivity, mode, zones).
+    pub global_params: GlobalParams,
+    /// Log-odds occupancy.
+    pub occupancy: OccupancyMap,
+    /// The global EDT.
+    pub edt: EdtMap,
+    /// Fixed obstacles (forbidden zones already laid down, a prior map).
+    pub fixed: StaticMap,
+}
+
+impl From<GlobalMap> for MapContents {
+    fn from(map: GlobalMap) -> Self {
+        MapContents {
+            voxel_size_m: map.voxel_size_m(),
+            occupancy_params: map.occupancy_params,
+            global_params: map.params,
+            occupancy: map.occupancy,
+            edt: map.edt,
+            fixed: map.fixed,
+        }
+    }
+}
+
+impl MapContents {
+    /// Checks the contents as [`encode_map`] and [`decode_map`] do: valid
+    /// parameters, one voxel size, block keys in the index range, log-odds
+    /// that are finite or unobserved, EDT entries within the cutoff that
+    /// agree with their nearest obstacle.
+    pub fn check(&self) -> Result<(), MapFileError> {
+        check::check_contents(self)
+    }
+
+    /// The global map these contents describe (fixed obstacles as saved:
+    /// forbidden zones are not laid down again).
+    pub fn into_global(self) -> Result<GlobalMap, MapFileError> {
+        self.check()?;
+        let invalid = |e: edtmap_core::CoreError| MapFileError::InvalidParams(e.to_string());
+        Ok(GlobalMap {
+            log_odds: self.occupancy_params.log_odds().map_err(invalid)?,
+            cutoff: self.global_params.cutoff(self.voxel_size_m).map_err(invalid)?,
+            occupancy: self.occupancy,
+            edt: self.edt,
+            fixed: self.fixed,
+            occupancy_params: self.occupancy_params,
+            params: self.global_params,
+        })
+    }
+}
+
+/// What is wrong with a map file's bytes, or with a map about to be saved.
+/// [`read_map`] and [`write_map`] wrap it in [`IoError::MapFile`] with the
+/// file's path.
+#[derive(Debug, Clone, PartialEq, Eq, Error)]
+#[non_exhaustive]
+pub enum MapFileError {
+    /// The bytes do not start with [`MAP_MAGIC`] (or there are none).
+    #[error("not an edtmap map file ({0})")]
+    NotMapFile(String),
+    /// The file's format version is newer than this build reads.
+    #[error("written by a newer edtmap: format version {found}, this build reads up to {supported}")]
+    NewerVersion {
+        /// The version in the file.
+        found: u32,
+        /// [`MAP_FORMAT_VERSION`].
+        supported: u32,
+    },
+    /// The file ends inside its fixed-size header.
+    #[error("truncated: {actual} bytes, shorter than the {header}-byte header")]
+    TruncatedHeader {
+        /// Bytes present.
+        actual: u64,
+        /// Bytes of header needed to read the file's length.
+        header: u64,
+    },
+    /// The file is shorter than the length its header states.
+    #[error("truncated: {expected} bytes expected, {actual} present")]
+    Truncated {
+        /// The length the header states, bytes.
+        expected: u64,
+        /// Bytes present.
+        actual: u64,
+    },
+    /// The trailing CRC-32 does not match the bytes before it.
+    #[error("corrupt: checksum mismatch (stored {stored:#010x}, computed {computed:#010x})")]
+    Checksum {
+        /// The checksum stored in the file.
+        stored: u32,
+        /// The checksum of the bytes read.
+        computed: u32,
+    },
+    /// The bytes are framed correctly but their contents are inconsistent:
+    /// duplicate or unsorted keys, counts that do not add up, an EDT entry
+    /// that disagrees with its nearest obstacle, a NaN log-odds, ...
+    #[error("corrupt: {0}")]
+    Corrupt(String),
+    /// The parameters are unreadable or fail validation; names the field.
+    #[error("invalid parameters: {0}")]
+    InvalidParams(String),
+}
+
+impl MapFileError {
+    fn at(self, path: &Path) -> IoError {
+        IoError::MapFile { path: path.to_path_buf(), error: self }
+    }
+}
+
+/// The bytes of `map` in the `.edtmap` format. Fails, writing nothing, when
+/// the contents do not pass [`MapContents::check`].
+pub fn encode_map(map: &MapContents) -> Result<Vec<u8>, MapFileError> {
+    let prepared = encode::Prepared::new(map)?;
+    let mut out = Vec::with_capacity(usize::try_from(prepared.total_len()).unwrap_or(0));
+    // Writing into a Vec cannot fail: it grows or aborts.
+    prepared.write(&mut out).expect("writing into a Vec never fails");
+    Ok(out)
+}
+
+/// The map held by `bytes`, a whole `.edtmap` file.
+pub fn decode_map(bytes: &[u8]) -> Result<MapContents, MapFileError> {
+    decode::decode(bytes)
+}
+
+/// Saves `map` at `path`, replacing any file there only once the new one is
+/// complete and synced. Fails, leaving `path` untouched, when the contents
+/// do not pass [`MapContents::check`] or the file cannot be written.
+pub fn write_map(path: &Path, map: &MapContents) -> Result<(), IoError> {
+    let prepared = encode::Prepared::new(map).map_err(|e| e.at(path))?;
+    let (tmp_path, file) = create_temp_beside(path).map_err(|e| IoError::io(path, e))?;
+    let written = write_and_sync(&prepared, file).and_then(|()| fs::rename(&tmp_path, path));
+    if let Err(e) = written {
+        // Best effort: the error that matters is the one being returned.
+        let _ = fs::remove_file(&tmp_path);
+        return Err(IoError::io(path, e));
+    }
+    sync_parent(path);
+    Ok(())
+}
+
+/// Loads the map saved at `path`.
+pub fn read_map(path: &Path) -> Result<MapContents, IoError> {
+    let bytes = fs::read(path).map_err(|e| IoError::io(path, e))?;
+    decode_map(&bytes).map_err(|e| e.at(path))
+}
+
+fn write_and_sync(prepared: &encode::Prepared<'_>, file: File) -> io::Result<()> {
+    let mut out = BufWriter::with_capacity(1 << 20, file);
+    prepared.write(&mut out)?;
+    let file = out.into_inner().map_err(|e| e.into_error())?;
+    file.sync_all()
+}
+
+/// Creates a new, empty temporary file in `path`'s folder, named after it.
+fn create_temp_beside(path: &Path) -> io::Result<(PathBuf, File)> {
+    static COUNTER: AtomicU64 = AtomicU64::new(0);
+    let name = path
+        .file_name()
+        .ok_or_else(|| io::Error::new(io::ErrorKind::InvalidInput, "the path does not name a file"))?;
+    let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    loop {
+        let n = COUNTER.fetch_add(1, Ordering::Relaxed);
+        let mut tmp_name = OsString::from(".");
+        tmp_name.push(name);
+        tmp_name.push(format!(".{}.{n}.tmp", std::process::id()));
+        let tmp = dir.join(tmp_name);
+        match OpenOptions::new().write(true).create_new(true).open(&tmp) {
+            Ok(file) => return Ok((tmp, file)),
+            // A stale file of an earlier process with the same id: try the next name.
+            Err(e) if e.kind() == io::ErrorKind::AlreadyExists && n < 1000 => continue,
+            Err(e) => return Err(e),
+        }
+    }
+}
+
+/// Makes the rename durable where the platform allows; a failure here does
+/// not undo a save that has already replaced the file.
+fn sync_parent(path: &Path) {
+    #[cfg(unix)]
+    {
+        let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+        if let Ok(d) = File::open(dir) {
+            let _ = d.sync_all();
+        }
+    }
+    #[cfg(not(unix))]
+    let _ = path;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use edtmap_core::{BlockKey, Connectivity, ForbiddenZone, IntegrationMode};
+
+    fn small_map() -> MapContents {
+        let vs = 0.1 + 0.2; // not exactly 0.3: the binary f64 must come back as is
+        let global_params = GlobalParams {
+            max_distance_m: 1.0 / 3.0,
+            connectivity: Connectivity::Eighteen,
+            mode: IntegrationMode::Exact,
+            forbidden: vec![ForbiddenZone { min_m: [-1.0, 0.1, 0.2], max_m: [0.7, 0.2 + 1e-7, 3.0e5] }],
+        };
+        let occupancy_params = OccupancyParams { prob_hit: 0.7000000000000001, ..Default::default() };
+        let mut map = MapContents {
+            voxel_size_m: vs,
+            occupancy_params,
+            global_params,
+            occupancy: OccupancyMap::new(vs).expect("valid"),
+            edt: EdtMap::new(vs).expect("valid"),
+            fixed: StaticMap::new(vs).expect("valid"),
+        };
+        map.occupancy.get_or_insert(BlockKey([-1, 2, 3])).log_odds[7] = -0.25;
+        map.fixed.get_or_insert(BlockKey([0, 0, 0])).bits[3] = 1 << 40;
+        map
+    }
+
+    #[test]
+    fn params_come_back_exactly() {
+        let map = small_map();
+        let bytes = encode_map(&map).expect("valid");
+        let back = decode_map(&bytes).expect("round trip");
+        assert_eq!(back.voxel_size_m.to_bits(), map.voxel_size_m.to_bits());
+        assert_eq!(back.occupancy_params, map.occupancy_params);
+        assert_eq!(back.global_params, map.global_params);
+    }
+
+    #[test]
+    fn stated_length_is_the_written_length() {
+        let map = small_map();
+        let prepared = encode::Prepared::new(&map).expect("valid");
+        let bytes = encode_map(&map).expect("valid");
+        assert_eq!(bytes.len() as u64, prepared.total_len());
+        assert_eq!(bytes[..8], MAP_MAGIC);
+    }
+
+    #[test]
+    fn invalid_zone_is_refused_before_writing() {
+        let mut map = small_map();
+        map.global_params.forbidden[0].max_m[1] = 0.0;
+        let err = encode_map(&map).expect_err("bad zone");
+        assert!(matches!(&err, MapFileError::InvalidParams(m) if m.contains("forbidden")), "{err}");
+    }
+}

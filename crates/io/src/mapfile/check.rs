@@ -1,0 +1,99 @@
+//! The checks a map passes before it is written and after it is read, so a
+//! file this crate writes is always one it reads back.
+
+use edtmap_core::{
+    check_voxel_size, BlockKey, BlockMap, CoreError, Cutoff, EdtMap, GlobalParams, OccupancyMap, OccupancyParams,
+    BLOCK_SIDE, BLOCK_VOXELS, FAR_DIST_SQ, NO_OBSTACLE,
+};
+
+use super::layout::Payload;
+use super::{MapContents, MapFileError};
+
+/// Lowest block key on each axis whose voxels have `i32` indices.
+const MIN_KEY: i32 = i32::MIN / BLOCK_SIDE;
+/// Highest such block key.
+const MAX_KEY: i32 = i32::MAX.div_euclid(BLOCK_SIDE);
+
+/// Checks the parameters, voxel sizes, keys, log-odds and EDT entries.
+pub(super) fn check_contents(map: &MapContents) -> Result<(), MapFileError> {
+    let cutoff = check_params(map.voxel_size_m, &map.occupancy_params, &map.global_params)?;
+    let sizes = [("occupancy", map.occupancy.voxel_size_m()), ("EDT", map.edt.voxel_size_m()), ("fixed", map.fixed.voxel_size_m())];
+    for (name, size) in sizes {
+        if size.to_bits() != map.voxel_size_m.to_bits() {
+            return Err(MapFileError::InvalidParams(format!(
+                "the {name} map has voxel_size_m = {size}, the map {}",
+                map.voxel_size_m
+            )));
+        }
+    }
+    check_keys(&map.occupancy)?;
+    check_keys(&map.edt)?;
+    check_keys(&map.fixed)?;
+    check_log_odds(&map.occupancy)?;
+    check_edt(&map.edt, cutoff)
+}
+
+/// Validates the parameters as the mapper does; returns the EDT cutoff.
+pub(super) fn check_params(voxel_size_m: f64, occupancy: &OccupancyParams, global: &GlobalParams) -> Result<Cutoff, MapFileError> {
+    let invalid = |e: CoreError| MapFileError::InvalidParams(e.to_string());
+    check_voxel_size(voxel_size_m).map_err(invalid)?;
+    occupancy.log_odds().map_err(invalid)?;
+    let cutoff = global.cutoff(voxel_size_m).map_err(invalid)?;
+    global.check_forbidden().map_err(invalid)?;
+    Ok(cutoff)
+}
+
+/// The map's blocks in ascending key order, so the first problem reported
+/// does not depend on hash order.
+fn sorted<B: Default>(map: &BlockMap<B>) -> Vec<(BlockKey, &B)> {
+    let mut blocks: Vec<_> = map.iter().collect();
+    blocks.sort_unstable_by_key(|&(key, _)| key);
+    blocks
+}
+
+/// Every key's voxels must have `i32` indices.
+fn check_keys<B: Payload>(map: &BlockMap<B>) -> Result<(), MapFileError> {
+    let outside = |key: &BlockKey| key.0.iter().any(|&c| !(MIN_KEY..=MAX_KEY).contains(&c));
+    match sorted(map).into_iter().find(|(key, _)| outside(key)) {
+        Some((key, _)) => Err(MapFileError::Corrupt(format!(
+            "block key {:?} in the {} section lies outside the voxel index range",
+            key.0,
+            B::SECTION
+        ))),
+        None => Ok(()),
+    }
+}
+
+/// A log-odds is finite or [`edtmap_core::UNOBSERVED`] (−∞).
+fn check_log_odds(map: &OccupancyMap) -> Result<(), MapFileError> {
+    for (key, block) in sorted(map) {
+        if let Some(i) = block.log_odds.iter().position(|v| v.is_nan() || *v == f32::INFINITY) {
+            let v = key.voxel(i);
+            return Err(MapFileError::Corrupt(format!("occupancy voxel {:?} holds log-odds {}", v.0, block.log_odds[i])));
+        }
+    }
+    Ok(())
+}
+
+/// An EDT entry is beyond the cutoff with no obstacle, or within it with
+/// the squared distance to the obstacle it names.
+fn check_edt(map: &EdtMap, cutoff: Cutoff) -> Result<(), MapFileError> {
+    for (key, block) in sorted(map) {
+        for i in 0..BLOCK_VOXELS {
+            let (d, nearest, v) = (block.dist_sq[i], block.nearest[i], key.voxel(i));
+            let problem = if d == FAR_DIST_SQ {
+                (nearest != NO_OBSTACLE).then(|| format!("is beyond the cutoff but names a nearest obstacle {:?}", nearest.0))
+            } else if d > cutoff.max_dist_sq {
+                Some(format!("holds dist_sq {d}, beyond the cutoff's {}", cutoff.max_dist_sq))
+            } else {
+                let actual: u128 = (0..3).map(|a| u128::from((i64::from(v.0[a]) - i64::from(nearest.0[a])).unsigned_abs()).pow(2)).sum();
+                (actual != u128::from(d))
+                    .then(|| format!("holds dist_sq {d} but its nearest obstacle {:?} lies at dist_sq {actual}", nearest.0))
+            };
+            if let Some(p) = problem {
+                return Err(MapFileError::Corrupt(format!("EDT voxel {:?} {p}", v.0)));
+            }
+        }
+    }
+    Ok(())
+}

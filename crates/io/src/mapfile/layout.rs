@@ -1,0 +1,107 @@
+//! Sizes, offsets and block payloads of format version 1, shared by the
+//! writer and the reader (specified in `docs/FORMAT.md`).
+
+use edtmap_core::{BlockKey, EdtBlock, GlobalParams, OccupancyBlock, OccupancyParams, StaticBlock, VoxelIndex, BLOCK_VOXELS};
+use serde::{Deserialize, Serialize};
+
+/// Bytes needed to read the file's stated length: magic, version, flags,
+/// total length.
+pub(super) const LENGTH_END: usize = 24;
+/// Bytes of the fixed header: the above, voxel size, parameter text length.
+pub(super) const HEADER_LEN: usize = 36;
+/// Bytes of the trailing CRC-32.
+pub(super) const CHECKSUM_LEN: usize = 4;
+/// Bytes of a block count.
+pub(super) const COUNT_LEN: usize = 8;
+/// Bytes of a block key: three `i32`.
+pub(super) const KEY_LEN: usize = 12;
+/// The smallest valid file: header, empty parameter text, three empty
+/// sections, checksum.
+pub(super) const MIN_FILE_LEN: u64 = (HEADER_LEN + 3 * COUNT_LEN + CHECKSUM_LEN) as u64;
+
+/// The parameter text: TOML with an `[occupancy]` and a `[global]` table.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct ParamsText {
+    pub(super) occupancy: OccupancyParams,
+    pub(super) global: GlobalParams,
+}
+
+/// A block type stored in a section: its name and raw little-endian payload.
+pub(super) trait Payload: Default {
+    /// Name of the section, for messages.
+    const SECTION: &'static str;
+    /// Bytes of one block's payload (the key not included).
+    const LEN: usize;
+    /// Appends the payload to `out`.
+    fn put(&self, out: &mut Vec<u8>);
+    /// Reads the payload from `bytes`, exactly [`Self::LEN`] long.
+    fn get(&mut self, bytes: &[u8]);
+}
+
+impl Payload for OccupancyBlock {
+    const SECTION: &'static str = "occupancy";
+    const LEN: usize = 4 * BLOCK_VOXELS;
+    fn put(&self, out: &mut Vec<u8>) {
+        self.log_odds.iter().for_each(|v| out.extend_from_slice(&v.to_bits().to_le_bytes()));
+    }
+    fn get(&mut self, bytes: &[u8]) {
+        for (v, c) in self.log_odds.iter_mut().zip(bytes.chunks_exact(4)) {
+            *v = f32::from_bits(le_u32(c));
+        }
+    }
+}
+
+impl Payload for EdtBlock {
+    const SECTION: &'static str = "EDT";
+    const LEN: usize = 4 * BLOCK_VOXELS + 12 * BLOCK_VOXELS;
+    fn put(&self, out: &mut Vec<u8>) {
+        self.dist_sq.iter().for_each(|d| out.extend_from_slice(&d.to_le_bytes()));
+        self.nearest.iter().for_each(|n| put_triple(n.0, out));
+    }
+    fn get(&mut self, bytes: &[u8]) {
+        let (dist, nearest) = bytes.split_at(4 * BLOCK_VOXELS);
+        for (d, c) in self.dist_sq.iter_mut().zip(dist.chunks_exact(4)) {
+            *d = le_u32(c);
+        }
+        for (n, c) in self.nearest.iter_mut().zip(nearest.chunks_exact(12)) {
+            *n = VoxelIndex(get_triple(c));
+        }
+    }
+}
+
+impl Payload for StaticBlock {
+    const SECTION: &'static str = "fixed";
+    const LEN: usize = 64;
+    fn put(&self, out: &mut Vec<u8>) {
+        self.bits.iter().for_each(|w| out.extend_from_slice(&w.to_le_bytes()));
+    }
+    fn get(&mut self, bytes: &[u8]) {
+        for (w, c) in self.bits.iter_mut().zip(bytes.chunks_exact(8)) {
+            *w = u64::from_le_bytes([c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7]]);
+        }
+    }
+}
+
+/// Appends a block key.
+pub(super) fn put_key(key: BlockKey, out: &mut Vec<u8>) {
+    put_triple(key.0, out);
+}
+
+/// Reads a block key from `bytes`, [`KEY_LEN`] long.
+pub(super) fn get_key(bytes: &[u8]) -> BlockKey {
+    BlockKey(get_triple(bytes))
+}
+
+fn put_triple(t: [i32; 3], out: &mut Vec<u8>) {
+    t.iter().for_each(|c| out.extend_from_slice(&c.to_le_bytes()));
+}
+
+fn get_triple(bytes: &[u8]) -> [i32; 3] {
+    [0, 4, 8].map(|o| le_u32(&bytes[o..o + 4]) as i32)
+}
+
+/// The little-endian `u32` in the first 4 bytes of `c`.
+pub(super) fn le_u32(c: &[u8]) -> u32 {
+    u32::from_le_bytes([c[0], c[1], c[2], c[3]])
+}

@@ -1,0 +1,402 @@
+//! The `.edtmap` map file: bit-identical round trips, deterministic bytes,
+//! and a clear error, never a panic, for every kind of bad file.
+
+use std::fs;
+use std::path::Path;
+
+use edtmap_core::{
+    BlockKey, Connectivity, EdtMap, ForbiddenZone, GlobalMap, GlobalParams, IntegrationMode, OccupancyMap,
+    OccupancyParams, StaticMap, VoxelIndex, BLOCK_VOXELS, FAR_DIST_SQ, NO_OBSTACLE, UNOBSERVED,
+};
+use edtmap_io::mapfile::{decode_map, encode_map, read_map, write_map, MapContents, MapFileError, MAP_FORMAT_VERSION};
+use edtmap_io::IoError;
+use rand::rngs::StdRng;
+use rand::{Rng, SeedableRng};
+
+const VOXEL_SIZE_M: f64 = 0.05;
+/// Offset of the parameter text's length (docs/FORMAT.md).
+const PARAMS_LEN_AT: usize = 32;
+/// Bytes of an occupancy, EDT and fixed block record (key and payload).
+const OCC_RECORD: usize = 12 + 4 * 512;
+const EDT_RECORD: usize = 12 + 16 * 512;
+
+fn empty_map() -> MapContents {
+    let global_params = GlobalParams {
+        max_distance_m: 0.5,
+        connectivity: Connectivity::Six,
+        mode: IntegrationMode::Exact,
+        forbidden: vec![ForbiddenZone { min_m: [-1.0, -0.5, 0.0], max_m: [0.25, 0.5, 0.1] }],
+    };
+    MapContents {
+        voxel_size_m: VOXEL_SIZE_M,
+        occupancy_params: OccupancyParams { prob_hit: 0.65, clamp_max: 0.971, ..Default::default() },
+        global_params,
+        occupancy: OccupancyMap::new(VOXEL_SIZE_M).expect("voxel size"),
+        edt: EdtMap::new(VOXEL_SIZE_M).expect("voxel size"),
+        fixed: StaticMap::new(VOXEL_SIZE_M).expect("voxel size"),
+    }
+}
+
+fn random_key(rng: &mut StdRng) -> BlockKey {
+    BlockKey([0; 3].map(|_| rng.random_range(-20..=20)))
+}
+
+/// A map of about `blocks` occupancy blocks, half as many EDT blocks and a
+/// quarter as many fixed blocks, with random but consistent contents; two
+/// blocks sit at the ends of the key range.
+fn random_map(seed: u64, blocks: usize) -> MapContents {
+    let mut rng = StdRng::seed_from_u64(seed);
+    let mut map = empty_map();
+    let lo = map.occupancy_params.log_odds().expect("valid");
+    let cutoff = map.global_params.cutoff(VOXEL_SIZE_M).expect("valid");
+    let edges = [BlockKey([-(1 << 28), (1 << 28) - 1, 0]), BlockKey([(1 << 28) - 1, 0, -(1 << 28)])];
+    for i in 0..blocks {
+        let key = edges.get(i).copied().unwrap_or_else(|| random_key(&mut rng));
+        let block = map.occupancy.get_or_insert(key);
+        for v in block.log_odds.iter_mut() {
+            *v = if rng.random_bool(0.3) { UNOBSERVED } else { rng.random_range(lo.min..=lo.max) };
+        }
+    }
+    for i in 0..blocks / 2 {
+        let key = edges.get(i).copied().unwrap_or_else(|| random_key(&mut rng));
+        let block = map.edt.get_or_insert(key);
+        for offset in 0..BLOCK_VOXELS {
+            let v = key.voxel(offset);
+            let d = [0; 3].map(|_| rng.random_range(-cutoff.reach..=cutoff.reach));
+            let dist_sq = d.iter().map(|c| (c * c) as u32).sum::<u32>();
+            let nearest = [0, 1, 2].map(|a| v.0[a].checked_add(d[a]));
+            match nearest {
+                [Some(x), Some(y), Some(z)] if dist_sq <= cutoff.max_dist_sq && rng.random_bool(0.6) => {
+                    block.dist_sq[offset] = dist_sq;
+                    block.nearest[offset] = VoxelIndex([x, y, z]);
+                }
+                _ => (block.dist_sq[offset], block.nearest[offset]) = (FAR_DIST_SQ, NO_OBSTACLE),
+            }
+        }
+    }
+    for _ in 0..blocks / 4 {
+        let block = map.fixed.get_or_insert(random_key(&mut rng));
+        block.bits = [0; 8].map(|_| rng.random());
+    }
+    map
+}
+
+/// Every field and every block equal, log-odds compared bit for bit.
+fn assert_same(a: &MapContents, b: &MapContents) {
+    assert_eq!(a.voxel_size_m.to_bits(), b.voxel_size_m.to_bits());
+    assert_eq!(a.occupancy_params, b.occupancy_params);
+    assert_eq!(a.global_params, b.global_params);
+    assert_eq!((a.occupancy.len(), a.edt.len(), a.fixed.len()), (b.occupancy.len(), b.edt.len(), b.fixed.len()));
+    let sizes = |m: &MapContents| [m.occupancy.voxel_size_m(), m.edt.voxel_size_m(), m.fixed.voxel_size_m()].map(f64::to_bits);
+    assert_eq!(sizes(a), sizes(b));
+    for (key, block) in a.occupancy.iter() {
+        let other = b.occupancy.get(key).expect("same keys");
+        assert!(block.log_odds.iter().zip(&other.log_odds).all(|(x, y)| x.to_bits() == y.to_bits()), "block {key:?}");
+    }
+    for (key, block) in a.edt.iter() {
+        assert_eq!(Some(block), b.edt.get(key), "block {key:?}");
+    }
+    for (key, block) in a.fixed.iter() {
+        assert_eq!(Some(block), b.fixed.get(key), "block {key:?}");
+    }
+}
+
+/// Recomputes the trailing CRC-32 after a deliberate patch.
+fn fix_crc(bytes: &mut [u8]) {
+    let n = bytes.len() - 4;
+    let crc = crc32fast::hash(&bytes[..n]);
+    bytes[n..].copy_from_slice(&crc.to_le_bytes());
+}
+
+/// Offset of the occupancy section's block count.
+fn sections_at(bytes: &[u8]) -> usize {
+    let len = u32::from_le_bytes(bytes[PARAMS_LEN_AT..PARAMS_LEN_AT + 4].try_into().expect("4 bytes"));
+    36 + len as usize
+}
+
+fn decode_err(bytes: &[u8]) -> MapFileError {
+    match decode_map(bytes) {
+        Ok(_) => panic!("{} bytes decoded", bytes.len()),
+        Err(e) => e,
+    }
+}
+
+fn map_file_error(path: &Path) -> MapFileError {
+    match read_map(path) {
+        Err(IoError::MapFile { path: p, error }) => {
+            assert_eq!(p, path);
+            error
+        }
+        other => panic!("expected a map file error, got {other:?}"),
+    }
+}
+
+#[test]
+fn round_trip_is_bit_identical_and_deterministic() {
+    let map = random_map(7, 300);
+    assert!(map.occupancy.len() > 250 && map.edt.len() > 120 && !map.fixed.is_empty());
+    let bytes = encode_map(&map).expect("valid map");
+    let back = decode_map(&bytes).expect("round trip");
+    assert_same(&map, &back);
+    assert_eq!(encode_map(&map).expect("valid"), bytes, "encoding twice gives the same bytes");
+    assert_eq!(encode_map(&back).expect("valid"), bytes, "a map read back encodes to the same bytes");
+    assert_eq!(encode_map(&map.clone()).expect("valid"), bytes, "hash order does not matter");
+}
+
+#[test]
+fn saved_file_reads_back_and_leaves_no_temporary() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = dir.path().join("map.edtmap");
+    let first = random_map(1, 40);
+    write_map(&path, &first).expect("written");
+    assert_same(&first, &read_map(&path).expect("read"));
+    assert_eq!(fs::read(&path).expect("bytes"), encode_map(&first).expect("valid"));
+    let second = random_map(2, 10);
+    write_map(&path, &second).expect("replaced");
+    assert_same(&second, &read_map(&path).expect("read"));
+    let names: Vec<_> = fs::read_dir(dir.path()).expect("list").map(|e| e.expect("entry").file_name()).collect();
+    assert_eq!(names, ["map.edtmap"]);
+}
+
+#[test]
+fn empty_map_is_the_minimal_file() {
+    let map = empty_map();
+    let bytes = encode_map(&map).expect("valid");
+    let text_len = sections_at(&bytes) - 36;
+    assert_eq!(bytes.len(), 36 + text_len + 3 * 8 + 4);
+    assert_same(&map, &decode_map(&bytes).expect("round trip"));
+    let text = std::str::from_utf8(&bytes[36..36 + text_len]).expect("UTF-8");
+    assert!(text.contains("[occupancy]") && text.contains("[global]") && text.contains("prob_hit = 0.65"), "{text}");
+}
+
+#[test]
+fn global_map_converts_both_ways() {
+    let params = empty_map().global_params;
+    let mut global = GlobalMap::new(VOXEL_SIZE_M, OccupancyParams::default(), params).expect("valid");
+    let v = VoxelIndex([3, -4, 5]);
+    global.occupancy.get_or_insert(v.block()).log_odds[v.offset_in_block()] = global.log_odds.max;
+    let fixed_blocks = global.fixed.len();
+    let bytes = encode_map(&MapContents::from(global.clone())).expect("valid");
+    let back = decode_map(&bytes).expect("round trip").into_global().expect("valid");
+    assert_eq!(back.fixed.len(), fixed_blocks, "zones are not laid down twice");
+    assert_eq!((back.log_odds, back.cutoff), (global.log_odds, global.cutoff));
+    assert!(back.obstacles().contains(v) && back.obstacles().contains(VoxelIndex([-20, -10, 0])));
+}
+
+#[test]
+fn every_truncation_is_rejected() {
+    let mut rng = StdRng::seed_from_u64(3);
+    let mut map = empty_map();
+    let key = random_key(&mut rng);
+    map.occupancy.get_or_insert(key).log_odds[5] = 0.5;
+    map.edt.get_or_insert(key);
+    map.fixed.get_or_insert(key).bits[0] = 1;
+    let bytes = encode_map(&map).expect("valid");
+    let full = bytes.len() as u64;
+    for cut in 0..bytes.len() {
+        let err = decode_err(&bytes[..cut]);
+        let actual = cut as u64;
+        match err {
+            MapFileError::NotMapFile(_) => assert_eq!(cut, 0),
+            MapFileError::TruncatedHeader { actual: a, header: 24 } => assert!(a == actual && cut < 24),
+            MapFileError::Truncated { expected, actual: a } => assert!(expected == full && a == actual && cut >= 24),
+            other => panic!("cut at {cut}: {other}"),
+        }
+    }
+}
+
+#[test]
+fn flipped_bits_are_rejected() {
+    let mut rng = StdRng::seed_from_u64(4);
+    let mut bytes = encode_map(&random_map(5, 30)).expect("valid");
+    let header = sections_at(&bytes) + 8;
+    let positions: Vec<usize> = (0..header).chain((0..2000).map(|_| rng.random_range(0..bytes.len()))).collect();
+    for at in positions {
+        let bit = 1u8 << rng.random_range(0..8);
+        bytes[at] ^= bit;
+        assert!(decode_map(&bytes).is_err(), "bit {bit:#x} of byte {at}");
+        bytes[at] ^= bit;
+    }
+    decode_map(&bytes).expect("the file is intact again");
+}
+
+#[test]
+fn wrong_magic_is_not_a_map_file() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let mut bytes = encode_map(&random_map(6, 4)).expect("valid");
+    bytes[..8].copy_from_slice(b"\x89PNG\r\n\x1a\n");
+    let path = dir.path().join("picture.edtmap");
+    fs::write(&path, &bytes).expect("write");
+    assert!(matches!(map_file_error(&path), MapFileError::NotMapFile(_)));
+    let message = read_map(&path).expect_err("not a map").to_string();
+    assert!(message.contains("picture.edtmap") && message.contains("not an edtmap map file"), "{message}");
+    bytes[..8].copy_from_slice(b"EDTMAP\n\n");
+    assert!(matches!(decode_err(&bytes), MapFileError::NotMapFile(_)), "a CR LF turned into LF");
+}
+
+#[test]
+fn newer_version_is_named() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let mut bytes = encode_map(&random_map(8, 4)).expect("valid");
+    bytes[8..12].copy_from_slice(&(MAP_FORMAT_VERSION + 1).to_le_bytes());
+    fix_crc(&mut bytes);
+    let path = dir.path().join("future.edtmap");
+    fs::write(&path, &bytes).expect("write");
+    assert_eq!(map_file_error(&path), MapFileError::NewerVersion { found: MAP_FORMAT_VERSION + 1, supported: MAP_FORMAT_VERSION });
+    let message = read_map(&path).expect_err("newer").to_string();
+    assert!(message.contains("future.edtmap"), "{message}");
+    assert!(message.contains("written by a newer edtmap: format version 2, this build reads up to 1"), "{message}");
+}
+
+#[test]
+fn empty_and_random_files_are_rejected() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = dir.path().join("empty.edtmap");
+    fs::write(&path, b"").expect("write");
+    assert!(matches!(map_file_error(&path), MapFileError::NotMapFile(m) if m.contains("empty")));
+    let mut rng = StdRng::seed_from_u64(9);
+    for _ in 0..500 {
+        let len = rng.random_range(0..4000);
+        let bytes: Vec<u8> = (0..len).map(|_| rng.random()).collect();
+        decode_err(&bytes);
+        // The same garbage behind a valid frame reaches the parser.
+        let mut framed = bytes.clone();
+        framed.resize(len.max(64), 0);
+        framed[..8].copy_from_slice(b"EDTMAP\r\n");
+        framed[8..12].copy_from_slice(&1u32.to_le_bytes());
+        let total = framed.len() as u64;
+        framed[16..24].copy_from_slice(&total.to_le_bytes());
+        fix_crc(&mut framed);
+        decode_err(&framed);
+    }
+}
+
+#[test]
+fn garbage_inside_a_valid_frame_never_panics() {
+    let mut rng = StdRng::seed_from_u64(10);
+    let original = encode_map(&random_map(11, 12)).expect("valid");
+    for _ in 0..500 {
+        let mut bytes = original.clone();
+        let start = rng.random_range(24..bytes.len() - 4);
+        let end = (start + rng.random_range(1..64)).min(bytes.len() - 4);
+        bytes[start..end].iter_mut().for_each(|b| *b = rng.random());
+        fix_crc(&mut bytes);
+        let _ = decode_map(&bytes);
+    }
+}
+
+#[test]
+fn absurd_counts_are_refused_before_allocating() {
+    let original = encode_map(&random_map(12, 8)).expect("valid");
+    let occ = sections_at(&original);
+    let one_too_many = ((original.len() - 4 - occ - 8) / OCC_RECORD + 1) as u64;
+    for value in [u64::MAX, 1 << 40, one_too_many] {
+        let mut bytes = original.clone();
+        bytes[occ..occ + 8].copy_from_slice(&value.to_le_bytes());
+        fix_crc(&mut bytes);
+        assert!(matches!(decode_err(&bytes), MapFileError::Corrupt(m) if m.contains("occupancy section")), "count {value}");
+    }
+    let mut bytes = original.clone();
+    bytes[PARAMS_LEN_AT..PARAMS_LEN_AT + 4].copy_from_slice(&u32::MAX.to_le_bytes());
+    fix_crc(&mut bytes);
+    assert!(matches!(decode_err(&bytes), MapFileError::Corrupt(m) if m.contains("parameter text")));
+}
+
+#[test]
+fn duplicate_and_unsorted_keys_are_corrupt() {
+    let original = encode_map(&random_map(13, 8)).expect("valid");
+    let first = sections_at(&original) + 8;
+    let second = first + OCC_RECORD;
+    let mut bytes = original.clone();
+    bytes.copy_within(first..first + 12, second);
+    fix_crc(&mut bytes);
+    assert!(matches!(decode_err(&bytes), MapFileError::Corrupt(m) if m.contains("duplicate block key")));
+    let mut bytes = original.clone();
+    bytes[first..second + OCC_RECORD].copy_from_slice(&[&original[second..second + OCC_RECORD], &original[first..second]].concat());
+    fix_crc(&mut bytes);
+    assert!(matches!(decode_err(&bytes), MapFileError::Corrupt(m) if m.contains("out of order")));
+}
+
+#[test]
+fn edt_entry_that_disagrees_with_its_obstacle_is_corrupt() {
+    let mut map = empty_map();
+    let key = BlockKey([1, -2, 3]);
+    let block = map.edt.get_or_insert(key);
+    let v = key.voxel(0);
+    (block.dist_sq[0], block.nearest[0]) = (5, VoxelIndex([v.0[0] + 1, v.0[1] - 2, v.0[2]]));
+    let original = encode_map(&map).expect("valid");
+    let edt = sections_at(&original) + 8 + 8;
+    let dist_at = edt + 12;
+    let mut bytes = original.clone();
+    bytes[dist_at..dist_at + 4].copy_from_slice(&4u32.to_le_bytes());
+    fix_crc(&mut bytes);
+    let err = decode_err(&bytes);
+    assert!(matches!(&err, MapFileError::Corrupt(m) if m.contains("EDT voxel [8, -16, 24]")), "{err}");
+    let mut bytes = original.clone();
+    bytes[dist_at..dist_at + 4].copy_from_slice(&FAR_DIST_SQ.to_le_bytes());
+    fix_crc(&mut bytes);
+    assert!(matches!(decode_err(&bytes), MapFileError::Corrupt(m) if m.contains("beyond the cutoff")));
+    assert_eq!(edt + EDT_RECORD + 8 + 4, original.len(), "one EDT block, no fixed block");
+    // The writer refuses the same inconsistency.
+    map.edt.get_or_insert(key).dist_sq[0] = 4;
+    assert!(matches!(encode_map(&map), Err(MapFileError::Corrupt(_))));
+}
+
+#[test]
+fn invalid_parameters_are_refused() {
+    let original = encode_map(&empty_map()).expect("valid");
+    for (voxel_size_m, field) in [(-1.0, "voxel_size_m"), (f64::NAN, "voxel_size_m"), (1.0, "max_distance_m")] {
+        let mut bytes = original.clone();
+        bytes[24..32].copy_from_slice(&f64::to_le_bytes(voxel_size_m));
+        fix_crc(&mut bytes);
+        assert!(matches!(decode_err(&bytes), MapFileError::InvalidParams(m) if m.contains(field)), "{voxel_size_m}");
+    }
+    // Same-length edits of the parameter text.
+    for (from, to, field) in [("prob_hit = 0.65", "prob_hit = 0.45", "prob_hit"), ("prob_hit", "prob_hot", "prob_hot")] {
+        let mut bytes = original.clone();
+        let at = original.windows(from.len()).position(|w| w == from.as_bytes()).expect("in the text");
+        bytes[at..at + to.len()].copy_from_slice(to.as_bytes());
+        fix_crc(&mut bytes);
+        assert!(matches!(decode_err(&bytes), MapFileError::InvalidParams(m) if m.contains(field)), "{to}");
+    }
+}
+
+#[test]
+fn writer_refuses_a_map_it_could_not_read_back() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = dir.path().join("bad.edtmap");
+    let mut map = empty_map();
+    map.occupancy_params.prob_hit = 0.3;
+    match write_map(&path, &map) {
+        Err(IoError::MapFile { path: p, error: MapFileError::InvalidParams(m) }) => assert!(p == path && m.contains("prob_hit")),
+        other => panic!("{other:?}"),
+    }
+    let mut map = empty_map();
+    map.occupancy.get_or_insert(BlockKey([0, 0, 0])).log_odds[9] = f32::NAN;
+    assert!(matches!(write_map(&path, &map), Err(IoError::MapFile { error: MapFileError::Corrupt(_), .. })));
+    let mut map = empty_map();
+    map.fixed = StaticMap::new(0.1).expect("voxel size");
+    assert!(matches!(encode_map(&map), Err(MapFileError::InvalidParams(m)) if m.contains("fixed")));
+    assert_eq!(fs::read_dir(dir.path()).expect("list").count(), 0, "nothing written");
+}
+
+#[test]
+fn trailing_bytes_are_corrupt() {
+    let mut bytes = encode_map(&random_map(14, 4)).expect("valid");
+    bytes.push(0);
+    assert!(matches!(decode_err(&bytes), MapFileError::Corrupt(m) if m.contains("1 bytes follow")));
+}
+
+#[test]
+fn missing_directory_is_an_io_error_naming_the_path() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = dir.path().join("no/such/dir/map.edtmap");
+    match write_map(&path, &empty_map()) {
+        Err(e @ IoError::Io { .. }) => {
+            assert!(matches!(&e, IoError::Io { path: p, .. } if *p == path));
+            assert!(e.to_string().contains("no/such/dir/map.edtmap"), "{e}");
+        }
+        other => panic!("{other:?}"),
+    }
+    assert!(matches!(read_map(&path), Err(IoError::Io { path: p, .. }) if p == path));
+}
