@@ -29,9 +29,14 @@ pub(crate) fn run(args: &DemoArgs) -> Result<()> {
         out: args.out.clone(),
         eval: true,
         construction: None,
+        voxel_size: None,
+        integration: None,
+        connectivity: None,
+        save: Some(args.out.join("map.edtmap")),
+        prior: None,
     };
     println!(
-        "edtmap demo: a drone flies among pillars with a 32-ring LiDAR; occupancy by volumetric projection, then the exact EDT of the 10 x 10 x 3 m volume around it (CPU, {} threads)",
+        "edtmap demo: a drone flies among pillars with a 32-ring LiDAR; occupancy by volumetric projection, then the exact EDT of the 10 x 10 x 3 m volume around it, merged into the global EDT (CPU, {} threads)",
         rayon::current_num_threads()
     );
     let outcome = execute(&run, true)?;

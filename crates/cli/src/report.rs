@@ -9,13 +9,26 @@ pub(crate) struct FrameRecord {
     pub(crate) stamp_s: f64,
     pub(crate) ogm_ms: f64,
     pub(crate) batch_edt_ms: f64,
+    pub(crate) integrate_ms: f64,
     pub(crate) total_ms: f64,
     pub(crate) voxels_updated: usize,
     pub(crate) voxels_changed: usize,
     pub(crate) changed_blocks: usize,
+    /// Global EDT voxels changed, change score V (m), map blocks and bytes,
+    /// wavefront counters.
+    pub(crate) global: Vec<(&'static str, f64)>,
     pub(crate) precision: Option<f64>,
     pub(crate) recall: Option<f64>,
     pub(crate) strict_recall: Option<f64>,
+    /// With `--eval`: local and global EDT errors.
+    pub(crate) edt_errors: Vec<(&'static str, f64)>,
+}
+
+impl FrameRecord {
+    /// The value of a named global or error field.
+    pub(crate) fn field(&self, key: &str) -> Option<f64> {
+        self.global.iter().chain(&self.edt_errors).find(|(k, _)| *k == key).map(|(_, v)| *v)
+    }
 }
 
 impl FrameRecord {
@@ -25,6 +38,7 @@ impl FrameRecord {
             "stamp_s": self.stamp_s,
             "ogm_ms": self.ogm_ms,
             "batch_edt_ms": self.batch_edt_ms,
+            "integrate_ms": self.integrate_ms,
             "total_ms": self.total_ms,
             "voxels_updated": self.voxels_updated,
             "voxels_changed": self.voxels_changed,
@@ -35,6 +49,9 @@ impl FrameRecord {
                 if let Some(x) = value {
                     obj.insert(key.into(), json!(x));
                 }
+            }
+            for (key, x) in self.global.iter().chain(&self.edt_errors) {
+                obj.insert((*key).into(), json!(x));
             }
         }
         v
@@ -61,7 +78,12 @@ pub(crate) fn report(header: Map<String, Value>, frames: &[FrameRecord]) -> Valu
     summary.insert("frames".into(), json!(frames.len()));
     summary.insert("ogm_ms".into(), stats(&col(|f| Some(f.ogm_ms))));
     summary.insert("batch_edt_ms".into(), stats(&col(|f| Some(f.batch_edt_ms))));
+    summary.insert("integrate_ms".into(), stats(&col(|f| Some(f.integrate_ms))));
     summary.insert("total_ms".into(), stats(&col(|f| Some(f.total_ms))));
+    let keys = frames.first().map(|f| f.global.iter().chain(&f.edt_errors).map(|(k, _)| *k).collect::<Vec<_>>()).unwrap_or_default();
+    for key in keys {
+        summary.insert(key.into(), stats(&frames.iter().filter_map(|f| f.field(key)).collect::<Vec<_>>()));
+    }
     summary.insert("voxels_updated".into(), stats(&col(|f| Some(f.voxels_updated as f64))));
     if frames.iter().any(|f| f.precision.is_some()) {
         summary.insert("precision".into(), stats(&col(|f| f.precision)));

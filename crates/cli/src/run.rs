@@ -6,9 +6,10 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context, Result};
 use clap::{Args, ValueEnum};
 use edtmap::config::{Config, ConstructionName};
-use edtmap::eval::OccupancyScores;
+use edtmap::cpu::integrate::region::Region;
+use edtmap::eval::{edt_errors, edt_extent, EdtErrors, OccupancyScores};
 use edtmap::sensor::{Frame, Sensor};
-use edtmap::Mapper;
+use edtmap::{Connectivity, FrameStats, IntegrationMode, Mapper};
 use edtmap_sim::{Scene, SceneName, SceneOptions};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::{json, Map};
@@ -38,6 +39,30 @@ pub(crate) struct RunArgs {
     /// Override the config's [sensor] construction.
     #[arg(long, value_enum)]
     pub(crate) construction: Option<ConstructionArg>,
+    /// Override the config's [occupancy] voxel_size_m (metres).
+    #[arg(long)]
+    pub(crate) voxel_size: Option<f64>,
+    /// Override the config's [global] mode: wavefront or exact.
+    #[arg(long, value_enum)]
+    pub(crate) integration: Option<IntegrationArg>,
+    /// Override the config's [global] connectivity: 6, 18 or 26.
+    #[arg(long)]
+    pub(crate) connectivity: Option<u8>,
+    /// Save the final map (occupancy and global EDT) to this file.
+    #[arg(long)]
+    pub(crate) save: Option<PathBuf>,
+    /// Start from a saved map whose obstacles stay obstacles (domain knowledge).
+    #[arg(long)]
+    pub(crate) prior: Option<PathBuf>,
+}
+
+/// Values of `--integration`.
+#[derive(ValueEnum, Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum IntegrationArg {
+    /// The paper's raise and lower wavefronts.
+    Wavefront,
+    /// Exact recomputation of the region a frame can affect.
+    Exact,
 }
 
 /// Values of `--construction`.
@@ -68,6 +93,19 @@ fn load_config(args: &RunArgs) -> Result<(Config, String)> {
             ConstructionArg::Raycast => ConstructionName::Raycast,
         };
         config.mapper_params().context("--construction")?;
+    }
+    if let Some(v) = args.voxel_size {
+        config.occupancy.voxel_size_m = v;
+        config.mapper_params().context("--voxel-size")?;
+    }
+    if let Some(m) = args.integration {
+        config.global.mode = match m {
+            IntegrationArg::Wavefront => IntegrationMode::Wavefront,
+            IntegrationArg::Exact => IntegrationMode::Exact,
+        };
+    }
+    if let Some(c) = args.connectivity {
+        config.global.connectivity = Connectivity::try_from(c).map_err(|e| anyhow::anyhow!("--connectivity: {e}"))?;
     }
     Ok((config, origin))
 }
@@ -106,6 +144,10 @@ pub(crate) fn execute(args: &RunArgs, progress: bool) -> Result<RunOutcome> {
         bail!("--frames must be at least 1");
     }
     let mut mapper = Mapper::new(sensor.clone(), params.clone())?;
+    if let Some(path) = &args.prior {
+        let prior = edtmap::load_map(path)?;
+        mapper.add_prior(&prior).with_context(|| format!("prior map {}", path.display()))?;
+    }
     std::fs::create_dir_all(&args.out).with_context(|| format!("cannot create {}", args.out.display()))?;
     let bar = progress_bar(frames, progress);
     let mut records = Vec::with_capacity(frames);
@@ -119,15 +161,18 @@ pub(crate) fn execute(args: &RunArgs, progress: bool) -> Result<RunOutcome> {
             stamp_s: frame.stamp_s,
             ogm_ms: stats.ogm_ms,
             batch_edt_ms: stats.batch_edt_ms,
+            integrate_ms: stats.integrate_ms,
             total_ms: stats.total_ms,
             voxels_updated: stats.voxels_updated,
             voxels_changed: stats.voxels_changed,
             changed_blocks: stats.changed_blocks.len(),
+            global: global_fields(&stats),
             ..Default::default()
         };
         if args.eval {
             let scores = score(&scene, &sensor, &frame, &mapper, &mut truth);
             (rec.precision, rec.recall, rec.strict_recall) = (scores.precision(), scores.recall(), scores.strict_recall());
+            rec.edt_errors = edt_error_fields(&mapper)?;
         }
         last_z = frame.t_world_sensor.translation.vector.z;
         records.push(rec);
@@ -147,6 +192,12 @@ pub(crate) fn execute(args: &RunArgs, progress: bool) -> Result<RunOutcome> {
     header.insert("voxel_size_m".into(), json!(params.voxel_size_m));
     header.insert("local_dims".into(), json!(mapper.local_volume().map(|v| v.dims)));
     header.insert("map_blocks".into(), json!(mapper.map().occupancy.len()));
+    header.insert("integration".into(), json!(params.global.mode));
+    header.insert("connectivity".into(), json!(params.global.connectivity));
+    header.insert("max_distance_m".into(), json!(params.global.max_distance_m));
+    if let Some(path) = &args.save {
+        edtmap::save_map(mapper.map(), path)?;
+    }
     let report_path = args.out.join("report.json");
     write_json(&report_path, &report(header, &records))?;
     Ok(RunOutcome { frames: records, report_path, pictures })
@@ -159,6 +210,41 @@ fn construction_name(sensor: &Sensor, config: &Config) -> &'static str {
         ConstructionName::Auto if sensor.supports_projection() => "projection",
         ConstructionName::Auto => "raycast",
     }
+}
+
+/// The global EDT's per-frame fields of the report.
+fn global_fields(s: &FrameStats) -> Vec<(&'static str, f64)> {
+    vec![
+        ("edt_voxels_changed", s.edt_voxels_changed as f64),
+        ("change_score_m", s.change_score_m),
+        ("map_blocks", s.map_blocks as f64),
+        ("map_bytes", s.map_bytes as f64),
+        ("raised", s.waves.raised as f64),
+        ("kept_outside", s.waves.kept_outside as f64),
+        ("wave_seeds", s.waves.seeds as f64),
+        ("wave_levels", s.waves.levels as f64),
+    ]
+}
+
+/// Errors of the local window and of the whole global EDT against the
+/// exact EDT of the mapper's own obstacles.
+fn edt_error_fields(mapper: &Mapper) -> Result<Vec<(&'static str, f64)>> {
+    let map = mapper.map();
+    let mut out = Vec::new();
+    let regions = [("local", mapper.local_volume().map(|v| Region { origin: v.origin.0, dims: v.dims })), ("global", edt_extent(map))];
+    for (name, region) in regions {
+        let e = match region {
+            Some(r) => edt_errors(map, &r)?,
+            None => EdtErrors::default(),
+        };
+        let keys: [&'static str; 3] = if name == "local" {
+            ["local_rms_m", "local_max_m", "local_wrong_fraction"]
+        } else {
+            ["global_rms_m", "global_max_m", "global_wrong_fraction"]
+        };
+        out.extend(keys.into_iter().zip([e.rms_m, e.max_m, e.wrong_fraction]));
+    }
+    Ok(out)
 }
 
 /// Occupancy scores of the mapper's local volume against the scene.
@@ -199,10 +285,11 @@ pub(crate) fn print_summary(outcome: &RunOutcome) {
         v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
     };
     println!(
-        "{} frames: occupancy median {:.2} ms, batch EDT median {:.2} ms, total median {:.2} ms per frame",
+        "{} frames: occupancy median {:.2} ms, batch EDT median {:.2} ms, integration median {:.2} ms, total median {:.2} ms per frame",
         f.len(),
         median(|r| r.ogm_ms),
         median(|r| r.batch_edt_ms),
+        median(|r| r.integrate_ms),
         median(|r| r.total_ms)
     );
     let mean = |g: fn(&FrameRecord) -> Option<f64>| {
@@ -211,6 +298,13 @@ pub(crate) fn print_summary(outcome: &RunOutcome) {
     };
     if let (Some(p), Some(r), Some(rs)) = (mean(|r| r.precision), mean(|r| r.recall), mean(|r| r.strict_recall)) {
         println!("occupancy vs ground truth (mean over frames): precision {p:.3}, recall of the seen surface {r:.3} (strict recall {rs:.3})");
+    }
+    let field_mean = |key: &str| {
+        let v: Vec<f64> = f.iter().filter_map(|r| r.field(key)).collect();
+        (!v.is_empty()).then(|| v.iter().sum::<f64>() / v.len() as f64)
+    };
+    if let (Some(l), Some(g), Some(gm)) = (field_mean("local_rms_m"), field_mean("global_rms_m"), field_mean("global_max_m")) {
+        println!("EDT vs exact EDT of the map (mean over frames): local RMS {l:.5} m, global RMS {g:.5} m, global max {gm:.4} m");
     }
     println!("wrote {}", outcome.report_path.display());
     for p in &outcome.pictures {

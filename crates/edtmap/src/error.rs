@@ -12,6 +12,9 @@ pub enum MapError {
     /// The CPU backend refused the input.
     #[error(transparent)]
     Cpu(#[from] CpuError),
+    /// A map file could not be written or read.
+    #[error(transparent)]
+    Io(#[from] edtmap_io::IoError),
     /// A configuration file could not be read or parsed.
     #[error("{path}: {message}")]
     ConfigFile {

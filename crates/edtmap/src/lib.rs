@@ -48,10 +48,13 @@
 pub mod config;
 pub mod eval;
 mod error;
+mod mapfile;
 mod mapper;
 
 pub use edtmap_core::*;
 /// The CPU backend (rayon), the reference implementation.
 pub use edtmap_cpu as cpu;
 pub use error::MapError;
+pub use mapfile::{load_map, save_map};
 pub use mapper::{FrameStats, Mapper, MapperParams};
+pub use edtmap_cpu::query::{Distance, DistanceBox, PointState};
