@@ -4,6 +4,7 @@ mod demo;
 mod edt;
 mod memory;
 mod pictures;
+mod query;
 mod report;
 mod run;
 mod scenes;
@@ -30,6 +31,12 @@ enum Command {
     Edt(edt::EdtArgs),
     /// Replay a built-in scene through the mapping pipeline; writes report.json and pictures.
     Run(run::RunArgs),
+    /// Distance, gradient and state at points (CSV) from a saved map.
+    Query(query::QueryArgs),
+    /// A dense box of distances from a saved map, as .npy.
+    Export(query::ExportArgs),
+    /// What a saved map holds: size, extent, parameters.
+    Info(query::InfoArgs),
 }
 
 fn main() -> ExitCode {
@@ -38,6 +45,9 @@ fn main() -> ExitCode {
         Command::Demo(args) => demo::run(&args),
         Command::Edt(args) => edt::run(&args),
         Command::Run(args) => run::run(&args),
+        Command::Query(args) => query::query(&args),
+        Command::Export(args) => query::export(&args),
+        Command::Info(args) => query::info(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -23,10 +23,11 @@ fn demo_writes_report_and_pictures() {
     assert_eq!(report["scene"], "uav_pillars");
     assert_eq!(report["frames"].as_array().map(Vec::len), Some(4));
     let frame = &report["frames"][3];
-    for key in ["ogm_ms", "batch_edt_ms", "total_ms", "voxels_updated", "precision", "recall"] {
+    for key in ["ogm_ms", "batch_edt_ms", "integrate_ms", "total_ms", "voxels_updated", "precision", "recall", "change_score_m", "map_bytes", "local_rms_m", "global_rms_m", "global_max_m"] {
         assert!(frame[key].is_number(), "frame lacks {key}: {frame}");
     }
     assert!(report["summary"]["ogm_ms"]["p95"].is_number());
+    assert!(out.join("map.edtmap").exists(), "the demo saves its map");
 }
 
 #[test]

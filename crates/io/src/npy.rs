@@ -314,6 +314,12 @@ pub fn write_distances(path: &Path, layout: &ArrayLayout, dist: &[f32]) -> Resul
     })
 }
 
+/// Writes bytes (voxel states, say) as a `uint8` array of the layout's
+/// shape and order.
+pub fn write_bytes(path: &Path, layout: &ArrayLayout, data: &[u8]) -> Result<(), IoError> {
+    write_array(path, &layout.shape, layout.npyz_order(), data, |v, b| b.push(*v))
+}
+
 /// Writes nearest-obstacle indices (from [`nearest_array`]) as an `int32`
 /// array of shape `layout.shape() + (ndim,)` in the layout's order.
 pub fn write_nearest(path: &Path, layout: &ArrayLayout, idx: &[i32]) -> Result<(), IoError> {
