@@ -231,6 +231,6 @@ mod tests {
         assert_eq!((c.max_dist_sq, c.reach), (44, 6));
         assert!(p.cutoff(5.0).is_err());
         let bad = GlobalParams { max_distance_m: f64::NAN, ..Default::default() };
-        assert!(bad.cutoff(0.1).unwrap_err().to_string().contains("max_distance_m"));
+        assert!(bad.cutoff(0.1).expect_err("NaN cutoff").to_string().contains("max_distance_m"));
     }
 }

@@ -132,7 +132,7 @@ mod tests {
         }
         assert!(!fixed.contains(VoxelIndex([2, 0, 0])) && !fixed.contains(VoxelIndex([0, 1, 0])));
         let huge = ForbiddenZone { min_m: [0.0; 3], max_m: [1e5, 1e5, 1e3] };
-        assert!(fixed.add_zone(&huge).unwrap_err().to_string().contains("forbidden"));
+        assert!(fixed.add_zone(&huge).expect_err("too large").to_string().contains("forbidden"));
         assert_eq!(fixed.len(), 2, "x = -1 and x = 0..1 lie in two blocks");
     }
 

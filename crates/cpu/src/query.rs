@@ -170,7 +170,7 @@ pub const MAX_BOX_VOXELS: usize = 1 << 28;
 pub fn distance_box(map: &GlobalMap, min_m: [f64; 3], max_m: [f64; 3], signed: bool) -> Result<DistanceBox, CpuError> {
     let vs = map.voxel_size_m();
     let bad = |reason| CoreError::InvalidParam { field: "box", value: format!("{min_m:?} .. {max_m:?}"), reason };
-    if (0..3).any(|a| !(min_m[a] < max_m[a])) {
+    if (0..3).any(|a| !min_m[a].is_finite() || !max_m[a].is_finite() || min_m[a] >= max_m[a]) {
         return Err(bad("corners must be finite with min below max on every axis").into());
     }
     let lo = VoxelIndex::containing(min_m, vs).ok_or(bad("corners must be finite"))?;

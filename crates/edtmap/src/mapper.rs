@@ -115,7 +115,7 @@ impl Mapper {
         let integrator = Integrator::new(&params.global, params.voxel_size_m)?;
         let mask = Grid3::from_vec([1, 1, 1], vec![false])?;
         let global_batch = params.edt.unknown_as_occupied.then(|| (mask.clone(), EdtField::empty()));
-        Ok(Mapper {
+        let mut mapper = Mapper {
             sensor,
             map,
             occupancy: OccupancyStage::default(),
@@ -126,7 +126,23 @@ impl Mapper {
             local_edt: EdtField::empty(),
             global_batch,
             params,
-        })
+        };
+        mapper.lay_down_fixed()?;
+        Ok(mapper)
+    }
+
+    /// Brings the fixed obstacles (forbidden zones, priors) into the global
+    /// EDT at once, rather than when a window first passes over them.
+    fn lay_down_fixed(&mut self) -> Result<(), MapError> {
+        let mut keys = self.map.fixed.iter().map(|(k, _)| k.0);
+        let Some(first) = keys.next() else { return Ok(()) };
+        let (lo, hi) = keys.fold((first, first), |(lo, hi), k| ([0, 1, 2].map(|a| lo[a].min(k[a])), [0, 1, 2].map(|a| hi[a].max(k[a]))));
+        let side = edtmap_core::BLOCK_SIDE;
+        let bounds = Region { origin: lo.map(|b| b * side), dims: [0, 1, 2].map(|a| ((hi[a] - lo[a] + 1) * side) as usize) };
+        let GlobalMap { occupancy, edt, fixed, log_odds, .. } = &mut self.map;
+        let obstacles = edtmap_core::Obstacles { occupancy, log_odds, fixed, unknown_as_occupied: false };
+        self.integrator.recompute(edt, &obstacles, &bounds)?;
+        Ok(())
     }
 
     /// Adds one frame. A frame that does not fit the sensor, or has a bad
@@ -216,8 +232,7 @@ impl Mapper {
 
     /// Makes every occupied voxel of `prior` (a map built before, say) a
     /// fixed obstacle of this map, with its fixed obstacles; returns how
-    /// many voxels were added. The global EDT takes them in at the next
-    /// frames, as the window passes over them.
+    /// many voxels were added. The global EDT takes them in at once.
     pub fn add_prior(&mut self, prior: &GlobalMap) -> Result<usize, MapError> {
         if (prior.voxel_size_m() - self.map.voxel_size_m()).abs() > 1e-9 * self.map.voxel_size_m() {
             return Err(MapError::Core(edtmap_core::CoreError::InvalidParam {
@@ -236,6 +251,7 @@ impl Mapper {
                 }
             }
         }
+        self.lay_down_fixed()?;
         Ok(added)
     }
 

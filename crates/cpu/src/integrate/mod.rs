@@ -65,6 +65,34 @@ impl Integrator {
         self.cutoff
     }
 
+    /// Recomputes exactly every voxel within the cutoff of the box `bounds`
+    /// (forbidden zones, a prior map laid down), in tiles of at most
+    /// `TILE`³ voxels so memory stays bounded.
+    pub fn recompute(&mut self, map: &mut EdtMap, obstacles: &Obstacles<'_>, bounds: &Region) -> Result<IntegrateReport, CpuError> {
+        const TILE: usize = 128;
+        let mut total = IntegrateReport::default();
+        for z in (0..bounds.dims[2]).step_by(TILE) {
+            for y in (0..bounds.dims[1]).step_by(TILE) {
+                for x in (0..bounds.dims[0]).step_by(TILE) {
+                    let c = [x, y, z];
+                    let tile = Region {
+                        origin: [0, 1, 2].map(|a| bounds.origin[a] + c[a] as i32),
+                        dims: [0, 1, 2].map(|a| TILE.min(bounds.dims[a] - c[a])),
+                    };
+                    let packing = Packing::new(tile.grown(self.cutoff.reach), self.cutoff)?;
+                    let w = integrate_exact(map, obstacles, &packing, &mut self.exact)?;
+                    total.voxels_changed += w.voxels_changed;
+                    total.change_sum_vox += w.change_sum_vox;
+                    total.changed_blocks.extend(w.changed_blocks);
+                    total.region_voxels += packing.region.len();
+                }
+            }
+        }
+        total.changed_blocks.sort_unstable();
+        total.changed_blocks.dedup();
+        Ok(total)
+    }
+
     /// Merges the frame whose window is `window` into `map`. `batch` is the
     /// exact EDT of `window` with `obstacles` (unknown voxels free), used
     /// by the wavefront mode; the exact mode reads `obstacles` directly.

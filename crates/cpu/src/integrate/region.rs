@@ -41,6 +41,11 @@ impl Region {
         self.dims.iter().product()
     }
 
+    /// Whether the box holds no voxel.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
     /// Linear index of local coordinates `c` (x fastest).
     #[inline]
     pub fn linear(&self, c: [usize; 3]) -> usize {
@@ -58,12 +63,12 @@ impl Region {
     #[inline]
     pub fn local(&self, v: VoxelIndex) -> Option<[usize; 3]> {
         let mut c = [0; 3];
-        for a in 0..3 {
+        for (a, out) in c.iter_mut().enumerate() {
             let d = i64::from(v.0[a]) - i64::from(self.origin[a]);
             if d < 0 || d >= self.dims[a] as i64 {
                 return None;
             }
-            c[a] = d as usize;
+            *out = d as usize;
         }
         Some(c)
     }
