@@ -18,8 +18,8 @@
 //!    obstacle), so every level — and the result — is the same for any
 //!    thread count. Nothing beyond the cutoff is written.
 
-use super::region::{copy_in, write_back, Packing, Region, WriteBack, FAR};
-use edtmap_core::{EdtField, EdtMap, LocalVolume, NO_SITE};
+use super::region::{write_back, Packing, Region, WriteBack, FAR};
+use edtmap_core::{EdtField, EdtMap, LocalVolume, BLOCK_SIDE, FAR_DIST_SQ, NO_SITE};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU32, AtomicU64, Ordering::Relaxed};
 
@@ -56,8 +56,7 @@ pub fn integrate_wavefront(
     offsets: &[[i32; 3]],
     buf: &mut WaveBuffers,
 ) -> (WriteBack, WaveCounts) {
-    copy_in(map, packing, &mut buf.old, &mut buf.cur);
-    let mut counts = merge_window(window, batch, packing, &buf.old, &buf.cur);
+    let mut counts = read_and_merge(map, window, batch, packing, buf);
     buf.stamp.resize_with(packing.region.len(), || AtomicU32::new(0));
     buf.stamp.par_iter().for_each(|s| s.store(0, Relaxed));
     let seeds = seed(packing, offsets, &buf.old, &buf.cur, &buf.stamp);
@@ -66,37 +65,58 @@ pub fn integrate_wavefront(
     (write_back(map, packing, &buf.old, &buf.cur), counts)
 }
 
-/// Steps 1 and 2: raise vanished obstacles' voxels and merge the window.
-fn merge_window(window: &LocalVolume, batch: &EdtField, p: &Packing, old: &[u64], cur: &[AtomicU64]) -> WaveCounts {
+/// Steps 1 and 2, fused with reading the region from the map: raise
+/// vanished obstacles' voxels and merge the window.
+fn read_and_merge(map: &EdtMap, window: &LocalVolume, batch: &EdtField, p: &Packing, buf: &mut WaveBuffers) -> WaveCounts {
+    let n = p.region.len();
+    buf.old.resize(n, FAR);
+    if buf.cur.len() < n {
+        buf.cur.resize_with(n, || AtomicU64::new(FAR));
+    }
+    buf.cur.truncate(n);
     let w = Region { origin: window.origin.0, dims: window.dims };
     let (dist, near) = (batch.dist_sq_vox(), batch.nearest());
-    let pad = (w.origin[0] - p.region.origin[0]) as usize;
-    let in_window = |c: [usize; 3]| (0..3).all(|a| c[a] >= pad && c[a] < pad + w.dims[a]);
-    let window_of_source = |s: [usize; 3]| {
-        let lead = pad + p.cutoff.reach as usize;
-        (0..3).all(|a| s[a] >= lead && s[a] < lead + w.dims[a]).then(|| w.linear(s.map(|x| x - lead)))
-    };
     let [nx, ny, _] = p.region.dims;
-    let (raised, kept) = (0..p.region.dims[2])
-        .into_par_iter()
-        .map(|z| {
+    let (raised, kept) = buf
+        .old
+        .par_chunks_mut(nx * ny)
+        .zip(buf.cur.par_chunks(nx * ny))
+        .enumerate()
+        .map(|(z, (old, cur))| {
             let (mut raised, mut kept) = (0, 0);
-            for i in z * nx * ny..(z + 1) * nx * ny {
-                let value = old[i];
-                let src_in_window = (value != FAR).then(|| window_of_source(p.source_coords(value))).flatten();
-                let vanished = src_in_window.is_some_and(|s| dist[s] != 0);
-                raised += usize::from(vanished);
-                let valid = if vanished { FAR } else { value };
-                let c = p.region.coords(i);
-                let new = if in_window(c) {
-                    let l = w.linear(c.map(|x| x - pad));
-                    let b = if near[l] == NO_SITE { FAR } else { p.pack(dist[l], window.world(w.coords(near[l] as usize))) };
-                    kept += usize::from(valid < b && src_in_window.is_none());
-                    b.min(valid)
-                } else {
-                    valid
-                };
-                cur[i].store(new, Relaxed);
+            for y in 0..ny {
+                let mut x = 0;
+                while x < nx {
+                    let v = p.region.world([x, y, z]);
+                    let end = (x + (BLOCK_SIDE - v.0[0].rem_euclid(BLOCK_SIDE)) as usize).min(nx);
+                    let block = map.get(v.block());
+                    let base = v.offset_in_block();
+                    let wy = v.0[1] - w.origin[1];
+                    let wz = v.0[2] - w.origin[2];
+                    let row_in_window = wy >= 0 && wz >= 0 && (wy as usize) < w.dims[1] && (wz as usize) < w.dims[2];
+                    for k in 0..end - x {
+                        let (value, src_in_window) = match block {
+                            Some(b) if b.dist_sq[base + k] != FAR_DIST_SQ => (p.pack(b.dist_sq[base + k], b.nearest[base + k]), w.local(b.nearest[base + k]).map(|c| w.linear(c))),
+                            _ => (FAR, None),
+                        };
+                        let vanished = src_in_window.is_some_and(|s| dist[s] != 0);
+                        raised += usize::from(vanished);
+                        let valid = if vanished { FAR } else { value };
+                        let wx = v.0[0] + k as i32 - w.origin[0];
+                        let new = if row_in_window && wx >= 0 && (wx as usize) < w.dims[0] {
+                            let l = w.linear([wx as usize, wy as usize, wz as usize]);
+                            let b = if near[l] == NO_SITE { FAR } else { p.pack(dist[l], window.world(w.coords(near[l] as usize))) };
+                            kept += usize::from(valid < b && src_in_window.is_none());
+                            b.min(valid)
+                        } else {
+                            valid
+                        };
+                        let i = y * nx + x + k;
+                        old[i] = value;
+                        cur[i].store(new, Relaxed);
+                    }
+                    x = end;
+                }
             }
             (raised, kept)
         })
