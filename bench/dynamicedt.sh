@@ -1,15 +1,19 @@
 #!/usr/bin/env bash
-# Incremental global EDT: DynamicEDT3D (Lau et al., the CPU baseline of the
-# GIE-mapping paper) replaying a sequence of occupancy changes, so that
-# edtmap's incremental EDT can be compared with it on the same changes.
+# Incremental global EDT: edtmap against DynamicEDT3D (Lau et al., the CPU
+# baseline of the GIE-mapping paper) on the same sequence of occupancy
+# changes, and the paper's Fig. 4 (EDT update time against the change score).
 #
 # Usage:
+#   bench/dynamicedt.sh [--repeat N] [--frames N]       (both scenes)
 #   bench/dynamicedt.sh [--repeat N] [--out PREFIX] CHANGES_FILE
 #
-#   --repeat N    replay the whole sequence N times from empty; each frame
-#                 keeps its minimum time (default 3)
-#   --out PREFIX  output prefix (default bench/out/dynamicedt/<name of
-#                 CHANGES_FILE without its extension>)
+#   --repeat N    replay each whole sequence N times from empty; each frame
+#                 keeps its minimum time, on both sides (default 3)
+#   --frames N    scenes mode: replay only the first N frames of each scene
+#                 (default: the scene's length, 120 and 150 frames)
+#   --out PREFIX  single-file mode: output prefix (default
+#                 bench/out/dynamicedt/<name of CHANGES_FILE without its
+#                 extension>)
 #
 # What it does:
 #   1. Installs libdynamicedt3d-dev when missing (apt-get, when run as root;
@@ -18,28 +22,46 @@
 #      -march=native into bench/out/replay_dynamicedt (rebuilt when the
 #      source is newer). The EDT itself runs inside the Debian library, built
 #      with Debian's own flags; these only affect the harness around it.
-#   3. Runs  bench/out/replay_dynamicedt CHANGES_FILE PREFIX --repeat N,
-#      which writes PREFIX.times.csv (frame,set,clear,update_ms) and
-#      PREFIX.final.f32 (final distances in voxels, float32, x fastest, +inf
-#      beyond max_distance_vox) and prints one JSON line. The changes file
-#      format and the cutoff are described at the top of the .cpp file.
+#   3. Scenes mode (no CHANGES_FILE), for uav_pillars and ugv_corridor at
+#      their configs' voxel sizes (0.2 m and 0.1 m, cutoff 2 m, wavefront
+#      integration, 26-connectivity), in bench/out/dynamicedt/SCENE/:
+#      a. the example edt_changes (cargo, release; honours CARGO_TARGET_DIR)
+#         runs the scene through edtmap's Mapper and exports changes.txt,
+#         edtmap_times.csv, edtmap_summary.json and final.edtmap;
+#      b. the harness replays changes.txt into DynamicEDT3D (dynamicedt.*);
+#      c. edt_changes compare scores both final fields against the exact EDT
+#         of the final map and writes comparison.json, table.md and
+#         fig4_time_vs_change.png.
+#      Then it prints the table and, on a full-length run, copies the
+#      uav_pillars figure to docs/img/fig4_time_vs_change.png. About two
+#      minutes on 2 cores once built.
+#   3'. Single-file mode: runs  bench/out/replay_dynamicedt CHANGES_FILE
+#      PREFIX --repeat N, which writes PREFIX.times.csv
+#      (frame,set,clear,update_ms) and PREFIX.final.f32 (final distances in
+#      voxels, float32, x fastest, +inf beyond max_distance_vox) and prints
+#      one JSON line. The changes file format and the cutoff are described
+#      at the top of the .cpp file.
 #
-# Exit status: that of the harness (2: bad changes file), 1 for setup errors.
+# Exit status: that of the harness or the example (2: bad input), 1 for
+# setup errors.
 #
-# Needs: bash, g++.
+# Needs: bash, g++, cargo, python3.
 set -euo pipefail
 
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 OUT="$ROOT/bench/out"
 REPEAT=3
+FRAMES=
 PREFIX=
 CHANGES=
+SCENES=(uav_pillars ugv_corridor)
 
 usage() { sed -n '2,/^set -euo/p' "${BASH_SOURCE[0]}" | sed '$d' | sed 's/^# \{0,1\}//'; }
 
 while [[ $# -gt 0 ]]; do
     case "$1" in
         --repeat) REPEAT=${2:?--repeat needs a value}; shift 2 ;;
+        --frames) FRAMES=${2:?--frames needs a value}; shift 2 ;;
         --out) PREFIX=${2:?--out needs a prefix}; shift 2 ;;
         -h|--help) usage; exit 0 ;;
         -*) echo "dynamicedt.sh: unknown option $1 (see --help)" >&2; exit 2 ;;
@@ -68,15 +90,49 @@ if [[ ! -x "$BIN" || "$SRC" -nt "$BIN" ]]; then
     g++ -O3 -march=native -std=c++17 -o "$BIN" "$SRC" -ldynamicedt3d
 fi
 
-# ---------------------------------------------------------------------------
-# edtmap side: TO BE ADDED. An edtmap example will export changes files from
-# built-in scenes (and its own per-frame times and final field); it goes
-# here, before step 3, and a comparison of times and field errors after it.
-# Until then the script replays one given CHANGES_FILE.
-# ---------------------------------------------------------------------------
+# 3. Scenes mode: edtmap exports each scene's changes, DynamicEDT3D replays
+#    them, edtmap compares.
+# Built once and run from the binary, so every step runs the same code.
+edt_changes() { "$EXE" "$@"; }
 
-# 3. DynamicEDT3D on the changes.
-[[ -n "$CHANGES" ]] || { echo "dynamicedt.sh: no CHANGES_FILE given (see --help)" >&2; exit 2; }
+
+if [[ -z "$CHANGES" ]]; then
+    [[ -z "$PREFIX" ]] || { echo "dynamicedt.sh: --out goes with a CHANGES_FILE" >&2; exit 2; }
+    echo "dynamicedt.sh: building the edt_changes example" >&2
+    cargo build --release -q --manifest-path "$ROOT/Cargo.toml" -p edtmap --example edt_changes
+    target=$(cargo metadata -q --format-version 1 --no-deps --manifest-path "$ROOT/Cargo.toml" |
+             python3 -c 'import json, sys; print(json.load(sys.stdin)["target_directory"])')
+    EXE="$target/release/examples/edt_changes"
+    tables=()
+    for scene in "${SCENES[@]}"; do
+        dir="$OUT/dynamicedt/$scene"
+        mkdir -p "$dir"
+        echo "dynamicedt.sh: $scene: edtmap${FRAMES:+ (first $FRAMES frames)}" >&2
+        edt_changes export --scene "$scene" --out "$dir" --repeat "$REPEAT" ${FRAMES:+--frames "$FRAMES"} >"$dir/export.json"
+        echo "dynamicedt.sh: $scene: DynamicEDT3D" >&2
+        "$BIN" "$dir/changes.txt" "$dir/dynamicedt" --repeat "$REPEAT" >"$dir/dynamicedt.json"
+        edt_changes compare --dir "$dir" --dynamicedt "$dir/dynamicedt" >/dev/null
+        tables+=("$dir/table.md")
+    done
+    echo
+    head -n 2 "${tables[0]}"
+    for t in "${tables[@]}"; do tail -n 1 "$t"; done
+    echo
+    echo "(times: ms per frame, the minimum of $REPEAT runs; edtmap: batch EDT + global integration," \
+         "$(nproc) cores; DynamicEDT3D: update(), one thread; ratio: DynamicEDT3D / edtmap; details in" \
+         "bench/out/dynamicedt/SCENE/comparison.json)"
+    fig="$OUT/dynamicedt/uav_pillars/fig4_time_vs_change.png"
+    if [[ -z "$FRAMES" ]]; then
+        cp "$fig" "$ROOT/docs/img/fig4_time_vs_change.png"
+        echo "copied $fig to docs/img/fig4_time_vs_change.png"
+    else
+        echo "(--frames $FRAMES: docs/img/fig4_time_vs_change.png left as it was; see $fig)"
+    fi
+    exit 0
+fi
+
+# 3'. Single-file mode: DynamicEDT3D on the given changes.
+[[ -z "$FRAMES" ]] || { echo "dynamicedt.sh: --frames goes with the scenes mode (no CHANGES_FILE)" >&2; exit 2; }
 [[ -f "$CHANGES" ]] || { echo "dynamicedt.sh: no such file: $CHANGES" >&2; exit 2; }
 if [[ -z "$PREFIX" ]]; then
     name=$(basename "$CHANGES")
