@@ -6,8 +6,10 @@
 //! [`Mapper`] runs the pipeline one [`sensor::Frame`] at a time:
 //! occupancy by ray casting or volumetric projection, fused into an
 //! unbounded log-odds map of 8³ blocks (paper §IV-A), then the exact batch
-//! EDT of the local volume around the sensor (§IV-B). [`config::Config`]
-//! reads the whole setup from a TOML file.
+//! EDT of the local volume around the sensor (§IV-B), merged into the
+//! unbounded global EDT (§IV-C) that [`Mapper::distance`] and friends query.
+//! [`config::Config`] reads the whole setup from a TOML file; [`save_map`]
+//! and [`load_map`] keep the whole map in a file.
 //!
 //! ```
 //! use edtmap::sensor::{Frame, Measurement, PointCloud, RangeLimits, Sensor};
@@ -29,6 +31,9 @@
 //! let volume = mapper.local_volume().expect("one frame integrated");
 //! let here = volume.local(VoxelIndex([17, 0, 10])).expect("inside");
 //! assert_eq!(mapper.local_edt().distance_vox(volume.linear(here)), 3.0);
+//! // The global EDT, in metres: 5 voxels from the return, gradient away from it.
+//! let d = mapper.distance([1.55, 0.05, 1.05]);
+//! assert!((d.distance_m - 0.5).abs() < 1e-9 && d.observed && d.gradient[0] < 0.0);
 //! # Ok::<(), edtmap::MapError>(())
 //! ```
 //!

@@ -38,7 +38,7 @@ pub fn integrate_exact(map: &mut EdtMap, obstacles: &Obstacles<'_>, packing: &Pa
         let value = if near[s] == NO_SITE || dist[s] > max { FAR } else { (u64::from(dist[s]) << 32) | u64::from(near[s]) };
         cur.store(value, Relaxed);
     });
-    Ok(write_back(map, packing, &buf.old, &buf.cur))
+    Ok(write_back(map, packing, &packing.region.blocks(), &buf.old, &buf.cur))
 }
 
 /// The exact EDT of the global obstacles truncated at `cutoff`, for every

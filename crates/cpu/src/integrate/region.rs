@@ -188,18 +188,17 @@ pub struct WriteBack {
     pub changed_blocks: Vec<BlockKey>,
 }
 
-/// Writes the voxels of `p.region` whose value differs from `old` into
-/// `map`, allocating blocks as needed and dropping blocks left all far.
-pub fn write_back(map: &mut EdtMap, p: &Packing, old: &[u64], cur: &[AtomicU64]) -> WriteBack {
+/// Writes the voxels of `p.region` in the blocks `candidates` whose value
+/// differs from `old` into `map`, allocating blocks as needed and dropping
+/// blocks left all far.
+pub fn write_back(map: &mut EdtMap, p: &Packing, candidates: &[BlockKey], old: &[u64], cur: &[AtomicU64]) -> WriteBack {
     let truncated = |v: u64| {
         let reach = f64::from(p.cutoff.max_dist_sq).sqrt();
         if v == FAR { reach } else { ((v >> 32) as f64).sqrt().min(reach) }
     };
-    let per_block: Vec<(BlockKey, usize, f64)> = p
-        .region
-        .blocks()
-        .into_par_iter()
-        .map(|key| {
+    let per_block: Vec<(BlockKey, usize, f64)> = candidates
+        .par_iter()
+        .map(|&key| {
             let (mut changed, mut sum) = (0, 0.0);
             for_region_voxels(p, key, |i, _| {
                 let (o, n) = (old[i], cur[i].load(Relaxed));
@@ -282,7 +281,7 @@ mod tests {
             let d: i64 = (0..3).map(|a| i64::from(v.0[a] - obstacle.0[a]).pow(2)).sum();
             c.store(p.pack(d as u32, obstacle), Relaxed);
         }
-        let wb = write_back(&mut map, &p, &old, &cur);
+        let wb = write_back(&mut map, &p, &p.region.blocks(), &old, &cur);
         assert_eq!(wb.voxels_changed, p.region.len());
         assert_eq!(map.entry(VoxelIndex([3, -4, 5])), (9, obstacle));
         let (mut again, mut cur2) = (Vec::new(), Vec::new());
