@@ -45,6 +45,9 @@ pub(crate) struct ExportArgs {
 pub(crate) struct InfoArgs {
     /// A map saved with `edtmap run --save`.
     map: PathBuf,
+    /// Write the exploration frontiers (observed free voxels next to unknown ones) as x,y,z voxel centres.
+    #[arg(long, value_name = "OUT.csv")]
+    frontiers: Option<PathBuf>,
 }
 
 /// Prints what a saved map holds.
@@ -70,7 +73,17 @@ pub(crate) fn info(args: &InfoArgs) -> Result<()> {
             }
         }
     }
-    println!("voxels: {free} free, {occupied} occupied, {} exploration frontiers", map.frontiers().len());
+    let frontiers = map.frontiers();
+    println!("voxels: {free} free, {occupied} occupied, {} exploration frontiers", frontiers.len());
+    if let Some(path) = &args.frontiers {
+        let mut text = String::from("x,y,z\n");
+        for v in &frontiers {
+            let c = v.centre(vs);
+            text.push_str(&format!("{},{},{}\n", c[0], c[1], c[2]));
+        }
+        std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))?;
+        println!("wrote {}", path.display());
+    }
     Ok(())
 }
 

@@ -18,8 +18,11 @@ fn saved_map_answers_queries_and_exports() {
     let map = dir.path().join("map.edtmap");
     let (ok, out, err) = edtmap(&["run", "--scene", "planar", "--frames", "6", "--out", s(dir.path()), "--save", s(&map)]);
     assert!(ok, "{out}\n{err}");
-    let (ok, info, err) = edtmap(&["info", s(&map)]);
+    let frontiers = dir.path().join("frontiers.csv");
+    let (ok, info, err) = edtmap(&["info", s(&map), "--frontiers", s(&frontiers)]);
     assert!(ok && info.contains("voxel 0.") && info.contains("blocks:"), "{info}\n{err}");
+    let listed = std::fs::read_to_string(&frontiers).expect("frontiers").lines().count() - 1;
+    assert!(listed > 0 && info.contains(&format!("{listed} exploration frontiers")), "{info}");
 
     let points = dir.path().join("points.csv");
     std::fs::write(&points, "x,y,z\n# a comment\n0.5,0.5,1.0\n1e9,0,0\n").expect("write");
