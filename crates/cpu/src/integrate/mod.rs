@@ -10,6 +10,7 @@
 //! blocks they touched.
 
 pub mod exact;
+pub mod lazy;
 pub mod region;
 pub mod wavefront;
 
@@ -81,6 +82,7 @@ impl Integrator {
                     };
                     let packing = Packing::new(tile.grown(self.cutoff.reach), self.cutoff)?;
                     let w = integrate_exact(map, obstacles, &packing, &mut self.exact)?;
+                    self.waves.forget(&w.changed_blocks);
                     total.voxels_changed += w.voxels_changed;
                     total.change_sum_vox += w.change_sum_vox;
                     total.changed_blocks.extend(w.changed_blocks);
@@ -115,7 +117,9 @@ impl Integrator {
             }
             IntegrationMode::Exact => {
                 let packing = Packing::new(Region::around(window, reach), self.cutoff)?;
-                (integrate_exact(map, obstacles, &packing, &mut self.exact)?, WaveCounts::default(), packing.region)
+                let written = integrate_exact(map, obstacles, &packing, &mut self.exact)?;
+                self.waves.forget(&written.changed_blocks);
+                (written, WaveCounts::default(), packing.region)
             }
         };
         Ok(IntegrateReport {

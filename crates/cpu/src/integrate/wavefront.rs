@@ -1,10 +1,12 @@
-//! Wavefront integration (paper §IV-C, Algorithms 2 and 3) on the dense
-//! working region: the window `W` grown by the cutoff's reach plus one.
+//! Wavefront integration (paper §IV-C, Algorithms 2 and 3) on the working
+//! region, the window `W` grown by the cutoff's reach plus one, loaded
+//! lazily block by block ([`super::lazy`]).
 //!
 //! 1. *Raise* (frontier A and its in-window twin): every voxel whose nearest
-//!    obstacle lies in `W` and is an obstacle no more loses its value. The
-//!    whole region is scanned rather than walked from the vanished
-//!    obstacles, so a Voronoi cell that is not connected is still raised.
+//!    obstacle lies in `W` and is an obstacle no more loses its value. Every
+//!    block whose cached obstacle bounds meet the vanished obstacles' box is
+//!    scanned, rather than walking from the vanished obstacles, so a
+//!    Voronoi cell that is not connected is still raised.
 //! 2. *Window*: each voxel of `W` takes the minimum of the batch EDT
 //!    (exact for obstacles inside `W`) and its old value if that is still
 //!    valid, which keeps obstacles outside `W` that the batch cannot see
@@ -18,11 +20,11 @@
 //!    obstacle), so every level — and the result — is the same for any
 //!    thread count. Nothing beyond the cutoff is written.
 
-use super::region::{write_back, Packing, Region, WriteBack, FAR};
-use edtmap_core::{BlockKey, EdtBlock};
-use edtmap_core::{EdtField, EdtMap, LocalVolume, VoxelIndex, BLOCK_SIDE, FAR_DIST_SQ, NO_SITE};
+use super::lazy::{Cover, LazyRegion, SrcBounds};
+use super::region::{Packing, Region, WriteBack, FAR};
+use edtmap_core::{BlockKey, EdtField, EdtMap, LocalVolume, VoxelIndex, BLOCK_SIDE, BLOCK_VOXELS, NO_SITE};
 use rayon::prelude::*;
-use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, Ordering::Relaxed};
+use std::sync::atomic::Ordering::Relaxed;
 
 /// Counters of one wavefront integration.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -41,36 +43,16 @@ pub struct WaveCounts {
 }
 
 /// Reusable buffers of the wavefront.
-#[derive(Debug, Default)]
-pub struct WaveBuffers {
-    old: Vec<u64>,
-    cur: Vec<AtomicU64>,
-    stamp: Vec<AtomicU32>,
-    dirty: Vec<AtomicBool>,
-}
+pub type WaveBuffers = LazyRegion;
 
-/// The region's blocks: which ones a change touched.
-struct Dirty<'a> {
-    first: [i32; 3],
-    dims: [usize; 3],
-    origin: [i32; 3],
-    flags: &'a [AtomicBool],
-}
-
-impl Dirty<'_> {
-    #[inline]
-    fn mark(&self, c: [usize; 3]) {
-        let b = [0, 1, 2].map(|a| ((self.origin[a] + c[a] as i32).div_euclid(BLOCK_SIDE) - self.first[a]) as usize);
-        self.flags[b[0] + self.dims[0] * (b[1] + self.dims[1] * b[2])].store(true, Relaxed);
-    }
-
-    fn keys(&self) -> Vec<BlockKey> {
-        let [bx, by, _] = self.dims;
-        (0..self.flags.len())
-            .filter(|&i| self.flags[i].load(Relaxed))
-            .map(|i| BlockKey([self.first[0] + (i % bx) as i32, self.first[1] + ((i / bx) % by) as i32, self.first[2] + (i / (bx * by)) as i32]))
-            .collect()
-    }
+/// What the frame's setup found: voxels that went down and up, and the box
+/// of the obstacles that vanished.
+struct Changes {
+    down: Vec<u32>,
+    up: Vec<u32>,
+    vanished: Option<SrcBounds>,
+    raised: usize,
+    kept: usize,
 }
 
 /// Merges the batch EDT of `window` into `map`.
@@ -82,169 +64,285 @@ pub fn integrate_wavefront(
     offsets: &[[i32; 3]],
     buf: &mut WaveBuffers,
 ) -> (WriteBack, WaveCounts) {
-    let r = &packing.region;
-    let first = VoxelIndex(r.origin).block().0;
-    let last = VoxelIndex([0, 1, 2].map(|a| r.origin[a] + r.dims[a] as i32 - 1)).block().0;
-    let bdims = [0, 1, 2].map(|a| (last[a] - first[a] + 1) as usize);
-    buf.dirty.resize_with(bdims.iter().product(), || AtomicBool::new(false));
-    buf.dirty.truncate(bdims.iter().product());
-    buf.dirty.par_iter().for_each(|d| d.store(false, Relaxed));
-    buf.stamp.resize_with(r.len(), || AtomicU32::new(0));
-    buf.stamp.par_iter().for_each(|s| s.store(0, Relaxed));
-    let (mut counts, went_down, went_up) = read_and_merge(map, window, batch, packing, buf);
-    let dirty = Dirty { first, dims: bdims, origin: r.origin, flags: &buf.dirty };
-    for &i in went_down.iter().chain(&went_up) {
-        dirty.mark(r.coords(i as usize));
-    }
-    let seeds = seed(packing, offsets, &went_down, &went_up, &buf.cur, &buf.stamp);
-    counts.seeds = seeds.len();
-    (counts.levels, counts.lowered) = lower(packing, offsets, seeds, &buf.cur, &buf.stamp, &dirty);
-    let keys = dirty.keys();
-    (write_back(map, packing, &keys, &buf.old, &buf.cur), counts)
-}
-
-/// Steps 1 and 2, fused with reading the region from the map: raise
-/// vanished obstacles' voxels and merge the window. Returns the counters
-/// and the voxels whose value went down and up.
-fn read_and_merge(map: &EdtMap, window: &LocalVolume, batch: &EdtField, p: &Packing, buf: &mut WaveBuffers) -> (WaveCounts, Vec<u32>, Vec<u32>) {
-    let n = p.region.len();
-    buf.old.resize(n, FAR);
-    if buf.cur.len() < n {
-        buf.cur.resize_with(n, || AtomicU64::new(FAR));
-    }
-    buf.cur.truncate(n);
+    let cover = Cover::of(packing.region);
+    buf.begin(&cover);
     let w = Region { origin: window.origin.0, dims: window.dims };
-    let (dist, near) = (batch.dist_sq_vox(), batch.nearest());
-    let [nx, ny, _] = p.region.dims;
-    let side = BLOCK_SIDE as usize;
-    let (raised, kept, down, up) = buf
-        .old
-        .par_chunks_mut(nx * ny)
-        .zip(buf.cur.par_chunks(nx * ny))
-        .enumerate()
-        .map(|(z, (old, cur))| {
-            let (mut raised, mut kept, mut down, mut up) = (0, 0, Vec::new(), Vec::new());
-            // One hash lookup per block of this plane, not per row.
-            let lead = [0, 1].map(|a| p.region.origin[a].rem_euclid(BLOCK_SIDE) as usize);
-            let cols = (lead[0] + nx).div_ceil(side);
-            let mut blocks: Vec<Option<&EdtBlock>> = Vec::new();
-            for y in 0..ny {
-                if y == 0 || (y + lead[1]) % side == 0 {
-                    blocks = (0..cols).map(|bx| map.get(p.region.world([(bx * side).saturating_sub(lead[0]), y, z]).block())).collect();
-                }
-                let v0 = p.region.world([0, y, z]);
-                let (wy, wz) = (v0.0[1] - w.origin[1], v0.0[2] - w.origin[2]);
-                let row_in_window = wy >= 0 && wz >= 0 && (wy as usize) < w.dims[1] && (wz as usize) < w.dims[2];
-                let base_yz = v0.offset_in_block() - v0.0[0].rem_euclid(BLOCK_SIDE) as usize;
-                for x in 0..nx {
-                    let bx = (x + lead[0]) / side;
-                    let offset = base_yz + (x + lead[0]) % side;
-                    let (value, src_in_window) = match blocks[bx] {
-                        Some(b) if b.dist_sq[offset] != FAR_DIST_SQ => (p.pack(b.dist_sq[offset], b.nearest[offset]), w.local(b.nearest[offset]).map(|c| w.linear(c))),
-                        _ => (FAR, None),
-                    };
-                    let vanished = src_in_window.is_some_and(|s| dist[s] != 0);
-                    raised += usize::from(vanished);
-                    let valid = if vanished { FAR } else { value };
-                    let wx = v0.0[0] + x as i32 - w.origin[0];
-                    let new = if row_in_window && wx >= 0 && (wx as usize) < w.dims[0] {
-                        let l = w.linear([wx as usize, wy as usize, wz as usize]);
-                        let b = if near[l] == NO_SITE { FAR } else { p.pack(dist[l], window.world(w.coords(near[l] as usize))) };
-                        kept += usize::from(valid < b && src_in_window.is_none());
-                        b.min(valid)
-                    } else {
-                        valid
-                    };
-                    let i = y * nx + x;
-                    old[i] = value;
-                    cur[i].store(new, Relaxed);
-                    let global = (z * nx * ny + i) as u32;
-                    if new < value {
-                        down.push(global);
-                    } else if new > value {
-                        up.push(global);
-                    }
+    let touches_window = |b: usize| {
+        let first = cover.key(b).first_voxel().0;
+        (0..3).all(|a| first[a] + BLOCK_SIDE > w.origin[a] && first[a] < w.origin[a] + w.dims[a] as i32)
+    };
+    let window_blocks: Vec<usize> = (0..cover.blocks()).filter(|&b| touches_window(b)).collect();
+    let mut ch = scan_blocks(map, window, batch, packing, &cover, buf, &window_blocks, true);
+    if let Some((lo, hi)) = ch.vanished {
+        // Blocks outside the window that may hold a voxel whose obstacle vanished.
+        let mut others = Vec::new();
+        for b in (0..cover.blocks()).filter(|&b| !touches_window(b)) {
+            if let Some((blo, bhi)) = buf.bounds_of(map, cover.key(b)) {
+                if (0..3).all(|a| blo[a] <= hi[a] && bhi[a] >= lo[a]) {
+                    others.push(b);
                 }
             }
-            (raised, kept, down, up)
-        })
-        .reduce(|| (0, 0, Vec::new(), Vec::new()), |mut a, b| {
-            a.2.extend(b.2);
-            a.3.extend(b.3);
-            (a.0 + b.0, a.1 + b.1, a.2, a.3)
-        });
-    (WaveCounts { raised, kept_outside: kept, ..Default::default() }, down, up)
+        }
+        let more = scan_blocks(map, window, batch, packing, &cover, buf, &others, false);
+        ch.down.extend(more.down);
+        ch.up.extend(more.up);
+        ch.raised += more.raised;
+    }
+    for &i in ch.down.iter().chain(&ch.up) {
+        buf.dirty[i as usize / BLOCK_VOXELS].store(true, Relaxed);
+    }
+    let mut counts = WaveCounts { raised: ch.raised, kept_outside: ch.kept, ..Default::default() };
+    {
+        let ctx = Ctx { map, p: packing, cover: &cover, buf, offsets };
+        let seeds = ctx.seed(&ch.down, &ch.up);
+        counts.seeds = seeds.len();
+        (counts.levels, counts.lowered) = ctx.lower(seeds);
+    }
+    let dirty: Vec<usize> = (0..cover.blocks()).filter(|&b| buf.dirty[b].load(Relaxed)).collect();
+    (write_back_blocks(map, packing, &cover, buf, &dirty), counts)
 }
 
-/// Step 3: voxels that went down, and valid neighbours of voxels that went up.
-fn seed(p: &Packing, offsets: &[[i32; 3]], down: &[u32], up: &[u32], cur: &[AtomicU64], stamp: &[AtomicU32]) -> Vec<(u32, u64)> {
-    let mark = |i: usize| stamp[i].swap(1, Relaxed) != 1;
-    let mut ids: Vec<u32> = down.par_iter().copied().filter(|&i| mark(i as usize)).collect();
-    let around: Vec<u32> = up
+/// Steps 1 and 2 on `blocks`: loads them, raises voxels whose obstacle
+/// vanished and, with `merge`, merges the window's voxels.
+#[allow(clippy::too_many_arguments)]
+fn scan_blocks(map: &EdtMap, window: &LocalVolume, batch: &EdtField, p: &Packing, cover: &Cover, buf: &LazyRegion, blocks: &[usize], merge: bool) -> Changes {
+    let w = Region { origin: window.origin.0, dims: window.dims };
+    let (dist, near) = (batch.dist_sq_vox(), batch.nearest());
+    blocks
         .par_iter()
-        .fold(Vec::new, |mut acc, &i| {
-            for_neighbours(&p.region, p.region.coords(i as usize), offsets, |n, _| {
-                if cur[n].load(Relaxed) != FAR && mark(n) {
-                    acc.push(n as u32);
+        .map(|&b| {
+            buf.ensure(b, map, p, cover);
+            let mut ch = Changes { down: Vec::new(), up: Vec::new(), vanished: None, raised: 0, kept: 0 };
+            let key = cover.key(b);
+            let Some(stored) = map.get(key) else {
+                if merge {
+                    // Nothing stored: every old value is far, only the window merges.
+                    scan_block_voxels(&mut ch, b, key, cover, buf, |_, v, _| {
+                        let l = w.local(v)?;
+                        let l = w.linear(l);
+                        Some(if near[l] == NO_SITE { FAR } else { p.pack(dist[l], window.world(w.coords(near[l] as usize))) })
+                    });
+                }
+                return ch;
+            };
+            scan_block_voxels(&mut ch, b, key, cover, buf, |ch, v, offset| {
+                let old = buf.old[b * BLOCK_VOXELS + offset].load(Relaxed);
+                let src_in_window = (old != FAR).then(|| w.local(stored.nearest[offset]).map(|l| w.linear(l))).flatten();
+                let vanished = src_in_window.is_some_and(|s| dist[s] != 0);
+                ch.raised += usize::from(vanished);
+                let valid = if vanished { FAR } else { old };
+                match w.local(v).filter(|_| merge) {
+                    Some(l) => {
+                        let l = w.linear(l);
+                        if old != FAR && (old >> 32) == 0 && dist[l] != 0 {
+                            grow(&mut ch.vanished, v.0);
+                        }
+                        let b = if near[l] == NO_SITE { FAR } else { p.pack(dist[l], window.world(w.coords(near[l] as usize))) };
+                        ch.kept += usize::from(valid < b && src_in_window.is_none());
+                        Some(b.min(valid))
+                    }
+                    None => Some(valid),
                 }
             });
-            acc
+            ch
         })
-        .flatten()
-        .collect();
-    ids.extend(around);
-    ids.into_par_iter().map(|i| (i, cur[i as usize].load(Relaxed))).collect()
+        .reduce(
+            || Changes { down: Vec::new(), up: Vec::new(), vanished: None, raised: 0, kept: 0 },
+            |mut a, b| {
+                a.down.extend(b.down);
+                a.up.extend(b.up);
+                if let Some((lo, hi)) = b.vanished {
+                    grow(&mut a.vanished, lo);
+                    grow(&mut a.vanished, hi);
+                }
+                a.raised += b.raised;
+                a.kept += b.kept;
+                a
+            },
+        )
 }
 
-/// Step 4: lowering waves until no voxel changes; returns (levels, lowerings).
-fn lower(p: &Packing, offsets: &[[i32; 3]], mut frontier: Vec<(u32, u64)>, cur: &[AtomicU64], stamp: &[AtomicU32], dirty: &Dirty<'_>) -> (usize, usize) {
-    let (mut levels, mut lowered) = (0, 0);
-    let max = p.cutoff.max_dist_sq as i64;
-    let reach = p.cutoff.reach as i64;
-    while !frontier.is_empty() {
-        levels += 1;
-        let level = levels as u32 + 1;
-        let (next, count): (Vec<u32>, usize) = frontier
-            .par_iter()
-            .fold(
-                || (Vec::new(), 0),
-                |(mut acc, mut count), &(i, value)| {
-                    let src = p.source_coords(value).map(|x| x as i64);
-                    for_neighbours(&p.region, p.region.coords(i as usize), offsets, |n, c| {
-                        let d: i64 = (0..3).map(|a| (c[a] as i64 + reach - src[a]).pow(2)).sum();
-                        if d > max {
-                            return;
-                        }
-                        let cand = ((d as u64) << 32) | (value & 0xffff_ffff);
-                        if cand < cur[n].load(Relaxed) && cand < cur[n].fetch_min(cand, Relaxed) {
-                            count += 1;
-                            if stamp[n].swap(level, Relaxed) != level {
-                                dirty.mark(c);
-                                acc.push(n as u32);
-                            }
-                        }
-                    });
-                    (acc, count)
-                },
-            )
-            .reduce(|| (Vec::new(), 0), |(mut a, x), (b, y)| {
-                a.extend(b);
-                (a, x + y)
-            });
-        lowered += count;
-        frontier = next.into_par_iter().map(|i| (i, cur[i as usize].load(Relaxed))).collect();
-    }
-    (levels, lowered)
-}
-
-/// Calls `f(linear, coords)` for each neighbour of the voxel at `c` inside `r`.
-#[inline]
-fn for_neighbours(r: &Region, c: [usize; 3], offsets: &[[i32; 3]], mut f: impl FnMut(usize, [usize; 3])) {
-    for o in offsets {
-        let n = [0, 1, 2].map(|a| c[a] as i64 + i64::from(o[a]));
-        if (0..3).all(|a| n[a] >= 0 && n[a] < r.dims[a] as i64) {
-            let n = n.map(|x| x as usize);
-            f(r.linear(n), n);
+/// Calls `new_value(changes, voxel, offset)` for every voxel of block `b`
+/// inside the region; stores the value it returns (none: unchanged) and
+/// records whether it went down or up.
+fn scan_block_voxels(
+    ch: &mut Changes,
+    b: usize,
+    key: BlockKey,
+    cover: &Cover,
+    buf: &LazyRegion,
+    mut new_value: impl FnMut(&mut Changes, VoxelIndex, usize) -> Option<u64>,
+) {
+    let first = key.first_voxel().0;
+    let r = &cover.region;
+    let span = |a: usize| {
+        let lo = (r.origin[a] - first[a]).max(0);
+        let hi = (r.origin[a] + r.dims[a] as i32 - first[a]).min(BLOCK_SIDE);
+        lo..hi
+    };
+    let (xs, ys, zs) = (span(0), span(1), span(2));
+    for z in zs {
+        for y in ys.clone() {
+            for x in xs.clone() {
+                let offset = (x + 8 * (y + 8 * z)) as usize;
+                let v = VoxelIndex([first[0] + x, first[1] + y, first[2] + z]);
+                let i = b * BLOCK_VOXELS + offset;
+                let old = buf.old[i].load(Relaxed);
+                let Some(new) = new_value(ch, v, offset) else { continue };
+                buf.cur[i].store(new, Relaxed);
+                if new < old {
+                    ch.down.push(i as u32);
+                } else if new > old {
+                    ch.up.push(i as u32);
+                }
+            }
         }
+    }
+}
+
+fn grow(bounds: &mut Option<SrcBounds>, v: [i32; 3]) {
+    let (lo, hi) = bounds.get_or_insert((v, v));
+    for a in 0..3 {
+        lo[a] = lo[a].min(v[a]);
+        hi[a] = hi[a].max(v[a]);
+    }
+}
+
+/// What the waves read.
+struct Ctx<'a> {
+    map: &'a EdtMap,
+    p: &'a Packing,
+    cover: &'a Cover,
+    buf: &'a LazyRegion,
+    offsets: &'a [[i32; 3]],
+}
+
+impl Ctx<'_> {
+    /// Calls `f(index, coords)` for each neighbour of `c` in the region,
+    /// its block loaded.
+    #[inline]
+    fn neighbours(&self, c: [usize; 3], mut f: impl FnMut(usize, [usize; 3])) {
+        for o in self.offsets {
+            let n = [0, 1, 2].map(|a| c[a] as i64 + i64::from(o[a]));
+            if n.iter().any(|&x| x < 0) {
+                continue;
+            }
+            let n = n.map(|x| x as usize);
+            if !(0..3).all(|a| n[a] < self.cover.bdims[a] * 8) || !self.cover.in_region(n) {
+                continue;
+            }
+            let i = self.cover.index(n);
+            self.buf.ensure(i / BLOCK_VOXELS, self.map, self.p, self.cover);
+            f(i, n);
+        }
+    }
+
+    /// Step 3: voxels that went down, and valid neighbours of voxels that went up.
+    fn seed(&self, down: &[u32], up: &[u32]) -> Vec<(u32, u64)> {
+        let tag = u64::from(self.buf.epoch()) << 32;
+        let mark = |i: usize| self.buf.stamp[i].swap(tag | 1, Relaxed) != tag | 1;
+        let mut ids: Vec<u32> = down.par_iter().copied().filter(|&i| mark(i as usize)).collect();
+        let around: Vec<u32> = up
+            .par_iter()
+            .fold(Vec::new, |mut acc, &i| {
+                self.neighbours(self.cover.coords(i as usize), |n, _| {
+                    if self.buf.cur[n].load(Relaxed) != FAR && mark(n) {
+                        acc.push(n as u32);
+                    }
+                });
+                acc
+            })
+            .flatten()
+            .collect();
+        ids.extend(around);
+        ids.into_par_iter().map(|i| (i, self.buf.cur[i as usize].load(Relaxed))).collect()
+    }
+
+    /// Step 4: lowering waves until no voxel changes; returns (levels, lowerings).
+    fn lower(&self, mut frontier: Vec<(u32, u64)>) -> (usize, usize) {
+        let (mut levels, mut lowered) = (0, 0);
+        let max = self.p.cutoff.max_dist_sq as i64;
+        // Cover coordinates plus `shift` are source-box coordinates.
+        let shift = [0, 1, 2].map(|a| i64::from(self.cover.origin[a] - self.p.source.origin[a]));
+        let tag = u64::from(self.buf.epoch()) << 32;
+        while !frontier.is_empty() {
+            levels += 1;
+            let stamp = tag | (levels as u64 + 1);
+            let (next, count): (Vec<u32>, usize) = frontier
+                .par_iter()
+                .fold(
+                    || (Vec::new(), 0),
+                    |(mut acc, mut count), &(i, value)| {
+                        let src = self.p.source_coords(value).map(|x| x as i64);
+                        self.neighbours(self.cover.coords(i as usize), |n, c| {
+                            let d: i64 = (0..3).map(|a| (c[a] as i64 + shift[a] - src[a]).pow(2)).sum();
+                            if d > max {
+                                return;
+                            }
+                            let cand = ((d as u64) << 32) | (value & 0xffff_ffff);
+                            let cur = &self.buf.cur[n];
+                            if cand < cur.load(Relaxed) && cand < cur.fetch_min(cand, Relaxed) {
+                                count += 1;
+                                if self.buf.stamp[n].swap(stamp, Relaxed) != stamp {
+                                    self.buf.dirty[n / BLOCK_VOXELS].store(true, Relaxed);
+                                    acc.push(n as u32);
+                                }
+                            }
+                        });
+                        (acc, count)
+                    },
+                )
+                .reduce(|| (Vec::new(), 0), |(mut a, x), (b, y)| {
+                    a.extend(b);
+                    (a, x + y)
+                });
+            lowered += count;
+            frontier = next.into_par_iter().map(|i| (i, self.buf.cur[i as usize].load(Relaxed))).collect();
+        }
+        (levels, lowered)
+    }
+}
+
+/// Writes the changed voxels of the `dirty` blocks into `map`, drops
+/// blocks left all far and refreshes their cached bounds.
+fn write_back_blocks(map: &mut EdtMap, p: &Packing, cover: &Cover, buf: &mut LazyRegion, dirty: &[usize]) -> WriteBack {
+    let reach = f64::from(p.cutoff.max_dist_sq).sqrt();
+    let truncated = |v: u64| if v == FAR { reach } else { ((v >> 32) as f64).sqrt().min(reach) };
+    let keys: Vec<BlockKey> = dirty.iter().map(|&b| cover.key(b)).collect();
+    let mut taken = map.take(&keys);
+    let (old, cur) = (&buf.old, &buf.cur);
+    let per_block: Vec<(usize, f64)> = taken
+        .par_iter_mut()
+        .zip(dirty)
+        .map(|((_, block), &b)| {
+            let (mut changed, mut sum) = (0, 0.0);
+            for offset in 0..BLOCK_VOXELS {
+                let i = b * BLOCK_VOXELS + offset;
+                let (o, n) = (old[i].load(Relaxed), cur[i].load(Relaxed));
+                if o != n && cover.in_region(cover.coords(i)) {
+                    changed += 1;
+                    sum += (truncated(n) - truncated(o)).abs();
+                    let (d, src) = p.unpack(n);
+                    block.dist_sq[offset] = d;
+                    block.nearest[offset] = src;
+                }
+            }
+            (changed, sum)
+        })
+        .collect();
+    let mut changed_blocks = Vec::new();
+    for ((key, _), &(changed, _)) in taken.iter().zip(&per_block) {
+        buf.bounds.remove(key);
+        if changed > 0 {
+            changed_blocks.push(*key);
+        }
+    }
+    taken.retain(|(_, b)| !b.is_far());
+    map.restore(taken);
+    changed_blocks.sort_unstable();
+    WriteBack {
+        voxels_changed: per_block.iter().map(|b| b.0).sum(),
+        change_sum_vox: per_block.iter().map(|b| b.1).sum(),
+        changed_blocks,
     }
 }
