@@ -45,6 +45,9 @@ pub struct WaveCounts {
 /// Reusable buffers of the wavefront.
 pub type WaveBuffers = LazyRegion;
 
+/// Frontiers smaller than this are lowered on one thread.
+const SERIAL_LEVEL: usize = 1024;
+
 /// What the frame's setup found: voxels that went down and up, and the box
 /// of the obstacles that vanished.
 struct Changes {
@@ -137,7 +140,14 @@ fn scan_blocks(map: &EdtMap, window: &LocalVolume, batch: &EdtField, p: &Packing
                         if old != FAR && (old >> 32) == 0 && dist[l] != 0 {
                             grow(&mut ch.vanished, v.0);
                         }
-                        let b = if near[l] == NO_SITE { FAR } else { p.pack(dist[l], window.world(w.coords(near[l] as usize))) };
+                        let b = if near[l] == NO_SITE {
+                            FAR
+                        } else if src_in_window == Some(near[l] as usize) && u64::from(dist[l]) == old >> 32 {
+                            // The usual case: the batch agrees with the map.
+                            old
+                        } else {
+                            p.pack(dist[l], window.world(w.coords(near[l] as usize)))
+                        };
                         ch.kept += usize::from(valid < b && src_in_window.is_none());
                         Some(b.min(valid))
                     }
@@ -268,36 +278,38 @@ impl Ctx<'_> {
         while !frontier.is_empty() {
             levels += 1;
             let stamp = tag | (levels as u64 + 1);
-            let (next, count): (Vec<u32>, usize) = frontier
-                .par_iter()
-                .fold(
-                    || (Vec::new(), 0),
-                    |(mut acc, mut count), &(i, value)| {
-                        let src = self.p.source_coords(value).map(|x| x as i64);
-                        self.neighbours(self.cover.coords(i as usize), |n, c| {
-                            let d: i64 = (0..3).map(|a| (c[a] as i64 + shift[a] - src[a]).pow(2)).sum();
-                            if d > max {
-                                return;
-                            }
-                            let cand = ((d as u64) << 32) | (value & 0xffff_ffff);
-                            let cur = &self.buf.cur[n];
-                            if cand < cur.load(Relaxed) && cand < cur.fetch_min(cand, Relaxed) {
-                                count += 1;
-                                if self.buf.stamp[n].swap(stamp, Relaxed) != stamp {
-                                    self.buf.dirty[n / BLOCK_VOXELS].store(true, Relaxed);
-                                    acc.push(n as u32);
-                                }
-                            }
-                        });
-                        (acc, count)
-                    },
-                )
-                .reduce(|| (Vec::new(), 0), |(mut a, x), (b, y)| {
+            let relax = |(mut acc, mut count): (Vec<u32>, usize), &(i, value): &(u32, u64)| {
+                let src = self.p.source_coords(value).map(|x| x as i64);
+                self.neighbours(self.cover.coords(i as usize), |n, c| {
+                    let d: i64 = (0..3).map(|a| (c[a] as i64 + shift[a] - src[a]).pow(2)).sum();
+                    if d > max {
+                        return;
+                    }
+                    let cand = ((d as u64) << 32) | (value & 0xffff_ffff);
+                    let cur = &self.buf.cur[n];
+                    if cand < cur.load(Relaxed) && cand < cur.fetch_min(cand, Relaxed) {
+                        count += 1;
+                        if self.buf.stamp[n].swap(stamp, Relaxed) != stamp {
+                            self.buf.dirty[n / BLOCK_VOXELS].store(true, Relaxed);
+                            acc.push(n as u32);
+                        }
+                    }
+                });
+                (acc, count)
+            };
+            // The paper's hierarchical frontiers on a CPU: a small level runs on
+            // one thread, a large one is split across all of them. Either way a
+            // level reads the values its frontier had when it began.
+            let (next, count): (Vec<u32>, usize) = if frontier.len() < SERIAL_LEVEL {
+                frontier.iter().fold((Vec::new(), 0), relax)
+            } else {
+                frontier.par_iter().fold(|| (Vec::new(), 0), relax).reduce(|| (Vec::new(), 0), |(mut a, x), (b, y)| {
                     a.extend(b);
                     (a, x + y)
-                });
+                })
+            };
             lowered += count;
-            frontier = next.into_par_iter().map(|i| (i, self.buf.cur[i as usize].load(Relaxed))).collect();
+            frontier = next.iter().map(|&i| (i, self.buf.cur[i as usize].load(Relaxed))).collect();
         }
         (levels, lowered)
     }
