@@ -22,7 +22,8 @@
 # Cost: the exact EDT of the whole map that --eval computes every frame
 # dominates (at 0.05 m about 3-4 s a frame on ugv_corridor and uav_pillars),
 # which is why the sweeps stop after N frames. Measured on the 2-core
-# development VM: about 13 minutes in all, the release build not counted.
+# development VM under other load: 10 to 13 minutes of runs (three
+# measurements), plus the release build.
 # Honours CARGO_TARGET_DIR.
 set -euo pipefail
 cd "$(dirname "$0")/.."
