@@ -98,6 +98,10 @@ impl Integrator {
     /// Merges the frame whose window is `window` into `map`. `batch` is the
     /// exact EDT of `window` with `obstacles` (unknown voxels free), used
     /// by the wavefront mode; the exact mode reads `obstacles` directly.
+    ///
+    /// The integrator caches, per block of `map`, the box its nearest
+    /// obstacles lie in: give one integrator one map, and start a new one
+    /// after changing the map's EDT by other means.
     pub fn integrate(
         &mut self,
         map: &mut EdtMap,
