@@ -231,8 +231,14 @@ impl Ctx<'_> {
     /// Calls `f(index, coords)` for each neighbour of `c` in the region,
     /// its block loaded.
     #[inline]
-    fn neighbours(&self, c: [usize; 3], mut f: impl FnMut(usize, [usize; 3])) {
-        for o in self.offsets {
+    fn neighbours(&self, c: [usize; 3], f: impl FnMut(usize, [usize; 3])) {
+        self.neighbours_where(c, |_| true, f);
+    }
+
+    /// [`Self::neighbours`] in the directions `keep` accepts.
+    #[inline]
+    fn neighbours_where(&self, c: [usize; 3], keep: impl Fn(&[i32; 3]) -> bool, mut f: impl FnMut(usize, [usize; 3])) {
+        for o in self.offsets.iter().filter(|o| keep(o)) {
             let n = [0, 1, 2].map(|a| c[a] as i64 + i64::from(o[a]));
             if n.iter().any(|&x| x < 0) {
                 continue;
@@ -280,7 +286,12 @@ impl Ctx<'_> {
             let stamp = tag | (levels as u64 + 1);
             let relax = |(mut acc, mut count): (Vec<u32>, usize), &(i, value): &(u32, u64)| {
                 let src = self.p.source_coords(value).map(|x| x as i64);
-                self.neighbours(self.cover.coords(i as usize), |n, c| {
+                let cv = self.cover.coords(i as usize);
+                // Lower only away from the obstacle (or across): a neighbour nearer
+                // to it is reached from the obstacle's side, as in DynamicEDT3D.
+                let away = [0, 1, 2].map(|a| cv[a] as i64 + shift[a] - src[a]);
+                let outward = |o: &[i32; 3]| (0..3).map(|a| i64::from(o[a]) * away[a]).sum::<i64>() >= 0;
+                self.neighbours_where(cv, outward, |n, c| {
                     let d: i64 = (0..3).map(|a| (c[a] as i64 + shift[a] - src[a]).pow(2)).sum();
                     if d > max {
                         return;
