@@ -14,6 +14,14 @@ pub enum IoError {
         /// What the operating system said.
         error: std::io::Error,
     },
+    /// A recording (dataset folder or file) is malformed.
+    #[error("{}: {reason}", path.display())]
+    Dataset {
+        /// The file or folder.
+        path: PathBuf,
+        /// What is wrong with it.
+        reason: String,
+    },
     /// The file is not a valid `.npy` file.
     #[error("{}: not an npy file ({reason})", path.display())]
     NotNpy {

@@ -6,6 +6,8 @@
 //!   is accepted (an element is an obstacle when any of its bytes is
 //!   nonzero). C and Fortran order are both supported; outputs keep the
 //!   input's order.
+//! * [`depth_folder`]: 3DMatch-style depth-image folders (16-bit PNGs,
+//!   per-frame 4 × 4 poses, intrinsics) as sensor frames.
 //! * [`pcd`]: point clouds in PCL's PCD format ([`read_pcd`]), ascii or
 //!   binary data, float32 or float64 coordinates.
 //! * [`picture`]: PNG pictures of 2D slices with a colour bar.
@@ -19,6 +21,7 @@
 //! input.
 #![warn(missing_docs)]
 
+pub mod depth_folder;
 mod error;
 mod font;
 pub mod mapfile;
