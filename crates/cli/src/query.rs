@@ -56,8 +56,7 @@ pub(crate) fn info(args: &InfoArgs) -> Result<()> {
     let vs = map.voxel_size_m();
     println!("{}: voxel {vs} m, cutoff {} m, connectivity {}, integration {:?}", args.map.display(), map.params.max_distance_m, u8::from(map.params.connectivity), map.params.mode);
     println!("blocks: {} occupancy, {} EDT, {} fixed; {:.1} MB", map.occupancy.len(), map.edt.len(), map.fixed.len(), map.bytes() as f64 / 1e6);
-    let keys: Vec<[i32; 3]> = map.occupancy.iter().map(|(k, _)| k.0).collect();
-    if let (Some(lo), Some(hi)) = ((0..3).map(|a| keys.iter().map(|k| k[a]).min()).collect::<Option<Vec<_>>>(), (0..3).map(|a| keys.iter().map(|k| k[a]).max()).collect::<Option<Vec<_>>>()) {
+    if let Some((lo, hi)) = map.occupancy.key_bounds() {
         let side = f64::from(edtmap::BLOCK_SIDE) * vs;
         let lo: Vec<f64> = lo.iter().map(|&b| f64::from(b) * side).collect();
         let hi: Vec<f64> = hi.iter().map(|&b| f64::from(b + 1) * side).collect();

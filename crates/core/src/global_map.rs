@@ -61,6 +61,13 @@ impl GlobalMap {
         Obstacles { occupancy: &self.occupancy, log_odds: &self.log_odds, fixed: &self.fixed, unknown_as_occupied: false }
     }
 
+    /// The EDT, mutable, beside the obstacle test that reads the other
+    /// layers: what an integration needs in one borrow.
+    pub fn edt_and_obstacles(&mut self) -> (&mut EdtMap, Obstacles<'_>) {
+        let obstacles = Obstacles { occupancy: &self.occupancy, log_odds: &self.log_odds, fixed: &self.fixed, unknown_as_occupied: false };
+        (&mut self.edt, obstacles)
+    }
+
     /// Occupancy state of voxel `v` as the sensors saw it.
     pub fn state(&self, v: VoxelIndex) -> VoxelState {
         self.log_odds.state(self.occupancy.log_odds(v))

@@ -50,6 +50,21 @@ impl VoxelIndex {
 }
 
 impl BlockKey {
+    /// Every block overlapping the voxels from `first` to `last` inclusive,
+    /// z slowest then y then x.
+    pub fn span(first: VoxelIndex, last: VoxelIndex) -> Vec<BlockKey> {
+        let (lo, hi) = (first.block().0, last.block().0);
+        let mut keys = Vec::new();
+        for z in lo[2]..=hi[2] {
+            for y in lo[1]..=hi[1] {
+                for x in lo[0]..=hi[0] {
+                    keys.push(BlockKey([x, y, z]));
+                }
+            }
+        }
+        keys
+    }
+
     /// The block's first voxel (lowest coordinates).
     pub fn first_voxel(self) -> VoxelIndex {
         VoxelIndex(self.0.map(|b| b * BLOCK_SIDE))

@@ -184,6 +184,14 @@ impl<B: Default> BlockMap<B> {
     pub fn iter(&self) -> impl Iterator<Item = (BlockKey, &B)> {
         self.blocks.iter().map(|(k, b)| (*k, &**b))
     }
+
+    /// The lowest and highest block key on each axis, if any block is
+    /// allocated.
+    pub fn key_bounds(&self) -> Option<([i32; 3], [i32; 3])> {
+        let mut keys = self.blocks.keys().map(|k| k.0);
+        let first = keys.next()?;
+        Some(keys.fold((first, first), |(lo, hi), k| ([0, 1, 2].map(|a| lo[a].min(k[a])), [0, 1, 2].map(|a| hi[a].max(k[a])))))
+    }
 }
 
 impl OccupancyMap {

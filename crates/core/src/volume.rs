@@ -92,17 +92,7 @@ impl LocalVolume {
 
     /// Every block that overlaps the volume, z slowest then y then x.
     pub fn blocks(&self) -> Vec<BlockKey> {
-        let lo = self.origin.block().0;
-        let hi = self.world(self.dims.map(|d| d - 1)).block().0;
-        let mut keys = Vec::new();
-        for z in lo[2]..=hi[2] {
-            for y in lo[1]..=hi[1] {
-                for x in lo[0]..=hi[0] {
-                    keys.push(BlockKey([x, y, z]));
-                }
-            }
-        }
-        keys
+        BlockKey::span(self.origin, self.world(self.dims.map(|d| d - 1)))
     }
 
     /// The local-coordinate range `[lo, hi)` per axis that block `key` covers.

@@ -186,7 +186,12 @@ pub fn distance_box(map: &GlobalMap, min_m: [f64; 3], max_m: [f64; 3], signed: b
     }
     let [nx, ny, nz] = dims;
     let at = |i: usize| VoxelIndex([lo.0[0] + (i % nx) as i32, lo.0[1] + ((i / nx) % ny) as i32, lo.0[2] + (i / (nx * ny)) as i32]);
-    let distance_m = (0..nx * ny * nz).into_par_iter().map(|i| voxel_distance(map, at(i), signed).0 as f32).collect();
-    let state = (0..nx * ny * nz).into_par_iter().map(|i| voxel_state(map, at(i)) as u8).collect();
+    let (distance_m, state) = (0..nx * ny * nz)
+        .into_par_iter()
+        .map(|i| {
+            let v = at(i);
+            (voxel_distance(map, v, signed).0 as f32, voxel_state(map, v) as u8)
+        })
+        .unzip();
     Ok(DistanceBox { origin: lo, dims, distance_m, state })
 }

@@ -156,9 +156,5 @@ pub fn edt_errors(map: &GlobalMap, region: &Region) -> Result<EdtErrors, MapErro
 
 /// The box spanned by `map`'s EDT blocks, if any.
 pub fn edt_extent(map: &GlobalMap) -> Option<Region> {
-    let mut keys = map.edt.iter().map(|(k, _)| k.0);
-    let first = keys.next()?;
-    let (lo, hi) = keys.fold((first, first), |(lo, hi), k| ([0, 1, 2].map(|a| lo[a].min(k[a])), [0, 1, 2].map(|a| hi[a].max(k[a]))));
-    let side = edtmap_core::BLOCK_SIDE;
-    Some(Region { origin: lo.map(|b| b * side), dims: [0, 1, 2].map(|a| ((hi[a] - lo[a] + 1) * side) as usize) })
+    map.edt.key_bounds().map(Region::of_blocks)
 }

@@ -134,14 +134,9 @@ impl Mapper {
     /// Brings the fixed obstacles (forbidden zones, priors) into the global
     /// EDT at once, rather than when a window first passes over them.
     fn lay_down_fixed(&mut self) -> Result<(), MapError> {
-        let mut keys = self.map.fixed.iter().map(|(k, _)| k.0);
-        let Some(first) = keys.next() else { return Ok(()) };
-        let (lo, hi) = keys.fold((first, first), |(lo, hi), k| ([0, 1, 2].map(|a| lo[a].min(k[a])), [0, 1, 2].map(|a| hi[a].max(k[a]))));
-        let side = edtmap_core::BLOCK_SIDE;
-        let bounds = Region { origin: lo.map(|b| b * side), dims: [0, 1, 2].map(|a| ((hi[a] - lo[a] + 1) * side) as usize) };
-        let GlobalMap { occupancy, edt, fixed, log_odds, .. } = &mut self.map;
-        let obstacles = edtmap_core::Obstacles { occupancy, log_odds, fixed, unknown_as_occupied: false };
-        self.integrator.recompute(edt, &obstacles, &bounds)?;
+        let Some(keys) = self.map.fixed.key_bounds() else { return Ok(()) };
+        let (edt, obstacles) = self.map.edt_and_obstacles();
+        self.integrator.recompute(edt, &obstacles, &Region::of_blocks(keys))?;
         Ok(())
     }
 
@@ -200,8 +195,7 @@ impl Mapper {
 
     fn integrate(&mut self, volume: &LocalVolume) -> Result<IntegrateReport, MapError> {
         let batch = self.global_batch.as_ref().map_or(&self.local_edt, |(_, f)| f);
-        let GlobalMap { occupancy, edt, fixed, log_odds, .. } = &mut self.map;
-        let obstacles = edtmap_core::Obstacles { occupancy, log_odds, fixed, unknown_as_occupied: false };
+        let (edt, obstacles) = self.map.edt_and_obstacles();
         Ok(self.integrator.integrate(edt, &obstacles, volume, batch)?)
     }
 

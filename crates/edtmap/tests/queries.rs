@@ -6,7 +6,7 @@
 use edtmap::cpu::edt::{edt_with, ScanLayout};
 use edtmap::cpu::integrate::Integrator;
 use edtmap::cpu::query::{distance, distance_box, distances, PointState};
-use edtmap::{GlobalMap, GlobalParams, Grid3, IntegrationMode, LocalVolume, Obstacles, OccupancyParams, VoxelIndex};
+use edtmap::{GlobalMap, GlobalParams, Grid3, IntegrationMode, LocalVolume, OccupancyParams, VoxelIndex};
 
 const VS: f64 = 0.1;
 
@@ -24,8 +24,7 @@ fn map_of(lo: [i32; 3], dims: [usize; 3], obstacle: impl Fn([f64; 3]) -> bool) -
     }
     let batch = edt_with(&mask, |&o| o, ScanLayout::default()).expect("batch");
     let mut integrator = Integrator::new(&map.params, VS).expect("valid");
-    let GlobalMap { occupancy, edt, fixed, log_odds, .. } = &mut map;
-    let obstacles = Obstacles { occupancy, log_odds, fixed, unknown_as_occupied: false };
+    let (edt, obstacles) = map.edt_and_obstacles();
     integrator.integrate(edt, &obstacles, &window, &batch).expect("integrate");
     map
 }

@@ -79,19 +79,14 @@ impl Region {
         VoxelIndex([0, 1, 2].map(|a| self.origin[a] + c[a] as i32))
     }
 
+    /// The box made of whole blocks from key `lo` to key `hi` inclusive.
+    pub fn of_blocks((lo, hi): ([i32; 3], [i32; 3])) -> Region {
+        Region { origin: lo.map(|b| b * BLOCK_SIDE), dims: [0, 1, 2].map(|a| ((hi[a] - lo[a] + 1) * BLOCK_SIDE) as usize) }
+    }
+
     /// The blocks this box overlaps.
     pub fn blocks(&self) -> Vec<BlockKey> {
-        let lo = VoxelIndex(self.origin).block().0;
-        let hi = VoxelIndex([0, 1, 2].map(|a| self.origin[a] + self.dims[a] as i32 - 1)).block().0;
-        let mut keys = Vec::new();
-        for z in lo[2]..=hi[2] {
-            for y in lo[1]..=hi[1] {
-                for x in lo[0]..=hi[0] {
-                    keys.push(BlockKey([x, y, z]));
-                }
-            }
-        }
-        keys
+        BlockKey::span(VoxelIndex(self.origin), VoxelIndex([0, 1, 2].map(|a| self.origin[a] + self.dims[a] as i32 - 1)))
     }
 }
 
