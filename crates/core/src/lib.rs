@@ -16,6 +16,7 @@
 //!   [`UNREACHABLE_DIST_SQ`] and no nearest obstacle.
 #![warn(missing_docs)]
 
+pub mod backend;
 mod edt;
 mod error;
 mod global;
@@ -28,6 +29,7 @@ pub mod sensor;
 mod state;
 mod volume;
 
+pub use backend::{Backend, BackendError, BatchEdt};
 pub use edt::{dist_sq_to_vox, EdtField, EdtParams, NO_SITE, UNREACHABLE_DIST_SQ};
 pub use error::CoreError;
 pub use global::{Connectivity, Cutoff, EdtBlock, EdtMap, ForbiddenZone, GlobalParams, IntegrationMode, DEFAULT_MAX_DISTANCE_M, FAR_DIST_SQ, NO_OBSTACLE};

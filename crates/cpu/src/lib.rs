@@ -22,10 +22,12 @@
 //! paper's uncoalesced baseline, kept for the benchmarks.
 #![warn(missing_docs)]
 
+mod backend;
 pub mod edt;
 pub mod integrate;
 pub mod occupancy;
 pub mod query;
 mod error;
 
+pub use backend::CpuBackend;
 pub use error::CpuError;

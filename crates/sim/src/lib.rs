@@ -21,6 +21,7 @@
 //! ```
 #![warn(missing_docs)]
 
+pub mod conformance;
 mod error;
 pub mod geometry;
 mod grids;

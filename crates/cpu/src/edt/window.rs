@@ -75,8 +75,8 @@ unsafe fn scan_windowed_avx2(
 ) -> bool {
     // SAFETY: AVX2 is available and every row has `lanes` elements, a
     // multiple of 8 (this function's contract).
-    scan_windowed_with(tile, out_f, out_site, radius, |b, bs, row, dd| unsafe {
-        relax_avx2(b, bs, row, dd)
+    scan_windowed_with(tile, out_f, out_site, radius, |b, bs, row, dd, ties| unsafe {
+        relax_avx2(b, bs, row, dd, ties)
     })
 }
 
@@ -87,7 +87,7 @@ fn scan_windowed_with(
     out_f: &mut [u32],
     out_site: &mut [u32],
     windows: &mut Windows,
-    relax: impl Fn(&mut [u32], &mut [u32], (&[u32], &[u32]), u32),
+    relax: impl Fn(&mut [u32], &mut [u32], (&[u32], &[u32]), u32, bool),
 ) -> bool {
     let lanes = tile.lanes;
     let len = tile.f.len() / lanes;
@@ -109,15 +109,18 @@ fn scan_windowed_with(
         for d in 1..=radius[i] {
             let dd = (d * d) as u32;
             // Candidates d or more away are worth at least d²: once that
-            // reaches every lane's best, none can improve.
-            if d % EARLY_EXIT_EVERY == 0 && dd >= best.iter().copied().fold(0, u32::max) {
+            // passes every lane's best, none can improve or tie.
+            if d % EARLY_EXIT_EVERY == 0 && dd > best.iter().copied().fold(0, u32::max) {
                 break;
             }
+            // Ties go to the lower position, as in the envelope: a
+            // candidate on the left is below every position seen so far,
+            // one on the right above them.
             if let Some(j) = i.checked_sub(d).filter(|&j| !empty[j]) {
-                relax(best, best_site, row(tile, j), dd);
+                relax(best, best_site, row(tile, j), dd, true);
             }
             if i + d < len && !empty[i + d] {
-                relax(best, best_site, row(tile, i + d), dd);
+                relax(best, best_site, row(tile, i + d), dd, false);
             }
         }
     }
@@ -180,14 +183,15 @@ fn row<'a>(tile: &Tile<'a>, i: usize) -> (&'a [u32], &'a [u32]) {
     (&tile.f[lanes.clone()], &tile.site[lanes])
 }
 
-/// Lane-wise: where `f + dd` beats `best`, take it and its site.
+/// Lane-wise: where `f + dd` beats `best` (or equals it, with `ties`),
+/// take it and its site.
 #[inline(always)]
-fn relax(best: &mut [u32], best_site: &mut [u32], (f, site): (&[u32], &[u32]), dd: u32) {
+fn relax(best: &mut [u32], best_site: &mut [u32], (f, site): (&[u32], &[u32]), dd: u32, ties: bool) {
     let lanes = best.iter_mut().zip(best_site.iter_mut()).zip(f.iter().zip(site));
     for ((b, bs), (&f, &s)) in lanes {
         // Values are below 2^30 here, so the sum cannot overflow.
         let c = f + dd;
-        if c < *b {
+        if c < *b || (ties && c == *b) {
             *b = c;
             *bs = s;
         }
@@ -208,6 +212,7 @@ unsafe fn relax_avx2(
     best_site: &mut [u32],
     (f, site): (&[u32], &[u32]),
     dd: u32,
+    ties: bool,
 ) {
     use std::arch::x86_64::{
         __m256i, _mm256_add_epi32, _mm256_blendv_epi8, _mm256_cmpgt_epi32, _mm256_loadu_si256,
@@ -224,9 +229,15 @@ unsafe fn relax_avx2(
             let load = |p: *const u32| _mm256_loadu_si256(p.add(k).cast::<__m256i>());
             let c = _mm256_add_epi32(load(f.as_ptr()), vdd);
             let (b, bs, s) = (load(best.as_ptr()), load(best_site.as_ptr()), load(site.as_ptr()));
-            let better = _mm256_cmpgt_epi32(b, c);
-            _mm256_storeu_si256(best.as_mut_ptr().add(k).cast(), _mm256_blendv_epi8(b, c, better));
-            let new_site = _mm256_blendv_epi8(bs, s, better);
+            let (new_best, new_site) = if ties {
+                // Keep the best only where the candidate is above it.
+                let keep = _mm256_cmpgt_epi32(c, b);
+                (_mm256_blendv_epi8(c, b, keep), _mm256_blendv_epi8(s, bs, keep))
+            } else {
+                let take = _mm256_cmpgt_epi32(b, c);
+                (_mm256_blendv_epi8(b, c, take), _mm256_blendv_epi8(bs, s, take))
+            };
+            _mm256_storeu_si256(best.as_mut_ptr().add(k).cast(), new_best);
             _mm256_storeu_si256(best_site.as_mut_ptr().add(k).cast(), new_site);
         }
     }

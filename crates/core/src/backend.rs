@@ -1,0 +1,70 @@
+//! What a backend (the CPU with rayon, a GPU with wgpu) provides to the
+//! pipeline, as capability traits the mapper is generic over.
+//!
+//! Every backend gives the same integer answers: the conformance suite in
+//! `edtmap-sim` checks each one against the same oracles, bit for bit.
+//!
+//! # The batch EDT's tie rule
+//! A voxel can have several nearest obstacles. Every backend picks the same
+//! one: the separable scans run along x, then y, then z, and each scan keeps
+//! the candidate at the lowest position along its axis among those at the
+//! smallest value. `edtmap_sim::conformance::separable_oracle` computes it
+//! by brute force.
+
+use crate::{CoreError, EdtField, Grid3};
+
+/// Errors a backend can raise besides those of the data it is given.
+#[derive(Debug, thiserror::Error, Clone, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum BackendError {
+    /// No usable GPU adapter (and no software one either).
+    #[error("no GPU adapter found: {0}; use --backend cpu (or auto), or install a Vulkan driver such as Mesa's lavapipe (Debian: mesa-vulkan-drivers)")]
+    NoAdapter(String),
+    /// The GPU device was lost (driver reset, hang, unplugged): the frame
+    /// was not applied.
+    #[error("GPU device lost: {0}")]
+    DeviceLost(String),
+    /// The device refused a buffer or a dispatch as too large.
+    #[error("{what} needs {needed} bytes, more than the device's limit of {limit} bytes")]
+    OverLimit {
+        /// What was being allocated.
+        what: &'static str,
+        /// Bytes needed.
+        needed: u64,
+        /// The device's limit, bytes.
+        limit: u64,
+    },
+    /// Any other error the device reported (validation, out of memory).
+    #[error("GPU error: {0}")]
+    Device(String),
+    /// The input itself is invalid.
+    #[error(transparent)]
+    Core(#[from] CoreError),
+}
+
+/// Exact batch EDT of a dense grid (paper §IV-B, Algorithm 1).
+pub trait BatchEdt {
+    /// The EDT of `mask` (true = obstacle) into `out`, reusing its
+    /// buffers: squared distances in voxels² and nearest obstacles as
+    /// linear indices, with the tie rule of this module's docs.
+    fn batch_edt(&mut self, mask: &Grid3<bool>, out: &mut EdtField) -> Result<(), BackendError>;
+}
+
+/// A backend the mapper can run on.
+pub trait Backend: BatchEdt {
+    /// What it runs on, for reports and logs: `cpu (N threads)`, or the
+    /// GPU's name and API.
+    fn name(&self) -> String;
+}
+
+impl<B: BatchEdt + ?Sized> BatchEdt for Box<B> {
+    fn batch_edt(&mut self, mask: &Grid3<bool>, out: &mut EdtField) -> Result<(), BackendError> {
+        (**self).batch_edt(mask, out)
+    }
+}
+
+impl<B: Backend + ?Sized> Backend for Box<B> {
+    fn name(&self) -> String {
+        (**self).name()
+    }
+}

@@ -1,0 +1,22 @@
+//! The backend conformance suite (`edtmap_sim::conformance`) on the CPU,
+//! with every scan layout: all must give the same integer results.
+
+use edtmap_cpu::edt::ScanLayout;
+use edtmap_cpu::CpuBackend;
+use edtmap_sim::conformance::check_batch_edt;
+
+#[test]
+fn batch_edt_matches_the_separable_oracle_in_every_layout() {
+    let layouts = [
+        ScanLayout::PerLine,
+        ScanLayout::TiledEnvelope { lanes: 5 },
+        ScanLayout::Tiled { lanes: 3 },
+        ScanLayout::Tiled { lanes: 16 },
+        ScanLayout::default(),
+    ];
+    for layout in layouts {
+        let mut backend = CpuBackend { layout };
+        let checked = check_batch_edt(&mut backend).unwrap_or_else(|e| panic!("{layout:?}: {e}"));
+        assert!(checked > 100_000);
+    }
+}
