@@ -1,0 +1,66 @@
+//! Small helpers shared by the kernels: pipelines, bind group layout
+//! entries and dispatch sizes.
+
+use crate::context::GpuContext;
+
+/// Invocations per workgroup of the one-dimensional kernels (`GROUP` in
+/// the shaders).
+pub(crate) const GROUP: u64 = 64;
+
+/// Most workgroups along one dispatch dimension (WebGPU's default limit).
+const MAX_GROUPS: u64 = 65535;
+
+/// One entry point of a shader module, compiled once.
+#[derive(Debug)]
+pub(crate) struct Kernel {
+    pipeline: wgpu::ComputePipeline,
+}
+
+impl Kernel {
+    /// Compiles `entry` of `module` with a single bind group of `layout`.
+    pub(crate) fn new(ctx: &GpuContext, module: &wgpu::ShaderModule, layout: &wgpu::BindGroupLayout, entry: &str) -> Self {
+        let pipeline_layout = ctx.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some(entry),
+            bind_group_layouts: &[Some(layout)],
+            immediate_size: 0,
+        });
+        let pipeline = ctx.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some(entry),
+            layout: Some(&pipeline_layout),
+            module,
+            entry_point: Some(entry),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+        Kernel { pipeline }
+    }
+
+    /// Records one dispatch of `groups` workgroups with `group` bound at the
+    /// dynamic uniform offset `offset`.
+    pub(crate) fn dispatch(&self, pass: &mut wgpu::ComputePass<'_>, group: &wgpu::BindGroup, offset: u32, groups: [u32; 3]) {
+        pass.set_pipeline(&self.pipeline);
+        pass.set_bind_group(0, group, &[offset]);
+        pass.dispatch_workgroups(groups[0], groups[1], groups[2]);
+    }
+}
+
+/// A storage buffer binding visible to compute shaders.
+pub(crate) fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Storage { read_only },
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
+/// Workgroups for `items` one-dimensional invocations, spread over x and y
+/// (the shaders' `flat_id`).
+pub(crate) fn groups_1d(items: u64) -> [u32; 3] {
+    let groups = items.div_ceil(GROUP).max(1);
+    [groups.min(MAX_GROUPS) as u32, groups.div_ceil(MAX_GROUPS) as u32, 1]
+}
