@@ -4,10 +4,12 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
-use edtmap::cpu::edt::{edt_into, ScanLayout, DEFAULT_TILE_LANES};
-use edtmap::EdtField;
+use edtmap::cpu::edt::{ScanLayout, DEFAULT_TILE_LANES};
+use edtmap::cpu::CpuBackend;
+use edtmap::{BatchEdt, EdtField};
 use edtmap_io::npy::{self, ObstacleNpy};
 
+use crate::backend::{self, BackendArg};
 use crate::memory::ensure_fits;
 use crate::timing::RunTimes;
 
@@ -25,19 +27,12 @@ pub(crate) struct EdtArgs {
     /// Run the transform K times and print one JSON line of timings.
     #[arg(long, value_name = "K", value_parser = clap::value_parser!(u32).range(1..))]
     repeat: Option<u32>,
-    /// Compute backend.
-    #[arg(long, value_enum, default_value_t = Backend::Cpu)]
-    backend: Backend,
+    /// Compute backend: cpu, gpu, or auto (a hardware GPU if any, else cpu).
+    #[arg(long, value_enum, default_value_t = BackendArg::Cpu)]
+    backend: BackendArg,
     /// Scan layout on the strided axes (for benchmarking).
     #[arg(long, value_enum, default_value_t = Layout::Tiled)]
     layout: Layout,
-}
-
-/// Backends `edtmap edt` can run on.
-#[derive(Clone, Copy, Debug, ValueEnum)]
-enum Backend {
-    /// All cores with rayon.
-    Cpu,
 }
 
 /// Scan layouts, see `edtmap_cpu::edt::ScanLayout`.
@@ -57,7 +52,6 @@ enum Layout {
 const WORK_BYTES_PER_VOXEL: u64 = 1 + 4 + 4 + 4;
 
 pub(crate) fn run(args: &EdtArgs) -> Result<()> {
-    let Backend::Cpu = args.backend;
     let file = ObstacleNpy::open(&args.input)?;
     let layout = file.layout().clone();
     let ndim = layout.shape().len() as u64;
@@ -73,11 +67,12 @@ pub(crate) fn run(args: &EdtArgs) -> Result<()> {
         Layout::TiledEnvelope => ScanLayout::TiledEnvelope { lanes: DEFAULT_TILE_LANES },
         Layout::PerLine => ScanLayout::PerLine,
     };
+    let mut backend = backend::open(args.backend, CpuBackend { layout: scan })?;
     // Buffers are reused across repeats, as a mapper reuses them per frame.
     let mut field = EdtField::empty();
     let (mut dist, mut idx) = (Vec::new(), Vec::new());
     let (result, times) = RunTimes::measure(args.repeat.unwrap_or(1) as usize, || {
-        edt_into(&grid, |&o| o, scan, &mut field)?;
+        backend.batch_edt(&grid, &mut field)?;
         npy::distance_array(&field, &mut dist);
         if args.nearest.is_some() {
             npy::nearest_array(&layout, &field, &mut idx);
@@ -95,6 +90,7 @@ pub(crate) fn run(args: &EdtArgs) -> Result<()> {
             "min_ms": times.min_ms(),
             "median_ms": times.median_ms(),
             "voxels": layout.len(),
+            "backend": backend.name(),
         });
         println!("{line}");
     }

@@ -1,5 +1,6 @@
 //! The `edtmap` command-line program.
 
+mod backend;
 mod demo;
 mod edt;
 mod memory;

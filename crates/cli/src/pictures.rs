@@ -3,12 +3,14 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::Result;
-use edtmap::{Mapper, VoxelState};
+use edtmap::VoxelState;
+
+use crate::backend::CliMapper;
 use edtmap_io::picture::{write_slice_png, write_states_png, Slice, SliceStyle};
 
 /// Writes `occupancy_slice.png` and `edt_slice.png` of the horizontal slice
 /// of the local volume at height `z_m` into `out`.
-pub(crate) fn write_slices(mapper: &Mapper, z_m: f64, out: &Path) -> Result<Vec<PathBuf>> {
+pub(crate) fn write_slices(mapper: &CliMapper, z_m: f64, out: &Path) -> Result<Vec<PathBuf>> {
     let Some(volume) = mapper.local_volume() else { return Ok(Vec::new()) };
     let vs = volume.voxel_size_m;
     let [nx, ny, nz] = volume.dims;

@@ -9,11 +9,13 @@ use edtmap::config::{Config, ConstructionName};
 use edtmap::cpu::integrate::region::Region;
 use edtmap::eval::{edt_errors, edt_extent, EdtErrors, OccupancyScores};
 use edtmap::sensor::{Frame, Sensor};
+use edtmap::cpu::CpuBackend;
 use edtmap::{Connectivity, FrameStats, IntegrationMode, Mapper};
 use edtmap_sim::{Scene, SceneName, SceneOptions};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::{json, Map};
 
+use crate::backend::{self, BackendArg, CliMapper};
 use crate::pictures::write_slices;
 use crate::report::{report, FrameRecord};
 use crate::scenes::builtin_config;
@@ -54,6 +56,9 @@ pub(crate) struct RunArgs {
     /// Start from a saved map whose obstacles stay obstacles (domain knowledge).
     #[arg(long)]
     pub(crate) prior: Option<PathBuf>,
+    /// Compute backend: cpu, gpu, or auto (a hardware GPU if any, else cpu).
+    #[arg(long, value_enum, default_value_t)]
+    pub(crate) backend: BackendArg,
 }
 
 /// Values of `--integration`.
@@ -119,6 +124,8 @@ pub(crate) struct RunOutcome {
     pub(crate) frames: Vec<FrameRecord>,
     pub(crate) report_path: PathBuf,
     pub(crate) pictures: Vec<PathBuf>,
+    /// The backend's name.
+    pub(crate) backend: String,
 }
 
 /// Runs `edtmap run` and prints its summary.
@@ -143,7 +150,8 @@ pub(crate) fn execute(args: &RunArgs, progress: bool) -> Result<RunOutcome> {
     if frames == 0 {
         bail!("--frames must be at least 1");
     }
-    let mut mapper = Mapper::new(sensor.clone(), params.clone())?;
+    let backend = backend::open(args.backend, CpuBackend::default())?;
+    let mut mapper = Mapper::new_on(backend, sensor.clone(), params.clone())?;
     if let Some(path) = &args.prior {
         let prior = edtmap::load_map(path)?;
         mapper.add_prior(&prior).with_context(|| format!("prior map {}", path.display()))?;
@@ -185,7 +193,7 @@ pub(crate) fn execute(args: &RunArgs, progress: bool) -> Result<RunOutcome> {
     header.insert("edtmap_version".into(), json!(env!("CARGO_PKG_VERSION")));
     header.insert("scene".into(), json!(name));
     header.insert("config".into(), json!(origin));
-    header.insert("backend".into(), json!("cpu"));
+    header.insert("backend".into(), json!(mapper.backend().name()));
     header.insert("threads".into(), json!(rayon::current_num_threads()));
     header.insert("sensor".into(), json!(sensor.kind()));
     header.insert("construction".into(), json!(construction_name(&sensor, &config)));
@@ -200,7 +208,7 @@ pub(crate) fn execute(args: &RunArgs, progress: bool) -> Result<RunOutcome> {
     }
     let report_path = args.out.join("report.json");
     write_json(&report_path, &report(header, &records))?;
-    Ok(RunOutcome { frames: records, report_path, pictures })
+    Ok(RunOutcome { frames: records, report_path, pictures, backend: mapper.backend().name() })
 }
 
 fn construction_name(sensor: &Sensor, config: &Config) -> &'static str {
@@ -228,7 +236,7 @@ fn global_fields(s: &FrameStats) -> Vec<(&'static str, f64)> {
 
 /// Errors of the local window and of the whole global EDT against the
 /// exact EDT of the mapper's own obstacles.
-fn edt_error_fields(mapper: &Mapper) -> Result<Vec<(&'static str, f64)>> {
+fn edt_error_fields(mapper: &CliMapper) -> Result<Vec<(&'static str, f64)>> {
     let map = mapper.map();
     let mut out = Vec::new();
     let regions = [("local", mapper.local_volume().map(|v| Region { origin: v.origin.0, dims: v.dims })), ("global", edt_extent(map))];
@@ -248,7 +256,7 @@ fn edt_error_fields(mapper: &Mapper) -> Result<Vec<(&'static str, f64)>> {
 }
 
 /// Occupancy scores of the mapper's local volume against the scene.
-fn score(scene: &Scene, sensor: &Sensor, frame: &Frame, mapper: &Mapper, buffers: &mut (Vec<bool>, Vec<bool>)) -> OccupancyScores {
+fn score(scene: &Scene, sensor: &Sensor, frame: &Frame, mapper: &CliMapper, buffers: &mut (Vec<bool>, Vec<bool>)) -> OccupancyScores {
     match mapper.local_volume() {
         Some(volume) => {
             scene.ground_truth(volume, frame.stamp_s, &mut buffers.0);
@@ -285,8 +293,9 @@ pub(crate) fn print_summary(outcome: &RunOutcome) {
         v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
     };
     println!(
-        "{} frames: occupancy median {:.2} ms, batch EDT median {:.2} ms, integration median {:.2} ms, total median {:.2} ms per frame",
+        "{} frames on {}: occupancy median {:.2} ms, batch EDT median {:.2} ms, integration median {:.2} ms, total median {:.2} ms per frame",
         f.len(),
+        outcome.backend,
         median(|r| r.ogm_ms),
         median(|r| r.batch_edt_ms),
         median(|r| r.integrate_ms),

@@ -12,6 +12,9 @@ pub enum MapError {
     /// The CPU backend refused the input.
     #[error(transparent)]
     Cpu(#[from] CpuError),
+    /// The backend failed (no GPU adapter, lost device, device limits).
+    #[error(transparent)]
+    Backend(#[from] edtmap_core::BackendError),
     /// A map file could not be written or read.
     #[error(transparent)]
     Io(#[from] edtmap_io::IoError),

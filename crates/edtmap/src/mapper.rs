@@ -3,15 +3,15 @@
 use crate::MapError;
 use edtmap_core::sensor::{Frame, Sensor};
 use edtmap_core::{
-    BlockKey, EdtField, EdtParams, GlobalMap, GlobalParams, Grid3, LocalVolume, OccupancyParams, VolumeParams,
+    Backend, BlockKey, EdtField, EdtParams, GlobalMap, GlobalParams, Grid3, LocalVolume, OccupancyParams, VolumeParams,
     VoxelIndex, VoxelState,
 };
-use edtmap_cpu::edt::{edt_into, ScanLayout};
 use edtmap_cpu::integrate::exact::fill_mask;
 use edtmap_cpu::integrate::region::Region;
 use edtmap_cpu::integrate::{IntegrateReport, Integrator, WaveCounts};
 use edtmap_cpu::occupancy::{fuse, read_states, OccupancyStage, OgmOptions};
 use edtmap_cpu::query::{self, Distance, PointState};
+use edtmap_cpu::CpuBackend;
 use std::time::Instant;
 
 /// Everything a [`Mapper`] needs to know besides the sensor.
@@ -78,9 +78,12 @@ pub struct FrameStats {
     pub map_bytes: usize,
 }
 
-/// Builds the occupancy map and the local EDT from a stream of frames.
+/// Builds the occupancy map and the local EDT from a stream of frames, on
+/// backend `B` (the CPU by default; `edtmap_gpu::GpuBackend` for a GPU).
+/// Every backend gives the same map, bit for bit.
 #[derive(Debug)]
-pub struct Mapper {
+pub struct Mapper<B: Backend = CpuBackend> {
+    backend: B,
     params: MapperParams,
     sensor: Sensor,
     map: GlobalMap,
@@ -94,18 +97,31 @@ pub struct Mapper {
     global_batch: Option<(Grid3<bool>, EdtField)>,
 }
 
-impl Mapper {
-    /// A mapper for `sensor`, checking every parameter.
+impl Mapper<CpuBackend> {
+    /// A mapper for `sensor` on the CPU, checking every parameter.
     pub fn new(sensor: Sensor, params: MapperParams) -> Result<Self, MapError> {
-        sensor.validate()?;
-        let map = GlobalMap::new(params.voxel_size_m, params.occupancy.clone(), params.global.clone())?;
-        Self::with_map(sensor, params, map)
+        Self::new_on(CpuBackend::default(), sensor, params)
     }
 
-    /// A mapper that goes on from `map` (a loaded map file, say); the map's
-    /// voxel size, probabilities and global parameters replace those of
-    /// `params`.
-    pub fn with_map(sensor: Sensor, mut params: MapperParams, map: GlobalMap) -> Result<Self, MapError> {
+    /// A mapper on the CPU that goes on from `map` (a loaded map file,
+    /// say); see [`Mapper::with_map_on`].
+    pub fn with_map(sensor: Sensor, params: MapperParams, map: GlobalMap) -> Result<Self, MapError> {
+        Self::with_map_on(CpuBackend::default(), sensor, params, map)
+    }
+}
+
+impl<B: Backend> Mapper<B> {
+    /// A mapper for `sensor` on `backend`, checking every parameter.
+    pub fn new_on(backend: B, sensor: Sensor, params: MapperParams) -> Result<Self, MapError> {
+        sensor.validate()?;
+        let map = GlobalMap::new(params.voxel_size_m, params.occupancy.clone(), params.global.clone())?;
+        Self::with_map_on(backend, sensor, params, map)
+    }
+
+    /// A mapper on `backend` that goes on from `map` (a loaded map file,
+    /// say); the map's voxel size, probabilities and global parameters
+    /// replace those of `params`.
+    pub fn with_map_on(backend: B, sensor: Sensor, mut params: MapperParams, map: GlobalMap) -> Result<Self, MapError> {
         sensor.validate()?;
         params.voxel_size_m = map.voxel_size_m();
         params.occupancy = map.occupancy_params.clone();
@@ -116,6 +132,7 @@ impl Mapper {
         let mask = Grid3::from_vec([1, 1, 1], vec![false])?;
         let global_batch = params.edt.unknown_as_occupied.then(|| (mask.clone(), EdtField::empty()));
         let mut mapper = Mapper {
+            backend,
             sensor,
             map,
             occupancy: OccupancyStage::default(),
@@ -185,10 +202,10 @@ impl Mapper {
         let mut obstacles = self.map.obstacles();
         obstacles.unknown_as_occupied = self.params.edt.unknown_as_occupied;
         fill_mask(&obstacles, &region, &mut self.local_mask)?;
-        edt_into(&self.local_mask, |&o| o, ScanLayout::default(), &mut self.local_edt)?;
+        self.backend.batch_edt(&self.local_mask, &mut self.local_edt)?;
         if let Some((mask, field)) = &mut self.global_batch {
             fill_mask(&self.map.obstacles(), &region, mask)?;
-            edt_into(mask, |&o| o, ScanLayout::default(), field)?;
+            self.backend.batch_edt(mask, field)?;
         }
         Ok(())
     }
@@ -197,6 +214,11 @@ impl Mapper {
         let batch = self.global_batch.as_ref().map_or(&self.local_edt, |(_, f)| f);
         let (edt, obstacles) = self.map.edt_and_obstacles();
         Ok(self.integrator.integrate(edt, &obstacles, volume, batch)?)
+    }
+
+    /// The backend the stages run on.
+    pub fn backend(&self) -> &B {
+        &self.backend
     }
 
     /// The parameters in use.
