@@ -19,6 +19,7 @@
 pub mod backend;
 mod edt;
 mod error;
+pub mod fixed_ray;
 mod global;
 mod global_map;
 mod grid;
@@ -32,6 +33,7 @@ mod volume;
 pub use backend::{Backend, BackendError, BatchEdt};
 pub use edt::{dist_sq_to_vox, EdtField, EdtParams, NO_SITE, UNREACHABLE_DIST_SQ};
 pub use error::CoreError;
+pub use fixed_ray::{fixed_scale, setup_ray, walk, FixedRay};
 pub use global::{Connectivity, Cutoff, EdtBlock, EdtMap, ForbiddenZone, GlobalParams, IntegrationMode, DEFAULT_MAX_DISTANCE_M, FAR_DIST_SQ, NO_OBSTACLE};
 pub use global_map::GlobalMap;
 pub use grid::Grid3;

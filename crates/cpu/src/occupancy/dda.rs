@@ -1,5 +1,11 @@
-//! 3D digital differential analyser (Amanatides & Woo, 1987): the voxels a
-//! segment passes through, in order, clipped to a box of voxels.
+//! 3D digital differential analyser (Amanatides & Woo, 1987) in `f64`: the
+//! voxels a segment passes through, in order, clipped to a box of voxels.
+//!
+//! The occupancy stage no longer uses it: it walks rays in exact fixed point
+//! ([`edtmap_core::fixed_ray`]), which every backend reproduces bit for bit.
+//! This walk remains for callers with arbitrary `f64` segments.
+
+use edtmap_core::fixed_ray::clip_segment;
 
 /// Calls `visit(coords, linear)` for every voxel of the box `[0, dims)`
 /// that the segment `a → b` passes through, in order from `a`, except `b`'s
@@ -8,7 +14,7 @@
 /// voxels the walk crossed and, when it reached `b` (the box did not clip
 /// the segment's end), `b`'s voxel.
 pub fn traverse(a: [f64; 3], b: [f64; 3], dims: [usize; 3], skip_last: bool, mut visit: impl FnMut([usize; 3], usize)) -> Walk {
-    let Some((t0, t1)) = clip(a, b, dims) else { return Walk { visited: 0, end: None } };
+    let Some((t0, t1)) = clip_segment(a, b, dims) else { return Walk { visited: 0, end: None } };
     let d = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
     let cell_at = |t: f64| [0, 1, 2].map(|k| ((a[k] + t * d[k]).floor().max(0.0) as usize).min(dims[k] - 1));
     let (cell, last) = (cell_at(t0), cell_at(t1));
@@ -70,32 +76,6 @@ pub struct Walk {
 #[inline(always)]
 fn mask(b: bool) -> usize {
     (b as usize).wrapping_neg()
-}
-
-/// The parameter interval `[t0, t1] ⊆ [0, 1]` of the segment inside the
-/// box, if any (slab method).
-fn clip(a: [f64; 3], b: [f64; 3], dims: [usize; 3]) -> Option<(f64, f64)> {
-    let (mut t0, mut t1) = (0.0f64, 1.0f64);
-    for k in 0..3 {
-        let d = b[k] - a[k];
-        let hi = dims[k] as f64;
-        if !(a[k].is_finite() && d.is_finite()) {
-            return None;
-        }
-        if d == 0.0 {
-            if a[k] < 0.0 || a[k] > hi {
-                return None;
-            }
-            continue;
-        }
-        let (mut lo_t, mut hi_t) = ((0.0 - a[k]) / d, (hi - a[k]) / d);
-        if lo_t > hi_t {
-            std::mem::swap(&mut lo_t, &mut hi_t);
-        }
-        t0 = t0.max(lo_t);
-        t1 = t1.min(hi_t);
-    }
-    (t0 <= t1).then_some((t0, t1))
 }
 
 #[cfg(test)]

@@ -15,9 +15,10 @@ pub use dda::{traverse, Walk};
 pub use fuse::{fuse, read_states, FuseReport};
 pub use observe::Observations;
 pub use project::project_volume;
-pub use raycast::cast_rays;
+pub use raycast::{cast_fixed, cast_rays, prepare_rays};
 
 use crate::CpuError;
+use edtmap_core::fixed_ray::FixedRay;
 use edtmap_core::sensor::{Frame, Measurement, Sensor, SensorRay};
 use edtmap_core::LocalVolume;
 
@@ -27,7 +28,8 @@ pub enum Construction {
     /// Projection where the sensor model allows it, else ray casting.
     #[default]
     Auto,
-    /// Ray casting (3D DDA) from the sensor to each return.
+    /// Ray casting (an exact fixed-point 3D DDA) from the sensor to each
+    /// return.
     RayCasting,
     /// Volumetric projection of every voxel into the measurement.
     Projection,
@@ -70,6 +72,7 @@ impl OgmOptions {
 pub struct OccupancyStage {
     obs: Option<Observations>,
     rays: Vec<SensorRay>,
+    fixed_rays: Vec<FixedRay>,
 }
 
 impl OccupancyStage {
@@ -90,7 +93,8 @@ impl OccupancyStage {
             project_volume(obs, sensor, frame, opts, &mut self.rays);
         } else {
             sensor.rays(&frame.measurement, opts.clear_no_return, &mut self.rays);
-            cast_rays(obs, &frame.t_world_sensor, &self.rays, opts.free_margin_m);
+            let q = prepare_rays(obs.volume(), &frame.t_world_sensor, &self.rays, opts.free_margin_m, &mut self.fixed_rays)?;
+            cast_fixed(obs, &self.fixed_rays, q);
         }
         Ok(obs)
     }
