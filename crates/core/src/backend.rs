@@ -11,7 +11,7 @@
 //! smallest value. `edtmap_sim::conformance::separable_oracle` computes it
 //! by brute force.
 
-use crate::{CoreError, EdtField, Grid3};
+use crate::{BlockKey, CoreError, Cutoff, EdtField, EdtMap, Grid3, LocalVolume};
 
 /// Errors a backend can raise besides those of the data it is given.
 #[derive(Debug, thiserror::Error, Clone, PartialEq, Eq)]
@@ -55,7 +55,66 @@ pub trait Backend: BatchEdt {
     /// What it runs on, for reports and logs: `cpu (N threads)`, or the
     /// GPU's name and API.
     fn name(&self) -> String;
+
+    /// The wavefront integration of one frame (paper §IV-C, Algorithms 2
+    /// and 3): merges `batch`, the batch EDT of `window`, into `map`.
+    /// `Ok(None)` leaves it to the CPU's integrator (the default); a
+    /// backend that does it must give the CPU's map, bit for bit.
+    fn integrate_wavefront(&mut self, job: WavefrontJob<'_>) -> Result<Option<IntegrateReport>, BackendError> {
+        let _ = job;
+        Ok(None)
+    }
 }
+
+/// One frame's wavefront integration, as [`Backend::integrate_wavefront`]
+/// receives it.
+#[derive(Debug)]
+pub struct WavefrontJob<'a> {
+    /// The global EDT.
+    pub map: &'a mut EdtMap,
+    /// The frame's window.
+    pub window: &'a LocalVolume,
+    /// Exact EDT of the window's obstacles (unknown voxels free).
+    pub batch: &'a EdtField,
+    /// The cutoff in voxels.
+    pub cutoff: Cutoff,
+    /// Neighbour offsets the waves move along (6, 18 or 26).
+    pub offsets: &'a [[i32; 3]],
+}
+
+/// What one integration did.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct IntegrateReport {
+    /// Voxels whose distance or nearest obstacle changed.
+    pub voxels_changed: usize,
+    /// Sum of |new − old| distance over those voxels, voxels, distances
+    /// truncated at the cutoff.
+    pub change_sum_vox: f64,
+    /// Blocks of the global EDT holding a changed voxel, sorted.
+    pub changed_blocks: Vec<BlockKey>,
+    /// Voxels in the working region.
+    pub region_voxels: usize,
+    /// Wavefront counters (all zero in exact mode).
+    pub waves: WaveCounts,
+}
+
+/// Counters of one wavefront integration.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct WaveCounts {
+    /// Voxels whose nearest obstacle vanished (frontier A and inside `W`).
+    pub raised: usize,
+    /// Window voxels that kept a nearer obstacle from outside the window
+    /// (frontier C).
+    pub kept_outside: usize,
+    /// Voxels the lowering waves started from.
+    pub seeds: usize,
+    /// Levels the lowering waves took.
+    pub levels: usize,
+    /// Successful lowerings (a voxel can be lowered more than once).
+    pub lowered: usize,
+}
+
+
 
 impl<B: BatchEdt + ?Sized> BatchEdt for Box<B> {
     fn batch_edt(&mut self, mask: &Grid3<bool>, out: &mut EdtField) -> Result<(), BackendError> {
@@ -66,5 +125,9 @@ impl<B: BatchEdt + ?Sized> BatchEdt for Box<B> {
 impl<B: Backend + ?Sized> Backend for Box<B> {
     fn name(&self) -> String {
         (**self).name()
+    }
+
+    fn integrate_wavefront(&mut self, job: WavefrontJob<'_>) -> Result<Option<IntegrateReport>, BackendError> {
+        (**self).integrate_wavefront(job)
     }
 }

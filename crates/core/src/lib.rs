@@ -30,7 +30,7 @@ pub mod sensor;
 mod state;
 mod volume;
 
-pub use backend::{Backend, BackendError, BatchEdt};
+pub use backend::{Backend, BackendError, BatchEdt, IntegrateReport, WaveCounts, WavefrontJob};
 pub use edt::{dist_sq_to_vox, EdtField, EdtParams, NO_SITE, UNREACHABLE_DIST_SQ};
 pub use error::CoreError;
 pub use fixed_ray::{fixed_scale, setup_ray, walk, FixedRay};

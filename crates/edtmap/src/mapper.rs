@@ -3,7 +3,7 @@
 use crate::MapError;
 use edtmap_core::sensor::{Frame, Sensor};
 use edtmap_core::{
-    Backend, BlockKey, EdtField, EdtParams, GlobalMap, GlobalParams, Grid3, LocalVolume, OccupancyParams, VolumeParams,
+    Backend, BlockKey, IntegrationMode, WavefrontJob, EdtField, EdtParams, GlobalMap, GlobalParams, Grid3, LocalVolume, OccupancyParams, VolumeParams,
     VoxelIndex, VoxelState,
 };
 use edtmap_cpu::integrate::exact::fill_mask;
@@ -212,6 +212,19 @@ impl<B: Backend> Mapper<B> {
 
     fn integrate(&mut self, volume: &LocalVolume) -> Result<IntegrateReport, MapError> {
         let batch = self.global_batch.as_ref().map_or(&self.local_edt, |(_, f)| f);
+        if self.integrator.mode() == IntegrationMode::Wavefront {
+            let job = WavefrontJob {
+                map: &mut self.map.edt,
+                window: volume,
+                batch,
+                cutoff: self.integrator.cutoff(),
+                offsets: self.integrator.offsets(),
+            };
+            if let Some(report) = self.backend.integrate_wavefront(job)? {
+                self.integrator.forget(&report.changed_blocks);
+                return Ok(report);
+            }
+        }
         let (edt, obstacles) = self.map.edt_and_obstacles();
         Ok(self.integrator.integrate(edt, &obstacles, volume, batch)?)
     }

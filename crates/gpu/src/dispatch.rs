@@ -19,9 +19,15 @@ pub(crate) struct Kernel {
 impl Kernel {
     /// Compiles `entry` of `module` with a single bind group of `layout`.
     pub(crate) fn new(ctx: &GpuContext, module: &wgpu::ShaderModule, layout: &wgpu::BindGroupLayout, entry: &str) -> Self {
+        Self::with_layouts(ctx, module, &[layout], entry)
+    }
+
+    /// Compiles `entry` of `module` with bind groups of `layouts`.
+    pub(crate) fn with_layouts(ctx: &GpuContext, module: &wgpu::ShaderModule, layouts: &[&wgpu::BindGroupLayout], entry: &str) -> Self {
+        let layouts: Vec<Option<&wgpu::BindGroupLayout>> = layouts.iter().map(|&l| Some(l)).collect();
         let pipeline_layout = ctx.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some(entry),
-            bind_group_layouts: &[Some(layout)],
+            bind_group_layouts: &layouts,
             immediate_size: 0,
         });
         let pipeline = ctx.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
@@ -37,10 +43,31 @@ impl Kernel {
 
     /// Records one dispatch of `groups` workgroups with `group` bound at the
     /// dynamic uniform offset `offset`.
-    pub(crate) fn dispatch(&self, pass: &mut wgpu::ComputePass<'_>, group: &wgpu::BindGroup, offset: u32, groups: [u32; 3]) {
+    pub(crate) fn dispatch_at(&self, pass: &mut wgpu::ComputePass<'_>, group: &wgpu::BindGroup, offset: u32, groups: [u32; 3]) {
         pass.set_pipeline(&self.pipeline);
         pass.set_bind_group(0, group, &[offset]);
         pass.dispatch_workgroups(groups[0], groups[1], groups[2]);
+    }
+
+    /// Records one dispatch of `groups` workgroups with `bind[k]` as bind
+    /// group `k`.
+    pub(crate) fn dispatch(&self, pass: &mut wgpu::ComputePass<'_>, bind: &[&wgpu::BindGroup], groups: [u32; 3]) {
+        self.bind(pass, bind);
+        pass.dispatch_workgroups(groups[0], groups[1], groups[2]);
+    }
+
+    /// Records one dispatch whose workgroup counts the device wrote at
+    /// byte `offset` of `args`.
+    pub(crate) fn dispatch_indirect(&self, pass: &mut wgpu::ComputePass<'_>, bind: &[&wgpu::BindGroup], args: &wgpu::Buffer, offset: u64) {
+        self.bind(pass, bind);
+        pass.dispatch_workgroups_indirect(args, offset);
+    }
+
+    fn bind(&self, pass: &mut wgpu::ComputePass<'_>, bind: &[&wgpu::BindGroup]) {
+        pass.set_pipeline(&self.pipeline);
+        for (k, group) in bind.iter().enumerate() {
+            pass.set_bind_group(k as u32, *group, &[]);
+        }
     }
 }
 

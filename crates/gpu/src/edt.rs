@@ -139,13 +139,13 @@ impl GpuEdt {
             {
                 let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("edt"), timestamp_writes: None });
                 let offset = |k: usize| (k as u64 * self.slot_bytes) as u32;
-                self.init.dispatch(&mut pass, &bufs.b_to_a, offset(0), groups_1d(n as u64));
+                self.init.dispatch_at(&mut pass, &bufs.b_to_a, offset(0), groups_1d(n as u64));
                 let axes = [(nx, ny * nz), (ny, nz * nx), (nz, nx * ny)];
                 for (axis, &(len, count)) in axes.iter().enumerate() {
                     let tiles = u64::from(count).div_ceil(16);
                     let t_groups = [len.div_ceil(16), tiles.min(65535) as u32, tiles.div_ceil(65535) as u32];
-                    self.transpose.dispatch(&mut pass, &bufs.a_to_b, offset(1 + 2 * axis), t_groups);
-                    self.scan.dispatch(&mut pass, &bufs.b_to_a, offset(2 + 2 * axis), groups_1d(u64::from(count)));
+                    self.transpose.dispatch_at(&mut pass, &bufs.a_to_b, offset(1 + 2 * axis), t_groups);
+                    self.scan.dispatch_at(&mut pass, &bufs.b_to_a, offset(2 + 2 * axis), groups_1d(u64::from(count)));
                 }
             }
             enc.copy_buffer_to_buffer(&bufs.out_d, 0, &bufs.staging, 0, bytes_out);
@@ -155,8 +155,8 @@ impl GpuEdt {
         let (dist, nearest) = out.prepare(dims)?;
         self.ctx.read_back(&bufs.staging, 2 * bytes_out, |bytes| {
             let (d, s) = bytes.split_at(bytes_out as usize);
-            copy_u32(d, dist);
-            copy_u32(s, nearest);
+            copy_words(d, dist);
+            copy_words(s, nearest);
         })
     }
 
@@ -219,7 +219,7 @@ fn write_mask(queue: &wgpu::Queue, buffer: &wgpu::Buffer, mask: &[bool]) {
 }
 
 /// Copies native-endian `u32`s from `bytes` into `out`.
-fn copy_u32(bytes: &[u8], out: &mut [u32]) {
+pub(crate) fn copy_words(bytes: &[u8], out: &mut [u32]) {
     match bytemuck::try_cast_slice::<u8, u32>(bytes) {
         Ok(words) => out.copy_from_slice(words),
         Err(_) => {

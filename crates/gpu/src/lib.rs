@@ -12,11 +12,13 @@
 mod context;
 mod dispatch;
 mod edt;
+mod integrate;
 
 pub use context::GpuContext;
 pub use edt::GpuEdt;
+pub use integrate::GpuIntegrator;
 
-use edtmap_core::{Backend, BackendError, BatchEdt, EdtField, Grid3};
+use edtmap_core::{Backend, BackendError, BatchEdt, EdtField, Grid3, IntegrateReport, WavefrontJob};
 
 /// The GPU as a [`Backend`] of the mapper: one device, kernels compiled
 /// once, buffers reused across frames.
@@ -24,6 +26,7 @@ use edtmap_core::{Backend, BackendError, BatchEdt, EdtField, Grid3};
 pub struct GpuBackend {
     ctx: GpuContext,
     edt: GpuEdt,
+    integrator: GpuIntegrator,
 }
 
 impl GpuBackend {
@@ -32,7 +35,8 @@ impl GpuBackend {
     pub fn new() -> Result<Self, BackendError> {
         let ctx = GpuContext::new()?;
         let edt = GpuEdt::new(&ctx)?;
-        Ok(GpuBackend { ctx, edt })
+        let integrator = GpuIntegrator::new(&ctx)?;
+        Ok(GpuBackend { ctx, edt, integrator })
     }
 
     /// The device in use.
@@ -50,5 +54,9 @@ impl BatchEdt for GpuBackend {
 impl Backend for GpuBackend {
     fn name(&self) -> String {
         format!("gpu: {}", self.ctx.name())
+    }
+
+    fn integrate_wavefront(&mut self, job: WavefrontJob<'_>) -> Result<Option<IntegrateReport>, BackendError> {
+        self.integrator.run(job).map(Some)
     }
 }

@@ -15,28 +15,12 @@ pub mod region;
 pub mod wavefront;
 
 use crate::CpuError;
-use edtmap_core::{BlockKey, EdtField, EdtMap, GlobalParams, IntegrationMode, LocalVolume, Obstacles};
+use edtmap_core::{EdtField, EdtMap, GlobalParams, IntegrationMode, LocalVolume, Obstacles};
 use exact::{integrate_exact, ExactBuffers};
 use region::{Packing, Region};
 use wavefront::{integrate_wavefront, WaveBuffers};
 
-pub use wavefront::WaveCounts;
-
-/// What one integration did.
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct IntegrateReport {
-    /// Voxels whose distance or nearest obstacle changed.
-    pub voxels_changed: usize,
-    /// Sum of |new − old| distance over those voxels, voxels, distances
-    /// truncated at the cutoff.
-    pub change_sum_vox: f64,
-    /// Blocks of the global EDT holding a changed voxel, sorted.
-    pub changed_blocks: Vec<BlockKey>,
-    /// Voxels in the working region.
-    pub region_voxels: usize,
-    /// Wavefront counters (all zero in exact mode).
-    pub waves: WaveCounts,
-}
+pub use edtmap_core::backend::{IntegrateReport, WaveCounts};
 
 /// The integration stage: parameters and buffers reused across frames.
 #[derive(Debug)]
@@ -64,6 +48,22 @@ impl Integrator {
     /// The cutoff in voxels.
     pub fn cutoff(&self) -> edtmap_core::Cutoff {
         self.cutoff
+    }
+
+    /// The integration mode.
+    pub fn mode(&self) -> IntegrationMode {
+        self.params.mode
+    }
+
+    /// The neighbour offsets of the connectivity.
+    pub fn offsets(&self) -> &[[i32; 3]] {
+        &self.offsets
+    }
+
+    /// Drops what the integrator cached about `blocks`, which something
+    /// else (another backend) changed.
+    pub fn forget(&mut self, blocks: &[edtmap_core::BlockKey]) {
+        self.waves.forget(blocks);
     }
 
     /// Recomputes exactly every voxel within the cutoff of the box `bounds`

@@ -145,14 +145,20 @@ impl Packing {
 
 /// Fills `old` and `cur` with the packed values of `p.region` from `map`.
 pub fn copy_in(map: &EdtMap, p: &Packing, old: &mut Vec<u64>, cur: &mut Vec<AtomicU64>) {
+    read_region(map, p, old);
     let n = p.region.len();
-    old.resize(n, FAR);
     if cur.len() < n {
         cur.resize_with(n, || AtomicU64::new(FAR));
     }
     cur.truncate(n);
+    cur.par_iter_mut().zip(old.par_iter()).for_each(|(c, &o)| *c.get_mut() = o);
+}
+
+/// Fills `old` with the packed values of `p.region` from `map`.
+pub fn read_region(map: &EdtMap, p: &Packing, old: &mut Vec<u64>) {
+    old.resize(p.region.len(), FAR);
     let [nx, ny, _] = p.region.dims;
-    old.par_chunks_mut(nx * ny).zip(cur.par_chunks_mut(nx * ny)).enumerate().for_each(|(z, (old, cur))| {
+    old.par_chunks_mut(nx * ny).enumerate().for_each(|(z, old)| {
         for y in 0..ny {
             let mut x = 0;
             while x < nx {
@@ -161,9 +167,7 @@ pub fn copy_in(map: &EdtMap, p: &Packing, old: &mut Vec<u64>, cur: &mut Vec<Atom
                 let block = map.get(v.block());
                 let base = v.offset_in_block();
                 for k in 0..end - x {
-                    let value = block.map_or(FAR, |b| p.pack(b.dist_sq[base + k], b.nearest[base + k]));
-                    old[y * nx + x + k] = value;
-                    cur[y * nx + x + k].store(value, Relaxed);
+                    old[y * nx + x + k] = block.map_or(FAR, |b| p.pack(b.dist_sq[base + k], b.nearest[base + k]));
                 }
                 x = end;
             }
@@ -187,6 +191,11 @@ pub struct WriteBack {
 /// differs from `old` into `map`, allocating blocks as needed and dropping
 /// blocks left all far.
 pub fn write_back(map: &mut EdtMap, p: &Packing, candidates: &[BlockKey], old: &[u64], cur: &[AtomicU64]) -> WriteBack {
+    write_back_with(map, p, candidates, old, |i| cur[i].load(Relaxed))
+}
+
+/// [`write_back`] with the new values given by `cur(region_linear)`.
+pub fn write_back_with(map: &mut EdtMap, p: &Packing, candidates: &[BlockKey], old: &[u64], cur: impl Fn(usize) -> u64 + Sync) -> WriteBack {
     let truncated = |v: u64| {
         let reach = f64::from(p.cutoff.max_dist_sq).sqrt();
         if v == FAR { reach } else { ((v >> 32) as f64).sqrt().min(reach) }
@@ -196,7 +205,7 @@ pub fn write_back(map: &mut EdtMap, p: &Packing, candidates: &[BlockKey], old: &
         .map(|&key| {
             let (mut changed, mut sum) = (0, 0.0);
             for_region_voxels(p, key, |i, _| {
-                let (o, n) = (old[i], cur[i].load(Relaxed));
+                let (o, n) = (old[i], cur(i));
                 if o != n {
                     changed += 1;
                     sum += (truncated(n) - truncated(o)).abs();
@@ -210,7 +219,7 @@ pub fn write_back(map: &mut EdtMap, p: &Packing, candidates: &[BlockKey], old: &
     let mut taken = map.take(&keys);
     taken.par_iter_mut().for_each(|(key, block)| {
         for_region_voxels(p, *key, |i, offset| {
-            let (d, o) = p.unpack(cur[i].load(Relaxed));
+            let (d, o) = p.unpack(cur(i));
             block.dist_sq[offset] = d;
             block.nearest[offset] = o;
         });

@@ -22,25 +22,10 @@
 
 use super::lazy::{Cover, LazyRegion, SrcBounds};
 use super::region::{Packing, Region, WriteBack, FAR};
+use edtmap_core::backend::WaveCounts;
 use edtmap_core::{BlockKey, EdtField, EdtMap, LocalVolume, VoxelIndex, BLOCK_SIDE, BLOCK_VOXELS, NO_SITE};
 use rayon::prelude::*;
 use std::sync::atomic::Ordering::Relaxed;
-
-/// Counters of one wavefront integration.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub struct WaveCounts {
-    /// Voxels whose nearest obstacle vanished (frontier A and inside `W`).
-    pub raised: usize,
-    /// Window voxels that kept a nearer obstacle from outside the window
-    /// (frontier C).
-    pub kept_outside: usize,
-    /// Voxels the lowering waves started from.
-    pub seeds: usize,
-    /// Levels the lowering waves took.
-    pub levels: usize,
-    /// Successful lowerings (a voxel can be lowered more than once).
-    pub lowered: usize,
-}
 
 /// Reusable buffers of the wavefront.
 pub type WaveBuffers = LazyRegion;

@@ -1,0 +1,318 @@
+//! Wavefront integration on the GPU (`integrate.wgsl`), bit-identical to
+//! the CPU's `edtmap_cpu::integrate::wavefront`.
+//!
+//! The region a frame can change (the window grown by the cutoff's reach
+//! plus one) is read from the CPU's block map with the CPU's own packing
+//! and region code, worked on in device memory, and written back where it
+//! changed, so the CPU map (which queries read) is the same as the CPU
+//! backend's after every frame. The waves run level by level on the
+//! device; the host only reads the frontier's size after every
+//! `LEVELS_PER_SUBMIT` levels to know when they are done. Frontier sizes
+//! drive the dispatches through indirect arguments the device writes
+//! itself, so an empty level costs almost nothing.
+
+use crate::context::GpuContext;
+use crate::dispatch::{groups_1d, storage_entry, Kernel};
+use edtmap_core::{BackendError, IntegrateReport, WaveCounts, WavefrontJob};
+use edtmap_cpu::integrate::region::{read_region, write_back_with, Packing, Region};
+
+/// Levels encoded per submission before the host checks for the end.
+const LEVELS_PER_SUBMIT: usize = 16;
+
+/// Words of the control buffer (`C_*` in the shader).
+const CTRL_WORDS: usize = 16;
+const C_FRONT: usize = 3;
+const C_STAMP: usize = 4;
+const C_LEVELS: usize = 5;
+const C_RAISED: usize = 6;
+const C_KEPT: usize = 7;
+const C_SEEDS: usize = 8;
+const C_LOWERED: usize = 9;
+
+/// Indirect argument offsets, bytes (`A_*` in the shader, times 4).
+const A_DOWN: u64 = 0;
+const A_UP: u64 = 12;
+const A_FRONT: u64 = 24;
+const A_NEXT: u64 = 36;
+
+/// Uniform parameters (`Params` in the shader).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct Params {
+    region: [u32; 4],
+    window: [u32; 4],
+    source: [u32; 4],
+    win_in_region: u32,
+    shift: u32,
+    max_dist_sq: u32,
+    n_offsets: u32,
+    offsets: [[i32; 4]; 26],
+}
+
+/// The integration kernels and their buffers, reused across frames.
+#[derive(Debug)]
+pub struct GpuIntegrator {
+    ctx: GpuContext,
+    k: Kernels,
+    layout: wgpu::BindGroupLayout,
+    args_group: wgpu::BindGroup,
+    params: wgpu::Buffer,
+    args: wgpu::Buffer,
+    ctrl: wgpu::Buffer,
+    ctrl_staging: wgpu::Buffer,
+    bufs: Option<Buffers>,
+    /// The next frontier stamp (stamps only grow, so `mark` is never cleared).
+    stamp: u32,
+    /// Packed values before and after the frame, region order.
+    old: Vec<u64>,
+    cur: Vec<u64>,
+}
+
+#[derive(Debug)]
+struct Kernels {
+    merge: Kernel,
+    prep_seeds: Kernel,
+    seed_down: Kernel,
+    seed_up: Kernel,
+    prep_next: Kernel,
+    snapshot: Kernel,
+    advance_seeds: Kernel,
+    advance: Kernel,
+    lower_dist: Kernel,
+    reset_source: Kernel,
+    lower_source: Kernel,
+}
+
+/// Device buffers for regions of up to `region` voxels and windows of up
+/// to `window` voxels.
+#[derive(Debug)]
+struct Buffers {
+    region: usize,
+    window: usize,
+    old: wgpu::Buffer,
+    cur: wgpu::Buffer,
+    batch: wgpu::Buffer,
+    staging: wgpu::Buffer,
+    group: wgpu::BindGroup,
+}
+
+impl GpuIntegrator {
+    /// Compiles the kernels once for `ctx`.
+    pub fn new(ctx: &GpuContext) -> Result<Self, BackendError> {
+        ctx.scoped(|| {
+            let dev = &ctx.device;
+            let module = dev.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some("integrate.wgsl"),
+                source: wgpu::ShaderSource::Wgsl(include_str!("integrate.wgsl").into()),
+            });
+            let mut entries = vec![wgpu::BindGroupLayoutEntry {
+                binding: 0,
+                visibility: wgpu::ShaderStages::COMPUTE,
+                ty: wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Uniform, has_dynamic_offset: false, min_binding_size: None },
+                count: None,
+            }];
+            entries.push(storage_entry(1, true));
+            entries.extend((2..=7).map(|b| storage_entry(b, b == 3)));
+            let layout = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some("integrate"), entries: &entries });
+            let args_layout = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some("integrate args"),
+                entries: &[storage_entry(0, false)],
+            });
+            let buffer = |label, size: u64, usage| dev.create_buffer(&wgpu::BufferDescriptor { label: Some(label), size, usage, mapped_at_creation: false });
+            let params = buffer("integrate params", std::mem::size_of::<Params>() as u64, wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST);
+            let args = buffer("integrate args", 48, wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::INDIRECT);
+            let ctrl_bytes = 4 * CTRL_WORDS as u64;
+            let ctrl = buffer("integrate ctrl", ctrl_bytes, wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC);
+            let ctrl_staging = buffer("integrate ctrl staging", ctrl_bytes, wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST);
+            let args_group = dev.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("integrate args"),
+                layout: &args_layout,
+                entries: &[wgpu::BindGroupEntry { binding: 0, resource: args.as_entire_binding() }],
+            });
+            let plain = |entry| Kernel::new(ctx, &module, &layout, entry);
+            let prep = |entry| Kernel::with_layouts(ctx, &module, &[&layout, &args_layout], entry);
+            let k = Kernels {
+                merge: plain("merge"),
+                prep_seeds: prep("prep_seeds"),
+                seed_down: plain("seed_down"),
+                seed_up: plain("seed_up"),
+                prep_next: prep("prep_next"),
+                snapshot: plain("snapshot"),
+                advance_seeds: prep("advance_seeds"),
+                advance: prep("advance"),
+                lower_dist: plain("lower_dist"),
+                reset_source: plain("reset_source"),
+                lower_source: plain("lower_source"),
+            };
+            GpuIntegrator {
+                ctx: ctx.clone(),
+                k,
+                layout,
+                args_group,
+                params,
+                args,
+                ctrl,
+                ctrl_staging,
+                bufs: None,
+                stamp: 1,
+                old: Vec::new(),
+                cur: Vec::new(),
+            }
+        })
+    }
+
+    /// Merges `job.batch` into `job.map` (see the module docs).
+    pub fn run(&mut self, job: WavefrontJob<'_>) -> Result<IntegrateReport, BackendError> {
+        let WavefrontJob { map, window, batch, cutoff, offsets } = job;
+        if batch.dims() != window.dims {
+            return Err(BackendError::Device(format!("batch EDT of {:?} voxels for a window of {:?}", batch.dims(), window.dims)));
+        }
+        if offsets.len() > 26 {
+            return Err(BackendError::Device(format!("{} neighbour offsets, at most 26", offsets.len())));
+        }
+        let packing = Packing::new(Region::around(window, cutoff.reach + 1), cutoff)?;
+        let (r, w) = (packing.region.len(), window.len());
+        read_region(map, &packing, &mut self.old);
+        self.ensure_buffers(r, w)?;
+        let mut params = Params {
+            region: dims4(packing.region.dims, r),
+            window: dims4(window.dims, w),
+            source: dims4(packing.source.dims, packing.source.len()),
+            win_in_region: (cutoff.reach + 1) as u32,
+            shift: cutoff.reach as u32,
+            max_dist_sq: cutoff.max_dist_sq,
+            n_offsets: offsets.len() as u32,
+            offsets: [[0; 4]; 26],
+        };
+        for (slot, o) in params.offsets.iter_mut().zip(offsets) {
+            *slot = [o[0], o[1], o[2], 0];
+        }
+        let mut ctrl = [0u32; CTRL_WORDS];
+        ctrl[C_STAMP] = self.stamp;
+        let bufs = self.bufs.as_ref().ok_or_else(|| BackendError::Device("buffers missing".into()))?;
+        let k = &self.k;
+        self.ctx.scoped(|| {
+            let q = &self.ctx.queue;
+            q.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
+            q.write_buffer(&self.ctrl, 0, bytemuck::cast_slice(&ctrl));
+            q.write_buffer(&bufs.old, 0, bytemuck::cast_slice(&self.old));
+            q.write_buffer(&bufs.batch, 0, bytemuck::cast_slice(batch.dist_sq_vox()));
+            q.write_buffer(&bufs.batch, 4 * w as u64, bytemuck::cast_slice(batch.nearest()));
+            let mut enc = self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("integrate") });
+            {
+                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("merge and seed"), timestamp_writes: None });
+                k.merge.dispatch(&mut pass, &[&bufs.group], groups_1d(r as u64));
+                k.prep_seeds.dispatch(&mut pass, &[&bufs.group, &self.args_group], [1, 1, 1]);
+                k.seed_down.dispatch_indirect(&mut pass, &[&bufs.group], &self.args, A_DOWN);
+                k.seed_up.dispatch_indirect(&mut pass, &[&bufs.group], &self.args, A_UP);
+                self.encode_advance(&mut pass, bufs, &k.advance_seeds);
+            }
+            q.submit([enc.finish()]);
+        })?;
+        let mut counts = self.read_ctrl()?;
+        while counts[C_FRONT] > 0 {
+            self.ctx.scoped(|| {
+                let mut enc = self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("lower") });
+                {
+                    let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("lower"), timestamp_writes: None });
+                    for _ in 0..LEVELS_PER_SUBMIT {
+                        k.lower_dist.dispatch_indirect(&mut pass, &[&bufs.group], &self.args, A_FRONT);
+                        k.prep_next.dispatch(&mut pass, &[&bufs.group, &self.args_group], [1, 1, 1]);
+                        k.reset_source.dispatch_indirect(&mut pass, &[&bufs.group], &self.args, A_NEXT);
+                        k.lower_source.dispatch_indirect(&mut pass, &[&bufs.group], &self.args, A_FRONT);
+                        self.encode_advance(&mut pass, bufs, &k.advance);
+                    }
+                }
+                self.ctx.queue.submit([enc.finish()]);
+            })?;
+            counts = self.read_ctrl()?;
+        }
+        self.stamp = counts[C_STAMP];
+        // The region's new values, back to the CPU map where they changed.
+        let bytes = 8 * r as u64;
+        self.ctx.scoped(|| {
+            let mut enc = self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("read back") });
+            enc.copy_buffer_to_buffer(&bufs.cur, 0, &bufs.staging, 0, bytes);
+            self.ctx.queue.submit([enc.finish()]);
+        })?;
+        self.cur.resize(r, 0);
+        let cur = &mut self.cur;
+        self.ctx.read_back(&bufs.staging, bytes, |b| crate::edt::copy_words(b, bytemuck::cast_slice_mut(cur.as_mut_slice())))?;
+        let cur = &self.cur;
+        let written = write_back_with(map, &packing, &packing.region.blocks(), &self.old, |i| cur[i]);
+        Ok(IntegrateReport {
+            voxels_changed: written.voxels_changed,
+            change_sum_vox: written.change_sum_vox,
+            changed_blocks: written.changed_blocks,
+            region_voxels: r,
+            waves: WaveCounts {
+                raised: counts[C_RAISED] as usize,
+                kept_outside: counts[C_KEPT] as usize,
+                seeds: counts[C_SEEDS] as usize,
+                levels: counts[C_LEVELS] as usize,
+                lowered: counts[C_LOWERED] as usize,
+            },
+        })
+    }
+
+    /// Snapshot of the next frontier, then it becomes the current one.
+    fn encode_advance(&self, pass: &mut wgpu::ComputePass<'_>, bufs: &Buffers, advance: &Kernel) {
+        self.k.prep_next.dispatch(pass, &[&bufs.group, &self.args_group], [1, 1, 1]);
+        self.k.snapshot.dispatch_indirect(pass, &[&bufs.group], &self.args, A_NEXT);
+        advance.dispatch(pass, &[&bufs.group, &self.args_group], [1, 1, 1]);
+    }
+
+    /// The control words, once the device is done with them.
+    fn read_ctrl(&self) -> Result<[u32; CTRL_WORDS], BackendError> {
+        let bytes = 4 * CTRL_WORDS as u64;
+        self.ctx.scoped(|| {
+            let mut enc = self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("ctrl") });
+            enc.copy_buffer_to_buffer(&self.ctrl, 0, &self.ctrl_staging, 0, bytes);
+            self.ctx.queue.submit([enc.finish()]);
+        })?;
+        let mut out = [0u32; CTRL_WORDS];
+        self.ctx.read_back(&self.ctrl_staging, bytes, |b| crate::edt::copy_words(b, &mut out))?;
+        Ok(out)
+    }
+
+    /// Allocates buffers for a region of `r` and a window of `w` voxels
+    /// unless those in place are large enough.
+    fn ensure_buffers(&mut self, r: usize, w: usize) -> Result<(), BackendError> {
+        if self.bufs.as_ref().is_some_and(|b| b.region >= r && b.window >= w) {
+            return Ok(());
+        }
+        // Grow both to at least what they were, so alternating sizes do
+        // not reallocate every frame.
+        let (r, w) = self.bufs.as_ref().map_or((r, w), |b| (b.region.max(r), b.window.max(w)));
+        self.bufs = None;
+        let (r64, w64) = (r as u64, w as u64);
+        for (what, bytes) in [("the integration's frontier", 16 * r64), ("the integration's queues", 12 * r64), ("the batch EDT upload", 8 * w64)] {
+            self.ctx.check_buffer(what, bytes)?;
+        }
+        let bufs = self.ctx.scoped(|| {
+            let dev = &self.ctx.device;
+            let buffer = |label, size: u64, usage| dev.create_buffer(&wgpu::BufferDescriptor { label: Some(label), size, usage, mapped_at_creation: false });
+            let storage = wgpu::BufferUsages::STORAGE;
+            let copy_dst = wgpu::BufferUsages::COPY_DST;
+            let old = buffer("integrate old", 8 * r64, storage | copy_dst);
+            let cur = buffer("integrate cur", 8 * r64, storage | wgpu::BufferUsages::COPY_SRC);
+            let batch = buffer("integrate batch", 8 * w64, storage | copy_dst);
+            // Zeroed at creation: no stamp is 0.
+            let mark = buffer("integrate mark", 4 * r64, storage);
+            let queues = buffer("integrate queues", 12 * r64, storage);
+            let front = buffer("integrate front", 16 * r64, storage);
+            let staging = buffer("integrate staging", 8 * r64, wgpu::BufferUsages::MAP_READ | copy_dst);
+            let list = [&old, &cur, &batch, &mark, &queues, &front, &self.ctrl];
+            let mut entries = vec![wgpu::BindGroupEntry { binding: 0, resource: self.params.as_entire_binding() }];
+            entries.extend(list.iter().enumerate().map(|(k, b)| wgpu::BindGroupEntry { binding: k as u32 + 1, resource: b.as_entire_binding() }));
+            let group = dev.create_bind_group(&wgpu::BindGroupDescriptor { label: Some("integrate"), layout: &self.layout, entries: &entries });
+            Buffers { region: r, window: w, old, cur, batch, staging, group }
+        })?;
+        self.bufs = Some(bufs);
+        Ok(())
+    }
+}
+
+fn dims4(d: [usize; 3], len: usize) -> [u32; 4] {
+    [d[0] as u32, d[1] as u32, d[2] as u32, len as u32]
+}
