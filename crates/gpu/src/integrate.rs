@@ -239,7 +239,8 @@ impl GpuIntegrator {
         let cur = &mut self.cur;
         self.ctx.read_back(&bufs.staging, bytes, |b| crate::edt::copy_words(b, bytemuck::cast_slice_mut(cur.as_mut_slice())))?;
         let cur = &self.cur;
-        let written = write_back_with(map, &packing, &packing.region.blocks(), &self.old, |i| cur[i]);
+        let mut written = write_back_with(map, &packing, &packing.region.blocks(), &self.old, |i| cur[i]);
+        written.changed_blocks.sort_unstable();
         Ok(IntegrateReport {
             voxels_changed: written.voxels_changed,
             change_sum_vox: written.change_sum_vox,

@@ -4,7 +4,10 @@
 //! bit for bit, so backends that pass agree with each other exactly.
 
 use crate::random_grid;
-use edtmap_core::{BatchEdt, EdtField, Grid3, NO_SITE, UNREACHABLE_DIST_SQ};
+use edtmap_core::{
+    BatchEdt, EdtField, EdtMap, GlobalParams, Grid3, LocalVolume, LogOdds, OccupancyMap, OccupancyParams, Obstacles, StaticMap,
+    VoxelIndex, FAR_DIST_SQ, NO_SITE, UNREACHABLE_DIST_SQ,
+};
 
 /// The batch EDT with the tie rule of `edtmap_core::backend` (scans along
 /// x, y, z; each keeps the lowest position among its smallest values), by
@@ -96,6 +99,148 @@ pub fn compare_edt(grid: &Grid3<bool>, got: &EdtField) -> Result<(), String> {
         }
     }
     Ok(())
+}
+
+/// The world of the integration suite: a box of voxels whose occupancy
+/// (set through log-odds, as the mapper leaves it) changes in a window
+/// that jumps around, step after step; seeded, so every backend sees the
+/// same sequence.
+#[derive(Debug)]
+pub struct IntegrationWorld {
+    lo: LogOdds,
+    map: OccupancyMap,
+    fixed: StaticMap,
+    /// Every obstacle voxel.
+    pub obstacles: Vec<VoxelIndex>,
+    rng: SplitMix,
+}
+
+impl IntegrationWorld {
+    /// The lowest voxel of the box the windows move in.
+    pub const MIN: [i32; 3] = [-20, -14, -9];
+    /// The box's size in voxels.
+    pub const DIMS: [i32; 3] = [36, 28, 14];
+    /// The window's size in voxels.
+    pub const WINDOW: [usize; 3] = [14, 12, 8];
+    /// Voxel size, metres.
+    pub const VOXEL_M: f64 = 0.1;
+
+    /// An empty world whose steps follow `seed`.
+    pub fn new(seed: u64) -> Self {
+        let lo = OccupancyParams::default().log_odds().expect("default parameters are valid");
+        IntegrationWorld {
+            lo,
+            map: OccupancyMap::new(Self::VOXEL_M).expect("valid voxel size"),
+            fixed: StaticMap::new(Self::VOXEL_M).expect("valid voxel size"),
+            obstacles: Vec::new(),
+            rng: SplitMix(seed),
+        }
+    }
+
+    /// The EDT's view of the occupancy.
+    pub fn obstacles(&self) -> Obstacles<'_> {
+        Obstacles { occupancy: &self.map, log_odds: &self.lo, fixed: &self.fixed, unknown_as_occupied: false }
+    }
+
+    fn set(&mut self, v: VoxelIndex, occupied: bool) {
+        let value = if occupied { self.lo.max } else { self.lo.min };
+        self.map.get_or_insert(v.block()).log_odds[v.offset_in_block()] = value;
+        self.obstacles.retain(|&o| o != v);
+        if occupied {
+            self.obstacles.push(v);
+        }
+    }
+
+    /// One step: a window somewhere in the box, obstacles toggled inside
+    /// it, and sometimes a short wall appearing or vanishing (so Voronoi
+    /// cells change shape). Returns the window and its obstacle mask.
+    pub fn step(&mut self) -> (LocalVolume, Grid3<bool>) {
+        let rng = &mut self.rng;
+        let origin = VoxelIndex([0, 1, 2].map(|a| Self::MIN[a] + rng.below(Self::DIMS[a] - Self::WINDOW[a] as i32 + 1)));
+        let window = LocalVolume { origin, dims: Self::WINDOW, voxel_size_m: Self::VOXEL_M };
+        let inside = |rng: &mut SplitMix| VoxelIndex([0, 1, 2].map(|a| origin.0[a] + rng.below(Self::WINDOW[a] as i32)));
+        let mut toggles = Vec::new();
+        for _ in 0..self.rng.below(12) {
+            toggles.push((inside(&mut self.rng), None));
+        }
+        if self.rng.below(3) == 0 {
+            let (v, occupied) = (inside(&mut self.rng), self.rng.below(2) == 0);
+            for k in 0..6 {
+                let w = VoxelIndex([v.0[0], v.0[1] + k, v.0[2]]);
+                if window.local(w).is_some() {
+                    toggles.push((w, Some(occupied)));
+                }
+            }
+        }
+        for (v, occupied) in toggles {
+            let occupied = occupied.unwrap_or(!self.obstacles.contains(&v));
+            self.set(v, occupied);
+        }
+        let obstacles = self.obstacles();
+        let mask = Grid3::from_fn(window.dims, |x, y, z| obstacles.contains(window.world([x, y, z]))).expect("valid dims");
+        (window, mask)
+    }
+
+    /// Brute-force squared distance of `v`, `FAR_DIST_SQ` beyond `max`.
+    pub fn truth(&self, v: VoxelIndex, max: u32) -> u32 {
+        let best = self.obstacles.iter().map(|o| dist_sq(v, *o)).min().unwrap_or(u64::MAX);
+        if best > u64::from(max) { FAR_DIST_SQ } else { best as u32 }
+    }
+
+    /// Checks `edt` against brute force over the box and a margin: every
+    /// stored obstacle is real and at the stored distance, no distance is
+    /// below the truth. Returns the largest excess over the truth, voxels.
+    pub fn check(&self, edt: &EdtMap, params: &GlobalParams) -> Result<f64, String> {
+        let cutoff = params.cutoff(Self::VOXEL_M).map_err(|e| e.to_string())?;
+        let r = cutoff.reach + 2;
+        let reach = f64::from(cutoff.max_dist_sq).sqrt();
+        let as_vox = |d: u32| if d == FAR_DIST_SQ { reach } else { f64::from(d).sqrt() };
+        let mut worst: f64 = 0.0;
+        for z in Self::MIN[2] - r..Self::MIN[2] + Self::DIMS[2] + r {
+            for y in Self::MIN[1] - r..Self::MIN[1] + Self::DIMS[1] + r {
+                for x in Self::MIN[0] - r..Self::MIN[0] + Self::DIMS[0] + r {
+                    let v = VoxelIndex([x, y, z]);
+                    let truth = self.truth(v, cutoff.max_dist_sq);
+                    let (stored, nearest) = edt.entry(v);
+                    if stored != FAR_DIST_SQ {
+                        if !self.obstacles.contains(&nearest) {
+                            return Err(format!("{v:?}: stored obstacle {nearest:?} is not one"));
+                        }
+                        if dist_sq(v, nearest) != u64::from(stored) {
+                            return Err(format!("{v:?}: stored distance {stored} is not that of its obstacle {nearest:?}"));
+                        }
+                    }
+                    if stored < truth && !(truth == FAR_DIST_SQ && stored == FAR_DIST_SQ) {
+                        return Err(format!("{v:?}: stored {stored} below the truth {truth}"));
+                    }
+                    worst = worst.max(as_vox(stored) - as_vox(truth));
+                }
+            }
+        }
+        Ok(worst)
+    }
+}
+
+fn dist_sq(a: VoxelIndex, b: VoxelIndex) -> u64 {
+    (0..3).map(|i| (i64::from(a.0[i]) - i64::from(b.0[i])).pow(2) as u64).sum()
+}
+
+/// SplitMix64: a small seeded generator, the same on every platform.
+#[derive(Debug)]
+struct SplitMix(u64);
+
+impl SplitMix {
+    fn next(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^ (z >> 31)
+    }
+
+    fn below(&mut self, n: i32) -> i32 {
+        (self.next() % n as u64) as i32
+    }
 }
 
 #[cfg(test)]

@@ -1,0 +1,63 @@
+//! The GPU's wavefront integration against the CPU's (the reference), on
+//! the conformance suite's random worlds: after every step both global
+//! EDTs must hold the same blocks with the same squared distances and
+//! nearest obstacles, and the GPU's must pass the brute-force checks.
+
+use edtmap_core::{Backend, BatchEdt, Connectivity, EdtField, EdtMap, GlobalParams, IntegrationMode, WavefrontJob};
+use edtmap_cpu::integrate::Integrator;
+use edtmap_gpu::GpuBackend;
+use edtmap_sim::conformance::IntegrationWorld;
+
+fn backend() -> Option<GpuBackend> {
+    match GpuBackend::new() {
+        Ok(b) => Some(b),
+        Err(e) if std::env::var("EDTMAP_REQUIRE_GPU").is_ok_and(|v| v == "1") => panic!("EDTMAP_REQUIRE_GPU=1 but {e}"),
+        Err(e) => {
+            eprintln!("skipping GPU integration: {e}");
+            None
+        }
+    }
+}
+
+/// Sorted (key, block) pairs of `map`, for an exact comparison.
+fn blocks(map: &EdtMap) -> Vec<(edtmap_core::BlockKey, edtmap_core::EdtBlock)> {
+    let mut v: Vec<_> = map.iter().map(|(k, b)| (k, b.clone())).collect();
+    v.sort_by_key(|(k, _)| *k);
+    v
+}
+
+#[test]
+fn wavefront_integration_is_bit_identical_to_the_cpu() {
+    let Some(mut gpu) = backend() else { return };
+    let conns = [Connectivity::Six, Connectivity::Eighteen, Connectivity::TwentySix];
+    let mut cases = 0;
+    for seed in 0..12u64 {
+        let connectivity = conns[seed as usize % 3];
+        let cutoff_vox = 2 + seed % 6;
+        let params = GlobalParams {
+            mode: IntegrationMode::Wavefront,
+            connectivity,
+            max_distance_m: cutoff_vox as f64 * IntegrationWorld::VOXEL_M,
+            ..Default::default()
+        };
+        let mut world = IntegrationWorld::new(seed);
+        let mut cpu = Integrator::new(&params, IntegrationWorld::VOXEL_M).expect("valid");
+        let (mut cpu_map, mut gpu_map) = (EdtMap::new(IntegrationWorld::VOXEL_M).expect("size"), EdtMap::new(IntegrationWorld::VOXEL_M).expect("size"));
+        let mut batch = EdtField::empty();
+        for step in 0..10 {
+            let (window, mask) = world.step();
+            gpu.batch_edt(&mask, &mut batch).expect("batch EDT");
+            let cpu_report = cpu.integrate(&mut cpu_map, &world.obstacles(), &window, &batch).expect("cpu");
+            let job = WavefrontJob { map: &mut gpu_map, window: &window, batch: &batch, cutoff: cpu.cutoff(), offsets: cpu.offsets() };
+            let gpu_report = gpu.integrate_wavefront(job).expect("gpu").expect("the GPU integrates");
+            let at = format!("seed {seed}, {} neighbours, cutoff {cutoff_vox}, step {step}", u8::from(connectivity));
+            assert!(blocks(&cpu_map) == blocks(&gpu_map), "{at}: the maps differ");
+            assert_eq!(cpu_report.changed_blocks, gpu_report.changed_blocks, "{at}");
+            assert_eq!(cpu_report.voxels_changed, gpu_report.voxels_changed, "{at}");
+            assert_eq!((cpu_report.waves.raised, cpu_report.waves.seeds, cpu_report.waves.levels), (gpu_report.waves.raised, gpu_report.waves.seeds, gpu_report.waves.levels), "{at}");
+            world.check(&gpu_map, &params).unwrap_or_else(|e| panic!("{at}: {e}"));
+            cases += 1;
+        }
+    }
+    assert_eq!(cases, 120);
+}
