@@ -11,6 +11,7 @@
 //! smallest value. `edtmap_sim::conformance::separable_oracle` computes it
 //! by brute force.
 
+use crate::fixed_ray::FixedRay;
 use crate::{BlockKey, CoreError, Cutoff, EdtField, EdtMap, Grid3, LocalVolume};
 
 /// Errors a backend can raise besides those of the data it is given.
@@ -55,6 +56,16 @@ pub trait Backend: BatchEdt {
     /// What it runs on, for reports and logs: `cpu (N threads)`, or the
     /// GPU's name and API.
     fn name(&self) -> String;
+
+    /// Ray casting (paper §IV-A): walks `rays`, set up at scale `q` for a
+    /// volume of `dims` ([`crate::fixed_ray`]), into `bits`: one byte per
+    /// voxel, `OBS_MISS` for every voxel a walk visits, `OBS_HIT` for every
+    /// hit, both where both happen. `Ok(false)` leaves it to the CPU (the
+    /// default).
+    fn cast_rays(&mut self, rays: &[FixedRay], q: u32, dims: [usize; 3], bits: &mut Vec<u8>) -> Result<bool, BackendError> {
+        let _ = (rays, q, dims, bits);
+        Ok(false)
+    }
 
     /// The wavefront integration of one frame (paper §IV-C, Algorithms 2
     /// and 3): merges `batch`, the batch EDT of `window`, into `map`.
@@ -129,5 +140,9 @@ impl<B: Backend + ?Sized> Backend for Box<B> {
 
     fn integrate_wavefront(&mut self, job: WavefrontJob<'_>) -> Result<Option<IntegrateReport>, BackendError> {
         (**self).integrate_wavefront(job)
+    }
+
+    fn cast_rays(&mut self, rays: &[FixedRay], q: u32, dims: [usize; 3], bits: &mut Vec<u8>) -> Result<bool, BackendError> {
+        (**self).cast_rays(rays, q, dims, bits)
     }
 }

@@ -27,6 +27,7 @@ impl From<CpuError> for BackendError {
     fn from(e: CpuError) -> Self {
         match e {
             CpuError::Core(c) => BackendError::Core(c),
+            CpuError::Backend(b) => b,
             other => BackendError::Device(other.to_string()),
         }
     }

@@ -164,7 +164,7 @@ impl<B: Backend> Mapper<B> {
         self.sensor.check(frame)?;
         let volume = LocalVolume::centred(&self.params.volume, self.params.voxel_size_m, frame.t_world_sensor.translation.vector.into())?;
         // §IV-A: occupancy of the local volume, fused into the global map.
-        let obs = self.occupancy.observe(&self.sensor, frame, volume, &self.params.ogm)?;
+        let obs = self.occupancy.observe_on(&mut self.backend, &self.sensor, frame, volume, &self.params.ogm)?;
         let fused = fuse(&mut self.map.occupancy, obs, &self.map.log_odds);
         read_states(&self.map.occupancy, &volume, &self.map.log_odds, &mut self.local_states)?;
         let ogm_ms = ms_since(start);

@@ -13,11 +13,14 @@ mod context;
 mod dispatch;
 mod edt;
 mod integrate;
+mod raycast;
 
 pub use context::GpuContext;
 pub use edt::GpuEdt;
 pub use integrate::GpuIntegrator;
+pub use raycast::GpuRaycast;
 
+use edtmap_core::fixed_ray::FixedRay;
 use edtmap_core::{Backend, BackendError, BatchEdt, EdtField, Grid3, IntegrateReport, WavefrontJob};
 
 /// The GPU as a [`Backend`] of the mapper: one device, kernels compiled
@@ -27,6 +30,7 @@ pub struct GpuBackend {
     ctx: GpuContext,
     edt: GpuEdt,
     integrator: GpuIntegrator,
+    raycast: GpuRaycast,
 }
 
 impl GpuBackend {
@@ -36,7 +40,8 @@ impl GpuBackend {
         let ctx = GpuContext::new()?;
         let edt = GpuEdt::new(&ctx)?;
         let integrator = GpuIntegrator::new(&ctx)?;
-        Ok(GpuBackend { ctx, edt, integrator })
+        let raycast = GpuRaycast::new(&ctx)?;
+        Ok(GpuBackend { ctx, edt, integrator, raycast })
     }
 
     /// The device in use.
@@ -58,5 +63,9 @@ impl Backend for GpuBackend {
 
     fn integrate_wavefront(&mut self, job: WavefrontJob<'_>) -> Result<Option<IntegrateReport>, BackendError> {
         self.integrator.run(job).map(Some)
+    }
+
+    fn cast_rays(&mut self, rays: &[FixedRay], q: u32, dims: [usize; 3], bits: &mut Vec<u8>) -> Result<bool, BackendError> {
+        self.raycast.run(rays, q, dims, bits)
     }
 }

@@ -73,11 +73,25 @@ pub struct OccupancyStage {
     obs: Option<Observations>,
     rays: Vec<SensorRay>,
     fixed_rays: Vec<FixedRay>,
+    /// Observation bits a backend cast the rays into.
+    bits: Vec<u8>,
 }
 
 impl OccupancyStage {
     /// Observes `frame` (already checked against `sensor`) over `volume`.
     pub fn observe(&mut self, sensor: &Sensor, frame: &Frame, volume: LocalVolume, opts: &OgmOptions) -> Result<&Observations, CpuError> {
+        self.observe_on(&mut crate::CpuBackend::default(), sensor, frame, volume, opts)
+    }
+
+    /// [`Self::observe`], with the rays cast by `backend` when it can.
+    pub fn observe_on<B: edtmap_core::Backend + ?Sized>(
+        &mut self,
+        backend: &mut B,
+        sensor: &Sensor,
+        frame: &Frame,
+        volume: LocalVolume,
+        opts: &OgmOptions,
+    ) -> Result<&Observations, CpuError> {
         if let Some(o) = &mut self.obs {
             o.reset(volume);
         }
@@ -94,7 +108,11 @@ impl OccupancyStage {
         } else {
             sensor.rays(&frame.measurement, opts.clear_no_return, &mut self.rays);
             let q = prepare_rays(obs.volume(), &frame.t_world_sensor, &self.rays, opts.free_margin_m, &mut self.fixed_rays)?;
-            cast_fixed(obs, &self.fixed_rays, q);
+            if backend.cast_rays(&self.fixed_rays, q, volume.dims, &mut self.bits)? {
+                obs.load_bits(&self.bits);
+            } else {
+                cast_fixed(obs, &self.fixed_rays, q);
+            }
         }
         Ok(obs)
     }

@@ -92,6 +92,28 @@ impl Observations {
         }
     }
 
+    /// Takes the observation bits of every voxel from `bits` (one byte per
+    /// voxel, as a backend cast them), on a freshly reset volume: the same
+    /// state as marking each bit in turn.
+    pub fn load_bits(&self, bits: &[u8]) {
+        let [nx, ny, _] = self.volume.dims;
+        let [cx, cy, _] = self.cell_dims;
+        let rows = self.voxels.par_chunks(nx).zip(bits.par_chunks(nx));
+        rows.enumerate().for_each(|(row, (voxels, bits))| {
+            let (y, z) = (row % ny, row / ny);
+            let cell_row = cx * (y / CELL + cy * (z / CELL));
+            for (x, (v, &b)) in voxels.iter().zip(bits).enumerate() {
+                if b != OBS_NONE {
+                    v.store(b, Relaxed);
+                    let t = &self.touched[cell_row + x / CELL];
+                    if !t.load(Relaxed) {
+                        t.store(true, Relaxed);
+                    }
+                }
+            }
+        });
+    }
+
     /// Whether any voxel of world block `key` may have been observed.
     pub fn block_touched(&self, key: BlockKey) -> bool {
         let span = self.volume.block_span(key);
