@@ -254,6 +254,11 @@ impl<B: Backend> Mapper<B> {
         self.map
     }
 
+    /// Gives the backend up (to map something else on the same device).
+    pub fn into_backend(self) -> B {
+        self.backend
+    }
+
     /// The state of world voxel `v`.
     pub fn state(&self, v: VoxelIndex) -> VoxelState {
         self.map.state(v)

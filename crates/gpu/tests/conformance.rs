@@ -4,7 +4,7 @@
 //! lavapipe installed), where a missing adapter fails them.
 
 use edtmap_gpu::GpuBackend;
-use edtmap_sim::conformance::check_batch_edt;
+use edtmap_sim::conformance::{check_batch_edt, check_raycast};
 
 /// The backend, or None (and a note) where there is no adapter.
 fn backend() -> Option<GpuBackend> {
@@ -24,4 +24,11 @@ fn batch_edt_matches_the_separable_oracle() {
     eprintln!("device: {}", edtmap_core::Backend::name(&gpu));
     let checked = check_batch_edt(&mut gpu).unwrap_or_else(|e| panic!("{e}"));
     assert!(checked > 100_000);
+}
+
+#[test]
+fn ray_casting_matches_the_walk_definition() {
+    let Some(mut gpu) = backend() else { return };
+    let checked = check_raycast(&mut gpu).unwrap_or_else(|e| panic!("{e}"));
+    assert!(checked.is_some_and(|n| n > 9_000), "the GPU casts rays itself");
 }

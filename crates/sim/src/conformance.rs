@@ -4,6 +4,8 @@
 //! bit for bit, so backends that pass agree with each other exactly.
 
 use crate::random_grid;
+use edtmap_core::fixed_ray::{fixed_scale, setup_ray, walk, FixedRay, NO_HIT};
+use edtmap_core::{Backend, OBS_HIT, OBS_MISS};
 use edtmap_core::{
     BatchEdt, EdtField, EdtMap, GlobalParams, Grid3, LocalVolume, LogOdds, OccupancyMap, OccupancyParams, Obstacles, StaticMap,
     VoxelIndex, FAR_DIST_SQ, NO_SITE, UNREACHABLE_DIST_SQ,
@@ -99,6 +101,70 @@ pub fn compare_edt(grid: &Grid3<bool>, got: &EdtField) -> Result<(), String> {
         }
     }
     Ok(())
+}
+
+/// Rays of the ray-casting suite for volumes of several shapes: random
+/// segments inside, through and outside the volume, returns and
+/// no-returns, half of their coordinates on voxel faces and edges so that
+/// the walk's tie rules matter. Returns (rays, scale, dims) per volume.
+pub fn raycast_cases() -> Vec<(Vec<FixedRay>, u32, [usize; 3])> {
+    let mut rng = SplitMix(77);
+    let mut cases = Vec::new();
+    for dims in [[1, 1, 1], [9, 1, 1], [16, 16, 16], [33, 20, 7], [200, 3, 2]] {
+        let q = fixed_scale(dims).expect("small volume");
+        let coord = |rng: &mut SplitMix, n: usize| {
+            let span = n as i32 + 6;
+            let base = f64::from(rng.below(span)) - 3.0;
+            match rng.below(4) {
+                0 => base,
+                1 => base + 0.5,
+                _ => base + f64::from(rng.below(1 << 20)) / f64::from(1 << 20),
+            }
+        };
+        let rays = (0..3000)
+            .map(|_| {
+                let a = [0, 1, 2].map(|k| coord(&mut rng, dims[k]));
+                let b = [0, 1, 2].map(|k| coord(&mut rng, dims[k]));
+                let is_return = rng.below(3) != 0;
+                let t = if is_return { 1.0 - f64::from(rng.below(100)) / 400.0 } else { 1.0 };
+                let free_end = [0, 1, 2].map(|k| a[k] + (b[k] - a[k]) * t);
+                setup_ray(a, free_end, b, is_return, dims, q)
+            })
+            .collect();
+        cases.push((rays, q, dims));
+    }
+    cases
+}
+
+/// Observation bits of `rays` by the walk's definition
+/// (`edtmap_core::fixed_ray::walk`), one byte per voxel.
+pub fn raycast_reference(rays: &[FixedRay], q: u32, dims: [usize; 3]) -> Vec<u8> {
+    let mut bits = vec![0u8; dims.iter().product()];
+    for ray in rays {
+        walk(ray, dims, q, |i| bits[i as usize] |= OBS_MISS);
+        if ray.hit != NO_HIT && (ray.hit as usize) < bits.len() {
+            bits[ray.hit as usize] |= OBS_HIT;
+        }
+    }
+    bits
+}
+
+/// Runs the ray-casting suite on `backend`: `Ok(None)` when it leaves ray
+/// casting to the CPU, else the voxels checked or the first difference.
+pub fn check_raycast(backend: &mut dyn Backend) -> Result<Option<usize>, String> {
+    let mut bits = Vec::new();
+    let mut checked = 0;
+    for (rays, q, dims) in raycast_cases() {
+        if !backend.cast_rays(&rays, q, dims, &mut bits).map_err(|e| format!("volume {dims:?}: {e}"))? {
+            return Ok(None);
+        }
+        let want = raycast_reference(&rays, q, dims);
+        if let Some(i) = (0..want.len()).find(|&i| bits.get(i) != Some(&want[i])) {
+            return Err(format!("volume {dims:?} voxel {i}: bits {:?}, want {}", bits.get(i), want[i]));
+        }
+        checked += want.len();
+    }
+    Ok(Some(checked))
 }
 
 /// The world of the integration suite: a box of voxels whose occupancy

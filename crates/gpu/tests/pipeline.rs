@@ -1,0 +1,71 @@
+//! The whole pipeline on the GPU against the CPU, frame by frame, on the
+//! built-in scenes with their shipped configs: the local occupancy states,
+//! the local batch EDT (squared distances and nearest obstacles), the
+//! global occupancy map and the global EDT must all be identical.
+
+use edtmap::config::Config;
+use edtmap::cpu::occupancy::Construction;
+use edtmap::sensor::Sensor;
+use edtmap::{Backend, GlobalMap, Mapper, MapperParams};
+use edtmap_gpu::GpuBackend;
+use edtmap_sim::{Scene, SceneName, SceneOptions};
+use std::path::PathBuf;
+
+fn gpu() -> Option<GpuBackend> {
+    match GpuBackend::new() {
+        Ok(b) => Some(b),
+        Err(e) if std::env::var("EDTMAP_REQUIRE_GPU").is_ok_and(|v| v == "1") => panic!("EDTMAP_REQUIRE_GPU=1 but {e}"),
+        Err(e) => {
+            eprintln!("skipping the GPU pipeline: {e}");
+            None
+        }
+    }
+}
+
+fn setup(scene: &str) -> (Scene, Sensor, MapperParams) {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(format!("../../configs/{scene}.toml"));
+    let (sensor, params) = Config::load(&path).expect("shipped config").mapper_params().expect("valid config");
+    let name: SceneName = scene.parse().expect("scene name");
+    (Scene::new(name, &SceneOptions::default()).expect("scene"), sensor, params)
+}
+
+/// Sorted blocks of both hashes of `map`, for exact comparison.
+fn snapshot(map: &GlobalMap) -> (Vec<String>, Vec<String>) {
+    let mut occ: Vec<String> = map.occupancy.iter().map(|(k, b)| format!("{k:?} {:?}", b.log_odds.map(f32::to_bits))).collect();
+    let mut edt: Vec<String> = map.edt.iter().map(|(k, b)| format!("{k:?} {:?} {:?}", b.dist_sq, b.nearest)).collect();
+    occ.sort();
+    edt.sort();
+    (occ, edt)
+}
+
+fn compare(scene_name: &str, construction: Construction, frames: usize, backend: GpuBackend) -> GpuBackend {
+    let (scene, sensor, mut params) = setup(scene_name);
+    params.ogm.construction = construction;
+    let mut cpu = Mapper::new(sensor.clone(), params.clone()).expect("cpu mapper");
+    let mut gpu = Mapper::new_on(backend, sensor.clone(), params).expect("gpu mapper");
+    let step = (scene.default_frames() / frames).max(1);
+    for i in (0..frames).map(|k| k * step) {
+        let frame = scene.frame(&sensor, i).expect("frame");
+        let a = cpu.integrate_frame(&frame).expect("cpu frame");
+        let b = gpu.integrate_frame(&frame).expect("gpu frame");
+        let at = format!("{scene_name} {construction:?} frame {i}");
+        assert_eq!(a.changed_blocks, b.changed_blocks, "{at}: changed blocks");
+        assert_eq!(a.edt_voxels_changed, b.edt_voxels_changed, "{at}: EDT voxels changed");
+        assert!(cpu.local_states() == gpu.local_states(), "{at}: local states differ");
+        assert!(cpu.local_edt() == gpu.local_edt(), "{at}: local batch EDT differs");
+        assert!(snapshot(cpu.map()) == snapshot(gpu.map()), "{at}: global maps differ");
+    }
+    // Hand the device on to the next scene rather than opening another.
+    gpu.into_backend()
+}
+
+#[test]
+fn every_scene_is_bit_identical_on_both_backends() {
+    let Some(mut backend) = gpu() else { return };
+    eprintln!("device: {}", backend.name());
+    for scene in ["uav_pillars", "ugv_corridor", "room", "planar"] {
+        for construction in [Construction::RayCasting, Construction::Auto] {
+            backend = compare(scene, construction, 4, backend);
+        }
+    }
+}
