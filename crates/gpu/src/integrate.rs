@@ -19,6 +19,10 @@ use edtmap_cpu::integrate::region::{read_region, write_back_with, Packing, Regio
 /// Levels encoded per submission before the host checks for the end.
 const LEVELS_PER_SUBMIT: usize = 16;
 
+/// Frontiers of at most this many voxels are lowered by `lower_local`,
+/// in workgroup memory (`LOCAL_CAP` in the shader).
+const LOCAL_CAP: u32 = 1024;
+
 /// Words of the control buffer (`C_*` in the shader).
 const CTRL_WORDS: usize = 16;
 const C_FRONT: usize = 3;
@@ -81,6 +85,7 @@ struct Kernels {
     lower_dist: Kernel,
     reset_source: Kernel,
     lower_source: Kernel,
+    lower_local: Kernel,
 }
 
 /// Device buffers for regions of up to `region` voxels and windows of up
@@ -143,6 +148,7 @@ impl GpuIntegrator {
                 lower_dist: plain("lower_dist"),
                 reset_source: plain("reset_source"),
                 lower_source: plain("lower_source"),
+                lower_local: prep("lower_local"),
             };
             GpuIntegrator {
                 ctx: ctx.clone(),
@@ -215,6 +221,12 @@ impl GpuIntegrator {
                 let mut enc = self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("lower") });
                 {
                     let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("lower"), timestamp_writes: None });
+                    // Small frontiers in one workgroup, large ones across the
+                    // device; each kernel does nothing when the other's turn.
+                    let local = [&bufs.group, &self.args_group];
+                    if counts[C_FRONT] <= LOCAL_CAP {
+                        k.lower_local.dispatch(&mut pass, &local, [1, 1, 1]);
+                    }
                     for _ in 0..LEVELS_PER_SUBMIT {
                         k.lower_dist.dispatch_indirect(&mut pass, &[&bufs.group], &self.args, A_FRONT);
                         k.prep_next.dispatch(&mut pass, &[&bufs.group, &self.args_group], [1, 1, 1]);
@@ -222,6 +234,7 @@ impl GpuIntegrator {
                         k.lower_source.dispatch_indirect(&mut pass, &[&bufs.group], &self.args, A_FRONT);
                         self.encode_advance(&mut pass, bufs, &k.advance);
                     }
+                    k.lower_local.dispatch(&mut pass, &local, [1, 1, 1]);
                 }
                 self.ctx.queue.submit([enc.finish()]);
             })?;

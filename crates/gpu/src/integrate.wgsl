@@ -16,9 +16,19 @@
 // and its next frontier (the voxels whose pair went down) are those of
 // the CPU's atomic minimum of packed values. Each level reads its
 // frontier's pairs as they stood when it began (the `front` snapshot).
+//
+// Hierarchical frontiers (the paper's Table II): while a frontier has at
+// most LOCAL_CAP voxels, `lower_local` runs level after level in a single
+// workgroup, its frontier in workgroup memory and the levels separated by
+// barriers instead of dispatches; a frontier that grows past that goes to
+// the storage buffers and the one-dispatch-per-step levels, which use the
+// whole device. Both run exactly the same steps per level.
 
 const INF: u32 = 0xffffffffu;
 const GROUP: u32 = 64u;
+// Frontier entries `lower_local` keeps in workgroup memory (16 KiB).
+const LOCAL_CAP: u32 = 1024u;
+const LOCAL_SIZE: u32 = 256u;
 
 // Slots of `ctrl`.
 const C_DOWN: u32 = 0u;
@@ -329,4 +339,69 @@ fn lower_source(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) 
         return;
     }
     lower(front[k], 1u, atomicLoad(&ctrl[C_STAMP]));
+}
+
+var<workgroup> w_front: array<vec4<u32>, 1024>;
+var<workgroup> w_count: u32;
+var<workgroup> w_stamp: u32;
+
+// Levels in one workgroup while the frontier fits in workgroup memory
+// (see the top of this file). Leaves `ctrl`, `args` and, when it stops
+// on a large frontier, `front` as the dispatched levels would.
+@compute @workgroup_size(256)
+fn lower_local(@builtin(local_invocation_index) lid: u32) {
+    if (lid == 0u) {
+        w_count = atomicLoad(&ctrl[C_FRONT]);
+        w_stamp = atomicLoad(&ctrl[C_STAMP]);
+    }
+    let first = workgroupUniformLoad(&w_count);
+    if (first == 0u || first > LOCAL_CAP) {
+        return;
+    }
+    for (var k = lid; k < first; k += LOCAL_SIZE) {
+        w_front[k] = front[k];
+    }
+    let r = P.region.w;
+    loop {
+        let count = workgroupUniformLoad(&w_count);
+        let stamp = workgroupUniformLoad(&w_stamp);
+        if (count == 0u || count > LOCAL_CAP) {
+            break;
+        }
+        for (var k = lid; k < count; k += LOCAL_SIZE) {
+            lower(w_front[k], 0u, stamp);
+        }
+        storageBarrier();
+        workgroupBarrier();
+        let lowered = atomicLoad(&ctrl[C_NEXT]);
+        for (var k = lid; k < lowered; k += LOCAL_SIZE) {
+            atomicStore(&cur[2u * queues[2u * r + k]], INF);
+        }
+        storageBarrier();
+        workgroupBarrier();
+        for (var k = lid; k < count; k += LOCAL_SIZE) {
+            lower(w_front[k], 1u, stamp);
+        }
+        storageBarrier();
+        workgroupBarrier();
+        let next = atomicLoad(&ctrl[C_NEXT]);
+        for (var k = lid; k < next; k += LOCAL_SIZE) {
+            let n = queues[2u * r + k];
+            let e = vec4<u32>(n, atomicLoad(&cur[2u * n]), atomicLoad(&cur[2u * n + 1u]), 0u);
+            if (next <= LOCAL_CAP) {
+                w_front[k] = e;
+            } else {
+                front[k] = e;
+            }
+        }
+        storageBarrier();
+        workgroupBarrier();
+        if (lid == 0u) {
+            atomicAdd(&ctrl[C_LOWERED], advance_common());
+            w_count = next;
+            w_stamp = atomicLoad(&ctrl[C_STAMP]);
+        }
+        storageBarrier();
+        workgroupBarrier();
+    }
 }
