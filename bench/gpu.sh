@@ -1,0 +1,169 @@
+#!/usr/bin/env bash
+# The GPU backend against the CPU backend: batch EDT of dense cubes and every
+# built-in scene end to end, on each backend this machine has.
+#
+#   bash bench/gpu.sh [--quick]
+#
+#   --quick   cubes of 64³ and 128³ only, 10 frames per scene
+#             (default: 128³, 256³ and 512³, 60 frames per scene)
+#
+# What it does:
+#   1. Builds the release CLI (cargo build --release --locked -p edtmap-cli;
+#      honours CARGO_TARGET_DIR, default ./target).
+#   2. Finds the backends: cpu always; gpu when `edtmap edt --backend gpu`
+#      works on a tiny grid (otherwise it prints the reason and skips gpu).
+#      Prints the device names, nproc and the date.
+#   3. Batch EDT: writes N³ uint8 grids with 1 % obstacles (python3, standard
+#      library only, seeded) and runs `edtmap edt --repeat K` on each backend;
+#      table of median and min ms and the gpu/cpu ratio of the medians.
+#      512³ needs several GB of host memory on a software Vulkan device
+#      (lavapipe); it is skipped, with a note, when `free -g` shows less than
+#      12 GB available. A size the gpu backend refuses (e.g. a buffer over
+#      the device's limits) shows as "not run", with the error under the
+#      table; the script goes on.
+#   4. Scenes: `edtmap run --scene S --frames F --backend B` for every scene
+#      and backend; one table per scene with the median per-frame stage times
+#      (ogm, batch_edt, integrate, total) from report.json. Stages that have
+#      no GPU implementation yet run on the CPU inside a gpu run; the table
+#      reports what each stage took.
+#   5. Checks that the maps saved (--save) by the cpu and gpu runs of
+#      uav_pillars are byte-identical (cmp): prints "maps identical" or fails.
+# Grids, reports and maps land in bench/out/gpu/.
+#
+# Needs: bash, cargo, python3. Exit status 1 when a run fails or the maps
+# differ.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+quick=0
+while [ $# -gt 0 ]; do
+    case "$1" in
+        --quick) quick=1; shift ;;
+        -h|--help) sed -n '2,/^set -euo/p' "$0" | sed '$d' | sed 's/^# \{0,1\}//'; exit 0 ;;
+        *) echo "usage: bash bench/gpu.sh [--quick]" >&2; exit 2 ;;
+    esac
+done
+if [ "$quick" = 1 ]; then
+    sizes=(64 128); frames=10
+else
+    sizes=(128 256 512); frames=60
+fi
+scenes=(uav_pillars ugv_corridor room planar)
+start=$SECONDS
+target="${CARGO_TARGET_DIR:-target}"
+cargo build --release --locked -p edtmap-cli >&2
+edtmap="$target/release/edtmap"
+out=bench/out/gpu
+rm -rf "$out"
+mkdir -p "$out"
+
+# grid N FILE: an N³ uint8 C-order .npy (format 1.0), 1 % obstacles, seed N.
+grid() {
+    python3 - "$1" "$2" <<'PY'
+import random, struct, sys
+n, path = int(sys.argv[1]), sys.argv[2]
+total = n ** 3
+cells = bytearray(total)
+for i in random.Random(n).sample(range(total), total // 100):
+    cells[i] = 1
+header = "{'descr': '|u1', 'fortran_order': False, 'shape': (%d, %d, %d), }" % (n, n, n)
+header += " " * (63 - (10 + len(header)) % 64) + "\n"  # total header a multiple of 64
+with open(path, "wb") as f:
+    f.write(b"\x93NUMPY\x01\x00" + struct.pack("<H", len(header)) + header.encode("latin1"))
+    f.write(cells)
+PY
+}
+
+# field KEY: one field of the JSON object on stdin.
+field() { python3 -c 'import json, sys; print(json.load(sys.stdin)[sys.argv[1]])' "$1"; }
+
+# Backends: cpu always, gpu when a tiny transform works.
+grid 8 "$out/tiny.npy"
+backends=(cpu)
+devices=("$("$edtmap" edt "$out/tiny.npy" "$out/tiny_edt.npy" --repeat 1 2>"$out/cpu_probe.log" | field backend)")
+if gpu_line=$("$edtmap" edt "$out/tiny.npy" "$out/tiny_edt.npy" --backend gpu --repeat 1 2>"$out/gpu_probe.log"); then
+    backends+=(gpu)
+    devices+=("$(field backend <<<"$gpu_line")")
+else
+    echo "gpu backend unavailable, skipped: $(grep -v XDG_RUNTIME_DIR "$out/gpu_probe.log" | tail -n 1)"
+fi
+
+echo "gpu.sh at commit $(git rev-parse --short HEAD), $(date -u '+%Y-%m-%d %H:%M UTC'), nproc $(nproc)," \
+     "load $(cut -d' ' -f1-3 /proc/loadavg)"
+for d in "${devices[@]}"; do echo "device: $d"; done
+echo
+
+# 1. Batch EDT of N³ cubes.
+avail_gb=$(free -g | awk '/^Mem:/ {print $7}')
+echo "### Batch EDT, N³ grid, 1 % obstacles (edtmap edt --repeat K)"
+echo
+echo "| size | backend (device) | K | median (ms) | min (ms) | gpu/cpu (median) |"
+echo "|---|---|---|---|---|---|"
+notes=()
+for n in "${sizes[@]}"; do
+    if [ "$n" -ge 512 ] && [ "$avail_gb" -lt 12 ]; then
+        notes+=("${n}³ skipped: free -g shows ${avail_gb} GB available, under the 12 GB it needs")
+        continue
+    fi
+    case "$n" in 512) k=3 ;; 256) k=5 ;; *) k=10 ;; esac
+    grid "$n" "$out/grid$n.npy"
+    cpu_median=
+    for b in "${backends[@]}"; do
+        if ! line=$("$edtmap" edt "$out/grid$n.npy" "$out/edt${n}_$b.npy" --backend "$b" --repeat "$k" 2>"$out/edt${n}_$b.log"); then
+            # The reference must run; a GPU may refuse a size (buffer limits).
+            [ "$b" != cpu ] || { echo "edtmap edt ${n}³ --backend cpu failed:" >&2; cat "$out/edt${n}_$b.log" >&2; exit 1; }
+            echo "| ${n}³ | $b | $k | not run | not run | – |"
+            notes+=("${n}³ on $b: $(grep -v XDG_RUNTIME_DIR "$out/edt${n}_$b.log" | tail -n 1)")
+            continue
+        fi
+        echo "$line" >"$out/edt${n}_$b.json"
+        python3 - "$n" "$b" "$k" "$line" "$cpu_median" <<'PY'
+import json, sys
+n, b, k, r, cpu = sys.argv[1], sys.argv[2], sys.argv[3], json.loads(sys.argv[4]), sys.argv[5]
+ratio = f"{r['median_ms'] / float(cpu):.1f}" if b != "cpu" and cpu else "–"
+print(f"| {n}³ | {r['backend']} | {k} | {r['median_ms']:.1f} | {r['min_ms']:.1f} | {ratio} |")
+PY
+        [ "$b" = cpu ] && cpu_median=$(field median_ms <<<"$line")
+        rm -f "$out/edt${n}_$b.npy"
+    done
+    rm -f "$out/grid$n.npy"
+done
+for note in "${notes[@]+"${notes[@]}"}"; do echo; echo "($note)"; done
+echo
+
+# 2. Built-in scenes end to end.
+for s in "${scenes[@]}"; do
+    echo "### $s, $frames frames (edtmap run --scene $s --frames $frames): median ms per frame"
+    echo
+    echo "| backend (device) | local volume | ogm | batch_edt | integrate | total |"
+    echo "|---|---|---|---|---|---|"
+    for b in "${backends[@]}"; do
+        dir="$out/run_${s}_$b"
+        save=()
+        [ "$s" = uav_pillars ] && save=(--save "$out/map_$b.edtmap")
+        "$edtmap" run --scene "$s" --frames "$frames" --backend "$b" --out "$dir" "${save[@]+"${save[@]}"}" >/dev/null 2>"$dir.log" ||
+            { echo "edtmap run --scene $s --backend $b failed:" >&2; cat "$dir.log" >&2; exit 1; }
+        python3 - "$dir/report.json" <<'PY'
+import json, sys
+r = json.load(open(sys.argv[1]))
+s = r["summary"]
+dims = "×".join(str(d) for d in r["local_dims"])
+stages = " | ".join(f"{s[k]['median']:.1f}" for k in ("ogm_ms", "batch_edt_ms", "integrate_ms", "total_ms"))
+print(f"| {r['backend']} | {dims} at {r['voxel_size_m']} m | {stages} |")
+PY
+    done
+    echo
+done
+
+# 3. Same map from every backend.
+if [ "${#backends[@]}" -gt 1 ]; then
+    if cmp "$out/map_cpu.edtmap" "$out/map_gpu.edtmap"; then
+        echo "maps identical (uav_pillars, $frames frames, cpu and gpu --save)"
+    else
+        echo "maps differ: $out/map_cpu.edtmap and $out/map_gpu.edtmap" >&2
+        exit 1
+    fi
+else
+    echo "(one backend only: no map comparison)"
+fi
+echo
+echo "total runtime $((SECONDS - start)) s (build included)"
