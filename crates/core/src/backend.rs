@@ -67,6 +67,11 @@ pub trait Backend: BatchEdt {
         Ok(false)
     }
 
+    /// Tells the backend that the global EDT was changed by other means
+    /// (the CPU's integrator, fixed obstacles laid down, another map), so
+    /// whatever it holds of it is stale.
+    fn map_changed(&mut self) {}
+
     /// The wavefront integration of one frame (paper §IV-C, Algorithms 2
     /// and 3): merges `batch`, the batch EDT of `window`, into `map`.
     /// `Ok(None)` leaves it to the CPU's integrator (the default); a
@@ -144,5 +149,9 @@ impl<B: Backend + ?Sized> Backend for Box<B> {
 
     fn cast_rays(&mut self, rays: &[FixedRay], q: u32, dims: [usize; 3], bits: &mut Vec<u8>) -> Result<bool, BackendError> {
         (**self).cast_rays(rays, q, dims, bits)
+    }
+
+    fn map_changed(&mut self) {
+        (**self).map_changed()
     }
 }

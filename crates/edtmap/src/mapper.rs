@@ -151,6 +151,8 @@ impl<B: Backend> Mapper<B> {
     /// Brings the fixed obstacles (forbidden zones, priors) into the global
     /// EDT at once, rather than when a window first passes over them.
     fn lay_down_fixed(&mut self) -> Result<(), MapError> {
+        // The backend may hold part of the map; it no longer matches.
+        self.backend.map_changed();
         let Some(keys) = self.map.fixed.key_bounds() else { return Ok(()) };
         let (edt, obstacles) = self.map.edt_and_obstacles();
         self.integrator.recompute(edt, &obstacles, &Region::of_blocks(keys))?;
@@ -225,6 +227,7 @@ impl<B: Backend> Mapper<B> {
                 return Ok(report);
             }
         }
+        self.backend.map_changed();
         let (edt, obstacles) = self.map.edt_and_obstacles();
         Ok(self.integrator.integrate(edt, &obstacles, volume, batch)?)
     }

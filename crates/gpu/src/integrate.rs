@@ -13,8 +13,8 @@
 
 use crate::context::GpuContext;
 use crate::dispatch::{groups_1d, storage_entry, Kernel};
-use edtmap_core::{BackendError, IntegrateReport, WaveCounts, WavefrontJob};
-use edtmap_cpu::integrate::region::{read_region, write_back_with, Packing, Region};
+use edtmap_core::{BackendError, BlockKey, IntegrateReport, WaveCounts, WavefrontJob};
+use edtmap_cpu::integrate::region::{read_region_except, write_back_with, Packing, Region, FAR};
 
 /// Levels encoded per submission before the host checks for the end.
 const LEVELS_PER_SUBMIT: usize = 16;
@@ -32,12 +32,14 @@ const C_RAISED: usize = 6;
 const C_KEPT: usize = 7;
 const C_SEEDS: usize = 8;
 const C_LOWERED: usize = 9;
+const C_DIRTY: usize = 10;
 
 /// Indirect argument offsets, bytes (`A_*` in the shader, times 4).
 const A_DOWN: u64 = 0;
 const A_UP: u64 = 12;
 const A_FRONT: u64 = 24;
 const A_NEXT: u64 = 36;
+const A_GATHER: u64 = 48;
 
 /// Uniform parameters (`Params` in the shader).
 #[repr(C)]
@@ -50,6 +52,9 @@ struct Params {
     shift: u32,
     max_dist_sq: u32,
     n_offsets: u32,
+    delta: [i32; 4],
+    blocks: [u32; 4],
+    o8: [u32; 4],
     offsets: [[i32; 4]; 26],
 }
 
@@ -67,9 +72,13 @@ pub struct GpuIntegrator {
     bufs: Option<Buffers>,
     /// The next frontier stamp (stamps only grow, so `mark` is never cleared).
     stamp: u32,
-    /// Packed values before and after the frame, region order.
+    /// Packed values before and after the frame, region order (the old
+    /// ones uploaded; both filled back only in the changed blocks).
     old: Vec<u64>,
     cur: Vec<u64>,
+    /// The region whose values the device holds in `cur`, equal to the
+    /// CPU map's there, unless the map changed by other means since.
+    resident: Option<Region>,
 }
 
 #[derive(Debug)]
@@ -86,6 +95,11 @@ struct Kernels {
     reset_source: Kernel,
     lower_source: Kernel,
     lower_local: Kernel,
+    shift: Kernel,
+    diff: Kernel,
+    compact: Kernel,
+    prep_gather: Kernel,
+    gather: Kernel,
 }
 
 /// Device buffers for regions of up to `region` voxels and windows of up
@@ -94,9 +108,11 @@ struct Kernels {
 struct Buffers {
     region: usize,
     window: usize,
+    blocks: usize,
     old: wgpu::Buffer,
-    cur: wgpu::Buffer,
     batch: wgpu::Buffer,
+    blk: wgpu::Buffer,
+    pairs: wgpu::Buffer,
     staging: wgpu::Buffer,
     group: wgpu::BindGroup,
 }
@@ -116,8 +132,7 @@ impl GpuIntegrator {
                 ty: wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Uniform, has_dynamic_offset: false, min_binding_size: None },
                 count: None,
             }];
-            entries.push(storage_entry(1, true));
-            entries.extend((2..=7).map(|b| storage_entry(b, b == 3)));
+            entries.extend((1..=9).map(|b| storage_entry(b, b == 3)));
             let layout = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some("integrate"), entries: &entries });
             let args_layout = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
                 label: Some("integrate args"),
@@ -125,7 +140,7 @@ impl GpuIntegrator {
             });
             let buffer = |label, size: u64, usage| dev.create_buffer(&wgpu::BufferDescriptor { label: Some(label), size, usage, mapped_at_creation: false });
             let params = buffer("integrate params", std::mem::size_of::<Params>() as u64, wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST);
-            let args = buffer("integrate args", 48, wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::INDIRECT);
+            let args = buffer("integrate args", 60, wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::INDIRECT);
             let ctrl_bytes = 4 * CTRL_WORDS as u64;
             let ctrl = buffer("integrate ctrl", ctrl_bytes, wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC);
             let ctrl_staging = buffer("integrate ctrl staging", ctrl_bytes, wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST);
@@ -149,6 +164,11 @@ impl GpuIntegrator {
                 reset_source: plain("reset_source"),
                 lower_source: plain("lower_source"),
                 lower_local: prep("lower_local"),
+                shift: plain("shift"),
+                diff: plain("diff"),
+                compact: plain("compact"),
+                prep_gather: prep("prep_gather"),
+                gather: plain("gather"),
             };
             GpuIntegrator {
                 ctx: ctx.clone(),
@@ -163,8 +183,15 @@ impl GpuIntegrator {
                 stamp: 1,
                 old: Vec::new(),
                 cur: Vec::new(),
+                resident: None,
             }
         })
+    }
+
+    /// Forgets the region held on the device: the map was changed by other
+    /// means (another integrator, a prior laid down, a new map).
+    pub fn map_changed(&mut self) {
+        self.resident = None;
     }
 
     /// Merges `job.batch` into `job.map` (see the module docs).
@@ -177,17 +204,31 @@ impl GpuIntegrator {
             return Err(BackendError::Device(format!("{} neighbour offsets, at most 26", offsets.len())));
         }
         let packing = Packing::new(Region::around(window, cutoff.reach + 1), cutoff)?;
-        let (r, w) = (packing.region.len(), window.len());
-        read_region(map, &packing, &mut self.old);
-        self.ensure_buffers(r, w)?;
+        let region = packing.region;
+        let (r, w) = (region.len(), window.len());
+        let key_lo = region.origin.map(|o| o.div_euclid(8));
+        let key_hi = [0, 1, 2].map(|a| (region.origin[a] + region.dims[a] as i32 - 1).div_euclid(8));
+        let nb3 = [0, 1, 2].map(|a| (key_hi[a] - key_lo[a] + 1) as u32);
+        let nb = nb3.iter().map(|&n| n as usize).product::<usize>();
+        // Until this frame is written back, the device holds nothing valid.
+        let resident = self.resident.take().filter(|prev| prev.dims == region.dims);
+        let resident = if self.ensure_buffers(r, w, nb)? { None } else { resident };
+        read_region_except(map, &packing, resident.as_ref(), &mut self.old);
+        let delta = match resident {
+            Some(prev) => [region.origin[0] - prev.origin[0], region.origin[1] - prev.origin[1], region.origin[2] - prev.origin[2], 1],
+            None => [0; 4],
+        };
         let mut params = Params {
-            region: dims4(packing.region.dims, r),
+            region: dims4(region.dims, r),
             window: dims4(window.dims, w),
             source: dims4(packing.source.dims, packing.source.len()),
             win_in_region: (cutoff.reach + 1) as u32,
             shift: cutoff.reach as u32,
             max_dist_sq: cutoff.max_dist_sq,
             n_offsets: offsets.len() as u32,
+            delta,
+            blocks: [nb3[0], nb3[1], nb3[2], nb as u32],
+            o8: [0, 1, 2, 3].map(|a| if a < 3 { (region.origin[a] - key_lo[a] * 8) as u32 } else { 0 }),
             offsets: [[0; 4]; 26],
         };
         for (slot, o) in params.offsets.iter_mut().zip(offsets) {
@@ -197,6 +238,8 @@ impl GpuIntegrator {
         ctrl[C_STAMP] = self.stamp;
         let bufs = self.bufs.as_ref().ok_or_else(|| BackendError::Device("buffers missing".into()))?;
         let k = &self.k;
+        let one = [&bufs.group];
+        let with_args = [&bufs.group, &self.args_group];
         self.ctx.scoped(|| {
             let q = &self.ctx.queue;
             q.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
@@ -205,12 +248,16 @@ impl GpuIntegrator {
             q.write_buffer(&bufs.batch, 0, bytemuck::cast_slice(batch.dist_sq_vox()));
             q.write_buffer(&bufs.batch, 4 * w as u64, bytemuck::cast_slice(batch.nearest()));
             let mut enc = self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("integrate") });
+            enc.clear_buffer(&bufs.blk, 0, Some(8 * nb as u64));
             {
                 let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("merge and seed"), timestamp_writes: None });
-                k.merge.dispatch(&mut pass, &[&bufs.group], groups_1d(r as u64));
-                k.prep_seeds.dispatch(&mut pass, &[&bufs.group, &self.args_group], [1, 1, 1]);
-                k.seed_down.dispatch_indirect(&mut pass, &[&bufs.group], &self.args, A_DOWN);
-                k.seed_up.dispatch_indirect(&mut pass, &[&bufs.group], &self.args, A_UP);
+                if resident.is_some() {
+                    k.shift.dispatch(&mut pass, &one, groups_1d(r as u64));
+                }
+                k.merge.dispatch(&mut pass, &one, groups_1d(r as u64));
+                k.prep_seeds.dispatch(&mut pass, &with_args, [1, 1, 1]);
+                k.seed_down.dispatch_indirect(&mut pass, &one, &self.args, A_DOWN);
+                k.seed_up.dispatch_indirect(&mut pass, &one, &self.args, A_UP);
                 self.encode_advance(&mut pass, bufs, &k.advance_seeds);
             }
             q.submit([enc.finish()]);
@@ -222,38 +269,77 @@ impl GpuIntegrator {
                 {
                     let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("lower"), timestamp_writes: None });
                     // Small frontiers in one workgroup, large ones across the
-                    // device; each kernel does nothing when the other's turn.
-                    let local = [&bufs.group, &self.args_group];
+                    // device; each kernel does nothing when it is the other's turn.
                     if counts[C_FRONT] <= LOCAL_CAP {
-                        k.lower_local.dispatch(&mut pass, &local, [1, 1, 1]);
+                        k.lower_local.dispatch(&mut pass, &with_args, [1, 1, 1]);
                     }
                     for _ in 0..LEVELS_PER_SUBMIT {
-                        k.lower_dist.dispatch_indirect(&mut pass, &[&bufs.group], &self.args, A_FRONT);
-                        k.prep_next.dispatch(&mut pass, &[&bufs.group, &self.args_group], [1, 1, 1]);
-                        k.reset_source.dispatch_indirect(&mut pass, &[&bufs.group], &self.args, A_NEXT);
-                        k.lower_source.dispatch_indirect(&mut pass, &[&bufs.group], &self.args, A_FRONT);
+                        k.lower_dist.dispatch_indirect(&mut pass, &one, &self.args, A_FRONT);
+                        k.prep_next.dispatch(&mut pass, &with_args, [1, 1, 1]);
+                        k.reset_source.dispatch_indirect(&mut pass, &one, &self.args, A_NEXT);
+                        k.lower_source.dispatch_indirect(&mut pass, &one, &self.args, A_FRONT);
                         self.encode_advance(&mut pass, bufs, &k.advance);
                     }
-                    k.lower_local.dispatch(&mut pass, &local, [1, 1, 1]);
+                    k.lower_local.dispatch(&mut pass, &with_args, [1, 1, 1]);
                 }
                 self.ctx.queue.submit([enc.finish()]);
             })?;
             counts = self.read_ctrl()?;
         }
         self.stamp = counts[C_STAMP];
-        // The region's new values, back to the CPU map where they changed.
-        let bytes = 8 * r as u64;
+        // The changed blocks' pairs, back to the CPU map.
         self.ctx.scoped(|| {
-            let mut enc = self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("read back") });
-            enc.copy_buffer_to_buffer(&bufs.cur, 0, &bufs.staging, 0, bytes);
+            let mut enc = self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("changes") });
+            {
+                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("changes"), timestamp_writes: None });
+                k.diff.dispatch(&mut pass, &one, groups_1d(r as u64));
+                k.compact.dispatch(&mut pass, &one, groups_1d(nb as u64));
+                k.prep_gather.dispatch(&mut pass, &with_args, [1, 1, 1]);
+                k.gather.dispatch_indirect(&mut pass, &one, &self.args, A_GATHER);
+            }
             self.ctx.queue.submit([enc.finish()]);
         })?;
-        self.cur.resize(r, 0);
-        let cur = &mut self.cur;
-        self.ctx.read_back(&bufs.staging, bytes, |b| crate::edt::copy_words(b, bytemuck::cast_slice_mut(cur.as_mut_slice())))?;
+        let counts = self.read_ctrl()?;
+        let dirty = counts[C_DIRTY] as usize;
+        let (list_bytes, pairs_at) = (4 * dirty as u64, pairs_offset(nb));
+        let pair_bytes = 16 * 512 * dirty as u64;
+        let mut list = vec![0u32; dirty];
+        let mut pairs = vec![0u32; 4 * 512 * dirty];
+        if dirty > 0 {
+            self.ctx.scoped(|| {
+                let mut enc = self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("read changes") });
+                enc.copy_buffer_to_buffer(&bufs.blk, 4 * nb as u64, &bufs.staging, 0, list_bytes);
+                enc.copy_buffer_to_buffer(&bufs.pairs, 0, &bufs.staging, pairs_at, pair_bytes);
+                self.ctx.queue.submit([enc.finish()]);
+            })?;
+            self.ctx.read_back(&bufs.staging, pairs_at + pair_bytes, |b| {
+                crate::edt::copy_words(&b[..list_bytes as usize], &mut list);
+                crate::edt::copy_words(&b[pairs_at as usize..], &mut pairs);
+            })?;
+        }
+        // Scatter the changed blocks' pairs into region order and write
+        // them back with the CPU's own code.
+        self.cur.resize(r, FAR);
+        let mut keys = Vec::with_capacity(dirty);
+        for (slot, &b) in list.iter().enumerate() {
+            let b = b as usize;
+            let bc = [b % nb3[0] as usize, (b / nb3[0] as usize) % nb3[1] as usize, b / (nb3[0] * nb3[1]) as usize];
+            keys.push(BlockKey([0, 1, 2].map(|a| key_lo[a] + bc[a] as i32)));
+            for off in 0..512 {
+                let vo = [off % 8, (off / 8) % 8, off / 64];
+                let c = [0, 1, 2].map(|a| (bc[a] * 8 + vo[a]) as i64 - i64::from(params.o8[a]));
+                if (0..3).all(|a| c[a] >= 0 && (c[a] as usize) < region.dims[a]) {
+                    let i = region.linear(c.map(|x| x as usize));
+                    let p = &pairs[4 * (slot * 512 + off)..4 * (slot * 512 + off) + 4];
+                    self.old[i] = (u64::from(p[1]) << 32) | u64::from(p[0]);
+                    self.cur[i] = (u64::from(p[3]) << 32) | u64::from(p[2]);
+                }
+            }
+        }
         let cur = &self.cur;
-        let mut written = write_back_with(map, &packing, &packing.region.blocks(), &self.old, |i| cur[i]);
+        let mut written = write_back_with(map, &packing, &keys, &self.old, |i| cur[i]);
         written.changed_blocks.sort_unstable();
+        self.resident = Some(region);
         Ok(IntegrateReport {
             voxels_changed: written.voxels_changed,
             change_sum_vox: written.change_sum_vox,
@@ -289,42 +375,57 @@ impl GpuIntegrator {
         Ok(out)
     }
 
-    /// Allocates buffers for a region of `r` and a window of `w` voxels
-    /// unless those in place are large enough.
-    fn ensure_buffers(&mut self, r: usize, w: usize) -> Result<(), BackendError> {
-        if self.bufs.as_ref().is_some_and(|b| b.region >= r && b.window >= w) {
-            return Ok(());
+    /// Allocates buffers for a region of `r` voxels in `nb` blocks and a
+    /// window of `w` voxels unless those in place are large enough;
+    /// returns whether it allocated (the device then holds no region).
+    fn ensure_buffers(&mut self, r: usize, w: usize, nb: usize) -> Result<bool, BackendError> {
+        if self.bufs.as_ref().is_some_and(|b| b.region >= r && b.window >= w && b.blocks >= nb) {
+            return Ok(false);
         }
-        // Grow both to at least what they were, so alternating sizes do
-        // not reallocate every frame.
-        let (r, w) = self.bufs.as_ref().map_or((r, w), |b| (b.region.max(r), b.window.max(w)));
+        // Grow each to at least what it was, so alternating sizes do not
+        // reallocate every frame.
+        let (r, w, nb) = self.bufs.as_ref().map_or((r, w, nb), |b| (b.region.max(r), b.window.max(w), b.blocks.max(nb)));
         self.bufs = None;
-        let (r64, w64) = (r as u64, w as u64);
-        for (what, bytes) in [("the integration's frontier", 16 * r64), ("the integration's queues", 12 * r64), ("the batch EDT upload", 8 * w64)] {
+        let (r64, w64, nb64) = (r as u64, w as u64, nb as u64);
+        let limits = [
+            ("the integration's frontier", 16 * r64),
+            ("the integration's queues", 12 * r64),
+            ("the batch EDT upload", 8 * w64),
+            ("the changed blocks' values", 16 * 512 * nb64),
+        ];
+        for (what, bytes) in limits {
             self.ctx.check_buffer(what, bytes)?;
         }
         let bufs = self.ctx.scoped(|| {
             let dev = &self.ctx.device;
             let buffer = |label, size: u64, usage| dev.create_buffer(&wgpu::BufferDescriptor { label: Some(label), size, usage, mapped_at_creation: false });
             let storage = wgpu::BufferUsages::STORAGE;
-            let copy_dst = wgpu::BufferUsages::COPY_DST;
+            let (copy_dst, copy_src) = (wgpu::BufferUsages::COPY_DST, wgpu::BufferUsages::COPY_SRC);
             let old = buffer("integrate old", 8 * r64, storage | copy_dst);
-            let cur = buffer("integrate cur", 8 * r64, storage | wgpu::BufferUsages::COPY_SRC);
+            let cur = buffer("integrate cur", 8 * r64, storage);
             let batch = buffer("integrate batch", 8 * w64, storage | copy_dst);
             // Zeroed at creation: no stamp is 0.
             let mark = buffer("integrate mark", 4 * r64, storage);
             let queues = buffer("integrate queues", 12 * r64, storage);
             let front = buffer("integrate front", 16 * r64, storage);
-            let staging = buffer("integrate staging", 8 * r64, wgpu::BufferUsages::MAP_READ | copy_dst);
-            let list = [&old, &cur, &batch, &mark, &queues, &front, &self.ctrl];
+            let blk = buffer("integrate blocks", 8 * nb64, storage | copy_dst | copy_src);
+            let pairs = buffer("integrate pairs", 16 * 512 * nb64, storage | copy_src);
+            let staging = buffer("integrate staging", pairs_offset(nb) + 16 * 512 * nb64, wgpu::BufferUsages::MAP_READ | copy_dst);
+            let list = [&old, &cur, &batch, &mark, &queues, &front, &self.ctrl, &blk, &pairs];
             let mut entries = vec![wgpu::BindGroupEntry { binding: 0, resource: self.params.as_entire_binding() }];
             entries.extend(list.iter().enumerate().map(|(k, b)| wgpu::BindGroupEntry { binding: k as u32 + 1, resource: b.as_entire_binding() }));
             let group = dev.create_bind_group(&wgpu::BindGroupDescriptor { label: Some("integrate"), layout: &self.layout, entries: &entries });
-            Buffers { region: r, window: w, old, cur, batch, staging, group }
+            Buffers { region: r, window: w, blocks: nb, old, batch, blk, pairs, staging, group }
         })?;
         self.bufs = Some(bufs);
-        Ok(())
+        Ok(true)
     }
+}
+
+/// Where the pairs start in the staging buffer, after the list of up to
+/// `nb` changed blocks (16-byte aligned).
+fn pairs_offset(nb: usize) -> u64 {
+    (4 * nb as u64).div_ceil(16) * 16
 }
 
 fn dims4(d: [usize; 3], len: usize) -> [u32; 4] {

@@ -41,12 +41,14 @@ const C_RAISED: u32 = 6u;
 const C_KEPT: u32 = 7u;
 const C_SEEDS: u32 = 8u;
 const C_LOWERED: u32 = 9u;
+const C_DIRTY: u32 = 10u;
 
 // Indirect dispatch arguments in `args`, three words each.
 const A_DOWN: u32 = 0u;
 const A_UP: u32 = 3u;
 const A_FRONT: u32 = 6u;
 const A_NEXT: u32 = 9u;
+const A_GATHER: u32 = 12u;
 
 struct Params {
     // Region dims and voxel count.
@@ -61,12 +63,20 @@ struct Params {
     shift: u32,
     max_dist_sq: u32,
     n_offsets: u32,
+    // This region's origin minus the resident one's (xyz), and whether the
+    // device holds the previous frame's region (w = 1).
+    delta: vec4<i32>,
+    // Blocks overlapping the region (xyz) and their count.
+    blocks: vec4<u32>,
+    // The region origin's position in its block (origin mod 8).
+    o8: vec4<u32>,
     offsets: array<vec4<i32>, 26>,
 }
 
 @group(0) @binding(0) var<uniform> P: Params;
-// Pairs before the frame, (S, D).
-@group(0) @binding(1) var<storage, read> old_v: array<vec2<u32>>;
+// Pairs before the frame, (S, D): uploaded, then the part the device
+// already held overwritten by `shift`.
+@group(0) @binding(1) var<storage, read_write> old_v: array<vec2<u32>>;
 @group(0) @binding(2) var<storage, read_write> cur: array<atomic<u32>>;
 // The window's batch EDT: distances at [0, W), nearest at [W, 2W).
 @group(0) @binding(3) var<storage, read> batch: array<u32>;
@@ -77,6 +87,12 @@ struct Params {
 // The frontier's snapshot: (voxel, S, D, 0).
 @group(0) @binding(6) var<storage, read_write> front: array<vec4<u32>>;
 @group(0) @binding(7) var<storage, read_write> ctrl: array<atomic<u32>>;
+// Per block of the region: changed (0/1) at [0, NB), then the changed
+// blocks' indices at [NB, 2NB).
+@group(0) @binding(8) var<storage, read_write> blk: array<atomic<u32>>;
+// (old S, old D, new S, new D) of every voxel of the changed blocks,
+// 512 per block in block order.
+@group(0) @binding(9) var<storage, read_write> pairs: array<vec4<u32>>;
 @group(1) @binding(0) var<storage, read_write> args: array<u32>;
 
 fn flat_id(wid: vec3<u32>, nwg: vec3<u32>, lid: u32) -> u32 {
@@ -404,4 +420,92 @@ fn lower_local(@builtin(local_invocation_index) lid: u32) {
         storageBarrier();
         workgroupBarrier();
     }
+}
+
+// The region the device holds from the previous frame (`cur`, equal to
+// the CPU map there) moved to this frame's region: voxels in both take
+// their pair from the device, re-indexed to the new source box; the
+// others keep what the host uploaded from the map.
+@compute @workgroup_size(64)
+fn shift(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
+         @builtin(local_invocation_index) lid: u32) {
+    let i = flat_id(wid, nwg, lid);
+    if (i >= P.region.w || P.delta.w == 0) {
+        return;
+    }
+    let c = region_coords(i) + P.delta.xyz;
+    if (!in_box(c, vec3<i32>(0), P.region.xyz)) {
+        return;
+    }
+    let prev = load(u32(c.x) + P.region.x * (u32(c.y) + P.region.y * u32(c.z)));
+    var v = vec2<u32>(INF, INF);
+    if (prev.y != INF) {
+        let sc = source_coords(prev.x) - P.delta.xyz;
+        if (in_box(sc, vec3<i32>(0), P.source.xyz)) {
+            v = vec2<u32>(u32(sc.x) + P.source.x * (u32(sc.y) + P.source.y * u32(sc.z)), prev.y);
+        }
+    }
+    old_v[i] = v;
+}
+
+// Block of the region holding region voxel `c`, and the voxel's offset in it.
+fn block_of(c: vec3<i32>) -> vec2<u32> {
+    let g = vec3<u32>(c) + P.o8.xyz;
+    let b = g / 8u;
+    let o = g % 8u;
+    return vec2<u32>(b.x + P.blocks.x * (b.y + P.blocks.y * b.z), o.x + 8u * (o.y + 8u * o.z));
+}
+
+// Marks the blocks holding a voxel whose pair changed.
+@compute @workgroup_size(64)
+fn diff(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
+        @builtin(local_invocation_index) lid: u32) {
+    let i = flat_id(wid, nwg, lid);
+    if (i >= P.region.w) {
+        return;
+    }
+    let o = old_v[i];
+    if (any(o != load(i))) {
+        atomicStore(&blk[block_of(region_coords(i)).x], 1u);
+    }
+}
+
+// Lists the changed blocks.
+@compute @workgroup_size(64)
+fn compact(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
+           @builtin(local_invocation_index) lid: u32) {
+    let b = flat_id(wid, nwg, lid);
+    if (b >= P.blocks.w || atomicLoad(&blk[b]) == 0u) {
+        return;
+    }
+    let slot = atomicAdd(&ctrl[C_DIRTY], 1u);
+    atomicStore(&blk[P.blocks.w + slot], b);
+}
+
+@compute @workgroup_size(1)
+fn prep_gather() {
+    set_groups(A_GATHER, atomicLoad(&ctrl[C_DIRTY]) * 512u);
+}
+
+// The old and new pairs of every voxel of the changed blocks, for the host
+// to write into the CPU map; voxels outside the region get far pairs.
+@compute @workgroup_size(64)
+fn gather(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
+          @builtin(local_invocation_index) lid: u32) {
+    let k = flat_id(wid, nwg, lid);
+    if (k >= atomicLoad(&ctrl[C_DIRTY]) * 512u) {
+        return;
+    }
+    let b = atomicLoad(&blk[P.blocks.w + k / 512u]);
+    let off = k % 512u;
+    let bc = vec3<u32>(b % P.blocks.x, (b / P.blocks.x) % P.blocks.y, b / (P.blocks.x * P.blocks.y));
+    let g = bc * 8u + vec3<u32>(off % 8u, (off / 8u) % 8u, off / 64u);
+    let c = vec3<i32>(g) - vec3<i32>(P.o8.xyz);
+    var e = vec4<u32>(INF, INF, INF, INF);
+    if (in_box(c, vec3<i32>(0), P.region.xyz)) {
+        let i = u32(c.x) + P.region.x * (u32(c.y) + P.region.y * u32(c.z));
+        let n = load(i);
+        e = vec4<u32>(old_v[i], n);
+    }
+    pairs[k] = e;
 }

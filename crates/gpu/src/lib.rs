@@ -65,6 +65,10 @@ impl Backend for GpuBackend {
         self.integrator.run(job).map(Some)
     }
 
+    fn map_changed(&mut self) {
+        self.integrator.map_changed();
+    }
+
     fn cast_rays(&mut self, rays: &[FixedRay], q: u32, dims: [usize; 3], bits: &mut Vec<u8>) -> Result<bool, BackendError> {
         self.raycast.run(rays, q, dims, bits)
     }

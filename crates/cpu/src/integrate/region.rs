@@ -156,14 +156,40 @@ pub fn copy_in(map: &EdtMap, p: &Packing, old: &mut Vec<u64>, cur: &mut Vec<Atom
 
 /// Fills `old` with the packed values of `p.region` from `map`.
 pub fn read_region(map: &EdtMap, p: &Packing, old: &mut Vec<u64>) {
+    read_region_except(map, p, None, old);
+}
+
+/// [`read_region`], leaving the voxels inside the world box `keep`
+/// untouched (a caller that already holds their values).
+pub fn read_region_except(map: &EdtMap, p: &Packing, keep: Option<&Region>, old: &mut Vec<u64>) {
     old.resize(p.region.len(), FAR);
     let [nx, ny, _] = p.region.dims;
+    // The x range of each row that `keep` covers, in region coordinates.
+    let kept = |y: usize, z: usize| -> std::ops::Range<usize> {
+        let Some(k) = keep else { return 0..0 };
+        let w = p.region.world([0, y, z]).0;
+        let inside = |a: usize| w[a] >= k.origin[a] && w[a] < k.origin[a] + k.dims[a] as i32;
+        if !(inside(1) && inside(2)) {
+            return 0..0;
+        }
+        let lo = (i64::from(k.origin[0]) - i64::from(p.region.origin[0])).clamp(0, nx as i64) as usize;
+        let hi = (i64::from(k.origin[0]) + k.dims[0] as i64 - i64::from(p.region.origin[0])).clamp(0, nx as i64) as usize;
+        lo..hi.max(lo)
+    };
     old.par_chunks_mut(nx * ny).enumerate().for_each(|(z, old)| {
         for y in 0..ny {
+            let skip = kept(y, z);
             let mut x = 0;
             while x < nx {
+                if skip.contains(&x) {
+                    x = skip.end;
+                    continue;
+                }
                 let v = p.region.world([x, y, z]);
-                let end = (x + (BLOCK_SIDE - v.0[0].rem_euclid(BLOCK_SIDE)) as usize).min(nx);
+                let mut end = (x + (BLOCK_SIDE - v.0[0].rem_euclid(BLOCK_SIDE)) as usize).min(nx);
+                if x < skip.start {
+                    end = end.min(skip.start);
+                }
                 let block = map.get(v.block());
                 let base = v.offset_in_block();
                 for k in 0..end - x {
