@@ -1,0 +1,65 @@
+//! `--backend`: the GPU backend gives the CPU's answers through the CLI,
+//! and without any adapter `gpu` fails with a clear message while `auto`
+//! falls back to the CPU. `WGPU_BACKEND=metal` hides every adapter on
+//! Linux and Windows (Metal exists only on Apple systems).
+
+use std::fs;
+use std::path::Path;
+use std::process::{Command, Output};
+
+use npyz::WriterBuilder;
+
+fn write_grid(path: &Path) {
+    let shape = [9u64, 11, 13];
+    let data: Vec<u8> = (0..9 * 11 * 13).map(|i: usize| u8::from((i * 2_654_435_761) % 11 == 4)).collect();
+    let file = fs::File::create(path).expect("create npy");
+    let mut w = npyz::WriteOptions::<u8>::new().default_dtype().shape(&shape).writer(std::io::BufWriter::new(file)).begin_nd().expect("header");
+    w.extend(data).expect("data");
+    w.finish().expect("finish");
+}
+
+fn edt(dir: &Path, backend: &str, out: &str, hide_adapters: bool) -> Output {
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_edtmap"));
+    cmd.arg("edt").arg(dir.join("in.npy")).arg(dir.join(out)).arg("--nearest").arg(dir.join(format!("idx-{out}"))).args(["--backend", backend]);
+    if hide_adapters {
+        cmd.env("WGPU_BACKEND", "metal");
+    }
+    cmd.output().expect("edtmap runs")
+}
+
+#[cfg(not(target_os = "macos"))]
+#[test]
+fn no_adapter_gpu_fails_clearly_and_auto_uses_the_cpu() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    write_grid(&dir.path().join("in.npy"));
+    let gpu = edt(dir.path(), "gpu", "gpu.npy", true);
+    let err = String::from_utf8_lossy(&gpu.stderr);
+    assert!(!gpu.status.success(), "--backend gpu without an adapter must fail");
+    assert!(err.contains("--backend gpu") && err.contains("no GPU adapter"), "unclear message: {err}");
+    assert!(!dir.path().join("gpu.npy").exists(), "no output on failure");
+    let auto = edt(dir.path(), "auto", "auto.npy", true);
+    assert!(auto.status.success(), "auto falls back: {}", String::from_utf8_lossy(&auto.stderr));
+    assert!(String::from_utf8_lossy(&auto.stderr).contains("using the CPU"));
+    let cpu = edt(dir.path(), "cpu", "cpu.npy", true);
+    assert!(cpu.status.success());
+    assert_eq!(fs::read(dir.path().join("auto.npy")).expect("auto"), fs::read(dir.path().join("cpu.npy")).expect("cpu"));
+}
+
+#[test]
+fn gpu_gives_the_cpu_answers_when_an_adapter_exists() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    write_grid(&dir.path().join("in.npy"));
+    let gpu = edt(dir.path(), "gpu", "gpu.npy", false);
+    if !gpu.status.success() {
+        let err = String::from_utf8_lossy(&gpu.stderr);
+        assert!(std::env::var("EDTMAP_REQUIRE_GPU").map_or(true, |v| v != "1"), "EDTMAP_REQUIRE_GPU=1 but: {err}");
+        eprintln!("skipping: {err}");
+        return;
+    }
+    let cpu = edt(dir.path(), "cpu", "cpu.npy", false);
+    assert!(cpu.status.success());
+    for name in ["gpu.npy", "idx-gpu.npy"] {
+        let cpu_name = name.replace("gpu", "cpu");
+        assert_eq!(fs::read(dir.path().join(name)).expect("gpu"), fs::read(dir.path().join(cpu_name)).expect("cpu"), "{name}");
+    }
+}
