@@ -12,6 +12,7 @@ use edtmap_cpu::integrate::{IntegrateReport, Integrator, WaveCounts};
 use edtmap_cpu::occupancy::{fuse, read_states, OccupancyStage, OgmOptions};
 use edtmap_cpu::query::{self, Distance, PointState};
 use edtmap_cpu::CpuBackend;
+use edtmap_core::BatchEdt;
 use std::time::Instant;
 
 /// Everything a [`Mapper`] needs to know besides the sensor.
@@ -172,11 +173,16 @@ impl<B: Backend> Mapper<B> {
         let ogm_ms = ms_since(start);
         // §IV-B, Alg. 1: exact batch EDT of the local volume.
         let t = Instant::now();
-        self.batch_edt(&volume)?;
+        if let Err(e) = self.batch_edt(&volume) {
+            return Err(self.recover(&volume, e));
+        }
         let batch_edt_ms = ms_since(t);
         // §IV-C, Alg. 2 and 3: the batch EDT merged into the global EDT.
         let t = Instant::now();
-        let merged = self.integrate(&volume)?;
+        let merged = match self.integrate(&volume) {
+            Ok(merged) => merged,
+            Err(e) => return Err(self.recover(&volume, e)),
+        };
         let integrate_ms = ms_since(t);
         self.volume = Some(volume);
         let mapped_voxels = (self.map.occupancy.len() * edtmap_core::BLOCK_VOXELS).max(1);
@@ -197,19 +203,34 @@ impl<B: Backend> Mapper<B> {
         })
     }
 
+    /// After the backend failed (a lost GPU, say) with the frame's
+    /// occupancy already fused: finishes the frame's EDT stages on the CPU,
+    /// so the map stays whole, and returns the backend's error for the
+    /// caller to act on (switch backends, stop).
+    fn recover(&mut self, volume: &LocalVolume, failure: MapError) -> MapError {
+        if !matches!(failure, MapError::Backend(_)) {
+            return failure;
+        }
+        self.backend.map_changed();
+        let finished = window_edts(&mut CpuBackend::default(), &self.map, self.params.edt.unknown_as_occupied, volume, &mut self.local_mask, &mut self.local_edt, &mut self.global_batch)
+            .and_then(|()| {
+                let batch = self.global_batch.as_ref().map_or(&self.local_edt, |(_, f)| f);
+                let (edt, obstacles) = self.map.edt_and_obstacles();
+                Ok(self.integrator.integrate(edt, &obstacles, volume, batch)?)
+            });
+        match finished {
+            Ok(_) => {
+                self.volume = Some(*volume);
+                failure
+            }
+            Err(e) => e,
+        }
+    }
+
     /// The exact EDT of the window's obstacles into `local_edt` (and, when
     /// unknown voxels are obstacles locally, the one the global map needs).
     fn batch_edt(&mut self, volume: &LocalVolume) -> Result<(), MapError> {
-        let region = Region { origin: volume.origin.0, dims: volume.dims };
-        let mut obstacles = self.map.obstacles();
-        obstacles.unknown_as_occupied = self.params.edt.unknown_as_occupied;
-        fill_mask(&obstacles, &region, &mut self.local_mask)?;
-        self.backend.batch_edt(&self.local_mask, &mut self.local_edt)?;
-        if let Some((mask, field)) = &mut self.global_batch {
-            fill_mask(&self.map.obstacles(), &region, mask)?;
-            self.backend.batch_edt(mask, field)?;
-        }
-        Ok(())
+        window_edts(&mut self.backend, &self.map, self.params.edt.unknown_as_occupied, volume, &mut self.local_mask, &mut self.local_edt, &mut self.global_batch)
     }
 
     fn integrate(&mut self, volume: &LocalVolume) -> Result<IntegrateReport, MapError> {
@@ -333,6 +354,30 @@ impl<B: Backend> Mapper<B> {
     pub fn local_edt(&self) -> &EdtField {
         &self.local_edt
     }
+}
+
+/// The exact EDT of the window's obstacles into `local_edt` (and, when
+/// unknown voxels are obstacles locally, the one the global map needs,
+/// with unknown voxels free, into `global_batch`), on `backend`.
+fn window_edts<B: BatchEdt + ?Sized>(
+    backend: &mut B,
+    map: &GlobalMap,
+    unknown_as_occupied: bool,
+    volume: &LocalVolume,
+    local_mask: &mut Grid3<bool>,
+    local_edt: &mut EdtField,
+    global_batch: &mut Option<(Grid3<bool>, EdtField)>,
+) -> Result<(), MapError> {
+    let region = Region { origin: volume.origin.0, dims: volume.dims };
+    let mut obstacles = map.obstacles();
+    obstacles.unknown_as_occupied = unknown_as_occupied;
+    fill_mask(&obstacles, &region, local_mask)?;
+    backend.batch_edt(local_mask, local_edt)?;
+    if let Some((mask, field)) = global_batch {
+        fill_mask(&map.obstacles(), &region, mask)?;
+        backend.batch_edt(mask, field)?;
+    }
+    Ok(())
 }
 
 fn ms_since(t: Instant) -> f64 {

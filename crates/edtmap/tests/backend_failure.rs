@@ -1,0 +1,62 @@
+//! A backend that fails mid-frame (a GPU lost after the frame's occupancy
+//! was fused): the frame returns the backend's error, the mapper finishes
+//! the frame on the CPU so the map stays whole, and mapping goes on.
+
+use edtmap::config::Config;
+use edtmap::cpu::CpuBackend;
+use edtmap::{Backend, BackendError, BatchEdt, EdtField, Grid3, MapError, Mapper};
+use edtmap_sim::{Scene, SceneName, SceneOptions};
+use std::path::PathBuf;
+
+/// The CPU, but its `fail_at`-th batch EDT fails as a lost device would.
+struct Flaky {
+    cpu: CpuBackend,
+    calls: usize,
+    fail_at: usize,
+}
+
+impl BatchEdt for Flaky {
+    fn batch_edt(&mut self, mask: &Grid3<bool>, out: &mut EdtField) -> Result<(), BackendError> {
+        self.calls += 1;
+        if self.calls == self.fail_at {
+            // What a lost device leaves: garbage, then an error.
+            out.prepare(mask.dims())?.0.fill(7);
+            return Err(BackendError::DeviceLost("simulated".into()));
+        }
+        self.cpu.batch_edt(mask, out)
+    }
+}
+
+impl Backend for Flaky {
+    fn name(&self) -> String {
+        "flaky".into()
+    }
+}
+
+#[test]
+fn a_backend_failure_returns_the_error_and_keeps_the_map_whole() {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../configs/uav_pillars.toml");
+    let (sensor, params) = Config::load(&path).expect("config").mapper_params().expect("valid");
+    let scene = Scene::new(SceneName::UavPillars, &SceneOptions::default()).expect("scene");
+    let mut reference = Mapper::new(sensor.clone(), params.clone()).expect("cpu mapper");
+    let flaky = Flaky { cpu: CpuBackend::default(), calls: 0, fail_at: 3 };
+    let mut mapper = Mapper::new_on(flaky, sensor.clone(), params).expect("flaky mapper");
+    for i in 0..5 {
+        let frame = scene.frame(&sensor, i * 3).expect("frame");
+        reference.integrate_frame(&frame).expect("reference frame");
+        match mapper.integrate_frame(&frame) {
+            Ok(_) => assert_ne!(i, 2, "frame 2 must report the failure"),
+            Err(MapError::Backend(BackendError::DeviceLost(why))) => {
+                assert_eq!(i, 2);
+                assert_eq!(why, "simulated");
+            }
+            Err(e) => panic!("unexpected error {e}"),
+        }
+        assert!(mapper.local_edt() == reference.local_edt(), "frame {i}: local EDT");
+        let (a, b) = (mapper.map(), reference.map());
+        assert_eq!(a.edt.len(), b.edt.len(), "frame {i}");
+        for (key, block) in b.edt.iter() {
+            assert!(a.edt.get(key) == Some(block), "frame {i}: block {key:?}");
+        }
+    }
+}
