@@ -84,7 +84,7 @@ impl GpuContext {
 
     /// Refuses a storage buffer of `bytes` over the device's limits.
     pub(crate) fn check_buffer(&self, what: &'static str, bytes: u64) -> Result<(), BackendError> {
-        let limit = self.limits.max_buffer_size.min(u64::from(self.limits.max_storage_buffer_binding_size));
+        let limit = self.limits.max_buffer_size.min(self.limits.max_storage_buffer_binding_size);
         if bytes > limit {
             return Err(BackendError::OverLimit { what, needed: bytes, limit });
         }
