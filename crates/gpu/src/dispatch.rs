@@ -71,6 +71,17 @@ impl Kernel {
     }
 }
 
+/// A uniform buffer binding visible to compute shaders; `dynamic` for a
+/// dynamic offset into a buffer of several parameter slots.
+pub(crate) fn uniform_entry(binding: u32, dynamic: bool) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Uniform, has_dynamic_offset: dynamic, min_binding_size: None },
+        count: None,
+    }
+}
+
 /// A storage buffer binding visible to compute shaders.
 pub(crate) fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
     wgpu::BindGroupLayoutEntry {

@@ -61,16 +61,7 @@ impl GpuEdt {
             });
             let storage = |binding, read_only| crate::dispatch::storage_entry(binding, read_only);
             let entries = [
-                wgpu::BindGroupLayoutEntry {
-                    binding: 0,
-                    visibility: wgpu::ShaderStages::COMPUTE,
-                    ty: wgpu::BindingType::Buffer {
-                        ty: wgpu::BufferBindingType::Uniform,
-                        has_dynamic_offset: true,
-                        min_binding_size: None,
-                    },
-                    count: None,
-                },
+                crate::dispatch::uniform_entry(0, true),
                 storage(1, true),
                 storage(2, true),
                 storage(3, false),

@@ -12,7 +12,7 @@
 //! itself, so an empty level costs almost nothing.
 
 use crate::context::GpuContext;
-use crate::dispatch::{groups_1d, storage_entry, Kernel};
+use crate::dispatch::{groups_1d, storage_entry, uniform_entry, Kernel};
 use edtmap_core::{BackendError, BlockKey, IntegrateReport, WaveCounts, WavefrontJob};
 use edtmap_cpu::integrate::region::{read_region_except, write_back_with, Packing, Region, FAR};
 
@@ -126,12 +126,7 @@ impl GpuIntegrator {
                 label: Some("integrate.wgsl"),
                 source: wgpu::ShaderSource::Wgsl(include_str!("integrate.wgsl").into()),
             });
-            let mut entries = vec![wgpu::BindGroupLayoutEntry {
-                binding: 0,
-                visibility: wgpu::ShaderStages::COMPUTE,
-                ty: wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Uniform, has_dynamic_offset: false, min_binding_size: None },
-                count: None,
-            }];
+            let mut entries = vec![uniform_entry(0, false)];
             entries.extend((1..=9).map(|b| storage_entry(b, b == 3)));
             let layout = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some("integrate"), entries: &entries });
             let args_layout = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {

@@ -3,7 +3,7 @@
 //! device walks them, the observation bits come back, one byte per voxel.
 
 use crate::context::GpuContext;
-use crate::dispatch::{groups_1d, storage_entry, Kernel};
+use crate::dispatch::{groups_1d, storage_entry, uniform_entry, Kernel};
 use edtmap_core::fixed_ray::{fixed_scale, FixedRay};
 use edtmap_core::BackendError;
 
@@ -50,15 +50,9 @@ impl GpuRaycast {
                 label: Some("raycast.wgsl"),
                 source: wgpu::ShaderSource::Wgsl(include_str!("raycast.wgsl").into()),
             });
-            let uniform = wgpu::BindGroupLayoutEntry {
-                binding: 0,
-                visibility: wgpu::ShaderStages::COMPUTE,
-                ty: wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Uniform, has_dynamic_offset: false, min_binding_size: None },
-                count: None,
-            };
             let layout = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
                 label: Some("raycast"),
-                entries: &[uniform, storage_entry(1, true), storage_entry(2, false)],
+                entries: &[uniform_entry(0, false), storage_entry(1, true), storage_entry(2, false)],
             });
             let params = dev.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("raycast params"),

@@ -3,21 +3,11 @@
 //! EDTs must hold the same blocks with the same squared distances and
 //! nearest obstacles, and the GPU's must pass the brute-force checks.
 
+mod common;
+
 use edtmap_core::{Backend, BatchEdt, Connectivity, EdtField, EdtMap, GlobalParams, IntegrationMode, WavefrontJob};
 use edtmap_cpu::integrate::Integrator;
-use edtmap_gpu::GpuBackend;
 use edtmap_sim::conformance::IntegrationWorld;
-
-fn backend() -> Option<GpuBackend> {
-    match GpuBackend::new() {
-        Ok(b) => Some(b),
-        Err(e) if std::env::var("EDTMAP_REQUIRE_GPU").is_ok_and(|v| v == "1") => panic!("EDTMAP_REQUIRE_GPU=1 but {e}"),
-        Err(e) => {
-            eprintln!("skipping GPU integration: {e}");
-            None
-        }
-    }
-}
 
 /// Sorted (key, block) pairs of `map`, for an exact comparison.
 fn blocks(map: &EdtMap) -> Vec<(edtmap_core::BlockKey, edtmap_core::EdtBlock)> {
@@ -28,7 +18,7 @@ fn blocks(map: &EdtMap) -> Vec<(edtmap_core::BlockKey, edtmap_core::EdtBlock)> {
 
 #[test]
 fn wavefront_integration_is_bit_identical_to_the_cpu() {
-    let Some(mut gpu) = backend() else { return };
+    let Some(mut gpu) = common::gpu_or_skip("GPU integration") else { return };
     let conns = [Connectivity::Six, Connectivity::Eighteen, Connectivity::TwentySix];
     let mut cases = 0;
     for seed in 0..12u64 {

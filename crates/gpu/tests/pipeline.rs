@@ -3,6 +3,8 @@
 //! the local batch EDT (squared distances and nearest obstacles), the
 //! global occupancy map and the global EDT must all be identical.
 
+mod common;
+
 use edtmap::config::Config;
 use edtmap::cpu::occupancy::Construction;
 use edtmap::sensor::Sensor;
@@ -10,17 +12,6 @@ use edtmap::{Backend, GlobalMap, Mapper, MapperParams};
 use edtmap_gpu::GpuBackend;
 use edtmap_sim::{Scene, SceneName, SceneOptions};
 use std::path::PathBuf;
-
-fn gpu() -> Option<GpuBackend> {
-    match GpuBackend::new() {
-        Ok(b) => Some(b),
-        Err(e) if std::env::var("EDTMAP_REQUIRE_GPU").is_ok_and(|v| v == "1") => panic!("EDTMAP_REQUIRE_GPU=1 but {e}"),
-        Err(e) => {
-            eprintln!("skipping the GPU pipeline: {e}");
-            None
-        }
-    }
-}
 
 fn setup(scene: &str) -> (Scene, Sensor, MapperParams) {
     let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(format!("../../configs/{scene}.toml"));
@@ -61,7 +52,7 @@ fn compare(scene_name: &str, construction: Construction, frames: usize, backend:
 
 #[test]
 fn every_scene_is_bit_identical_on_both_backends() {
-    let Some(mut backend) = gpu() else { return };
+    let Some(mut backend) = common::gpu_or_skip("the GPU pipeline") else { return };
     eprintln!("device: {}", backend.name());
     for scene in ["uav_pillars", "ugv_corridor", "room", "planar"] {
         for construction in [Construction::RayCasting, Construction::Auto] {
