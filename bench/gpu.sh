@@ -22,12 +22,14 @@
 #      the device's limits) shows as "not run", with the error under the
 #      table; the script goes on.
 #   4. Scenes: `edtmap run --scene S --frames F --backend B` for every scene
-#      and backend; one table per scene with the median per-frame stage times
-#      (ogm, batch_edt, integrate, total) from report.json. Stages that have
-#      no GPU implementation yet run on the CPU inside a gpu run; the table
-#      reports what each stage took.
-#   5. Checks that the maps saved (--save) by the cpu and gpu runs of
-#      uav_pillars are byte-identical (cmp): prints "maps identical" or fails.
+#      and backend, then uav_pillars at --voxel-size 0.05 (the 10 x 10 x 3 m
+#      window at 0.05 m: 200 x 200 x 60 voxels, the issue's full-update
+#      target) with a third of the frames; one table per run with the median
+#      per-frame stage times (ogm, batch_edt, integrate, total) from
+#      report.json. Stages the GPU backend leaves to the CPU (fusion,
+#      spinning-LiDAR projection) run on the CPU inside a gpu run.
+#   5. Checks that the maps saved (--save) by the cpu and gpu runs of every
+#      run are byte-identical (cmp): prints "maps identical" or fails.
 # Grids, reports and maps land in bench/out/gpu/.
 #
 # Needs: bash, cargo, python3. Exit status 1 when a run fails or the maps
@@ -130,17 +132,24 @@ done
 for note in "${notes[@]+"${notes[@]}"}"; do echo; echo "($note)"; done
 echo
 
-# 2. Built-in scenes end to end.
-for s in "${scenes[@]}"; do
-    echo "### $s, $frames frames (edtmap run --scene $s --frames $frames): median ms per frame"
+# 2. Built-in scenes end to end, then the issue's full-update target: the
+#    10 x 10 x 3 m window at 0.05 m (uav_pillars at --voxel-size 0.05,
+#    200 x 200 x 60 voxels), fewer frames.
+runs=("${scenes[@]}" "uav_pillars@0.05")
+mismatch=0
+for run in "${runs[@]}"; do
+    s=${run%@*}
+    extra=(); f=$frames; tag=$s
+    if [ "$run" != "$s" ]; then
+        extra=(--voxel-size "${run#*@}"); f=$(( frames / 3 > 5 ? frames / 3 : 5 )); tag="${s}_${run#*@}"
+    fi
+    echo "### $s${extra[1]+ at ${extra[1]} m}, $f frames (edtmap run --scene $s ${extra[*]+"${extra[*]} "}--frames $f): median ms per frame"
     echo
     echo "| backend (device) | local volume | ogm | batch_edt | integrate | total |"
     echo "|---|---|---|---|---|---|"
     for b in "${backends[@]}"; do
-        dir="$out/run_${s}_$b"
-        save=()
-        [ "$s" = uav_pillars ] && save=(--save "$out/map_$b.edtmap")
-        "$edtmap" run --scene "$s" --frames "$frames" --backend "$b" --out "$dir" "${save[@]+"${save[@]}"}" >/dev/null 2>"$dir.log" ||
+        dir="$out/run_${tag}_$b"
+        "$edtmap" run --scene "$s" "${extra[@]+"${extra[@]}"}" --frames "$f" --backend "$b" --out "$dir" --save "$out/map_${tag}_$b.edtmap" >/dev/null 2>"$dir.log" ||
             { echo "edtmap run --scene $s --backend $b failed:" >&2; cat "$dir.log" >&2; exit 1; }
         python3 - "$dir/report.json" <<'PY'
 import json, sys
@@ -152,18 +161,18 @@ print(f"| {r['backend']} | {dims} at {r['voxel_size_m']} m | {stages} |")
 PY
     done
     echo
-done
-
-# 3. Same map from every backend.
-if [ "${#backends[@]}" -gt 1 ]; then
-    if cmp "$out/map_cpu.edtmap" "$out/map_gpu.edtmap"; then
-        echo "maps identical (uav_pillars, $frames frames, cpu and gpu --save)"
-    else
-        echo "maps differ: $out/map_cpu.edtmap and $out/map_gpu.edtmap" >&2
-        exit 1
+    # 3. The same map from every backend.
+    if [ "${#backends[@]}" -gt 1 ]; then
+        if cmp -s "$out/map_${tag}_cpu.edtmap" "$out/map_${tag}_gpu.edtmap"; then
+            echo "maps identical ($tag, cpu and gpu --save)"
+        else
+            echo "MAPS DIFFER: $out/map_${tag}_cpu.edtmap and $out/map_${tag}_gpu.edtmap" >&2
+            mismatch=1
+        fi
+        echo
     fi
-else
-    echo "(one backend only: no map comparison)"
-fi
+done
+[ "${#backends[@]}" -gt 1 ] || echo "(one backend only: no map comparison)"
+[ "$mismatch" = 0 ] || exit 1
 echo
 echo "total runtime $((SECONDS - start)) s (build included)"
