@@ -12,6 +12,7 @@
 //! by brute force.
 
 use crate::fixed_ray::FixedRay;
+use crate::projection::ProjectJob;
 use crate::{BlockKey, CoreError, Cutoff, EdtField, EdtMap, Grid3, LocalVolume};
 
 /// Errors a backend can raise besides those of the data it is given.
@@ -71,6 +72,17 @@ pub trait Backend: BatchEdt {
     /// (the CPU's integrator, fixed obstacles laid down, another map), so
     /// whatever it holds of it is stale.
     fn map_changed(&mut self) {}
+
+    /// Volumetric projection (paper §IV-A) of every voxel of `job.volume`
+    /// into `bits`, one byte per voxel (linear order): [`crate::PROJ_MISS`]
+    /// where [`ProjectJob::is_miss`] holds, [`crate::PROJ_NOT_MISS`] where
+    /// it does not, [`crate::PROJ_UNCERTAIN`] where the backend cannot be
+    /// sure (the host then decides). Hits are left to the host. `Ok(false)`
+    /// leaves the whole projection to the CPU (the default).
+    fn project_volume(&mut self, job: ProjectJob<'_>, bits: &mut Vec<u8>) -> Result<bool, BackendError> {
+        let _ = (job, bits);
+        Ok(false)
+    }
 
     /// The wavefront integration of one frame (paper §IV-C, Algorithms 2
     /// and 3): merges `batch`, the batch EDT of `window`, into `map`.
@@ -153,5 +165,9 @@ impl<B: Backend + ?Sized> Backend for Box<B> {
 
     fn map_changed(&mut self) {
         (**self).map_changed()
+    }
+
+    fn project_volume(&mut self, job: ProjectJob<'_>, bits: &mut Vec<u8>) -> Result<bool, BackendError> {
+        (**self).project_volume(job, bits)
     }
 }

@@ -13,15 +13,17 @@ mod context;
 mod dispatch;
 mod edt;
 mod integrate;
+mod project;
 mod raycast;
 
 pub use context::GpuContext;
 pub use edt::GpuEdt;
 pub use integrate::GpuIntegrator;
+pub use project::GpuProject;
 pub use raycast::GpuRaycast;
 
 use edtmap_core::fixed_ray::FixedRay;
-use edtmap_core::{Backend, BackendError, BatchEdt, EdtField, Grid3, IntegrateReport, WavefrontJob};
+use edtmap_core::{Backend, BackendError, BatchEdt, EdtField, Grid3, IntegrateReport, ProjectJob, WavefrontJob};
 
 /// The GPU as a [`Backend`] of the mapper: one device, kernels compiled
 /// once, buffers reused across frames.
@@ -31,6 +33,7 @@ pub struct GpuBackend {
     edt: GpuEdt,
     integrator: GpuIntegrator,
     raycast: GpuRaycast,
+    project: GpuProject,
 }
 
 impl GpuBackend {
@@ -41,7 +44,8 @@ impl GpuBackend {
         let edt = GpuEdt::new(&ctx)?;
         let integrator = GpuIntegrator::new(&ctx)?;
         let raycast = GpuRaycast::new(&ctx)?;
-        Ok(GpuBackend { ctx, edt, integrator, raycast })
+        let project = GpuProject::new(&ctx)?;
+        Ok(GpuBackend { ctx, edt, integrator, raycast, project })
     }
 
     /// The device in use.
@@ -71,5 +75,9 @@ impl Backend for GpuBackend {
 
     fn cast_rays(&mut self, rays: &[FixedRay], q: u32, dims: [usize; 3], bits: &mut Vec<u8>) -> Result<bool, BackendError> {
         self.raycast.run(rays, q, dims, bits)
+    }
+
+    fn project_volume(&mut self, job: ProjectJob<'_>, bits: &mut Vec<u8>) -> Result<bool, BackendError> {
+        self.project.run(&job, bits)
     }
 }

@@ -3,6 +3,10 @@
 //! check compares a backend's integer results with an independent oracle,
 //! bit for bit, so backends that pass agree with each other exactly.
 
+mod projection;
+
+pub use projection::{check_projection, projection_cases, ProjectionCase, ProjectionTally};
+
 use crate::random_grid;
 use edtmap_core::fixed_ray::{fixed_scale, setup_ray, walk, FixedRay, NO_HIT};
 use edtmap_core::{Backend, OBS_HIT, OBS_MISS};

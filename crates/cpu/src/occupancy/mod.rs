@@ -14,7 +14,7 @@ mod raycast;
 pub use dda::{traverse, Walk};
 pub use fuse::{fuse, read_states, FuseReport};
 pub use observe::Observations;
-pub use project::project_volume;
+pub use project::{decide_uncertain, project_job, project_volume, scatter_returns};
 pub use raycast::{cast_fixed, cast_rays, prepare_rays};
 
 use crate::CpuError;
@@ -83,7 +83,8 @@ impl OccupancyStage {
         self.observe_on(&mut crate::CpuBackend::default(), sensor, frame, volume, opts)
     }
 
-    /// [`Self::observe`], with the rays cast by `backend` when it can.
+    /// [`Self::observe`], with the rays cast or the volume projected by
+    /// `backend` when it can.
     pub fn observe_on<B: edtmap_core::Backend + ?Sized>(
         &mut self,
         backend: &mut B,
@@ -104,7 +105,14 @@ impl OccupancyStage {
             Construction::Projection => return Err(CpuError::Unsupported(format!("volumetric projection of a {} from a {}", frame.measurement.kind(), sensor.kind()))),
         };
         if project {
-            project_volume(obs, sensor, frame, opts, &mut self.rays);
+            let job = project_job(sensor, frame, volume, opts);
+            if backend.project_volume(job, &mut self.bits)? {
+                decide_uncertain(&job, &mut self.bits);
+                obs.load_bits(&self.bits);
+                scatter_returns(obs, sensor, frame, &mut self.rays);
+            } else {
+                project_volume(obs, sensor, frame, opts, &mut self.rays);
+            }
         } else {
             sensor.rays(&frame.measurement, opts.clear_no_return, &mut self.rays);
             let q = prepare_rays(obs.volume(), &frame.t_world_sensor, &self.rays, opts.free_margin_m, &mut self.fixed_rays)?;

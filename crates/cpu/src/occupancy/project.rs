@@ -12,43 +12,70 @@
 //! a voxel of its centre (a LiDAR's rings are sparse: the nearest ring may
 //! pass well above or below a voxel), and unseen otherwise. Voxel updates
 //! are `fetch_or`s of bits, so the result is deterministic.
+//!
+//! A voxel's decision is `edtmap_core::ProjectJob::is_miss`, a pure
+//! function of the frame and the voxel (no rounding carried along a row),
+//! so a backend can take it over: [`Backend::project_volume`] decides the
+//! voxels it is sure of and [`decide_uncertain`] the rest, on the host.
+//!
+//! [`Backend::project_volume`]: edtmap_core::Backend::project_volume
 
 use super::{Observations, OgmOptions};
-use edtmap_core::sensor::{Frame, Projection, Sensor, SensorRay};
-use edtmap_core::{OBS_HIT, OBS_MISS};
+use edtmap_core::sensor::{Frame, Sensor, SensorRay};
+use edtmap_core::{ProjectJob, OBS_HIT, OBS_MISS, PROJ_UNCERTAIN};
 use nalgebra::Vector3;
 use rayon::prelude::*;
 
 /// Projects every voxel centre of `obs`'s volume into `frame`; `rays` is a
-/// scratch buffer for the returns.
+/// scratch buffer for the returns. Each voxel is decided by
+/// [`ProjectJob::is_miss`], the definition every backend follows.
 pub fn project_volume(obs: &Observations, sensor: &Sensor, frame: &Frame, opts: &OgmOptions, rays: &mut Vec<SensorRay>) {
     scatter_returns(obs, sensor, frame, rays);
-    let vol = *obs.volume();
-    let [nx, ny, nz] = vol.dims;
-    let vs = vol.voxel_size_m;
-    let inv = frame.t_world_sensor.inverse();
-    let step_x = inv.rotation * Vector3::new(vs, 0.0, 0.0);
-    let corner = Vector3::from(vol.min_corner_m());
-    let half_voxel = (vs / 2.0) as f32;
-    let planar = matches!(sensor, Sensor::Planar);
-    (0..nz).into_par_iter().for_each(|z| {
-        for y in 0..ny {
-            let first = corner + Vector3::new(0.5 * vs, (y as f64 + 0.5) * vs, (z as f64 + 0.5) * vs);
-            let mut p = inv.transform_point(&first.into()).coords;
-            for x in 0..nx {
-                let ps = [p.x as f32, p.y as f32, p.z as f32];
-                let in_plane = !planar || ps[2].abs() <= opts.planar_half_thickness_m;
-                if in_plane && is_free(sensor.project(&frame.measurement, ps), opts) && sensor.beam_passes_within(ps, half_voxel) {
-                    obs.mark([x, y, z], x + nx * (y + ny * z), OBS_MISS);
-                }
-                p += step_x;
+    let job = project_job(sensor, frame, *obs.volume(), opts);
+    let geom = job.voxel_to_sensor();
+    let [nx, ny, nz] = job.volume.dims;
+    (0..ny * nz).into_par_iter().with_min_len(8).for_each(|row| {
+        let (y, z) = (row % ny, row / ny);
+        for x in 0..nx {
+            if job.is_miss(&geom, [x, y, z]) {
+                obs.mark([x, y, z], x + nx * row, OBS_MISS);
             }
         }
     });
 }
 
+/// The projection of `frame` over `volume` as a backend receives it.
+pub fn project_job<'a>(sensor: &'a Sensor, frame: &'a Frame, volume: edtmap_core::LocalVolume, opts: &OgmOptions) -> ProjectJob<'a> {
+    ProjectJob {
+        sensor,
+        measurement: &frame.measurement,
+        t_world_sensor: &frame.t_world_sensor,
+        volume,
+        free_margin_m: opts.free_margin_m,
+        clear_no_return: opts.clear_no_return,
+        planar_half_thickness_m: opts.planar_half_thickness_m,
+    }
+}
+
+/// Decides every voxel a backend left [`PROJ_UNCERTAIN`] in `bits` (one
+/// byte per voxel of `job.volume`) with [`ProjectJob::is_miss`], leaving
+/// only `OBS_MISS` or nothing; returns how many there were.
+pub fn decide_uncertain(job: &ProjectJob<'_>, bits: &mut [u8]) -> usize {
+    let geom = job.voxel_to_sensor();
+    let [nx, ny, _] = job.volume.dims;
+    bits.par_chunks_mut(nx).enumerate().map(|(row, line)| {
+        let (y, z) = (row % ny, row / ny);
+        let mut n = 0;
+        for (x, b) in line.iter_mut().enumerate().filter(|(_, b)| **b == PROJ_UNCERTAIN) {
+            *b = if job.is_miss(&geom, [x, y, z]) { OBS_MISS } else { 0 };
+            n += 1;
+        }
+        n
+    }).sum()
+}
+
 /// Marks the voxel of every return as a hit.
-fn scatter_returns(obs: &Observations, sensor: &Sensor, frame: &Frame, rays: &mut Vec<SensorRay>) {
+pub fn scatter_returns(obs: &Observations, sensor: &Sensor, frame: &Frame, rays: &mut Vec<SensorRay>) {
     sensor.rays(&frame.measurement, false, rays);
     let vol = *obs.volume();
     let pose = frame.t_world_sensor;
@@ -60,14 +87,4 @@ fn scatter_returns(obs: &Observations, sensor: &Sensor, frame: &Frame, rays: &mu
             obs.mark(c, vol.linear(c), OBS_HIT);
         }
     });
-}
-
-/// Whether the measurement shows the voxel as free space.
-#[inline]
-fn is_free(p: Projection, opts: &OgmOptions) -> bool {
-    match p {
-        Projection::Return { point_m, measured_m } => point_m < measured_m - opts.free_margin_m,
-        Projection::NoReturn { point_m, max_m } => opts.clear_no_return && point_m < max_m,
-        Projection::Unseen => false,
-    }
 }

@@ -1,0 +1,132 @@
+//! Volumetric projection's decision for one voxel, shared by every backend.
+//!
+//! Projection (paper §IV-A) asks, for every voxel of the local volume,
+//! whether the measurement shows it as free space (a *miss*). Floats cannot
+//! be made bit-identical across devices (a GPU's division is not correctly
+//! rounded, drivers may fuse multiply-adds), so the decision is defined
+//! once, here, as a pure function of the job and the voxel's coordinates
+//! ([`ProjectJob::is_miss`]): no state carried along a row, so no rounding
+//! that depends on the loop. The voxel centre is taken relative to the
+//! volume's lowest corner and the sensor origin relative to that corner, in
+//! `f64` (small numbers, whatever the map's extent), rotated into the
+//! sensor frame and rounded to `f32` for the sensor model.
+//!
+//! A backend that projects with its own floats (the GPU's `project.wgsl`)
+//! decides only the voxels whose quantities lie safely away from every
+//! threshold and marks the others [`PROJ_UNCERTAIN`]; the host decides
+//! those with this function, so the result is this function's, bit for bit.
+
+use crate::sensor::{Measurement, Projection, RangeLimits, Sensor};
+use crate::LocalVolume;
+use nalgebra::Isometry3;
+
+/// [`crate::Backend::project_volume`]'s byte for a voxel that is not a miss.
+pub const PROJ_NOT_MISS: u8 = 0;
+/// [`crate::Backend::project_volume`]'s byte for a miss (equal to
+/// [`crate::OBS_MISS`]).
+pub const PROJ_MISS: u8 = crate::OBS_MISS;
+/// [`crate::Backend::project_volume`]'s byte for a voxel the backend could
+/// not decide with certainty: the host decides it with
+/// [`ProjectJob::is_miss`].
+pub const PROJ_UNCERTAIN: u8 = 2;
+
+/// One frame's volumetric projection, as [`crate::Backend::project_volume`]
+/// receives it: everything the per-voxel decision depends on.
+#[derive(Debug, Clone, Copy)]
+pub struct ProjectJob<'a> {
+    /// The sensor model.
+    pub sensor: &'a Sensor,
+    /// Its measurement (checked against `sensor`).
+    pub measurement: &'a Measurement,
+    /// Pose of the sensor in the world, `T_world_sensor`.
+    pub t_world_sensor: &'a Isometry3<f64>,
+    /// The local volume whose voxels are decided.
+    pub volume: LocalVolume,
+    /// A voxel is free only if it lies more than this in front of the
+    /// return, metres.
+    pub free_margin_m: f32,
+    /// Whether a beam with no return clears space up to the maximum range.
+    pub clear_no_return: bool,
+    /// Planar scans: voxels within this height of the scan plane are
+    /// observed, metres.
+    pub planar_half_thickness_m: f32,
+}
+
+/// The transform of voxel centres into the sensor frame, in volume-local
+/// `f64` coordinates.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct VoxelToSensor {
+    /// Rotation sensor ← world, row-major.
+    pub rot: [[f64; 3]; 3],
+    /// The sensor's origin relative to the volume's lowest corner, metres.
+    pub origin_m: [f64; 3],
+    /// Voxel edge length, metres.
+    pub voxel_size_m: f64,
+}
+
+impl VoxelToSensor {
+    /// The transform for a sensor at `t_world_sensor` over `volume`.
+    pub fn new(t_world_sensor: &Isometry3<f64>, volume: &LocalVolume) -> Self {
+        let m = t_world_sensor.rotation.inverse().to_rotation_matrix().into_inner();
+        let corner = volume.min_corner_m();
+        let t = t_world_sensor.translation.vector;
+        VoxelToSensor {
+            rot: [0, 1, 2].map(|r| [m[(r, 0)], m[(r, 1)], m[(r, 2)]]),
+            origin_m: [0, 1, 2].map(|k| t[k] - corner[k]),
+            voxel_size_m: volume.voxel_size_m,
+        }
+    }
+
+    /// The centre of voxel `c` (local coordinates) in the sensor frame,
+    /// metres: `R ((c + ½) s − o)` in `f64`, rounded to `f32`.
+    #[inline]
+    pub fn point(&self, c: [usize; 3]) -> [f32; 3] {
+        let s = self.voxel_size_m;
+        let d = [0, 1, 2].map(|k| (c[k] as f64 + 0.5) * s - self.origin_m[k]);
+        self.rot.map(|r| (r[0] * d[0] + r[1] * d[1] + r[2] * d[2]) as f32)
+    }
+}
+
+impl ProjectJob<'_> {
+    /// The transform of this job's voxel centres into the sensor frame.
+    pub fn voxel_to_sensor(&self) -> VoxelToSensor {
+        VoxelToSensor::new(self.t_world_sensor, &self.volume)
+    }
+
+    /// Whether voxel `c` (local coordinates) is a miss: its centre `p` (see
+    /// [`VoxelToSensor::point`]) is within the planar scan's thickness (planar
+    /// scans only), the beam or pixel it projects to returns more than
+    /// `free_margin_m` beyond it (or has no return, with
+    /// `clear_no_return`, and `p` is within the maximum range), and a beam
+    /// passes within half a voxel of it.
+    #[inline]
+    pub fn is_miss(&self, geom: &VoxelToSensor, c: [usize; 3]) -> bool {
+        let p = geom.point(c);
+        let in_plane = !matches!(self.sensor, Sensor::Planar) || p[2].abs() <= self.planar_half_thickness_m;
+        let half_voxel = (geom.voxel_size_m / 2.0) as f32;
+        in_plane && self.is_free(self.sensor.project(self.measurement, p)) && self.sensor.beam_passes_within(p, half_voxel)
+    }
+
+    /// The range below which a point projecting to a beam or pixel that
+    /// measured `measured_m` (valid within `range`) is free, compared with
+    /// `<`, as [`Self::is_miss`] decides it; `f32::MIN` where nothing is.
+    #[inline]
+    pub fn free_below_m(&self, measured_m: f32, range: &RangeLimits) -> f32 {
+        if range.accepts(measured_m) {
+            measured_m - self.free_margin_m
+        } else if self.clear_no_return {
+            range.max_m
+        } else {
+            f32::MIN
+        }
+    }
+
+    #[inline]
+    fn is_free(&self, p: Projection) -> bool {
+        match p {
+            Projection::Return { point_m, measured_m } => point_m < measured_m - self.free_margin_m,
+            Projection::NoReturn { point_m, max_m } => self.clear_no_return && point_m < max_m,
+            Projection::Unseen => false,
+        }
+    }
+}

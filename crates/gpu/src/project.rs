@@ -1,0 +1,210 @@
+//! Volumetric projection on the GPU (`project.wgsl`): every voxel decided
+//! in `f32` with a bound on its distance from the CPU's decision
+//! (`edtmap_core::ProjectJob::is_miss`); the voxels near a threshold come
+//! back uncertain and the host decides them, so the result is the CPU's,
+//! bit for bit.
+//!
+//! The host prepares what would cost the device precision: the sensor's
+//! origin relative to the volume split into an integer voxel offset and a
+//! fraction (so the device's coordinates are small and exact where they
+//! can be), the rotation, and per pixel or beam the range below which a
+//! point is free (`ProjectJob::free_below_m`, the CPU's own `f32`
+//! subtraction). Depth cameras and planar scans run here; LiDAR range
+//! images are left to the CPU.
+
+use crate::context::GpuContext;
+use crate::dispatch::{groups_1d, storage_entry, Kernel};
+use edtmap_core::sensor::{Measurement, Sensor};
+use edtmap_core::{BackendError, ProjectJob};
+use std::f64::consts::TAU;
+
+/// Uniform parameters (`Params` in the shader).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default, bytemuck::Pod, bytemuck::Zeroable)]
+struct Params {
+    dims: [u32; 4],
+    base: [i32; 4],
+    frac: [f32; 4],
+    rot: [[f32; 4]; 3],
+    cam: [f32; 4],
+    img: [u32; 4],
+    scan: [f32; 4],
+    wrap: [i32; 4],
+    err: [f32; 4],
+}
+
+/// `Params::base[3]` of a depth camera and of a planar scan.
+const KIND_DEPTH: i32 = 0;
+const KIND_PLANAR: i32 = 1;
+
+/// Largest voxel offset the shader takes exactly (`x - n` in `f32`).
+const MAX_OFFSET: f64 = (1u32 << 22) as f64;
+
+/// Bound on the relative error of the host's `f64` arithmetic (a few
+/// roundings of 2⁻⁵³, with room to spare), applied to the magnitudes involved.
+const HOST_REL_ERR: f64 = 1.0 / (1u64 << 48) as f64;
+
+/// The projection kernel and its buffers, reused across frames.
+#[derive(Debug)]
+pub struct GpuProject {
+    ctx: GpuContext,
+    kernel: Kernel,
+    layout: wgpu::BindGroupLayout,
+    params: wgpu::Buffer,
+    /// Per pixel or beam: `ProjectJob::free_below_m`.
+    free_below: Vec<f32>,
+    bufs: Option<Buffers>,
+}
+
+#[derive(Debug)]
+struct Buffers {
+    beams: usize,
+    voxels: usize,
+    free_below: wgpu::Buffer,
+    out: wgpu::Buffer,
+    staging: wgpu::Buffer,
+    group: wgpu::BindGroup,
+}
+
+impl GpuProject {
+    /// Compiles the kernel once for `ctx`.
+    pub fn new(ctx: &GpuContext) -> Result<Self, BackendError> {
+        ctx.scoped(|| {
+            let dev = &ctx.device;
+            let module = dev.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some("project.wgsl"),
+                source: wgpu::ShaderSource::Wgsl(include_str!("project.wgsl").into()),
+            });
+            let uniform = wgpu::BindGroupLayoutEntry {
+                binding: 0,
+                visibility: wgpu::ShaderStages::COMPUTE,
+                ty: wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Uniform, has_dynamic_offset: false, min_binding_size: None },
+                count: None,
+            };
+            let layout = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some("project"),
+                entries: &[uniform, storage_entry(1, true), storage_entry(2, false)],
+            });
+            let params = dev.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("project params"),
+                size: std::mem::size_of::<Params>() as u64,
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            let kernel = Kernel::new(ctx, &module, &layout, "project");
+            GpuProject { ctx: ctx.clone(), kernel, layout, params, free_below: Vec::new(), bufs: None }
+        })
+    }
+
+    /// Decides every voxel of `job.volume` into `bits`, one byte per voxel
+    /// (see `Backend::project_volume`). `Ok(false)` for a LiDAR, or for
+    /// geometry beyond the shader's exact range (a sensor millions of
+    /// voxels away, a scan of more than 2²⁴ beams per turn).
+    pub fn run(&mut self, job: &ProjectJob<'_>, bits: &mut Vec<u8>) -> Result<bool, BackendError> {
+        let Some(params) = self.prepare(job) else { return Ok(false) };
+        let voxels = job.volume.len();
+        let words = voxels.div_ceil(4) as u64;
+        self.ensure_buffers(self.free_below.len(), voxels)?;
+        let bufs = self.bufs.as_ref().ok_or_else(|| BackendError::Device("buffers missing".into()))?;
+        self.ctx.scoped(|| {
+            let q = &self.ctx.queue;
+            q.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
+            q.write_buffer(&bufs.free_below, 0, bytemuck::cast_slice(&self.free_below));
+            let mut enc = self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("project") });
+            {
+                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("project"), timestamp_writes: None });
+                self.kernel.dispatch(&mut pass, &[&bufs.group], groups_1d(words));
+            }
+            enc.copy_buffer_to_buffer(&bufs.out, 0, &bufs.staging, 0, 4 * words);
+            q.submit([enc.finish()]);
+        })?;
+        bits.resize(voxels, 0);
+        self.ctx.read_back(&bufs.staging, 4 * words, |b| bits.copy_from_slice(&b[..voxels]))?;
+        Ok(true)
+    }
+
+    /// The shader's parameters for `job`, with `self.free_below` filled;
+    /// `None` where the shader does not apply.
+    fn prepare(&mut self, job: &ProjectJob<'_>) -> Option<Params> {
+        let geom = job.voxel_to_sensor();
+        let s = geom.voxel_size_m;
+        let dims = job.volume.dims;
+        let voxels = u32::try_from(job.volume.len()).ok()?;
+        let mut p = Params { dims: [dims[0] as u32, dims[1] as u32, dims[2] as u32, voxels], ..Params::default() };
+        let mut magnitude = 0.0;
+        for (k, &dim) in dims.iter().enumerate() {
+            // d / s = x + 1/2 - o / s = (x - n) - f, with n an integer.
+            let a = geom.origin_m[k] / s - 0.5;
+            let n = a.round();
+            let exact = n.abs() + (dim as f64) < MAX_OFFSET;
+            if !exact {
+                return None;
+            }
+            p.base[k] = n as i32;
+            p.frac[k] = (a - n) as f32;
+            p.rot[k] = [geom.rot[k][0] as f32, geom.rot[k][1] as f32, geom.rot[k][2] as f32, 0.0];
+            magnitude += dim as f64 * s + geom.origin_m[k].abs();
+        }
+        p.frac[3] = s as f32;
+        p.err[0] = (HOST_REL_ERR * magnitude) as f32;
+        self.free_below.clear();
+        match (job.sensor, job.measurement) {
+            (Sensor::Depth(cam), Measurement::Depth(img)) => {
+                p.base[3] = KIND_DEPTH;
+                p.cam = [cam.fx as f32, cam.fy as f32, cam.cx as f32, cam.cy as f32];
+                p.img = [img.width, img.height, 0, 0];
+                let pixels = img.width as usize * img.height as usize;
+                self.free_below.extend((0..pixels).map(|i| job.free_below_m(img.depth_m(i), &cam.range)));
+            }
+            (Sensor::Planar, Measurement::Scan(scan)) => {
+                p.base[3] = KIND_PLANAR;
+                let inc = scan.angle_increment_rad;
+                // LaserScan::beam wraps the indices i >= floor(turn) with
+                // |i - turn| < 1 to beam 0.
+                let turn = TAU / inc.abs();
+                let exact = turn < MAX_OFFSET && scan.ranges.len() < 1 << 24;
+                if !exact {
+                    return None;
+                }
+                let first = turn.floor();
+                let last = if (first + 1.0 - turn).abs() < 1.0 { first + 1.0 } else { first };
+                p.wrap = [first as i32, last as i32, 0, 0];
+                p.img = [0, 0, scan.ranges.len() as u32, 0];
+                let sign = if inc < 0.0 { -1.0 } else { 1.0 };
+                p.scan = [scan.angle_min_rad.rem_euclid(TAU) as f32, sign, inc.abs() as f32, job.planar_half_thickness_m];
+                p.err[1] = (HOST_REL_ERR * (scan.angle_min_rad.abs() + 4.0 * TAU)) as f32;
+                self.free_below.extend(scan.ranges.iter().map(|&d| job.free_below_m(d, &scan.range)));
+            }
+            _ => return None,
+        }
+        Some(p)
+    }
+
+    fn ensure_buffers(&mut self, beams: usize, voxels: usize) -> Result<(), BackendError> {
+        let beams = beams.max(1);
+        if self.bufs.as_ref().is_some_and(|b| b.beams >= beams && b.voxels >= voxels) {
+            return Ok(());
+        }
+        let (beams, voxels) = self.bufs.as_ref().map_or((beams, voxels), |b| (b.beams.max(beams), b.voxels.max(voxels)));
+        self.bufs = None;
+        let words = voxels.div_ceil(4).max(1) as u64;
+        self.ctx.check_buffer("the free ranges of the pixels or beams", 4 * beams as u64)?;
+        self.ctx.check_buffer("the projection bits", 4 * words)?;
+        let bufs = self.ctx.scoped(|| {
+            let dev = &self.ctx.device;
+            let buffer = |label, size: u64, usage| dev.create_buffer(&wgpu::BufferDescriptor { label: Some(label), size, usage, mapped_at_creation: false });
+            let free_below = buffer("project free ranges", 4 * beams as u64, wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST);
+            let out = buffer("project bits", 4 * words, wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC);
+            let staging = buffer("project staging", 4 * words, wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST);
+            let entries = [
+                wgpu::BindGroupEntry { binding: 0, resource: self.params.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 1, resource: free_below.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 2, resource: out.as_entire_binding() },
+            ];
+            let group = dev.create_bind_group(&wgpu::BindGroupDescriptor { label: Some("project"), layout: &self.layout, entries: &entries });
+            Buffers { beams, voxels, free_below, out, staging, group }
+        })?;
+        self.bufs = Some(bufs);
+        Ok(())
+    }
+}
