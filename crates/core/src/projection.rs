@@ -78,12 +78,28 @@ impl VoxelToSensor {
     }
 
     /// The centre of voxel `c` (local coordinates) in the sensor frame,
-    /// metres: `R ((c + ½) s − o)` in `f64`, rounded to `f32`.
+    /// metres: `R ((c + ½) s − o)` in `f64`, rounded to `f32`. Each row of
+    /// the product is `r₀ d₀ + (r₁ d₁ + r₂ d₂)`, so that a loop along x can
+    /// take the bracket from [`Self::row`] and still give these bits.
     #[inline]
     pub fn point(&self, c: [usize; 3]) -> [f32; 3] {
+        self.point_in_row(&self.row(c[1], c[2]), c[0])
+    }
+
+    /// The part of [`Self::point`] shared by the voxels of row `(y, z)`.
+    #[inline]
+    pub fn row(&self, y: usize, z: usize) -> [f64; 3] {
         let s = self.voxel_size_m;
-        let d = [0, 1, 2].map(|k| (c[k] as f64 + 0.5) * s - self.origin_m[k]);
-        self.rot.map(|r| (r[0] * d[0] + r[1] * d[1] + r[2] * d[2]) as f32)
+        let dy = (y as f64 + 0.5) * s - self.origin_m[1];
+        let dz = (z as f64 + 0.5) * s - self.origin_m[2];
+        self.rot.map(|r| r[1] * dy + r[2] * dz)
+    }
+
+    /// [`Self::point`] of voxel `x` of the row whose [`Self::row`] is `row`.
+    #[inline]
+    pub fn point_in_row(&self, row: &[f64; 3], x: usize) -> [f32; 3] {
+        let dx = (x as f64 + 0.5) * self.voxel_size_m - self.origin_m[0];
+        [0, 1, 2].map(|i| (self.rot[i][0] * dx + row[i]) as f32)
     }
 }
 
@@ -101,9 +117,15 @@ impl ProjectJob<'_> {
     /// passes within half a voxel of it.
     #[inline]
     pub fn is_miss(&self, geom: &VoxelToSensor, c: [usize; 3]) -> bool {
-        let p = geom.point(c);
+        self.is_miss_at(geom.point(c))
+    }
+
+    /// [`Self::is_miss`] of the voxel whose centre in the sensor frame is
+    /// `p` ([`VoxelToSensor::point`]).
+    #[inline]
+    pub fn is_miss_at(&self, p: [f32; 3]) -> bool {
         let in_plane = !matches!(self.sensor, Sensor::Planar) || p[2].abs() <= self.planar_half_thickness_m;
-        let half_voxel = (geom.voxel_size_m / 2.0) as f32;
+        let half_voxel = (self.volume.voxel_size_m / 2.0) as f32;
         in_plane && self.is_free(self.sensor.project(self.measurement, p)) && self.sensor.beam_passes_within(p, half_voxel)
     }
 

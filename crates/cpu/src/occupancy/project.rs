@@ -36,8 +36,9 @@ pub fn project_volume(obs: &Observations, sensor: &Sensor, frame: &Frame, opts: 
     let [nx, ny, nz] = job.volume.dims;
     (0..ny * nz).into_par_iter().with_min_len(8).for_each(|row| {
         let (y, z) = (row % ny, row / ny);
+        let shared = geom.row(y, z);
         for x in 0..nx {
-            if job.is_miss(&geom, [x, y, z]) {
+            if job.is_miss_at(geom.point_in_row(&shared, x)) {
                 obs.mark([x, y, z], x + nx * row, OBS_MISS);
             }
         }
