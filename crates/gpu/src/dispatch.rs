@@ -71,6 +71,32 @@ impl Kernel {
     }
 }
 
+/// A shader with one entry point over one bind group: a uniform parameter
+/// block at binding 0 (`params_bytes` long), a read-only input at 1 and an
+/// output at 2, the layout of the ray-casting and projection kernels.
+/// Returns the kernel, its layout and the parameter buffer.
+pub(crate) fn in_out_kernel(
+    ctx: &GpuContext,
+    file: &str,
+    source: &str,
+    entry: &str,
+    params_bytes: u64,
+) -> (Kernel, wgpu::BindGroupLayout, wgpu::Buffer) {
+    let dev = &ctx.device;
+    let module = dev.create_shader_module(wgpu::ShaderModuleDescriptor { label: Some(file), source: wgpu::ShaderSource::Wgsl(source.into()) });
+    let layout = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some(entry),
+        entries: &[uniform_entry(0, false), storage_entry(1, true), storage_entry(2, false)],
+    });
+    let params = dev.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(entry),
+        size: params_bytes,
+        usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    (Kernel::new(ctx, &module, &layout, entry), layout, params)
+}
+
 /// A uniform buffer binding visible to compute shaders; `dynamic` for a
 /// dynamic offset into a buffer of several parameter slots.
 pub(crate) fn uniform_entry(binding: u32, dynamic: bool) -> wgpu::BindGroupLayoutEntry {

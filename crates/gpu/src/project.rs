@@ -13,7 +13,7 @@
 //! images are left to the CPU.
 
 use crate::context::GpuContext;
-use crate::dispatch::{groups_1d, storage_entry, Kernel};
+use crate::dispatch::{groups_1d, in_out_kernel, Kernel};
 use edtmap_core::sensor::{Measurement, Sensor};
 use edtmap_core::{BackendError, ProjectJob};
 use std::f64::consts::TAU;
@@ -70,28 +70,7 @@ impl GpuProject {
     /// Compiles the kernel once for `ctx`.
     pub fn new(ctx: &GpuContext) -> Result<Self, BackendError> {
         ctx.scoped(|| {
-            let dev = &ctx.device;
-            let module = dev.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("project.wgsl"),
-                source: wgpu::ShaderSource::Wgsl(include_str!("project.wgsl").into()),
-            });
-            let uniform = wgpu::BindGroupLayoutEntry {
-                binding: 0,
-                visibility: wgpu::ShaderStages::COMPUTE,
-                ty: wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Uniform, has_dynamic_offset: false, min_binding_size: None },
-                count: None,
-            };
-            let layout = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                label: Some("project"),
-                entries: &[uniform, storage_entry(1, true), storage_entry(2, false)],
-            });
-            let params = dev.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("project params"),
-                size: std::mem::size_of::<Params>() as u64,
-                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            });
-            let kernel = Kernel::new(ctx, &module, &layout, "project");
+            let (kernel, layout, params) = in_out_kernel(ctx, "project.wgsl", include_str!("project.wgsl"), "project", std::mem::size_of::<Params>() as u64);
             GpuProject { ctx: ctx.clone(), kernel, layout, params, free_below: Vec::new(), bufs: None }
         })
     }

@@ -3,7 +3,7 @@
 //! device walks them, the observation bits come back, one byte per voxel.
 
 use crate::context::GpuContext;
-use crate::dispatch::{groups_1d, storage_entry, uniform_entry, Kernel};
+use crate::dispatch::{groups_1d, in_out_kernel, Kernel};
 use edtmap_core::fixed_ray::{fixed_scale, FixedRay};
 use edtmap_core::BackendError;
 
@@ -45,22 +45,7 @@ impl GpuRaycast {
     /// Compiles the kernel once for `ctx`.
     pub fn new(ctx: &GpuContext) -> Result<Self, BackendError> {
         ctx.scoped(|| {
-            let dev = &ctx.device;
-            let module = dev.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("raycast.wgsl"),
-                source: wgpu::ShaderSource::Wgsl(include_str!("raycast.wgsl").into()),
-            });
-            let layout = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                label: Some("raycast"),
-                entries: &[uniform_entry(0, false), storage_entry(1, true), storage_entry(2, false)],
-            });
-            let params = dev.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("raycast params"),
-                size: std::mem::size_of::<Params>() as u64,
-                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            });
-            let kernel = Kernel::new(ctx, &module, &layout, "cast_rays");
+            let (kernel, layout, params) = in_out_kernel(ctx, "raycast.wgsl", include_str!("raycast.wgsl"), "cast_rays", std::mem::size_of::<Params>() as u64);
             GpuRaycast { ctx: ctx.clone(), kernel, layout, params, bufs: None }
         })
     }

@@ -3,29 +3,18 @@
 //! say so and pass, unless `EDTMAP_REQUIRE_GPU=1` (CI sets it, with
 //! lavapipe installed), where a missing adapter fails them.
 
+mod common;
+
 use edtmap::config::Config;
 use edtmap::cpu::occupancy::{project_job, OccupancyStage};
 use edtmap_core::{Backend, LocalVolume, PROJ_UNCERTAIN};
-use edtmap_gpu::GpuBackend;
+use edtmap_sim::conformance::{check_batch_edt, check_projection, check_raycast};
 use edtmap_sim::{Scene, SceneName, SceneOptions};
 use std::path::PathBuf;
-use edtmap_sim::conformance::{check_batch_edt, check_projection, check_raycast};
-
-/// The backend, or None (and a note) where there is no adapter.
-fn backend() -> Option<GpuBackend> {
-    match GpuBackend::new() {
-        Ok(b) => Some(b),
-        Err(e) if std::env::var("EDTMAP_REQUIRE_GPU").is_ok_and(|v| v == "1") => panic!("EDTMAP_REQUIRE_GPU=1 but {e}"),
-        Err(e) => {
-            eprintln!("skipping GPU conformance: {e}");
-            None
-        }
-    }
-}
 
 #[test]
 fn batch_edt_matches_the_separable_oracle() {
-    let Some(mut gpu) = backend() else { return };
+    let Some(mut gpu) = common::gpu_or_skip("GPU conformance") else { return };
     eprintln!("device: {}", edtmap_core::Backend::name(&gpu));
     let checked = check_batch_edt(&mut gpu).unwrap_or_else(|e| panic!("{e}"));
     assert!(checked > 100_000);
@@ -33,14 +22,14 @@ fn batch_edt_matches_the_separable_oracle() {
 
 #[test]
 fn ray_casting_matches_the_walk_definition() {
-    let Some(mut gpu) = backend() else { return };
+    let Some(mut gpu) = common::gpu_or_skip("GPU conformance") else { return };
     let checked = check_raycast(&mut gpu).unwrap_or_else(|e| panic!("{e}"));
     assert!(checked.is_some_and(|n| n > 9_000), "the GPU casts rays itself");
 }
 
 #[test]
 fn projection_matches_the_definition_where_certain() {
-    let Some(mut gpu) = backend() else { return };
+    let Some(mut gpu) = common::gpu_or_skip("GPU conformance") else { return };
     let tally = check_projection(&mut gpu).unwrap_or_else(|e| panic!("{e}")).expect("the GPU projects depth images and planar scans itself");
     for (kind, (voxels, uncertain)) in [("depth", tally.depth), ("planar", tally.planar), ("aligned", tally.aligned)] {
         let share = uncertain as f64 / voxels as f64;
@@ -55,7 +44,7 @@ fn projection_matches_the_definition_where_certain() {
 /// decision identical to the CPU's.
 #[test]
 fn projection_on_the_scenes_is_the_cpus() {
-    let Some(mut gpu) = backend() else { return };
+    let Some(mut gpu) = common::gpu_or_skip("GPU conformance") else { return };
     for name in ["room", "planar"] {
         let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(format!("../../configs/{name}.toml"));
         let (sensor, params) = Config::load(&path).expect("shipped config").mapper_params().expect("valid config");
