@@ -36,6 +36,8 @@
 # differ.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+# Mesa's window-system probing complains without a runtime directory.
+export XDG_RUNTIME_DIR="${XDG_RUNTIME_DIR:-$(mktemp -d)}"
 quick=0
 while [ $# -gt 0 ]; do
     case "$1" in
@@ -153,7 +155,7 @@ for run in "${runs[@]}"; do
         if ! "$edtmap" run --scene "$s" "${extra[@]+"${extra[@]}"}" --frames "$f" --backend "$b" --out "$dir" --save "$out/map_${tag}_$b.edtmap" >/dev/null 2>"$dir.log"; then
             # The CPU must always work; a GPU may refuse a size over its limits.
             if [ "$b" = cpu ]; then echo "edtmap run --scene $s --backend cpu failed:" >&2; cat "$dir.log" >&2; exit 1; fi
-            echo "| $b | not run: $(grep -o 'error: .*' "$dir.log" | head -1 | cut -c8-) | | | | |"
+            echo "| $b | not run: $(grep -o 'edtmap: error: .*' "$dir.log" | head -1 | cut -c16-) | | | | |"
             continue
         fi
         python3 - "$dir/report.json" <<'PY'
