@@ -55,6 +55,7 @@ struct Params {
     delta: [i32; 4],
     blocks: [u32; 4],
     o8: [u32; 4],
+    fresh: [u32; 4],
     offsets: [[i32; 4]; 26],
 }
 
@@ -79,6 +80,8 @@ pub struct GpuIntegrator {
     /// The region whose values the device holds in `cur`, equal to the
     /// CPU map's there, unless the map changed by other means since.
     resident: Option<Region>,
+    /// The newly covered voxels' (index, S, D, 0), uploaded when resident.
+    fresh: Vec<[u32; 4]>,
 }
 
 #[derive(Debug)]
@@ -96,6 +99,7 @@ struct Kernels {
     lower_source: Kernel,
     lower_local: Kernel,
     shift: Kernel,
+    scatter: Kernel,
     diff: Kernel,
     compact: Kernel,
     prep_gather: Kernel,
@@ -113,6 +117,7 @@ struct Buffers {
     batch: wgpu::Buffer,
     blk: wgpu::Buffer,
     pairs: wgpu::Buffer,
+    fresh: wgpu::Buffer,
     staging: wgpu::Buffer,
     group: wgpu::BindGroup,
 }
@@ -127,7 +132,7 @@ impl GpuIntegrator {
                 source: wgpu::ShaderSource::Wgsl(include_str!("integrate.wgsl").into()),
             });
             let mut entries = vec![uniform_entry(0, false)];
-            entries.extend((1..=9).map(|b| storage_entry(b, b == 3)));
+            entries.extend((1..=10).map(|b| storage_entry(b, b == 3 || b == 10)));
             let layout = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some("integrate"), entries: &entries });
             let args_layout = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
                 label: Some("integrate args"),
@@ -160,6 +165,7 @@ impl GpuIntegrator {
                 lower_source: plain("lower_source"),
                 lower_local: prep("lower_local"),
                 shift: plain("shift"),
+                scatter: plain("scatter"),
                 diff: plain("diff"),
                 compact: plain("compact"),
                 prep_gather: prep("prep_gather"),
@@ -179,6 +185,7 @@ impl GpuIntegrator {
                 old: Vec::new(),
                 cur: Vec::new(),
                 resident: None,
+                fresh: Vec::new(),
             }
         })
     }
@@ -209,6 +216,11 @@ impl GpuIntegrator {
         let resident = self.resident.take().filter(|prev| prev.dims == region.dims);
         let resident = if self.ensure_buffers(r, w, nb)? { None } else { resident };
         read_region_except(map, &packing, resident.as_ref(), &mut self.old);
+        // With the region resident, only the newly covered voxels go up.
+        self.fresh.clear();
+        if let Some(prev) = &resident {
+            for_fresh(&region, prev, |i| self.fresh.push([i as u32, self.old[i] as u32, (self.old[i] >> 32) as u32, 0]));
+        }
         let delta = match resident {
             Some(prev) => [region.origin[0] - prev.origin[0], region.origin[1] - prev.origin[1], region.origin[2] - prev.origin[2], 1],
             None => [0; 4],
@@ -223,6 +235,7 @@ impl GpuIntegrator {
             n_offsets: offsets.len() as u32,
             delta,
             blocks: [nb3[0], nb3[1], nb3[2], nb as u32],
+            fresh: [self.fresh.len() as u32, 0, 0, 0],
             o8: [0, 1, 2, 3].map(|a| if a < 3 { (region.origin[a] - key_lo[a] * 8) as u32 } else { 0 }),
             offsets: [[0; 4]; 26],
         };
@@ -239,7 +252,13 @@ impl GpuIntegrator {
             let q = &self.ctx.queue;
             q.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
             q.write_buffer(&self.ctrl, 0, bytemuck::cast_slice(&ctrl));
-            q.write_buffer(&bufs.old, 0, bytemuck::cast_slice(&self.old));
+            if resident.is_some() {
+                if !self.fresh.is_empty() {
+                    q.write_buffer(&bufs.fresh, 0, bytemuck::cast_slice(&self.fresh));
+                }
+            } else {
+                q.write_buffer(&bufs.old, 0, bytemuck::cast_slice(&self.old));
+            }
             q.write_buffer(&bufs.batch, 0, bytemuck::cast_slice(batch.dist_sq_vox()));
             q.write_buffer(&bufs.batch, 4 * w as u64, bytemuck::cast_slice(batch.nearest()));
             let mut enc = self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("integrate") });
@@ -248,6 +267,9 @@ impl GpuIntegrator {
                 let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("merge and seed"), timestamp_writes: None });
                 if resident.is_some() {
                     k.shift.dispatch(&mut pass, &one, groups_1d(r as u64));
+                    if !self.fresh.is_empty() {
+                        k.scatter.dispatch(&mut pass, &one, groups_1d(self.fresh.len() as u64));
+                    }
                 }
                 k.merge.dispatch(&mut pass, &one, groups_1d(r as u64));
                 k.prep_seeds.dispatch(&mut pass, &with_args, [1, 1, 1]);
@@ -406,14 +428,33 @@ impl GpuIntegrator {
             let blk = buffer("integrate blocks", 8 * nb64, storage | copy_dst | copy_src);
             let pairs = buffer("integrate pairs", 16 * 512 * nb64, storage | copy_src);
             let staging = buffer("integrate staging", pairs_offset(nb) + 16 * 512 * nb64, wgpu::BufferUsages::MAP_READ | copy_dst);
-            let list = [&old, &cur, &batch, &mark, &queues, &front, &self.ctrl, &blk, &pairs];
+            let fresh = buffer("integrate fresh", 16 * r64, storage | copy_dst);
+            let list = [&old, &cur, &batch, &mark, &queues, &front, &self.ctrl, &blk, &pairs, &fresh];
             let mut entries = vec![wgpu::BindGroupEntry { binding: 0, resource: self.params.as_entire_binding() }];
             entries.extend(list.iter().enumerate().map(|(k, b)| wgpu::BindGroupEntry { binding: k as u32 + 1, resource: b.as_entire_binding() }));
             let group = dev.create_bind_group(&wgpu::BindGroupDescriptor { label: Some("integrate"), layout: &self.layout, entries: &entries });
-            Buffers { region: r, window: w, blocks: nb, old, batch, blk, pairs, staging, group }
+            Buffers { region: r, window: w, blocks: nb, old, batch, blk, pairs, fresh, staging, group }
         })?;
         self.bufs = Some(bufs);
         Ok(true)
+    }
+}
+
+/// Calls `f(linear)` for every voxel of `region` outside the world box
+/// `prev`, row by row.
+fn for_fresh(region: &Region, prev: &Region, mut f: impl FnMut(usize)) {
+    let [nx, ny, nz] = region.dims;
+    let lo = [0, 1, 2].map(|a| (i64::from(prev.origin[a]) - i64::from(region.origin[a])).clamp(0, region.dims[a] as i64) as usize);
+    let hi = [0, 1, 2].map(|a| (i64::from(prev.origin[a]) + prev.dims[a] as i64 - i64::from(region.origin[a])).clamp(0, region.dims[a] as i64) as usize);
+    for z in 0..nz {
+        for y in 0..ny {
+            let row = nx * (y + ny * z);
+            if (lo[1]..hi[1]).contains(&y) && (lo[2]..hi[2]).contains(&z) {
+                (0..lo[0]).chain(hi[0].max(lo[0])..nx).for_each(|x| f(row + x));
+            } else {
+                (0..nx).for_each(|x| f(row + x));
+            }
+        }
     }
 }
 

@@ -70,6 +70,8 @@ struct Params {
     blocks: vec4<u32>,
     // The region origin's position in its block (origin mod 8).
     o8: vec4<u32>,
+    // Newly covered voxels uploaded in `fresh` (x).
+    fresh: vec4<u32>,
     offsets: array<vec4<i32>, 26>,
 }
 
@@ -93,6 +95,8 @@ struct Params {
 // (old S, old D, new S, new D) of every voxel of the changed blocks,
 // 512 per block in block order.
 @group(0) @binding(9) var<storage, read_write> pairs: array<vec4<u32>>;
+// With the region resident: the newly covered voxels, (index, S, D, 0).
+@group(0) @binding(10) var<storage, read> fresh: array<vec4<u32>>;
 @group(1) @binding(0) var<storage, read_write> args: array<u32>;
 
 fn flat_id(wid: vec3<u32>, nwg: vec3<u32>, lid: u32) -> u32 {
@@ -508,4 +512,17 @@ fn gather(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: v
         e = vec4<u32>(old_v[i], n);
     }
     pairs[k] = e;
+}
+
+// The newly covered voxels' pairs, read from the map by the host, into
+// place (`shift` fills the rest).
+@compute @workgroup_size(64)
+fn scatter(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
+           @builtin(local_invocation_index) lid: u32) {
+    let k = flat_id(wid, nwg, lid);
+    if (k >= P.fresh.x) {
+        return;
+    }
+    let e = fresh[k];
+    old_v[e.x] = e.yz;
 }
