@@ -17,7 +17,7 @@ use edtmap_core::{BackendError, BlockKey, IntegrateReport, WaveCounts, Wavefront
 use edtmap_cpu::integrate::region::{read_region_except, write_back_with, Packing, Region, FAR};
 
 /// Levels encoded per submission before the host checks for the end.
-const LEVELS_PER_SUBMIT: usize = 16;
+const LEVELS_PER_SUBMIT: usize = 4;
 
 /// Frontiers of at most this many voxels are lowered by `lower_local`,
 /// in workgroup memory (`LOCAL_CAP` in the shader).
@@ -285,19 +285,22 @@ impl GpuIntegrator {
                 let mut enc = self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("lower") });
                 {
                     let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("lower"), timestamp_writes: None });
-                    // Small frontiers in one workgroup, large ones across the
-                    // device; each kernel does nothing when it is the other's turn.
+                    // A small frontier goes to one workgroup, which runs
+                    // levels until the waves end or a frontier outgrows its
+                    // memory; a large one runs level by level across the
+                    // device, then hands back to the workgroup.
                     if counts[C_FRONT] <= LOCAL_CAP {
                         k.lower_local.dispatch(&mut pass, &with_args, [1, 1, 1]);
+                    } else {
+                        for _ in 0..LEVELS_PER_SUBMIT {
+                            k.lower_dist.dispatch_indirect(&mut pass, &one, &self.args, A_FRONT);
+                            k.prep_next.dispatch(&mut pass, &with_args, [1, 1, 1]);
+                            k.reset_source.dispatch_indirect(&mut pass, &one, &self.args, A_NEXT);
+                            k.lower_source.dispatch_indirect(&mut pass, &one, &self.args, A_FRONT);
+                            self.encode_advance(&mut pass, bufs, &k.advance);
+                        }
+                        k.lower_local.dispatch(&mut pass, &with_args, [1, 1, 1]);
                     }
-                    for _ in 0..LEVELS_PER_SUBMIT {
-                        k.lower_dist.dispatch_indirect(&mut pass, &one, &self.args, A_FRONT);
-                        k.prep_next.dispatch(&mut pass, &with_args, [1, 1, 1]);
-                        k.reset_source.dispatch_indirect(&mut pass, &one, &self.args, A_NEXT);
-                        k.lower_source.dispatch_indirect(&mut pass, &one, &self.args, A_FRONT);
-                        self.encode_advance(&mut pass, bufs, &k.advance);
-                    }
-                    k.lower_local.dispatch(&mut pass, &with_args, [1, 1, 1]);
                 }
                 self.ctx.queue.submit([enc.finish()]);
             })?;
