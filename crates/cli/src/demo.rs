@@ -39,6 +39,7 @@ pub(crate) fn run(args: &DemoArgs) -> Result<()> {
         save: Some(args.out.join("map.edtmap")),
         prior: None,
         backend: args.backend,
+        dataset: None,
     };
     println!(
         "edtmap demo: a drone flies among pillars with a 32-ring LiDAR; occupancy by volumetric projection, then the exact EDT of the 10 x 10 x 3 m volume around it, merged into the global EDT"

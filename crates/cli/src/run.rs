@@ -11,6 +11,7 @@ use edtmap::eval::{edt_errors, edt_extent, EdtErrors, OccupancyScores};
 use edtmap::sensor::{Frame, Sensor};
 use edtmap::cpu::CpuBackend;
 use edtmap::{Connectivity, FrameStats, IntegrationMode, Mapper};
+use edtmap_io::dataset::Dataset;
 use edtmap_sim::{Scene, SceneName, SceneOptions};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::{json, Map};
@@ -59,6 +60,28 @@ pub(crate) struct RunArgs {
     /// Compute backend: cpu, gpu, or auto (a hardware GPU if any, else cpu).
     #[arg(long, value_enum, default_value_t)]
     pub(crate) backend: BackendArg,
+    /// Replay a recording instead of a scene: a 3DMatch-style depth folder,
+    /// or *.pcd point clouds with a KITTI-format poses.txt (needs --config).
+    #[arg(long, value_name = "PATH")]
+    pub(crate) dataset: Option<PathBuf>,
+}
+
+/// Where `edtmap run` takes its frames from.
+enum Source {
+    /// A built-in scene, simulated.
+    Scene(Scene),
+    /// A recording on disk.
+    Dataset(Dataset),
+}
+
+/// The depth range a sensor accepts (for a depth folder's camera).
+fn sensor_range(sensor: &Sensor) -> edtmap::sensor::RangeLimits {
+    match sensor {
+        Sensor::Depth(c) => c.range,
+        Sensor::Lidar(l) => l.range,
+        Sensor::Points(r) => *r,
+        Sensor::Planar => edtmap::sensor::RangeLimits { min_m: 0.0, max_m: f32::MAX },
+    }
 }
 
 /// Values of `--integration`.
@@ -138,17 +161,35 @@ pub(crate) fn run(args: &RunArgs) -> Result<()> {
 /// Replays the scene; `progress` draws a progress bar on a terminal.
 pub(crate) fn execute(args: &RunArgs, progress: bool) -> Result<RunOutcome> {
     let (config, origin) = load_config(args)?;
-    let section = config.scene.clone();
-    let name = args.scene.clone().or_else(|| section.as_ref().map(|s| s.name.clone()));
-    let name = name.with_context(|| format!("{origin} has no [scene] section: give --scene NAME"))?;
-    let scene_name: SceneName = name.parse().map_err(|e| anyhow::anyhow!("{e}"))?;
-    let section = section.unwrap_or_else(|| edtmap::config::SceneSection { name: name.clone(), frames: None, seed: 7, range_noise_m: 0.0, dropout: 0.0 });
-    let options = SceneOptions { seed: section.seed, range_noise_m: section.range_noise_m, dropout: section.dropout };
-    let scene = Scene::new(scene_name, &options).context("[scene]")?;
     let (sensor, params) = config.mapper_params()?;
-    let frames = args.frames.or(section.frames).unwrap_or_else(|| scene.default_frames());
+    let (source, name, default_frames) = match &args.dataset {
+        Some(path) => {
+            let range = sensor_range(&sensor);
+            let set = Dataset::open(path, config.dataset.depth_scale_m, range)?;
+            if set.kind() != sensor.kind() {
+                bail!("{} holds {} frames but {origin}'s [sensor] is a {}", path.display(), set.kind(), sensor.kind());
+            }
+            let n = set.len();
+            (Source::Dataset(set), path.display().to_string(), n)
+        }
+        None => {
+            let section = config.scene.clone();
+            let name = args.scene.clone().or_else(|| section.as_ref().map(|s| s.name.clone()));
+            let name = name.with_context(|| format!("{origin} has no [scene] section: give --scene NAME or --dataset PATH"))?;
+            let scene_name: SceneName = name.parse().map_err(|e| anyhow::anyhow!("{e}"))?;
+            let section = section.unwrap_or_else(|| edtmap::config::SceneSection { name: name.clone(), frames: None, seed: 7, range_noise_m: 0.0, dropout: 0.0 });
+            let options = SceneOptions { seed: section.seed, range_noise_m: section.range_noise_m, dropout: section.dropout };
+            let scene = Scene::new(scene_name, &options).context("[scene]")?;
+            let n = section.frames.unwrap_or_else(|| scene.default_frames());
+            (Source::Scene(scene), name, n)
+        }
+    };
+    let frames = args.frames.unwrap_or(default_frames);
     if frames == 0 {
         bail!("--frames must be at least 1");
+    }
+    if args.dataset.is_some() && frames > default_frames {
+        bail!("--frames {frames}: {name} has {default_frames} frames");
     }
     let backend = backend::open(args.backend, CpuBackend::default())?;
     let mut mapper = Mapper::new_on(backend, sensor.clone(), params.clone())?;
@@ -162,7 +203,10 @@ pub(crate) fn execute(args: &RunArgs, progress: bool) -> Result<RunOutcome> {
     let mut truth = (Vec::new(), Vec::new());
     let mut last_z = 0.0;
     for i in 0..frames {
-        let frame = scene.frame(&sensor, i).with_context(|| format!("simulating frame {i}"))?;
+        let frame = match &source {
+            Source::Scene(scene) => scene.frame(&sensor, i).with_context(|| format!("simulating frame {i}"))?,
+            Source::Dataset(set) => set.frame(i).with_context(|| format!("reading frame {i} of {name}"))?,
+        };
         let stats = mapper.integrate_frame(&frame).with_context(|| format!("frame {i}"))?;
         let mut rec = FrameRecord {
             index: i,
@@ -178,8 +222,11 @@ pub(crate) fn execute(args: &RunArgs, progress: bool) -> Result<RunOutcome> {
             ..Default::default()
         };
         if args.eval {
-            let scores = score(&scene, &sensor, &frame, &mapper, &mut truth);
-            (rec.precision, rec.recall, rec.strict_recall) = (scores.precision(), scores.recall(), scores.strict_recall());
+            // Recordings have no ground truth: only the EDT is checked.
+            if let Source::Scene(scene) = &source {
+                let scores = score(scene, &sensor, &frame, &mapper, &mut truth);
+                (rec.precision, rec.recall, rec.strict_recall) = (scores.precision(), scores.recall(), scores.strict_recall());
+            }
             rec.edt_errors = edt_error_fields(&mapper)?;
         }
         last_z = frame.t_world_sensor.translation.vector.z;

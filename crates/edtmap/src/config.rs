@@ -45,6 +45,23 @@ pub struct Config {
     /// Pictures and reports.
     #[serde(default)]
     pub output: OutputSection,
+    /// Recordings replayed with `edtmap run --dataset`.
+    #[serde(default)]
+    pub dataset: DatasetSection,
+}
+
+/// `[dataset]`: how to read a recording (`edtmap run --dataset PATH`).
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct DatasetSection {
+    /// Metres per unit of 16-bit depth images (0.001: millimetres).
+    pub depth_scale_m: f32,
+}
+
+impl Default for DatasetSection {
+    fn default() -> Self {
+        DatasetSection { depth_scale_m: 0.001 }
+    }
 }
 
 /// `[scene]`: which built-in scene and how to simulate it.

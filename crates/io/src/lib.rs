@@ -21,6 +21,7 @@
 //! input.
 #![warn(missing_docs)]
 
+pub mod dataset;
 pub mod depth_folder;
 mod error;
 mod font;

@@ -1,0 +1,75 @@
+//! `edtmap run --dataset`: the real recordings in `../shared/data` replayed
+//! with the shipped configs, and the mistakes a user can make.
+
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+fn data(name: &str) -> Option<PathBuf> {
+    let dir = root().join("../shared/data").join(name);
+    if dir.exists() {
+        Some(dir)
+    } else {
+        eprintln!("skipping: {} is absent", dir.display());
+        None
+    }
+}
+
+fn run(config: &str, dataset: &std::path::Path, out: &std::path::Path, extra: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_edtmap"))
+        .args(["run", "--config"])
+        .arg(root().join("configs").join(config))
+        .arg("--dataset")
+        .arg(dataset)
+        .arg("--out")
+        .arg(out)
+        .args(extra)
+        .output()
+        .expect("edtmap runs")
+}
+
+fn report(out: &std::path::Path) -> serde_json::Value {
+    serde_json::from_slice(&std::fs::read(out.join("report.json")).expect("report")).expect("json")
+}
+
+#[test]
+fn replays_the_3dmatch_frames_and_the_velodyne_pair() {
+    let tmp = tempfile::tempdir().expect("temp dir");
+    for (config, name, frames, sensor) in [("3dmatch.toml", "3dmatch-seq01", 5, "depth camera"), ("velodyne.toml", "velodyne-pair", 2, "point cloud")] {
+        let Some(dir) = data(name) else { return };
+        let out = tmp.path().join(name);
+        let o = run(config, &dir, &out, &["--eval", "--save", out.join("map.edtmap").to_str().expect("utf-8")]);
+        assert!(o.status.success(), "{name}: {}", String::from_utf8_lossy(&o.stderr));
+        let r = report(&out);
+        assert_eq!(r["frames"].as_array().map(Vec::len), Some(frames), "{name}");
+        assert_eq!(r["sensor"], sensor);
+        assert!(r["map_blocks"].as_u64().is_some_and(|b| b > 100), "{name}: {}", r["map_blocks"]);
+        for picture in ["occupancy_slice.png", "edt_slice.png", "map.edtmap"] {
+            assert!(out.join(picture).metadata().is_ok_and(|m| m.len() > 0), "{name}: {picture}");
+        }
+        // The global EDT against an exact EDT of the map's own obstacles.
+        let last = &r["frames"][frames - 1];
+        assert_eq!(last["global_max_m"].as_f64(), Some(0.0), "{name}: {last}");
+    }
+}
+
+#[test]
+fn dataset_mistakes_are_refused_with_the_reason() {
+    let tmp = tempfile::tempdir().expect("temp dir");
+    let Some(depth) = data("3dmatch-seq01") else { return };
+    let Some(clouds) = data("velodyne-pair") else { return };
+    let cases: [(&str, &PathBuf, &[&str], &str); 4] = [
+        ("velodyne.toml", &depth, &[], "holds depth camera frames"),
+        ("3dmatch.toml", &clouds, &[], "holds point cloud frames"),
+        ("3dmatch.toml", &depth, &["--frames", "9"], "has 5 frames"),
+        ("3dmatch.toml", &tmp.path().to_path_buf(), &[], "neither a depth folder"),
+    ];
+    for (config, dir, extra, want) in cases {
+        let o = run(config, dir, &tmp.path().join("out"), extra);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success() && err.contains(want), "{config} {}: {err}", dir.display());
+    }
+}
