@@ -3,10 +3,11 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::Result;
-use edtmap::VoxelState;
+use edtmap::{VoxelIndex, VoxelState, FAR_DIST_SQ};
 
 use crate::backend::CliMapper;
-use edtmap_io::picture::{write_slice_png, write_states_png, Slice, SliceStyle};
+use edtmap_io::picture::{viridis, write_slice_png, write_states_png, Slice, SliceStyle};
+use edtmap_io::ply::{write_ply, ColouredPoint};
 
 /// Writes `occupancy_slice.png` and `edt_slice.png` of the horizontal slice
 /// of the local volume at height `z_m` into `out`.
@@ -30,4 +31,51 @@ pub(crate) fn write_slices(mapper: &CliMapper, z_m: f64, out: &Path) -> Result<V
     let style = SliceStyle { title: format!("local edt z={height:.2} m (grey: unknown)"), unit: "m".into(), max_value: None };
     write_slice_png(&edt_path, Slice { width: nx, height: ny, values: &dist }, &style)?;
     Ok(vec![occ_path, edt_path])
+}
+
+/// Writes `occupied.ply` (every occupied voxel of the global map, coloured
+/// by height) and `edt.ply` (every observed voxel of the latest local
+/// volume within the cutoff, coloured by its global distance, 0 to
+/// `max_distance_m`) into `out`.
+pub(crate) fn write_plys(mapper: &CliMapper, out: &Path) -> Result<Vec<PathBuf>> {
+    let map = mapper.map();
+    let vs = map.voxel_size_m();
+    let centre = |v: VoxelIndex| v.0.map(|c| ((c as f64 + 0.5) * vs) as f32);
+    let mut occupied = Vec::new();
+    for (key, block) in map.occupancy.iter() {
+        for (offset, &value) in block.log_odds.iter().enumerate() {
+            if map.log_odds.state(value) == VoxelState::Occupied {
+                occupied.push(centre(key.voxel(offset)));
+            }
+        }
+    }
+    let (lo, hi) = occupied.iter().fold((f32::MAX, f32::MIN), |(lo, hi), p| (lo.min(p[2]), hi.max(p[2])));
+    let by_height: Vec<ColouredPoint> =
+        occupied.iter().map(|&xyz| ColouredPoint { xyz, rgb: viridis(if hi > lo { (xyz[2] - lo) / (hi - lo) } else { 0.0 }) }).collect();
+    let occ_path = out.join("occupied.ply");
+    write_ply(&occ_path, &by_height, "edtmap occupied voxels, coloured by height")?;
+    let mut edt_points = Vec::new();
+    if let Some(volume) = mapper.local_volume() {
+        let max_m = map.params.max_distance_m as f32;
+        for (i, state) in mapper.local_states().as_slice().iter().enumerate() {
+            if *state == VoxelState::Unknown {
+                continue;
+            }
+            let v = volume.world(volume_coords(volume.dims, i));
+            let (dist_sq, _) = map.edt.entry(v);
+            if dist_sq != FAR_DIST_SQ {
+                let d = (f64::from(dist_sq).sqrt() * vs) as f32;
+                edt_points.push(ColouredPoint { xyz: centre(v), rgb: viridis(d / max_m) });
+            }
+        }
+    }
+    let edt_path = out.join("edt.ply");
+    let comment = format!("edtmap EDT of the last local volume, coloured by distance 0 to {} m", map.params.max_distance_m);
+    write_ply(&edt_path, &edt_points, &comment)?;
+    Ok(vec![occ_path, edt_path])
+}
+
+/// Coordinates of linear index `i` in a volume of `dims`.
+fn volume_coords(dims: [usize; 3], i: usize) -> [usize; 3] {
+    [i % dims[0], (i / dims[0]) % dims[1], i / (dims[0] * dims[1])]
 }

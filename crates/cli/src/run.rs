@@ -17,7 +17,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::{json, Map};
 
 use crate::backend::{self, BackendArg, CliMapper};
-use crate::pictures::write_slices;
+use crate::pictures::{write_plys, write_slices};
 use crate::report::{report, FrameRecord};
 use crate::scenes::builtin_config;
 
@@ -60,6 +60,10 @@ pub(crate) struct RunArgs {
     /// Compute backend: cpu, gpu, or auto (a hardware GPU if any, else cpu).
     #[arg(long, value_enum, default_value_t)]
     pub(crate) backend: BackendArg,
+    /// Also write occupied.ply (occupied voxels) and edt.ply (the last local
+    /// volume's EDT, coloured by distance).
+    #[arg(long)]
+    pub(crate) ply: bool,
     /// Replay a recording instead of a scene: a 3DMatch-style depth folder,
     /// or *.pcd point clouds with a KITTI-format poses.txt (needs --config).
     #[arg(long, value_name = "PATH")]
@@ -235,7 +239,10 @@ pub(crate) fn execute(args: &RunArgs, progress: bool) -> Result<RunOutcome> {
     }
     bar.finish_and_clear();
     let slice_z = config.output.slice_height_m.unwrap_or(last_z);
-    let pictures = write_slices(&mapper, slice_z, &args.out)?;
+    let mut pictures = write_slices(&mapper, slice_z, &args.out)?;
+    if args.ply {
+        pictures.extend(write_plys(&mapper, &args.out)?);
+    }
     let mut header = Map::new();
     header.insert("edtmap_version".into(), json!(env!("CARGO_PKG_VERSION")));
     header.insert("scene".into(), json!(name));

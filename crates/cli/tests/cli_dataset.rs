@@ -35,13 +35,25 @@ fn report(out: &std::path::Path) -> serde_json::Value {
     serde_json::from_slice(&std::fs::read(out.join("report.json")).expect("report")).expect("json")
 }
 
+/// The vertex count of a binary PLY, checking the body holds exactly that
+/// many 15-byte vertices.
+fn ply_vertices(path: &std::path::Path) -> usize {
+    let bytes = std::fs::read(path).expect("ply");
+    let end = b"end_header\n";
+    let at = bytes.windows(end.len()).position(|w| w == end).expect("header") + end.len();
+    let header = std::str::from_utf8(&bytes[..at]).expect("ascii header");
+    let n: usize = header.lines().find_map(|l| l.strip_prefix("element vertex ")).expect("vertex count").parse().expect("number");
+    assert_eq!(bytes.len() - at, 15 * n, "{}", path.display());
+    n
+}
+
 #[test]
 fn replays_the_3dmatch_frames_and_the_velodyne_pair() {
     let tmp = tempfile::tempdir().expect("temp dir");
     for (config, name, frames, sensor) in [("3dmatch.toml", "3dmatch-seq01", 5, "depth camera"), ("velodyne.toml", "velodyne-pair", 2, "point cloud")] {
         let Some(dir) = data(name) else { return };
         let out = tmp.path().join(name);
-        let o = run(config, &dir, &out, &["--eval", "--save", out.join("map.edtmap").to_str().expect("utf-8")]);
+        let o = run(config, &dir, &out, &["--eval", "--ply", "--save", out.join("map.edtmap").to_str().expect("utf-8")]);
         assert!(o.status.success(), "{name}: {}", String::from_utf8_lossy(&o.stderr));
         let r = report(&out);
         assert_eq!(r["frames"].as_array().map(Vec::len), Some(frames), "{name}");
@@ -50,6 +62,11 @@ fn replays_the_3dmatch_frames_and_the_velodyne_pair() {
         for picture in ["occupancy_slice.png", "edt_slice.png", "map.edtmap"] {
             assert!(out.join(picture).metadata().is_ok_and(|m| m.len() > 0), "{name}: {picture}");
         }
+        // occupied.ply holds exactly the saved map's occupied voxels.
+        let map = edtmap::load_map(&out.join("map.edtmap")).expect("saved map");
+        let occupied = map.occupancy.iter().flat_map(|(_, b)| b.log_odds.iter()).filter(|&&v| map.log_odds.state(v) == edtmap::VoxelState::Occupied).count();
+        assert_eq!(ply_vertices(&out.join("occupied.ply")), occupied, "{name}");
+        assert!(ply_vertices(&out.join("edt.ply")) > 1000, "{name}");
         // The global EDT against an exact EDT of the map's own obstacles.
         let last = &r["frames"][frames - 1];
         assert_eq!(last["global_max_m"].as_f64(), Some(0.0), "{name}: {last}");

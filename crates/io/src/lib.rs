@@ -29,6 +29,7 @@ pub mod mapfile;
 pub mod npy;
 pub mod pcd;
 pub mod picture;
+pub mod ply;
 pub mod plot;
 
 pub use error::IoError;
