@@ -73,7 +73,7 @@ pub(crate) struct RunArgs {
 /// Where `edtmap run` takes its frames from.
 enum Source {
     /// A built-in scene, simulated.
-    Scene(Scene),
+    Scene(Box<Scene>),
     /// A recording on disk.
     Dataset(Dataset),
 }
@@ -185,7 +185,7 @@ pub(crate) fn execute(args: &RunArgs, progress: bool) -> Result<RunOutcome> {
             let options = SceneOptions { seed: section.seed, range_noise_m: section.range_noise_m, dropout: section.dropout };
             let scene = Scene::new(scene_name, &options).context("[scene]")?;
             let n = section.frames.unwrap_or_else(|| scene.default_frames());
-            (Source::Scene(scene), name, n)
+            (Source::Scene(Box::new(scene)), name, n)
         }
     };
     let frames = args.frames.unwrap_or(default_frames);
