@@ -6,6 +6,8 @@ use anyhow::Result;
 use edtmap::{VoxelIndex, VoxelState, FAR_DIST_SQ};
 
 use crate::backend::CliMapper;
+use crate::report::FrameRecord;
+use edtmap_io::plot::{Chart, Series, SeriesStyle};
 use edtmap_io::picture::{viridis, write_slice_png, write_states_png, Slice, SliceStyle};
 use edtmap_io::ply::{write_ply, ColouredPoint};
 
@@ -78,4 +80,22 @@ pub(crate) fn write_plys(mapper: &CliMapper, out: &Path) -> Result<Vec<PathBuf>>
 /// Coordinates of linear index `i` in a volume of `dims`.
 fn volume_coords(dims: [usize; 3], i: usize) -> [usize; 3] {
     [i % dims[0], (i / dims[0]) % dims[1], i / (dims[0] * dims[1])]
+}
+
+/// Writes `timing.png`: each stage's time per frame (occupancy, batch
+/// EDT, integration, whole frame), in ms.
+pub(crate) fn write_timing_plot(frames: &[FrameRecord], backend: &str, out: &Path) -> Result<PathBuf> {
+    let series = |name: &str, get: fn(&FrameRecord) -> f64| {
+        Series::new(name, frames.iter().map(|f| (f.index as f64, get(f))), SeriesStyle::Line)
+    };
+    let chart = Chart::new(format!("time per frame ({backend})"))
+        .x_label("frame")
+        .y_label("ms")
+        .series(series("occupancy", |f| f.ogm_ms))
+        .series(series("batch EDT", |f| f.batch_edt_ms))
+        .series(series("integration", |f| f.integrate_ms))
+        .series(series("total", |f| f.total_ms));
+    let path = out.join("timing.png");
+    chart.write_png(&path)?;
+    Ok(path)
 }

@@ -17,7 +17,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::{json, Map};
 
 use crate::backend::{self, BackendArg, CliMapper};
-use crate::pictures::{write_plys, write_slices};
+use crate::pictures::{write_plys, write_slices, write_timing_plot};
 use crate::report::{report, FrameRecord};
 use crate::scenes::builtin_config;
 
@@ -243,6 +243,7 @@ pub(crate) fn execute(args: &RunArgs, progress: bool) -> Result<RunOutcome> {
     if args.ply {
         pictures.extend(write_plys(&mapper, &args.out)?);
     }
+    pictures.push(write_timing_plot(&records, &mapper.backend().name(), &args.out)?);
     let mut header = Map::new();
     header.insert("edtmap_version".into(), json!(env!("CARGO_PKG_VERSION")));
     header.insert("scene".into(), json!(name));

@@ -59,7 +59,7 @@ fn replays_the_3dmatch_frames_and_the_velodyne_pair() {
         assert_eq!(r["frames"].as_array().map(Vec::len), Some(frames), "{name}");
         assert_eq!(r["sensor"], sensor);
         assert!(r["map_blocks"].as_u64().is_some_and(|b| b > 100), "{name}: {}", r["map_blocks"]);
-        for picture in ["occupancy_slice.png", "edt_slice.png", "map.edtmap"] {
+        for picture in ["occupancy_slice.png", "edt_slice.png", "timing.png", "map.edtmap"] {
             assert!(out.join(picture).metadata().is_ok_and(|m| m.len() > 0), "{name}: {picture}");
         }
         // occupied.ply holds exactly the saved map's occupied voxels.
