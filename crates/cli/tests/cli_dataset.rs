@@ -67,6 +67,12 @@ fn replays_the_3dmatch_frames_and_the_velodyne_pair() {
         let occupied = map.occupancy.iter().flat_map(|(_, b)| b.log_odds.iter()).filter(|&&v| map.log_odds.state(v) == edtmap::VoxelState::Occupied).count();
         assert_eq!(ply_vertices(&out.join("occupied.ply")), occupied, "{name}");
         assert!(ply_vertices(&out.join("edt.ply")) > 1000, "{name}");
+        // Every field of the report is in its schema, docs/REPORT.md.
+        let schema = std::fs::read_to_string(root().join("docs/REPORT.md")).expect("docs/REPORT.md");
+        let keys = [&r, &r["frames"][0], &r["summary"]].into_iter().flat_map(|o| o.as_object().expect("object").keys().cloned().collect::<Vec<_>>());
+        for key in keys {
+            assert!(schema.contains(&format!("`{key}`")), "report field {key} is not in docs/REPORT.md");
+        }
         // The global EDT against an exact EDT of the map's own obstacles.
         let last = &r["frames"][frames - 1];
         assert_eq!(last["global_max_m"].as_f64(), Some(0.0), "{name}: {last}");
