@@ -157,7 +157,7 @@ pub(crate) struct RunOutcome {
 
 /// Runs `edtmap run` and prints its summary.
 pub(crate) fn run(args: &RunArgs) -> Result<()> {
-    let outcome = execute(args, false)?;
+    let outcome = execute(args, true)?;
     print_summary(&outcome);
     Ok(())
 }
