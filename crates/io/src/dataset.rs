@@ -4,13 +4,14 @@
 //! - a 3DMatch-style depth folder (`camera-intrinsics.txt`,
 //!   `frame-XXXXXX.depth.png` + `frame-XXXXXX.pose.txt`), read by
 //!   [`DepthFolder`];
-//! - a folder of point clouds (`*.pcd`, in file-name order) with a
+//! - a folder of point clouds (`*.pcd`, or KITTI Velodyne `*.bin`: float32
+//!   x y z reflectance per point, little-endian; in file-name order) with a
 //!   `poses.txt` trajectory in the KITTI odometry format: one line per
 //!   cloud, the 12 numbers of the row-major 3 × 4 `T_world_sensor`.
 
 use crate::depth_folder::DepthFolder;
 use crate::{read_pcd, IoError};
-use edtmap_core::sensor::{pose_from_matrix, Frame, Measurement, RangeLimits};
+use edtmap_core::sensor::{pose_from_matrix, Frame, Measurement, PointCloud, RangeLimits};
 use std::path::{Path, PathBuf};
 
 /// A recording opened for replay.
@@ -22,7 +23,8 @@ pub enum Dataset {
     Clouds(CloudFolder),
 }
 
-/// Point clouds (`*.pcd`) with one pose each from `poses.txt`.
+/// Point clouds (`*.pcd` or KITTI `*.bin`) with one pose each from
+/// `poses.txt`.
 #[derive(Debug, Clone)]
 pub struct CloudFolder {
     /// The clouds, in file-name order, with their poses.
@@ -87,12 +89,16 @@ impl CloudFolder {
         let mut clouds = Vec::new();
         for entry in std::fs::read_dir(dir).map_err(|e| IoError::io(dir, e))? {
             let path = entry.map_err(|e| IoError::io(dir, e))?.path();
-            if path.extension().is_some_and(|e| e == "pcd") {
+            if path.extension().is_some_and(|e| e == "pcd" || e == "bin") {
                 clouds.push(path);
             }
         }
         if clouds.is_empty() {
-            return Err(bad(dir, "no *.pcd point clouds"));
+            return Err(bad(dir, "no *.pcd or *.bin point clouds"));
+        }
+        let kinds = clouds.iter().filter(|p| p.extension().is_some_and(|e| e == "pcd")).count();
+        if kinds != 0 && kinds != clouds.len() {
+            return Err(bad(dir, "both *.pcd and *.bin clouds: keep one kind per folder"));
         }
         clouds.sort();
         let poses_path = dir.join("poses.txt");
@@ -122,10 +128,22 @@ impl CloudFolder {
     /// none).
     pub fn frame(&self, i: usize) -> Result<Frame, IoError> {
         let (path, m) = self.frames.get(i).ok_or_else(|| bad(Path::new("."), format!("frame {i} of {}", self.frames.len())))?;
-        let cloud = read_pcd(path)?;
+        let cloud = if path.extension().is_some_and(|e| e == "bin") { read_kitti_bin(path)? } else { read_pcd(path)? };
         let pose = pose_from_matrix(m).map_err(|e| bad(path, e.to_string()))?;
         Ok(Frame { stamp_s: i as f64, t_world_sensor: pose, measurement: Measurement::Points(cloud) })
     }
+}
+
+/// A KITTI Velodyne scan: little-endian float32 `x y z reflectance` per
+/// point (reflectance unused).
+pub fn read_kitti_bin(path: &Path) -> Result<PointCloud, IoError> {
+    let bytes = std::fs::read(path).map_err(|e| IoError::io(path, e))?;
+    if bytes.len() % 16 != 0 {
+        return Err(bad(path, format!("{} bytes is not a whole number of 16-byte points (x y z reflectance)", bytes.len())));
+    }
+    let f = |b: &[u8]| f32::from_le_bytes([b[0], b[1], b[2], b[3]]);
+    let points = bytes.chunks_exact(16).map(|p| [f(&p[0..4]), f(&p[4..8]), f(&p[8..12])]).collect();
+    Ok(PointCloud { points })
 }
 
 #[cfg(test)]
@@ -160,6 +178,31 @@ mod tests {
         }
         let set = Dataset::open(&dir, 0.001, RangeLimits { min_m: 0.3, max_m: 8.0 }).expect("opens");
         assert_eq!((set.kind(), set.len()), ("depth camera", 5));
+    }
+
+    #[test]
+    fn reads_kitti_bin_scans_with_their_poses() {
+        let dir = std::env::temp_dir().join(format!("edtmap-kitti-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("temp dir");
+        let scan = |pts: &[[f32; 4]]| pts.iter().flat_map(|p| p.iter().flat_map(|v| v.to_le_bytes())).collect::<Vec<u8>>();
+        std::fs::write(dir.join("000000.bin"), scan(&[[1.0, 2.0, 3.0, 0.5], [-4.0, 0.0, 0.25, 1.0]])).expect("write");
+        std::fs::write(dir.join("000001.bin"), scan(&[[5.0, 5.0, 0.0, 0.0]])).expect("write");
+        std::fs::write(dir.join("poses.txt"), "1 0 0 0 0 1 0 0 0 0 1 0\n0 -1 0 10 1 0 0 20 0 0 1 0.5\n").expect("write");
+        let set = Dataset::open(&dir, 0.001, RangeLimits { min_m: 0.1, max_m: 50.0 }).expect("opens");
+        assert_eq!((set.kind(), set.len()), ("point cloud", 2));
+        let Measurement::Points(first) = set.frame(0).expect("frame 0").measurement else { panic!("points") };
+        assert_eq!(first.points, vec![[1.0, 2.0, 3.0], [-4.0, 0.0, 0.25]]);
+        let second = set.frame(1).expect("frame 1");
+        // x of the scan maps to y of the world (90° about z), then the offset.
+        let p = second.t_world_sensor.transform_point(&[1.0, 0.0, 0.0].into());
+        assert!((p.x - 10.0).abs() < 1e-12 && (p.y - 21.0).abs() < 1e-12 && (p.z - 0.5).abs() < 1e-12, "{p:?}");
+        std::fs::write(dir.join("000001.bin"), [0u8; 15]).expect("write");
+        let err = set.frame(1).expect_err("15 bytes").to_string();
+        assert!(err.contains("000001.bin") && err.contains("16-byte points"), "{err}");
+        std::fs::write(dir.join("000002.pcd"), b"x").expect("write");
+        let err = Dataset::open(&dir, 0.001, RangeLimits { min_m: 0.1, max_m: 50.0 }).expect_err("mixed").to_string();
+        assert!(err.contains("keep one kind"), "{err}");
+        std::fs::remove_dir_all(&dir).ok();
     }
 
     #[test]
