@@ -1,7 +1,25 @@
-//! The DDA against a brute-force segment/voxel intersection.
+//! The ray walk the occupancy stage uses (`edtmap_core::fixed_ray`: the
+//! segment set up in `f64`, its ends quantized to 1/q voxel, then walked in
+//! exact integers) against a brute-force segment/voxel intersection of the
+//! quantized segment it walks.
 
-use edtmap_cpu::occupancy::traverse;
+use edtmap_core::fixed_ray::{fixed_scale, setup_ray, walk_cells, RAY_WALK};
 use proptest::prelude::*;
+
+/// A segment `a → b` in voxel units.
+type Segment = ([f64; 3], [f64; 3]);
+
+/// The voxels the walk visits for the segment `a → b` in the box
+/// `[0, dims)`, and the segment it actually walks (clipped to the box and
+/// quantized), in voxel units; no segment when it misses the box.
+fn walked(a: [f64; 3], b: [f64; 3], dims: [usize; 3]) -> (Vec<[usize; 3]>, Option<Segment>) {
+    let q = fixed_scale(dims).expect("small box");
+    let ray = setup_ray(a, b, b, false, dims, q);
+    let mut seen = Vec::new();
+    walk_cells(&ray, dims, q, |c, _| seen.push(c.map(|v| v as usize)));
+    let quantized = (ray.flags & RAY_WALK != 0).then(|| (ray.start.map(|v| f64::from(v) / f64::from(q)), ray.end.map(|v| f64::from(v) / f64::from(q))));
+    (seen, quantized)
+}
 
 /// Length of the part of segment `a → b` inside the closed cube `lo .. lo+1`
 /// grown by `grow`, or `None` if they do not meet.
@@ -25,8 +43,10 @@ fn overlap(a: [f64; 3], b: [f64; 3], lo: [usize; 3], grow: f64) -> Option<f64> {
 }
 
 fn check(a: [f64; 3], b: [f64; 3], dims: [usize; 3]) -> Result<(), TestCaseError> {
-    let mut seen = Vec::new();
-    traverse(a, b, dims, false, |c, _| seen.push(c));
+    let (seen, quantized) = walked(a, b, dims);
+    // The walk follows the quantized segment; a segment that misses the box
+    // (or only grazes it after quantization) visits nothing.
+    let (a, b) = quantized.unwrap_or((a, a));
     for w in seen.windows(2) {
         let steps: usize = (0..3).map(|k| w[0][k].abs_diff(w[1][k])).sum();
         prop_assert_eq!(steps, 1, "consecutive voxels {:?} are not face neighbours", w);
@@ -40,7 +60,9 @@ fn check(a: [f64; 3], b: [f64; 3], dims: [usize; 3]) -> Result<(), TestCaseError
             for x in 0..dims[0] {
                 let c = [x, y, z];
                 let visited = sorted.binary_search(&c).is_ok();
-                if overlap(a, b, c, 0.0).is_some_and(|l| l > 1e-7) {
+                // Crossed: through the interior (quantized ends can put a
+                // segment on a face, where either side may be walked).
+                if overlap(a, b, c, -1e-9).is_some_and(|l| l > 1e-7) {
                     prop_assert!(visited, "voxel {:?} crossed by the segment was missed", c);
                 }
                 if visited {
@@ -76,8 +98,8 @@ proptest! {
 /// picks one. Every visited voxel must touch the segment, and every point of
 /// the segment (inside the box) must lie in a visited voxel.
 fn check_degenerate(a: [f64; 3], b: [f64; 3], dims: [usize; 3]) {
-    let mut seen = Vec::new();
-    traverse(a, b, dims, false, |c, _| seen.push(c));
+    // Ends on grid lines are exact in fixed point: the walked segment is `a → b`.
+    let (seen, _) = walked(a, b, dims);
     for c in &seen {
         assert!(overlap(a, b, *c, 1e-9).is_some(), "voxel {c:?} off the segment");
     }

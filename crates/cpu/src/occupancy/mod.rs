@@ -5,13 +5,11 @@
 //! Both constructions write one observation per voxel per frame (a hit wins
 //! over a miss), so the fused map does not depend on thread scheduling.
 
-mod dda;
 mod fuse;
 mod observe;
 mod project;
 mod raycast;
 
-pub use dda::{traverse, Walk};
 pub use fuse::{fuse, read_states, FuseReport};
 pub use observe::Observations;
 pub use project::{decide_uncertain, project_job, project_volume, scatter_returns};
