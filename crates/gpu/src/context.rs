@@ -82,6 +82,18 @@ impl GpuContext {
         }
     }
 
+    /// A buffer of `size` bytes (zeroed by wgpu) for `usage`.
+    pub(crate) fn buffer(&self, label: &str, size: u64, usage: wgpu::BufferUsages) -> wgpu::Buffer {
+        self.device.create_buffer(&wgpu::BufferDescriptor { label: Some(label), size, usage, mapped_at_creation: false })
+    }
+
+    /// A bind group of `layout` with `resources[k]` at binding `k`.
+    pub(crate) fn bind_group(&self, label: &str, layout: &wgpu::BindGroupLayout, resources: &[wgpu::BindingResource<'_>]) -> wgpu::BindGroup {
+        let entries: Vec<wgpu::BindGroupEntry<'_>> =
+            resources.iter().enumerate().map(|(k, r)| wgpu::BindGroupEntry { binding: k as u32, resource: r.clone() }).collect();
+        self.device.create_bind_group(&wgpu::BindGroupDescriptor { label: Some(label), layout, entries: &entries })
+    }
+
     /// Refuses a storage buffer of `bytes` over the device's limits.
     pub(crate) fn check_buffer(&self, what: &'static str, bytes: u64) -> Result<(), BackendError> {
         let limit = self.limits.max_buffer_size.min(self.limits.max_storage_buffer_binding_size);

@@ -88,12 +88,7 @@ pub(crate) fn in_out_kernel(
         label: Some(entry),
         entries: &[uniform_entry(0, false), storage_entry(1, true), storage_entry(2, false)],
     });
-    let params = dev.create_buffer(&wgpu::BufferDescriptor {
-        label: Some(entry),
-        size: params_bytes,
-        usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-        mapped_at_creation: false,
-    });
+    let params = ctx.buffer(entry, params_bytes, wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST);
     (Kernel::new(ctx, &module, &layout, entry), layout, params)
 }
 

@@ -35,6 +35,8 @@ pub struct GpuEdt {
     params: wgpu::Buffer,
     /// Bytes between parameter slots (the device's uniform offset alignment).
     slot_bytes: u64,
+    /// The parameter slots as uploaded, `slot_bytes` apart.
+    packed: Vec<u8>,
     bufs: Option<Buffers>,
 }
 
@@ -74,12 +76,7 @@ impl GpuEdt {
                 entries: &entries,
             });
             let slot_bytes = u64::from(ctx.limits().min_uniform_buffer_offset_alignment).max(16);
-            let params = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("edt params"),
-                size: slot_bytes * SLOTS as u64,
-                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            });
+            let params = ctx.buffer("edt params", slot_bytes * SLOTS as u64, wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST);
             let kernel = |entry| Kernel::new(ctx, &module, &layout, entry);
             GpuEdt {
                 ctx: ctx.clone(),
@@ -89,6 +86,7 @@ impl GpuEdt {
                 layout,
                 params,
                 slot_bytes,
+                packed: vec![0; slot_bytes as usize * SLOTS],
                 bufs: None,
             }
         })
@@ -116,15 +114,15 @@ impl GpuEdt {
             Params { len: nz, count: nx * ny, ..Params::default() },
             Params { len: nz, count: nx * ny, final_out: 1, total },
         ];
-        let mut packed = vec![0u8; self.slot_bytes as usize * SLOTS];
         for (k, p) in slots.iter().enumerate() {
             let at = k * self.slot_bytes as usize;
-            packed[at..at + 16].copy_from_slice(bytemuck::bytes_of(p));
+            self.packed[at..at + 16].copy_from_slice(bytemuck::bytes_of(p));
         }
+        let packed = &self.packed;
         let bytes_out = 4 * n as u64;
         self.ctx.scoped(|| {
             let q = &self.ctx.queue;
-            q.write_buffer(&self.params, 0, &packed);
+            q.write_buffer(&self.params, 0, packed);
             write_mask(q, &bufs.mask, mask.as_slice());
             let mut enc = self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("edt") });
             {
@@ -163,10 +161,7 @@ impl GpuEdt {
             self.ctx.check_buffer(what, bytes)?;
         }
         let bufs = self.ctx.scoped(|| {
-            let dev = &self.ctx.device;
-            let buffer = |label, size: u64, usage| {
-                dev.create_buffer(&wgpu::BufferDescriptor { label: Some(label), size, usage, mapped_at_creation: false })
-            };
+            let buffer = |label, size, usage| self.ctx.buffer(label, size, usage);
             let storage = wgpu::BufferUsages::STORAGE;
             let mask = buffer("edt mask", n64.div_ceil(4) * 4, storage | wgpu::BufferUsages::COPY_DST);
             let a = buffer("edt A", 8 * n64, storage);
@@ -177,13 +172,9 @@ impl GpuEdt {
             let staging = buffer("edt staging", 8 * n64, wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST);
             let group = |src: &wgpu::Buffer, dst: &wgpu::Buffer| {
                 let params = wgpu::BufferBinding { buffer: &self.params, offset: 0, size: wgpu::BufferSize::new(16) };
-                let list = [&mask, src, dst, &stack, &out_d, &out_s];
-                let mut entries = vec![wgpu::BindGroupEntry { binding: 0, resource: wgpu::BindingResource::Buffer(params) }];
-                entries.extend(list.iter().enumerate().map(|(k, b)| wgpu::BindGroupEntry {
-                    binding: k as u32 + 1,
-                    resource: b.as_entire_binding(),
-                }));
-                dev.create_bind_group(&wgpu::BindGroupDescriptor { label: Some("edt"), layout: &self.layout, entries: &entries })
+                let mut resources = vec![wgpu::BindingResource::Buffer(params)];
+                resources.extend([&mask, src, dst, &stack, &out_d, &out_s].map(|b| b.as_entire_binding()));
+                self.ctx.bind_group("edt", &self.layout, &resources)
             };
             let (a_to_b, b_to_a) = (group(&a, &b), group(&b, &a));
             Buffers { voxels: n, mask, out_d, out_s, staging, a_to_b, b_to_a }

@@ -82,6 +82,10 @@ pub struct GpuIntegrator {
     resident: Option<Region>,
     /// The newly covered voxels' (index, S, D, 0), uploaded when resident.
     fresh: Vec<[u32; 4]>,
+    /// The changed blocks (indices in the region's blocks) and their
+    /// voxels' (old S, old D, new S, new D), as read back.
+    changed_list: Vec<u32>,
+    changed_pairs: Vec<u32>,
 }
 
 #[derive(Debug)]
@@ -138,17 +142,13 @@ impl GpuIntegrator {
                 label: Some("integrate args"),
                 entries: &[storage_entry(0, false)],
             });
-            let buffer = |label, size: u64, usage| dev.create_buffer(&wgpu::BufferDescriptor { label: Some(label), size, usage, mapped_at_creation: false });
+            let buffer = |label, size, usage| ctx.buffer(label, size, usage);
             let params = buffer("integrate params", std::mem::size_of::<Params>() as u64, wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST);
             let args = buffer("integrate args", 60, wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::INDIRECT);
             let ctrl_bytes = 4 * CTRL_WORDS as u64;
             let ctrl = buffer("integrate ctrl", ctrl_bytes, wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC);
             let ctrl_staging = buffer("integrate ctrl staging", ctrl_bytes, wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST);
-            let args_group = dev.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("integrate args"),
-                layout: &args_layout,
-                entries: &[wgpu::BindGroupEntry { binding: 0, resource: args.as_entire_binding() }],
-            });
+            let args_group = ctx.bind_group("integrate args", &args_layout, &[args.as_entire_binding()]);
             let plain = |entry| Kernel::new(ctx, &module, &layout, entry);
             let prep = |entry| Kernel::with_layouts(ctx, &module, &[&layout, &args_layout], entry);
             let k = Kernels {
@@ -186,6 +186,8 @@ impl GpuIntegrator {
                 cur: Vec::new(),
                 resident: None,
                 fresh: Vec::new(),
+                changed_list: Vec::new(),
+                changed_pairs: Vec::new(),
             }
         })
     }
@@ -323,8 +325,9 @@ impl GpuIntegrator {
         let dirty = counts[C_DIRTY] as usize;
         let (list_bytes, pairs_at) = (4 * dirty as u64, pairs_offset(nb));
         let pair_bytes = 16 * 512 * dirty as u64;
-        let mut list = vec![0u32; dirty];
-        let mut pairs = vec![0u32; 4 * 512 * dirty];
+        let (list, pairs) = (&mut self.changed_list, &mut self.changed_pairs);
+        list.resize(dirty, 0);
+        pairs.resize(4 * 512 * dirty, 0);
         if dirty > 0 {
             self.ctx.scoped(|| {
                 let mut enc = self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("read changes") });
@@ -333,15 +336,15 @@ impl GpuIntegrator {
                 self.ctx.queue.submit([enc.finish()]);
             })?;
             self.ctx.read_back(&bufs.staging, pairs_at + pair_bytes, |b| {
-                crate::edt::copy_words(&b[..list_bytes as usize], &mut list);
-                crate::edt::copy_words(&b[pairs_at as usize..], &mut pairs);
+                crate::edt::copy_words(&b[..list_bytes as usize], list);
+                crate::edt::copy_words(&b[pairs_at as usize..], pairs);
             })?;
         }
         // Scatter the changed blocks' pairs into region order and write
         // them back with the CPU's own code.
         self.cur.resize(r, FAR);
         let mut keys = Vec::with_capacity(dirty);
-        for (slot, &b) in list.iter().enumerate() {
+        for (slot, &b) in self.changed_list.iter().enumerate() {
             let b = b as usize;
             let bc = [b % nb3[0] as usize, (b / nb3[0] as usize) % nb3[1] as usize, b / (nb3[0] * nb3[1]) as usize];
             keys.push(BlockKey([0, 1, 2].map(|a| key_lo[a] + bc[a] as i32)));
@@ -350,7 +353,7 @@ impl GpuIntegrator {
                 let c = [0, 1, 2].map(|a| (bc[a] * 8 + vo[a]) as i64 - i64::from(params.o8[a]));
                 if (0..3).all(|a| c[a] >= 0 && (c[a] as usize) < region.dims[a]) {
                     let i = region.linear(c.map(|x| x as usize));
-                    let p = &pairs[4 * (slot * 512 + off)..4 * (slot * 512 + off) + 4];
+                    let p = &self.changed_pairs[4 * (slot * 512 + off)..4 * (slot * 512 + off) + 4];
                     self.old[i] = (u64::from(p[1]) << 32) | u64::from(p[0]);
                     self.cur[i] = (u64::from(p[3]) << 32) | u64::from(p[2]);
                 }
@@ -417,8 +420,7 @@ impl GpuIntegrator {
             self.ctx.check_buffer(what, bytes)?;
         }
         let bufs = self.ctx.scoped(|| {
-            let dev = &self.ctx.device;
-            let buffer = |label, size: u64, usage| dev.create_buffer(&wgpu::BufferDescriptor { label: Some(label), size, usage, mapped_at_creation: false });
+            let buffer = |label, size, usage| self.ctx.buffer(label, size, usage);
             let storage = wgpu::BufferUsages::STORAGE;
             let (copy_dst, copy_src) = (wgpu::BufferUsages::COPY_DST, wgpu::BufferUsages::COPY_SRC);
             let old = buffer("integrate old", 8 * r64, storage | copy_dst);
@@ -432,10 +434,8 @@ impl GpuIntegrator {
             let pairs = buffer("integrate pairs", 16 * 512 * nb64, storage | copy_src);
             let staging = buffer("integrate staging", pairs_offset(nb) + 16 * 512 * nb64, wgpu::BufferUsages::MAP_READ | copy_dst);
             let fresh = buffer("integrate fresh", 16 * r64, storage | copy_dst);
-            let list = [&old, &cur, &batch, &mark, &queues, &front, &self.ctrl, &blk, &pairs, &fresh];
-            let mut entries = vec![wgpu::BindGroupEntry { binding: 0, resource: self.params.as_entire_binding() }];
-            entries.extend(list.iter().enumerate().map(|(k, b)| wgpu::BindGroupEntry { binding: k as u32 + 1, resource: b.as_entire_binding() }));
-            let group = dev.create_bind_group(&wgpu::BindGroupDescriptor { label: Some("integrate"), layout: &self.layout, entries: &entries });
+            let list = [&self.params, &old, &cur, &batch, &mark, &queues, &front, &self.ctrl, &blk, &pairs, &fresh];
+            let group = self.ctx.bind_group("integrate", &self.layout, &list.map(|b| b.as_entire_binding()));
             Buffers { region: r, window: w, blocks: nb, old, batch, blk, pairs, fresh, staging, group }
         })?;
         self.bufs = Some(bufs);

@@ -170,17 +170,11 @@ impl GpuProject {
         self.ctx.check_buffer("the free ranges of the pixels or beams", 4 * beams as u64)?;
         self.ctx.check_buffer("the projection bits", 4 * words)?;
         let bufs = self.ctx.scoped(|| {
-            let dev = &self.ctx.device;
-            let buffer = |label, size: u64, usage| dev.create_buffer(&wgpu::BufferDescriptor { label: Some(label), size, usage, mapped_at_creation: false });
+            let buffer = |label, size, usage| self.ctx.buffer(label, size, usage);
             let free_below = buffer("project free ranges", 4 * beams as u64, wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST);
             let out = buffer("project bits", 4 * words, wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC);
             let staging = buffer("project staging", 4 * words, wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST);
-            let entries = [
-                wgpu::BindGroupEntry { binding: 0, resource: self.params.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 1, resource: free_below.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 2, resource: out.as_entire_binding() },
-            ];
-            let group = dev.create_bind_group(&wgpu::BindGroupDescriptor { label: Some("project"), layout: &self.layout, entries: &entries });
+            let group = self.ctx.bind_group("project", &self.layout, &[&self.params, &free_below, &out].map(|b| b.as_entire_binding()));
             Buffers { beams, voxels, free_below, out, staging, group }
         })?;
         self.bufs = Some(bufs);

@@ -98,17 +98,11 @@ impl GpuRaycast {
         self.ctx.check_buffer("the rays", RAY_BYTES * rays as u64)?;
         self.ctx.check_buffer("the observation bits", 4 * words)?;
         let bufs = self.ctx.scoped(|| {
-            let dev = &self.ctx.device;
-            let buffer = |label, size: u64, usage| dev.create_buffer(&wgpu::BufferDescriptor { label: Some(label), size, usage, mapped_at_creation: false });
+            let buffer = |label, size, usage| self.ctx.buffer(label, size, usage);
             let ray_buf = buffer("raycast rays", RAY_BYTES * rays as u64, wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST);
             let obs = buffer("raycast obs", 4 * words, wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC);
             let staging = buffer("raycast staging", 4 * words, wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST);
-            let entries = [
-                wgpu::BindGroupEntry { binding: 0, resource: self.params.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 1, resource: ray_buf.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 2, resource: obs.as_entire_binding() },
-            ];
-            let group = dev.create_bind_group(&wgpu::BindGroupDescriptor { label: Some("raycast"), layout: &self.layout, entries: &entries });
+            let group = self.ctx.bind_group("raycast", &self.layout, &[&self.params, &ray_buf, &obs].map(|b| b.as_entire_binding()));
             Buffers { rays, voxels, ray_buf, obs, staging, group }
         })?;
         self.bufs = Some(bufs);
