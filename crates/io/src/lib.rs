@@ -31,8 +31,11 @@ pub mod pcd;
 pub mod picture;
 pub mod ply;
 pub mod plot;
+pub mod ros;
+pub mod trajectory;
 
 pub use error::IoError;
 pub use mapfile::{read_map, write_map, MapContents};
 pub use pcd::read_pcd;
 pub use plot::Chart;
+pub use trajectory::Trajectory;

@@ -1,0 +1,1 @@
+//! ROS 1 bags (format 2.0). Being written.
