@@ -7,7 +7,12 @@
 //! already integrated.
 
 pub mod bag;
+mod convert;
 pub mod mcap;
+pub mod msg;
+#[cfg(test)]
+mod msg_tests;
+mod wire;
 
 use std::path::Path;
 

@@ -1,0 +1,419 @@
+//! The ROS message types edtmap maps from, decoded from (and encoded to)
+//! either wire format with one description per type.
+//!
+//! Sensors: `sensor_msgs/PointCloud2`, `sensor_msgs/Image` (depth:
+//! `16UC1`/`mono16` scaled to metres, or `32FC1` metres) with
+//! `sensor_msgs/CameraInfo`, and `sensor_msgs/LaserScan`. Poses:
+//! `nav_msgs/Odometry`, `geometry_msgs/PoseStamped`,
+//! `geometry_msgs/TransformStamped` and `tf2_msgs/TFMessage` (ROS 1's
+//! `tf/tfMessage` too). Fields after the last one edtmap uses (an
+//! odometry's twist) are not read.
+
+use super::wire::{WireReader, WireResult, WireWriter};
+use super::Encoding;
+use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
+
+/// A message header: time stamp and coordinate frame.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Header {
+    /// Stamp, nanoseconds since the epoch.
+    pub stamp_ns: i64,
+    /// Coordinate frame of the data.
+    pub frame_id: String,
+}
+
+impl Header {
+    /// The stamp in seconds.
+    pub fn stamp_s(&self) -> f64 {
+        self.stamp_ns as f64 * 1e-9
+    }
+
+    fn read(r: &mut WireReader<'_>) -> WireResult<Self> {
+        let stamp_ns = if r.is_ros1() {
+            r.u32("header.seq")?;
+            let s = r.u32("header.stamp.secs")?;
+            let ns = r.u32("header.stamp.nsecs")?;
+            i64::from(s) * 1_000_000_000 + i64::from(ns)
+        } else {
+            let s = r.i32("header.stamp.sec")?;
+            let ns = r.u32("header.stamp.nanosec")?;
+            i64::from(s) * 1_000_000_000 + i64::from(ns)
+        };
+        Ok(Header { stamp_ns, frame_id: r.string("header.frame_id")? })
+    }
+
+    fn write(&self, w: &mut WireWriter) {
+        let (s, ns) = (self.stamp_ns.div_euclid(1_000_000_000), self.stamp_ns.rem_euclid(1_000_000_000) as u32);
+        if w.is_ros1() {
+            w.u32(0);
+            w.u32(s as u32);
+        } else {
+            w.i32(s as i32);
+        }
+        w.u32(ns);
+        w.string(&self.frame_id);
+    }
+}
+
+/// One field of a [`PointCloud2`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct PointField {
+    /// Field name (`x`, `y`, `z`, `intensity`, ...).
+    pub name: String,
+    /// Byte offset in a point.
+    pub offset: u32,
+    /// Type code: 1 int8, 2 uint8, 3 int16, 4 uint16, 5 int32, 6 uint32,
+    /// 7 float32, 8 float64.
+    pub datatype: u8,
+    /// Elements in the field.
+    pub count: u32,
+}
+
+/// `sensor_msgs/PointCloud2`.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct PointCloud2 {
+    /// Stamp and frame.
+    pub header: Header,
+    /// Rows (1 for unordered clouds).
+    pub height: u32,
+    /// Points per row.
+    pub width: u32,
+    /// The fields of a point.
+    pub fields: Vec<PointField>,
+    /// Byte order of `data`.
+    pub is_bigendian: bool,
+    /// Bytes per point.
+    pub point_step: u32,
+    /// Bytes per row.
+    pub row_step: u32,
+    /// The points.
+    pub data: Vec<u8>,
+    /// Whether every point is finite.
+    pub is_dense: bool,
+}
+
+/// `sensor_msgs/Image`.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Image {
+    /// Stamp and frame.
+    pub header: Header,
+    /// Rows.
+    pub height: u32,
+    /// Columns.
+    pub width: u32,
+    /// Pixel encoding (`16UC1`, `32FC1`, `mono16`, ...).
+    pub encoding: String,
+    /// Byte order of multi-byte pixels.
+    pub is_bigendian: bool,
+    /// Bytes per row.
+    pub step: u32,
+    /// The pixels.
+    pub data: Vec<u8>,
+}
+
+/// `sensor_msgs/CameraInfo`, the fields a depth camera needs.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct CameraInfo {
+    /// Stamp and frame.
+    pub header: Header,
+    /// Image rows.
+    pub height: u32,
+    /// Image columns.
+    pub width: u32,
+    /// Distortion model name (`plumb_bob`, ...).
+    pub distortion_model: String,
+    /// Distortion coefficients.
+    pub d: Vec<f64>,
+    /// Row-major 3 × 3 intrinsic matrix.
+    pub k: [f64; 9],
+}
+
+/// `sensor_msgs/LaserScan`.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct LaserScanMsg {
+    /// Stamp and frame.
+    pub header: Header,
+    /// Angle of the first beam, radians.
+    pub angle_min: f32,
+    /// Angle of the last beam, radians.
+    pub angle_max: f32,
+    /// Angle between beams, radians.
+    pub angle_increment: f32,
+    /// Time between beams, seconds.
+    pub time_increment: f32,
+    /// Time between scans, seconds.
+    pub scan_time: f32,
+    /// Shortest valid range, metres.
+    pub range_min: f32,
+    /// Longest valid range, metres.
+    pub range_max: f32,
+    /// Ranges, metres.
+    pub ranges: Vec<f32>,
+    /// Intensities (may be empty).
+    pub intensities: Vec<f32>,
+}
+
+/// A stamped rigid transform: `Odometry`, `PoseStamped` or
+/// `TransformStamped`, as the pose of `child_frame` in `header.frame_id`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StampedTransform {
+    /// Stamp and parent frame.
+    pub header: Header,
+    /// The frame whose pose this is (empty for `PoseStamped`).
+    pub child_frame: String,
+    /// `T_parent_child`.
+    pub transform: Isometry3<f64>,
+}
+
+/// A decoded message of a type edtmap reads.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Message {
+    /// A point cloud.
+    PointCloud2(PointCloud2),
+    /// An image.
+    Image(Image),
+    /// Camera intrinsics.
+    CameraInfo(CameraInfo),
+    /// A planar scan.
+    LaserScan(LaserScanMsg),
+    /// `nav_msgs/Odometry`.
+    Odometry(StampedTransform),
+    /// `geometry_msgs/PoseStamped`.
+    PoseStamped(StampedTransform),
+    /// `geometry_msgs/TransformStamped`.
+    TransformStamped(StampedTransform),
+    /// `tf2_msgs/TFMessage`: several transforms.
+    Tf(Vec<StampedTransform>),
+}
+
+/// Message types [`Message::decode`] reads, as `package/Type`.
+pub const SUPPORTED_TYPES: [&str; 9] = [
+    "sensor_msgs/PointCloud2",
+    "sensor_msgs/Image",
+    "sensor_msgs/CameraInfo",
+    "sensor_msgs/LaserScan",
+    "nav_msgs/Odometry",
+    "geometry_msgs/PoseStamped",
+    "geometry_msgs/TransformStamped",
+    "tf2_msgs/TFMessage",
+    "tf/tfMessage",
+];
+
+impl Message {
+    /// Decodes a message of type `msg_type` (`package/Type`); the error
+    /// names the type and the field.
+    pub fn decode(msg_type: &str, data: &[u8], encoding: Encoding) -> Result<Message, String> {
+        let mut r = WireReader::new(data, encoding)?;
+        let r = &mut r;
+        let msg = match msg_type {
+            "sensor_msgs/PointCloud2" => read_cloud(r).map(Message::PointCloud2),
+            "sensor_msgs/Image" => read_image(r).map(Message::Image),
+            "sensor_msgs/CameraInfo" => read_camera_info(r).map(Message::CameraInfo),
+            "sensor_msgs/LaserScan" => read_scan(r).map(Message::LaserScan),
+            "nav_msgs/Odometry" => read_odometry(r).map(Message::Odometry),
+            "geometry_msgs/PoseStamped" => read_pose_stamped(r).map(Message::PoseStamped),
+            "geometry_msgs/TransformStamped" => read_transform_stamped(r).map(Message::TransformStamped),
+            "tf2_msgs/TFMessage" | "tf/tfMessage" => read_tf(r).map(Message::Tf),
+            other => return Err(format!("message type {other} is not one edtmap reads ({})", SUPPORTED_TYPES.join(", "))),
+        }
+        .map_err(|e| format!("{msg_type}: {e}"))?;
+        Ok(msg)
+    }
+
+    /// Encodes the message (CDR little-endian for [`Encoding::Cdr`]).
+    pub fn encode(&self, encoding: Encoding) -> Vec<u8> {
+        let mut w = WireWriter::new(encoding);
+        let w_ = &mut w;
+        match self {
+            Message::PointCloud2(m) => write_cloud(w_, m),
+            Message::Image(m) => write_image(w_, m),
+            Message::CameraInfo(m) => write_camera_info(w_, m),
+            Message::LaserScan(m) => write_scan(w_, m),
+            Message::Odometry(m) => write_odometry(w_, m),
+            Message::PoseStamped(m) => write_pose_stamped(w_, m),
+            Message::TransformStamped(m) => write_transform_stamped(w_, m),
+            Message::Tf(ts) => {
+                w_.seq_len(ts.len());
+                ts.iter().for_each(|t| write_transform_stamped(w_, t));
+            }
+        }
+        w.finish()
+    }
+
+    /// The message's `package/Type` name.
+    pub fn type_name(&self) -> &'static str {
+        match self {
+            Message::PointCloud2(_) => SUPPORTED_TYPES[0],
+            Message::Image(_) => SUPPORTED_TYPES[1],
+            Message::CameraInfo(_) => SUPPORTED_TYPES[2],
+            Message::LaserScan(_) => SUPPORTED_TYPES[3],
+            Message::Odometry(_) => SUPPORTED_TYPES[4],
+            Message::PoseStamped(_) => SUPPORTED_TYPES[5],
+            Message::TransformStamped(_) => SUPPORTED_TYPES[6],
+            Message::Tf(_) => SUPPORTED_TYPES[7],
+        }
+    }
+}
+
+fn read_cloud(r: &mut WireReader<'_>) -> WireResult<PointCloud2> {
+    let header = Header::read(r)?;
+    let (height, width) = (r.u32("height")?, r.u32("width")?);
+    let n = r.seq_len("fields", 13)?;
+    let mut fields = Vec::with_capacity(n);
+    for _ in 0..n {
+        fields.push(PointField { name: r.string("fields.name")?, offset: r.u32("fields.offset")?, datatype: r.u8("fields.datatype")?, count: r.u32("fields.count")? });
+    }
+    let is_bigendian = r.u8("is_bigendian")? != 0;
+    let (point_step, row_step) = (r.u32("point_step")?, r.u32("row_step")?);
+    let data = r.bytes("data")?;
+    let is_dense = r.u8("is_dense")? != 0;
+    Ok(PointCloud2 { header, height, width, fields, is_bigendian, point_step, row_step, data, is_dense })
+}
+
+fn write_cloud(w: &mut WireWriter, m: &PointCloud2) {
+    m.header.write(w);
+    w.u32(m.height);
+    w.u32(m.width);
+    w.seq_len(m.fields.len());
+    for f in &m.fields {
+        w.string(&f.name);
+        w.u32(f.offset);
+        w.u8(f.datatype);
+        w.u32(f.count);
+    }
+    w.u8(m.is_bigendian.into());
+    w.u32(m.point_step);
+    w.u32(m.row_step);
+    w.bytes(&m.data);
+    w.u8(m.is_dense.into());
+}
+
+fn read_image(r: &mut WireReader<'_>) -> WireResult<Image> {
+    let header = Header::read(r)?;
+    let (height, width) = (r.u32("height")?, r.u32("width")?);
+    let encoding = r.string("encoding")?;
+    let is_bigendian = r.u8("is_bigendian")? != 0;
+    let step = r.u32("step")?;
+    Ok(Image { header, height, width, encoding, is_bigendian, step, data: r.bytes("data")? })
+}
+
+fn write_image(w: &mut WireWriter, m: &Image) {
+    m.header.write(w);
+    w.u32(m.height);
+    w.u32(m.width);
+    w.string(&m.encoding);
+    w.u8(m.is_bigendian.into());
+    w.u32(m.step);
+    w.bytes(&m.data);
+}
+
+fn read_camera_info(r: &mut WireReader<'_>) -> WireResult<CameraInfo> {
+    let header = Header::read(r)?;
+    let (height, width) = (r.u32("height")?, r.u32("width")?);
+    let distortion_model = r.string("distortion_model")?;
+    let d = r.f64s("d")?;
+    let k = r.f64_array::<9>("k")?;
+    // R, P, binning and ROI follow; the depth camera model needs none.
+    Ok(CameraInfo { header, height, width, distortion_model, d, k })
+}
+
+fn write_camera_info(w: &mut WireWriter, m: &CameraInfo) {
+    m.header.write(w);
+    w.u32(m.height);
+    w.u32(m.width);
+    w.string(&m.distortion_model);
+    w.f64s(&m.d);
+    w.f64_array(&m.k);
+    let identity = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0];
+    w.f64_array(&identity);
+    let k = &m.k;
+    w.f64_array(&[k[0], k[1], k[2], 0.0, k[3], k[4], k[5], 0.0, k[6], k[7], k[8], 0.0]);
+    (0..6).for_each(|_| w.u32(0)); // binning x, y; ROI offsets and size
+    w.u8(0); // roi.do_rectify
+}
+
+fn read_scan(r: &mut WireReader<'_>) -> WireResult<LaserScanMsg> {
+    let header = Header::read(r)?;
+    let mut v = [0f32; 7];
+    for (x, name) in v.iter_mut().zip(["angle_min", "angle_max", "angle_increment", "time_increment", "scan_time", "range_min", "range_max"]) {
+        *x = r.f32(name)?;
+    }
+    let [angle_min, angle_max, angle_increment, time_increment, scan_time, range_min, range_max] = v;
+    let ranges = r.f32s("ranges")?;
+    let intensities = r.f32s("intensities")?;
+    Ok(LaserScanMsg { header, angle_min, angle_max, angle_increment, time_increment, scan_time, range_min, range_max, ranges, intensities })
+}
+
+fn write_scan(w: &mut WireWriter, m: &LaserScanMsg) {
+    m.header.write(w);
+    for x in [m.angle_min, m.angle_max, m.angle_increment, m.time_increment, m.scan_time, m.range_min, m.range_max] {
+        w.f32(x);
+    }
+    w.f32s(&m.ranges);
+    w.f32s(&m.intensities);
+}
+
+/// A `geometry_msgs/Pose` or `Transform`: translation then quaternion.
+fn read_rigid(r: &mut WireReader<'_>, what: &str) -> WireResult<Isometry3<f64>> {
+    let t = r.f64_array::<3>(what)?;
+    let [x, y, z, w] = r.f64_array::<4>(what)?;
+    let q = Quaternion::new(w, x, y, z);
+    let norm = q.norm();
+    if !norm.is_finite() || (norm - 1.0).abs() > 1e-2 || t.iter().any(|v| !v.is_finite()) {
+        return Err(format!("{what}: translation {t:?}, quaternion (x {x}, y {y}, z {z}, w {w}) is not a rigid transform"));
+    }
+    // Renormalize only what needs it, so stored unit quaternions stay bit for bit.
+    let rotation = if (norm - 1.0).abs() < 1e-12 { UnitQuaternion::new_unchecked(q) } else { UnitQuaternion::from_quaternion(q) };
+    Ok(Isometry3::from_parts(Translation3::new(t[0], t[1], t[2]), rotation))
+}
+
+fn write_rigid(w: &mut WireWriter, p: &Isometry3<f64>) {
+    w.f64_array(p.translation.vector.as_slice());
+    let q = p.rotation.quaternion();
+    w.f64_array(&[q.i, q.j, q.k, q.w]);
+}
+
+fn read_odometry(r: &mut WireReader<'_>) -> WireResult<StampedTransform> {
+    let header = Header::read(r)?;
+    let child_frame = r.string("child_frame_id")?;
+    let transform = read_rigid(r, "pose.pose")?;
+    Ok(StampedTransform { header, child_frame, transform })
+}
+
+fn write_odometry(w: &mut WireWriter, m: &StampedTransform) {
+    m.header.write(w);
+    w.string(&m.child_frame);
+    write_rigid(w, &m.transform);
+    w.f64_array(&[0.0; 36]); // pose covariance
+    w.f64_array(&[0.0; 6 + 36]); // twist and its covariance
+}
+
+fn read_pose_stamped(r: &mut WireReader<'_>) -> WireResult<StampedTransform> {
+    let header = Header::read(r)?;
+    let transform = read_rigid(r, "pose")?;
+    Ok(StampedTransform { header, child_frame: String::new(), transform })
+}
+
+fn write_pose_stamped(w: &mut WireWriter, m: &StampedTransform) {
+    m.header.write(w);
+    write_rigid(w, &m.transform);
+}
+
+fn read_transform_stamped(r: &mut WireReader<'_>) -> WireResult<StampedTransform> {
+    let header = Header::read(r)?;
+    let child_frame = r.string("child_frame_id")?;
+    let transform = read_rigid(r, "transform")?;
+    Ok(StampedTransform { header, child_frame, transform })
+}
+
+fn write_transform_stamped(w: &mut WireWriter, m: &StampedTransform) {
+    m.header.write(w);
+    w.string(&m.child_frame);
+    write_rigid(w, &m.transform);
+}
+
+fn read_tf(r: &mut WireReader<'_>) -> WireResult<Vec<StampedTransform>> {
+    // Smallest TransformStamped: a header of 3 × 4 bytes and two empty strings, 7 × 8 bytes of numbers.
+    let n = r.seq_len("transforms", 76)?;
+    (0..n).map(|_| read_transform_stamped(r)).collect()
+}
