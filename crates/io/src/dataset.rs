@@ -1,67 +1,116 @@
 //! Recordings on disk as frames with poses, for `edtmap run --dataset`.
 //!
-//! Two layouts so far, told apart by their files:
-//! - a 3DMatch-style depth folder (`camera-intrinsics.txt`,
-//!   `frame-XXXXXX.depth.png` + `frame-XXXXXX.pose.txt`), read by
-//!   [`DepthFolder`];
-//! - a folder of point clouds (`*.pcd`, or KITTI Velodyne `*.bin`: float32
-//!   x y z reflectance per point, little-endian; in file-name order) with a
-//!   `poses.txt` trajectory in the KITTI odometry format: one line per
-//!   cloud, the 12 numbers of the row-major 3 × 4 `T_world_sensor`.
+//! A folder is told apart by its files:
+//! - a **depth folder** ([`DepthFolder`]): 3DMatch (`camera-intrinsics.txt`,
+//!   `frame-XXXXXX.depth.png` + `frame-XXXXXX.pose.txt`) or TUM RGB-D
+//!   (`depth.txt` or `depth/<timestamp>.png`, `groundtruth.txt`);
+//! - a **folder of point clouds** ([`CloudFolder`]): `*.pcd`, KITTI
+//!   Velodyne `*.bin` (float32 x y z reflectance per point, little-endian)
+//!   or `*.ply`, one kind per folder, posed by a trajectory, a KITTI
+//!   `poses.txt` (the 12 numbers of the row-major 3 × 4 `T_world_sensor`
+//!   per cloud) or a `<stem>.pose.txt` beside each cloud.
+//!
+//! Poses are resolved when the folder is opened: they are just numbers.
+//! A frame whose time the trajectory does not cover opens fine and fails
+//! on [`Dataset::frame`] with [`IoError::NoPose`], naming the file, the
+//! time and the trajectory's span, so that the caller may skip it.
 
-use crate::depth_folder::DepthFolder;
-use crate::{read_pcd, IoError};
-use edtmap_core::sensor::{pose_from_matrix, Frame, Measurement, PointCloud, RangeLimits};
+mod cloud_folder;
+pub(crate) mod frames;
+
+pub use crate::depth_folder::DepthFolder;
+pub use cloud_folder::{parse_kitti_bin, read_kitti_bin, CloudFolder, DEFAULT_CLOUD_RATE_HZ};
+pub use frames::{parse_kitti_poses, parse_matrix, parse_times, read_matrix_file, FrameFile, FramePose};
+
+use crate::IoError;
+use edtmap_core::sensor::{Frame, RangeLimits};
+use frames::{bad, list_dir};
 use std::path::{Path, PathBuf};
+
+/// Largest time between two trajectory samples that a frame's pose is
+/// interpolated across, seconds: a robot's pose is not guessed over a hole
+/// in its trajectory (TUM ground truth is 100 Hz, odometry 10 Hz or more).
+pub const DEFAULT_MAX_POSE_GAP_S: f64 = 0.1;
+
+/// How to read a recording.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DatasetOptions {
+    /// Metres per unit of 16-bit depth images (0.001 for 3DMatch's
+    /// millimetres, 0.0002 for TUM's 5000 units per metre).
+    pub depth_scale_m: f32,
+    /// The depth camera's valid range.
+    pub range: RangeLimits,
+    /// The depth camera's `[fx, fy, cx, cy]`, pixels, for folders without
+    /// `camera-intrinsics.txt`.
+    pub intrinsics: Option<[f64; 4]>,
+    /// A TUM trajectory file giving the poses, interpolated at each frame's
+    /// time; it overrides the folder's own poses.
+    pub trajectory: Option<PathBuf>,
+    /// Largest gap between trajectory samples to interpolate across,
+    /// seconds.
+    pub max_pose_gap_s: f64,
+}
+
+impl DatasetOptions {
+    /// Options with the folder's own poses and intrinsics and
+    /// [`DEFAULT_MAX_POSE_GAP_S`].
+    pub fn new(depth_scale_m: f32, range: RangeLimits) -> Self {
+        DatasetOptions { depth_scale_m, range, intrinsics: None, trajectory: None, max_pose_gap_s: DEFAULT_MAX_POSE_GAP_S }
+    }
+}
 
 /// A recording opened for replay.
 #[derive(Debug, Clone)]
 pub enum Dataset {
-    /// Depth images with per-frame poses.
+    /// Depth images with poses.
     Depth(DepthFolder),
-    /// Point clouds with a KITTI-format trajectory.
+    /// Point clouds with poses.
     Clouds(CloudFolder),
 }
 
-/// Point clouds (`*.pcd` or KITTI `*.bin`) with one pose each from
-/// `poses.txt`.
-#[derive(Debug, Clone)]
-pub struct CloudFolder {
-    /// The clouds, in file-name order, with their poses.
-    pub frames: Vec<(PathBuf, [[f64; 4]; 4])>,
-}
-
-fn bad(path: &Path, reason: impl Into<String>) -> IoError {
-    IoError::Dataset { path: path.to_path_buf(), reason: reason.into() }
-}
-
 impl Dataset {
-    /// Opens the recording at `dir`; `depth_scale_m` is the metres per unit
-    /// of 16-bit depth images and `range` the depth camera's valid range.
+    /// Opens the recording at `dir` with its own poses and intrinsics;
+    /// `depth_scale_m` is the metres per unit of 16-bit depth images and
+    /// `range` the depth camera's valid range.
     pub fn open(dir: &Path, depth_scale_m: f32, range: RangeLimits) -> Result<Self, IoError> {
+        Self::open_with(dir, &DatasetOptions::new(depth_scale_m, range))
+    }
+
+    /// Opens the recording at `dir` as `opts` say.
+    pub fn open_with(dir: &Path, opts: &DatasetOptions) -> Result<Self, IoError> {
         if !dir.is_dir() {
             return Err(bad(dir, "not a folder"));
         }
-        if dir.join("camera-intrinsics.txt").exists() {
-            return Ok(Dataset::Depth(DepthFolder::open(dir, depth_scale_m, range)?));
+        let entries = list_dir(dir)?;
+        if crate::depth_folder::is_depth_folder(dir, &entries) {
+            return Ok(Dataset::Depth(DepthFolder::open_with(dir, opts)?));
         }
-        if dir.join("poses.txt").exists() {
-            return Ok(Dataset::Clouds(CloudFolder::open(dir)?));
+        if !cloud_folder::cloud_files(&entries).is_empty() {
+            return Ok(Dataset::Clouds(CloudFolder::open(dir, opts)?));
         }
-        Err(bad(dir, "neither a depth folder (camera-intrinsics.txt) nor point clouds with poses.txt"))
+        Err(bad(
+            dir,
+            "neither a depth folder (camera-intrinsics.txt and *.depth.png, or depth.txt or depth/ with TUM images) \
+             nor a folder of point clouds (*.pcd, *.bin or *.ply)",
+        ))
     }
 
     /// Number of frames.
     pub fn len(&self) -> usize {
-        match self {
-            Dataset::Depth(d) => d.frames.len(),
-            Dataset::Clouds(c) => c.frames.len(),
-        }
+        self.frames().len()
     }
 
     /// Whether the recording has no frame.
     pub fn is_empty(&self) -> bool {
         self.len() == 0
+    }
+
+    /// Every frame's file, time and pose.
+    pub fn frames(&self) -> &[FrameFile] {
+        match self {
+            Dataset::Depth(d) => &d.frames,
+            Dataset::Clouds(c) => &c.frames,
+        }
     }
 
     /// The sensor the recording holds, named as `Sensor::kind` names it:
@@ -73,7 +122,8 @@ impl Dataset {
         }
     }
 
-    /// Frame `i`, read from disk.
+    /// Frame `i`, read from disk. [`IoError::NoPose`] when the trajectory
+    /// does not cover its time.
     pub fn frame(&self, i: usize) -> Result<Frame, IoError> {
         match self {
             Dataset::Depth(d) => d.frame(i),
@@ -82,73 +132,10 @@ impl Dataset {
     }
 }
 
-impl CloudFolder {
-    /// Lists `dir`'s `*.pcd` files and reads `dir/poses.txt`, which must
-    /// hold one pose per cloud.
-    pub fn open(dir: &Path) -> Result<Self, IoError> {
-        let mut clouds = Vec::new();
-        for entry in std::fs::read_dir(dir).map_err(|e| IoError::io(dir, e))? {
-            let path = entry.map_err(|e| IoError::io(dir, e))?.path();
-            if path.extension().is_some_and(|e| e == "pcd" || e == "bin") {
-                clouds.push(path);
-            }
-        }
-        if clouds.is_empty() {
-            return Err(bad(dir, "no *.pcd or *.bin point clouds"));
-        }
-        let kinds = clouds.iter().filter(|p| p.extension().is_some_and(|e| e == "pcd")).count();
-        if kinds != 0 && kinds != clouds.len() {
-            return Err(bad(dir, "both *.pcd and *.bin clouds: keep one kind per folder"));
-        }
-        clouds.sort();
-        let poses_path = dir.join("poses.txt");
-        let text = std::fs::read_to_string(&poses_path).map_err(|e| IoError::io(&poses_path, e))?;
-        let lines: Vec<&str> = text.lines().filter(|l| !l.trim().is_empty()).collect();
-        if lines.len() != clouds.len() {
-            return Err(bad(&poses_path, format!("{} poses for {} point clouds", lines.len(), clouds.len())));
-        }
-        let mut frames = Vec::with_capacity(clouds.len());
-        for (k, (cloud, line)) in clouds.into_iter().zip(lines).enumerate() {
-            let at = |reason: String| bad(&poses_path, format!("line {}: {reason}", k + 1));
-            let numbers = line
-                .split_whitespace()
-                .map(|t| t.parse::<f64>().map_err(|_| at(format!("{t:?} is not a number"))))
-                .collect::<Result<Vec<f64>, IoError>>()?;
-            if numbers.len() != 12 {
-                return Err(at(format!("{} numbers, a KITTI pose has 12", numbers.len())));
-            }
-            let m: [[f64; 4]; 4] = std::array::from_fn(|r| std::array::from_fn(|c| if r < 3 { numbers[4 * r + c] } else if c == 3 { 1.0 } else { 0.0 }));
-            pose_from_matrix(&m).map_err(|e| at(e.to_string()))?;
-            frames.push((cloud, m));
-        }
-        Ok(CloudFolder { frames })
-    }
-
-    /// Cloud `i` with its pose; its stamp is its index (the clouds carry
-    /// none).
-    pub fn frame(&self, i: usize) -> Result<Frame, IoError> {
-        let (path, m) = self.frames.get(i).ok_or_else(|| bad(Path::new("."), format!("frame {i} of {}", self.frames.len())))?;
-        let cloud = if path.extension().is_some_and(|e| e == "bin") { read_kitti_bin(path)? } else { read_pcd(path)? };
-        let pose = pose_from_matrix(m).map_err(|e| bad(path, e.to_string()))?;
-        Ok(Frame { stamp_s: i as f64, t_world_sensor: pose, measurement: Measurement::Points(cloud) })
-    }
-}
-
-/// A KITTI Velodyne scan: little-endian float32 `x y z reflectance` per
-/// point (reflectance unused).
-pub fn read_kitti_bin(path: &Path) -> Result<PointCloud, IoError> {
-    let bytes = std::fs::read(path).map_err(|e| IoError::io(path, e))?;
-    if bytes.len() % 16 != 0 {
-        return Err(bad(path, format!("{} bytes is not a whole number of 16-byte points (x y z reflectance)", bytes.len())));
-    }
-    let f = |b: &[u8]| f32::from_le_bytes([b[0], b[1], b[2], b[3]]);
-    let points = bytes.chunks_exact(16).map(|p| [f(&p[0..4]), f(&p[4..8]), f(&p[8..12])]).collect();
-    Ok(PointCloud { points })
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use edtmap_core::sensor::Measurement;
 
     fn data(name: &str) -> PathBuf {
         PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data").join(name)

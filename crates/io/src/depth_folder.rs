@@ -1,82 +1,210 @@
-//! Depth-image folders in the 3DMatch style: `frame-XXXXXX.depth.png`
-//! (16-bit depth, 0 = no return), `frame-XXXXXX.pose.txt` (4 × 4 row-major
-//! `T_world_camera`, metres, optical axes) and `camera-intrinsics.txt`
-//! (3 × 3 K).
+//! Depth-image folders: 16-bit greyscale PNGs (0 = no return) with poses,
+//! in two layouts.
+//!
+//! * **3DMatch**: `frame-XXXXXX.depth.png` with a `frame-XXXXXX.pose.txt`
+//!   each (4 × 4 row-major `T_world_camera`, metres, optical axes), or
+//!   poses from a trajectory file at each frame's time. 3DMatch carries no
+//!   times: frame `XXXXXX` is at `XXXXXX / 30` s (the sequences are 30 Hz).
+//! * **TUM RGB-D**: `depth.txt` (`timestamp depth/<name>.png` per line,
+//!   `#` comments) or else a `depth/` folder of `<timestamp>.png`; poses
+//!   interpolated at each image's time in a TUM trajectory: the one given,
+//!   or the folder's `groundtruth.txt`.
+//!
+//! Intrinsics come from `camera-intrinsics.txt` (3 × 3 K) when the folder
+//! has one, else from [`DatasetOptions::intrinsics`]. Depth units are the
+//! caller's: millimetres in 3DMatch, 1/5000 m in TUM.
 
+use crate::dataset::frames::{bad, file_name, list_dir, read_text, FrameFile, FramePose, TrajectoryFile};
+use crate::dataset::DatasetOptions;
 use crate::IoError;
-use edtmap_core::sensor::{pose_from_matrix, DepthData, DepthImage, Frame, Measurement, PinholeCamera, RangeLimits};
+use edtmap_core::sensor::{DepthData, DepthImage, Frame, Measurement, PinholeCamera, RangeLimits};
 use std::path::{Path, PathBuf};
 
-/// A depth-image folder: its camera and its frames, in file-name order.
+/// Frame rate of 3DMatch sequences, Hz: the time of frame `XXXXXX`.
+pub const THREEDMATCH_RATE_HZ: f64 = 30.0;
+
+/// A depth-image folder: its camera and its frames.
 #[derive(Debug, Clone)]
 pub struct DepthFolder {
-    /// The camera: intrinsics from the folder, size from the first image.
+    /// The camera: intrinsics from the folder or the options, size from the
+    /// first image.
     pub camera: PinholeCamera,
-    /// `(depth PNG, pose file)` of every frame, sorted.
-    pub frames: Vec<(PathBuf, PathBuf)>,
+    /// Every frame's image, time and pose, in file-name order (3DMatch) or
+    /// in the order `depth.txt` lists them (TUM).
+    pub frames: Vec<FrameFile>,
     /// Metres per depth unit (0.001 for millimetres).
     pub metres_per_unit: f32,
 }
 
-fn bad(path: &Path, reason: impl Into<String>) -> IoError {
-    IoError::Dataset { path: path.to_path_buf(), reason: reason.into() }
+impl DepthFolder {
+    /// Opens `dir` with its own poses and intrinsics; `range` bounds the
+    /// valid depths.
+    pub fn open(dir: &Path, metres_per_unit: f32, range: RangeLimits) -> Result<Self, IoError> {
+        Self::open_with(dir, &DatasetOptions::new(metres_per_unit, range))
+    }
+
+    /// Opens `dir` (either layout), resolving every frame's time and pose
+    /// and reading the intrinsics and the first image's size.
+    pub fn open_with(dir: &Path, opts: &DatasetOptions) -> Result<Self, IoError> {
+        let entries = list_dir(dir)?;
+        let frames = if is_tum(dir) { tum_frames(dir, opts)? } else { threedmatch_frames(dir, &entries, opts)? };
+        let first = frames.first().ok_or_else(|| bad(dir, "no depth images"))?;
+        let [fx, fy, cx, cy] = intrinsics(dir, opts)?;
+        let (width, height, _) = read_depth_png(&first.path)?;
+        let camera = PinholeCamera { fx, fy, cx, cy, width, height, range: opts.range };
+        Ok(DepthFolder { camera, frames, metres_per_unit: opts.depth_scale_m })
+    }
+
+    /// Frame `i`: its depth image, time and pose. A frame whose time the
+    /// trajectory does not cover is [`IoError::NoPose`].
+    pub fn frame(&self, i: usize) -> Result<Frame, IoError> {
+        let file = self.frames.get(i).ok_or_else(|| bad(Path::new("."), format!("frame {i} of {}", self.frames.len())))?;
+        let pose = file.pose()?;
+        let (width, height, values) = read_depth_png(&file.path)?;
+        if (width, height) != (self.camera.width, self.camera.height) {
+            return Err(bad(&file.path, format!("{width} x {height} pixels, the folder's first frame has {} x {}", self.camera.width, self.camera.height)));
+        }
+        let image = DepthImage { width, height, data: DepthData::U16 { values, metres_per_unit: self.metres_per_unit } };
+        Ok(Frame { stamp_s: file.stamp_s, t_world_sensor: pose, measurement: Measurement::Depth(image) })
+    }
 }
 
-impl DepthFolder {
-    /// Opens `dir`, reading the intrinsics and the first image's size;
-    /// `range` bounds the valid depths.
-    pub fn open(dir: &Path, metres_per_unit: f32, range: RangeLimits) -> Result<Self, IoError> {
-        let entries = std::fs::read_dir(dir).map_err(|e| IoError::io(dir, e))?;
-        let mut frames = Vec::new();
-        for entry in entries {
-            let path = entry.map_err(|e| IoError::io(dir, e))?.path();
-            let name = path.file_name().and_then(|n| n.to_str()).unwrap_or_default();
-            if let Some(stem) = name.strip_suffix(".depth.png") {
+/// Whether `dir`'s entries make it a depth folder of either layout.
+pub(crate) fn is_depth_folder(dir: &Path, entries: &[PathBuf]) -> bool {
+    is_tum(dir) || dir.join("camera-intrinsics.txt").exists() || entries.iter().any(|p| file_name(p).ends_with(".depth.png"))
+}
+
+fn is_tum(dir: &Path) -> bool {
+    dir.join("depth.txt").is_file() || dir.join("depth").is_dir()
+}
+
+/// The 3DMatch frames: `frame-XXXXXX.depth.png`, posed by their
+/// `.pose.txt` files or by the trajectory at `XXXXXX / 30` s.
+fn threedmatch_frames(dir: &Path, entries: &[PathBuf], opts: &DatasetOptions) -> Result<Vec<FrameFile>, IoError> {
+    let traj = opts.trajectory.as_deref().map(|p| TrajectoryFile::read(p, opts.max_pose_gap_s)).transpose()?;
+    let mut frames = Vec::new();
+    for path in entries {
+        let name = file_name(path);
+        let Some(stem) = name.strip_suffix(".depth.png") else { continue };
+        // The frame number when the name has one; else the position.
+        let number = stem.strip_prefix("frame-").and_then(|n| n.parse::<u32>().ok()).map_or(frames.len() as f64, f64::from);
+        let stamp_s = number / THREEDMATCH_RATE_HZ;
+        let pose = match &traj {
+            Some(traj) => traj.pose_at(stamp_s),
+            None => {
                 let pose = dir.join(format!("{stem}.pose.txt"));
                 if !pose.exists() {
                     return Err(bad(&pose, format!("missing: {name} has no pose file")));
                 }
-                frames.push((path, pose));
+                FramePose::File(pose)
             }
-        }
-        if frames.is_empty() {
-            return Err(bad(dir, "no *.depth.png frames"));
-        }
-        frames.sort();
-        let k_path = dir.join("camera-intrinsics.txt");
-        let k = read_numbers(&k_path, 9)?;
-        let (width, height, _) = read_depth_png(&frames[0].0)?;
-        let camera = PinholeCamera { fx: k[0], fy: k[4], cx: k[2], cy: k[5], width, height, range };
-        Ok(DepthFolder { camera, frames, metres_per_unit })
+        };
+        frames.push(FrameFile { path: path.clone(), stamp_s, pose });
     }
-
-    /// Frame `i`: its depth image and pose; the stamp is the frame's index
-    /// at 30 Hz, as 3DMatch folders carry no times.
-    pub fn frame(&self, i: usize) -> Result<Frame, IoError> {
-        let (png, pose_path) = self.frames.get(i).ok_or_else(|| bad(Path::new("."), format!("frame {i} of {}", self.frames.len())))?;
-        let (width, height, values) = read_depth_png(png)?;
-        if (width, height) != (self.camera.width, self.camera.height) {
-            return Err(bad(png, format!("{width} x {height} pixels, the folder's first frame has {} x {}", self.camera.width, self.camera.height)));
-        }
-        let m = read_numbers(pose_path, 16)?;
-        let matrix: [[f64; 4]; 4] = std::array::from_fn(|r| std::array::from_fn(|c| m[4 * r + c]));
-        let pose = pose_from_matrix(&matrix).map_err(|e| bad(pose_path, e.to_string()))?;
-        let image = DepthImage { width, height, data: DepthData::U16 { values, metres_per_unit: self.metres_per_unit } };
-        Ok(Frame { stamp_s: i as f64 / 30.0, t_world_sensor: pose, measurement: Measurement::Depth(image) })
-    }
+    Ok(frames)
 }
 
-/// Exactly `count` whitespace-separated numbers from `path`.
-fn read_numbers(path: &Path, count: usize) -> Result<Vec<f64>, IoError> {
-    let text = std::fs::read_to_string(path).map_err(|e| IoError::io(path, e))?;
-    let mut out = Vec::with_capacity(count);
-    for token in text.split_whitespace() {
-        out.push(token.parse::<f64>().map_err(|_| bad(path, format!("{token:?} is not a number")))?);
+/// The TUM frames, posed by the trajectory at each image's time.
+fn tum_frames(dir: &Path, opts: &DatasetOptions) -> Result<Vec<FrameFile>, IoError> {
+    let images = tum_images(dir)?;
+    let traj_path = match &opts.trajectory {
+        Some(p) => p.clone(),
+        None => dir.join("groundtruth.txt"),
+    };
+    if opts.trajectory.is_none() && !traj_path.exists() {
+        return Err(bad(dir, "no poses: the folder has no groundtruth.txt (TUM trajectory) and no trajectory file was given"));
     }
-    if out.len() != count {
-        return Err(bad(path, format!("expected {count} numbers, found {}", out.len())));
+    let traj = TrajectoryFile::read(&traj_path, opts.max_pose_gap_s)?;
+    Ok(images.into_iter().map(|(stamp_s, path)| FrameFile { pose: traj.pose_at(stamp_s), path, stamp_s }).collect())
+}
+
+/// `(time, image)` of every TUM depth image: as `depth.txt` lists them,
+/// else the `depth/` folder's `<timestamp>.png` in time order.
+fn tum_images(dir: &Path) -> Result<Vec<(f64, PathBuf)>, IoError> {
+    let list = dir.join("depth.txt");
+    if list.is_file() {
+        return parse_depth_list(dir, &list, &read_text(&list)?);
     }
-    Ok(out)
+    let folder = dir.join("depth");
+    let mut images = Vec::new();
+    for path in list_dir(&folder)? {
+        if path.extension().is_some_and(|e| e == "png") {
+            let stem = path.file_stem().and_then(|s| s.to_str()).unwrap_or_default();
+            let t = stem.parse::<f64>().ok().filter(|t| t.is_finite()).ok_or_else(|| bad(&path, "the name is not a time: depth/ holds <timestamp>.png images"))?;
+            images.push((t, path));
+        }
+    }
+    images.sort_by(|a, b| a.0.total_cmp(&b.0));
+    Ok(images)
+}
+
+/// Parses a TUM `depth.txt`: `timestamp path` per line, the path relative
+/// to `dir`; every listed image must exist.
+fn parse_depth_list(dir: &Path, list: &Path, text: &str) -> Result<Vec<(f64, PathBuf)>, IoError> {
+    let mut images = Vec::new();
+    for (k, line) in text.lines().enumerate() {
+        let line = line.trim();
+        if line.is_empty() || line.starts_with('#') {
+            continue;
+        }
+        let at = |reason: String| bad(list, format!("line {}: {reason}", k + 1));
+        let mut tokens = line.split_whitespace();
+        let (Some(stamp), Some(name), None) = (tokens.next(), tokens.next(), tokens.next()) else {
+            return Err(at("expected `timestamp depth/<name>.png`".into()));
+        };
+        let shown: String = stamp.chars().take(40).collect();
+        let t = stamp.parse::<f64>().ok().filter(|t| t.is_finite()).ok_or_else(|| at(format!("{shown:?} is not a time")))?;
+        let path = dir.join(name);
+        if !path.is_file() {
+            return Err(at(format!("{} does not exist", path.display())));
+        }
+        images.push((t, path));
+    }
+    Ok(images)
+}
+
+/// `[fx, fy, cx, cy]` from `camera-intrinsics.txt`, else the options.
+fn intrinsics(dir: &Path, opts: &DatasetOptions) -> Result<[f64; 4], IoError> {
+    let path = dir.join("camera-intrinsics.txt");
+    if path.exists() {
+        return parse_intrinsics(&path, &read_text(&path)?);
+    }
+    let Some(k) = opts.intrinsics else {
+        return Err(bad(dir, "no camera-intrinsics.txt: set the depth camera's intrinsics [sensor] fx, fy, cx, cy (pixels) in the config"));
+    };
+    check_intrinsics(k).map_err(|reason| bad(dir, format!("[sensor] fx, fy, cx, cy: {reason}")))?;
+    Ok(k)
+}
+
+/// Parses a `camera-intrinsics.txt`: the 9 numbers of the 3 × 3 K,
+/// row-major; returns `[fx, fy, cx, cy]`. `path` names the file in errors.
+pub fn parse_intrinsics(path: &Path, text: &str) -> Result<[f64; 4], IoError> {
+    let mut k = Vec::with_capacity(9);
+    for (n, line) in text.lines().enumerate() {
+        for token in line.split_whitespace() {
+            let shown: String = token.chars().take(40).collect();
+            k.push(token.parse::<f64>().map_err(|_| bad(path, format!("line {}: {shown:?} is not a number", n + 1)))?);
+            if k.len() > 9 {
+                return Err(bad(path, format!("line {}: more than 9 numbers, K is 3 × 3", n + 1)));
+            }
+        }
+    }
+    if k.len() != 9 {
+        return Err(bad(path, format!("expected 9 numbers (3 × 3 K), found {}", k.len())));
+    }
+    let fxfycxcy = [k[0], k[4], k[2], k[5]];
+    check_intrinsics(fxfycxcy).map_err(|reason| bad(path, reason))?;
+    Ok(fxfycxcy)
+}
+
+fn check_intrinsics([fx, fy, cx, cy]: [f64; 4]) -> Result<(), String> {
+    if !(fx.is_finite() && fy.is_finite() && fx > 0.0 && fy > 0.0) {
+        return Err(format!("focal lengths fx = {fx}, fy = {fy} must be positive"));
+    }
+    if !(cx.is_finite() && cy.is_finite()) {
+        return Err(format!("principal point cx = {cx}, cy = {cy} must be finite"));
+    }
+    Ok(())
 }
 
 /// Width, height and values of a 16-bit greyscale PNG.
@@ -92,4 +220,35 @@ fn read_depth_png(path: &Path) -> Result<(u32, u32, Vec<u16>), IoError> {
     let frame = reader.next_frame(&mut buf).map_err(|e| bad(path, format!("corrupt PNG data: {e}")))?;
     let values = buf[..frame.buffer_size()].chunks_exact(2).map(|b| u16::from_be_bytes([b[0], b[1]])).collect();
     Ok((width, height, values))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn intrinsics_name_the_problem() {
+        let p = Path::new("camera-intrinsics.txt");
+        assert_eq!(parse_intrinsics(p, "570 0 320\n0 571 240\n0 0 1\n").expect("K"), [570.0, 571.0, 320.0, 240.0]);
+        let err = parse_intrinsics(p, "570 0 320\n0 x 240\n0 0 1\n").expect_err("x").to_string();
+        assert!(err.contains("line 2") && err.contains("\"x\""), "{err}");
+        let err = parse_intrinsics(p, "570 0 320\n0 570 240\n").expect_err("6").to_string();
+        assert!(err.contains("found 6"), "{err}");
+        let err = parse_intrinsics(p, "-570 0 320\n0 570 240\n0 0 1").expect_err("negative").to_string();
+        assert!(err.contains("positive"), "{err}");
+    }
+
+    #[test]
+    fn depth_lists_name_the_line() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        std::fs::create_dir(dir.path().join("depth")).expect("mkdir");
+        std::fs::write(dir.path().join("depth/1.5.png"), b"").expect("write");
+        let list = dir.path().join("depth.txt");
+        let got = parse_depth_list(dir.path(), &list, "# c\n1.5 depth/1.5.png\n").expect("one");
+        assert_eq!(got, vec![(1.5, dir.path().join("depth/1.5.png"))]);
+        for (text, want) in [("x depth/1.5.png\n", "line 1: \"x\" is not a time"), ("1.5\n", "line 1: expected"), ("# c\n2 depth/2.png\n", "line 2:")] {
+            let err = parse_depth_list(dir.path(), &list, text).expect_err(want).to_string();
+            assert!(err.contains("depth.txt") && err.contains(want), "{err}");
+        }
+    }
 }

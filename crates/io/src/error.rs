@@ -6,6 +6,18 @@ use thiserror::Error;
 #[derive(Debug, Error)]
 #[non_exhaustive]
 pub enum IoError {
+    /// A recording's frame has no pose: its time is outside the trajectory
+    /// or in a gap of it. The other frames can still be read, so a caller
+    /// may skip this one.
+    #[error("{}: no pose at {stamp_s:.6} s: {reason}", path.display())]
+    NoPose {
+        /// The frame's file (depth image or point cloud).
+        path: PathBuf,
+        /// The frame's time, seconds.
+        stamp_s: f64,
+        /// Why, naming the trajectory file and the time span it covers.
+        reason: String,
+    },
     /// The file could not be opened, read or written.
     #[error("{}: {error}", path.display())]
     Io {
