@@ -289,7 +289,10 @@ struct Tokens<'a> {
 }
 
 impl<'a> Tokens<'a> {
+    /// The next token; at the end, `None`, the line staying at the last
+    /// token's so that errors point at the record that ends early.
     fn next(&mut self) -> Option<&'a [u8]> {
+        let line = self.line;
         while let Some(&b) = self.data.get(self.pos) {
             if !b.is_ascii_whitespace() {
                 break;
@@ -301,7 +304,11 @@ impl<'a> Tokens<'a> {
         while self.data.get(self.pos).is_some_and(|b| !b.is_ascii_whitespace()) {
             self.pos += 1;
         }
-        (self.pos > start).then(|| &self.data[start..self.pos])
+        if self.pos == start {
+            self.line = line;
+            return None;
+        }
+        Some(&self.data[start..self.pos])
     }
 
     /// The current line, 1-based, counting the header.
