@@ -95,8 +95,9 @@ struct Header {
 
 const IDENTITY_VIEWPOINT: [f64; 7] = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0];
 
-/// Parses the bytes of a PCD file; `path` only names it in errors.
-pub(crate) fn parse_pcd(path: &Path, bytes: &[u8]) -> Result<PointCloud, IoError> {
+/// Parses the bytes of a PCD file (see [`read_pcd`]); `path` only names
+/// it in errors.
+pub fn parse_pcd(path: &Path, bytes: &[u8]) -> Result<PointCloud, IoError> {
     let header = parse_header(path, bytes)?;
     let data = bytes.get(header.data_start..).unwrap_or(&[]);
     let mut points = match header.encoding {

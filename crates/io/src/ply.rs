@@ -397,7 +397,7 @@ impl Element {
         if let Some(fixed) = &fixed {
             // Check the whole element fits before reading any record.
             let size = fixed.iter().map(|s| s.size()).sum::<usize>() as u64;
-            let need = self.count.checked_mul(size).unwrap_or(u64::MAX);
+            let need = self.count.saturating_mul(size);
             let left = bytes.len().saturating_sub(*pos) as u64;
             if need > left {
                 return Err(IoError::Truncated { path: path.to_path_buf(), expected: need, actual: left });

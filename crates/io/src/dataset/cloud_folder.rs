@@ -128,7 +128,7 @@ pub fn read_kitti_bin(path: &Path) -> Result<PointCloud, IoError> {
 /// Parses the bytes of a KITTI Velodyne scan; `path` only names it in
 /// errors.
 pub fn parse_kitti_bin(path: &Path, bytes: &[u8]) -> Result<PointCloud, IoError> {
-    if bytes.len() % 16 != 0 {
+    if !bytes.len().is_multiple_of(16) {
         return Err(bad(path, format!("{} bytes is not a whole number of 16-byte points (x y z reflectance)", bytes.len())));
     }
     let f = |b: &[u8]| f32::from_le_bytes([b[0], b[1], b[2], b[3]]);
