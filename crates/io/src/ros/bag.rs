@@ -13,6 +13,26 @@
 //! * [`BagWriter`] writes uncompressed chunks the way `rosbag record` does
 //!   (header patched when a chunk closes, connection records in the first
 //!   chunk that uses them), so the tests can make bags killed mid-run.
+//!
+//! ```
+//! use edtmap_io::ros::bag::{BagReader, BagWriter};
+//!
+//! # fn main() -> Result<(), edtmap_io::IoError> {
+//! let path = std::env::temp_dir().join(format!("edtmap-doc-{}.bag", std::process::id()));
+//! let mut writer = BagWriter::create(&path)?;
+//! let odom = writer.add_connection("/odom", "nav_msgs/Odometry", "*", "")?;
+//! writer.write(odom, 1_700_000_000_000_000_000, &[1, 2, 3])?;
+//! writer.finish()?;
+//!
+//! let bag = BagReader::open(&path)?;
+//! assert_eq!(bag.topics()?[0].messages, 1);
+//! for message in bag.messages(&[]) {
+//!     let message = message?;
+//!     assert_eq!((message.topic.as_str(), message.data.as_slice()), ("/odom", &[1u8, 2, 3][..]));
+//! }
+//! # std::fs::remove_file(&path).ok();
+//! # Ok(()) }
+//! ```
 
 mod format;
 mod messages;
