@@ -12,6 +12,7 @@ pub mod mcap;
 pub mod msg;
 #[cfg(test)]
 mod msg_tests;
+pub mod tf;
 mod wire;
 
 use std::path::Path;
