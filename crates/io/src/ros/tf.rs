@@ -14,8 +14,7 @@ use std::collections::{HashMap, VecDeque};
 /// Transforms between named frames over time.
 #[derive(Debug, Clone, Default)]
 pub struct TfBuffer {
-    moving: HashMap<(String, String), Vec<(f64, Isometry3<f64>)>>,
-    trajectories: HashMap<(String, String), Trajectory>,
+    moving: HashMap<(String, String), Trajectory>,
     fixed: HashMap<(String, String), Isometry3<f64>>,
 }
 
@@ -25,28 +24,38 @@ fn frame_name(id: &str) -> String {
 }
 
 impl TfBuffer {
-    /// Adds a transform; `is_static` for `/tf_static`.
-    pub fn add(&mut self, t: &StampedTransform, is_static: bool) {
-        let key = (frame_name(&t.header.frame_id), frame_name(&t.child_frame));
-        if is_static {
-            self.fixed.insert(key, t.transform);
-        } else {
-            self.trajectories.remove(&key);
-            self.moving.entry(key).or_default().push((t.header.stamp_s(), t.transform));
+    /// The tree of `(transform, is_static)` pairs: `is_static` for
+    /// `/tf_static`, whose transforms hold at all times.
+    pub fn new<'a>(transforms: impl IntoIterator<Item = (&'a StampedTransform, bool)>) -> Self {
+        let mut moving: HashMap<(String, String), Vec<(f64, Isometry3<f64>)>> = HashMap::new();
+        let mut fixed = HashMap::new();
+        for (t, is_static) in transforms {
+            let key = (frame_name(&t.header.frame_id), frame_name(&t.child_frame));
+            if is_static {
+                fixed.insert(key, t.transform);
+            } else {
+                moving.entry(key).or_default().push((t.header.stamp_s(), t.transform));
+            }
         }
+        let moving = moving.into_iter().map(|(k, v)| (k, Trajectory::new(v))).collect();
+        TfBuffer { moving, fixed }
+    }
+
+    /// The root of the tree `frame` is in: the ancestor with no parent.
+    pub fn root_of(&self, frame: &str) -> String {
+        let mut at = frame_name(frame);
+        for _ in 0..self.edges() {
+            match self.moving.keys().chain(self.fixed.keys()).find(|(_, c)| *c == at) {
+                Some((p, _)) => at = p.clone(),
+                None => break,
+            }
+        }
+        at
     }
 
     /// Number of edges.
     pub fn edges(&self) -> usize {
         self.moving.len() + self.fixed.len()
-    }
-
-    fn trajectory(&mut self, key: &(String, String)) -> Option<&Trajectory> {
-        if !self.trajectories.contains_key(key) {
-            let samples = self.moving.get(key)?.clone();
-            self.trajectories.insert(key.clone(), Trajectory::new(samples));
-        }
-        self.trajectories.get(key)
     }
 
     /// The chain of edges from `target` to `source`: `(parent, child,
@@ -84,7 +93,7 @@ impl TfBuffer {
 
     /// `T_target_source` at time `t` (seconds), moving edges interpolated
     /// between samples at most `max_gap_s` apart.
-    pub fn lookup(&mut self, target: &str, source: &str, t: f64, max_gap_s: f64) -> Result<Isometry3<f64>, String> {
+    pub fn lookup(&self, target: &str, source: &str, t: f64, max_gap_s: f64) -> Result<Isometry3<f64>, String> {
         let (target, source) = (frame_name(target), frame_name(source));
         if target == source {
             return Ok(Isometry3::identity());
@@ -95,7 +104,7 @@ impl TfBuffer {
             let key = (p, c);
             let edge = match self.fixed.get(&key) {
                 Some(fixed) => *fixed,
-                None => match self.trajectory(&key) {
+                None => match self.moving.get(&key) {
                     Some(traj) => traj.pose_at(t, max_gap_s).map_err(|e| format!("transform {} → {}: {e}", key.0, key.1))?,
                     None => return Err(format!("no transform {} → {}", key.0, key.1)),
                 },
@@ -130,13 +139,16 @@ mod tests {
 
     #[test]
     fn composes_a_chain_with_static_and_inverted_edges() {
-        let mut tf = TfBuffer::default();
         // map → odom moves along x; odom → base_link turns; base_link → lidar is static.
-        tf.add(&edge("/map", "odom", 0.0, 0.0, 0.0), false);
-        tf.add(&edge("map", "odom", 1.0, 2.0, 0.0), false);
-        tf.add(&edge("odom", "base_link", 0.0, 0.0, 0.0), false);
-        tf.add(&edge("odom", "base_link", 1.0, 0.0, 1.0), false);
-        tf.add(&edge("base_link", "lidar", 0.0, 0.5, 0.0), true);
+        let edges = [
+            (edge("/map", "odom", 0.0, 0.0, 0.0), false),
+            (edge("map", "odom", 1.0, 2.0, 0.0), false),
+            (edge("odom", "base_link", 0.0, 0.0, 0.0), false),
+            (edge("odom", "base_link", 1.0, 0.0, 1.0), false),
+            (edge("base_link", "lidar", 0.0, 0.5, 0.0), true),
+        ];
+        let tf = TfBuffer::new(edges.iter().map(|(e, s)| (e, *s)));
+        assert_eq!(tf.root_of("/lidar"), "map");
         let got = tf.lookup("map", "lidar", 0.5, 1.0).expect("chain");
         // Expected by hand: x 1, yaw 0.5, then the lidar 0.5 m ahead along the turned x.
         let want = Isometry3::new(Vector3::new(1.0 + 0.5 * 0.5f64.cos(), 0.5 * 0.5f64.sin(), 0.0), Vector3::new(0.0, 0.0, 0.5));
