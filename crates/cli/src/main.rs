@@ -9,6 +9,7 @@ mod query;
 mod report;
 mod run;
 mod scenes;
+mod source;
 mod timing;
 
 use std::process::ExitCode;
@@ -20,6 +21,9 @@ use clap::{Parser, Subcommand};
 #[derive(Parser)]
 #[command(name = "edtmap", version, about)]
 struct Cli {
+    /// Log more to stderr: -v progress of each stage, -vv every frame.
+    #[arg(short, long, action = clap::ArgAction::Count, global = true)]
+    verbose: u8,
     #[command(subcommand)]
     command: Command,
 }
@@ -40,8 +44,23 @@ enum Command {
     Info(query::InfoArgs),
 }
 
+/// Logs to stderr: warnings by default (frames skipped, recordings cut
+/// short), `-v` information, `-vv` every frame, `-vvv` everything.
+fn init_logs(verbose: u8) {
+    use tracing_subscriber::filter::LevelFilter;
+    let level = match verbose {
+        0 => LevelFilter::WARN,
+        1 => LevelFilter::INFO,
+        2 => LevelFilter::DEBUG,
+        _ => LevelFilter::TRACE,
+    };
+    let ansi = std::io::IsTerminal::is_terminal(&std::io::stderr());
+    tracing_subscriber::fmt().with_max_level(level).with_writer(std::io::stderr).with_ansi(ansi).with_target(false).without_time().init();
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    init_logs(cli.verbose);
     let result = match cli.command {
         Command::Demo(args) => demo::run(&args),
         Command::Edt(args) => edt::run(&args),

@@ -5,14 +5,13 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 use clap::{Args, ValueEnum};
-use edtmap::config::{Config, ConstructionName};
+use edtmap::config::{Config, ConstructionName, OnError};
 use edtmap::cpu::integrate::region::Region;
 use edtmap::eval::{edt_errors, edt_extent, EdtErrors, OccupancyScores};
 use edtmap::sensor::{Frame, Sensor};
 use edtmap::cpu::CpuBackend;
 use edtmap::{Connectivity, FrameStats, IntegrationMode, Mapper};
-use edtmap_io::dataset::Dataset;
-use edtmap_sim::{Scene, SceneName, SceneOptions};
+use edtmap_sim::{Scene, SceneName};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::{json, Map};
 
@@ -20,6 +19,7 @@ use crate::backend::{self, BackendArg, CliMapper};
 use crate::pictures::{write_plys, write_slices, write_timing_plot};
 use crate::report::{report, FrameRecord};
 use crate::scenes::builtin_config;
+use crate::source::{check_kind, Failure, Source};
 
 /// Arguments of `edtmap run`.
 #[derive(Args, Debug, Clone)]
@@ -68,24 +68,6 @@ pub(crate) struct RunArgs {
     /// or *.pcd point clouds with a KITTI-format poses.txt (needs --config).
     #[arg(long, value_name = "PATH")]
     pub(crate) dataset: Option<PathBuf>,
-}
-
-/// Where `edtmap run` takes its frames from.
-enum Source {
-    /// A built-in scene, simulated.
-    Scene(Box<Scene>),
-    /// A recording on disk.
-    Dataset(Dataset),
-}
-
-/// The depth range a sensor accepts (for a depth folder's camera).
-fn sensor_range(sensor: &Sensor) -> edtmap::sensor::RangeLimits {
-    match sensor {
-        Sensor::Depth(c) => c.range,
-        Sensor::Lidar(l) => l.range,
-        Sensor::Points(r) => *r,
-        Sensor::Planar => edtmap::sensor::RangeLimits { min_m: 0.0, max_m: f32::MAX },
-    }
 }
 
 /// Values of `--integration`.
@@ -164,30 +146,24 @@ pub(crate) fn run(args: &RunArgs) -> Result<()> {
 
 /// Replays the scene; `progress` draws a progress bar on a terminal.
 pub(crate) fn execute(args: &RunArgs, progress: bool) -> Result<RunOutcome> {
-    let (config, origin) = load_config(args)?;
-    let (sensor, params) = config.mapper_params()?;
+    let (mut config, origin) = load_config(args)?;
     let (source, name, default_frames) = match &args.dataset {
         Some(path) => {
-            let range = sensor_range(&sensor);
-            let set = Dataset::open(path, config.dataset.depth_scale_m, range)?;
-            if set.kind() != sensor.kind() {
-                bail!("{} holds {} frames but {origin}'s [sensor] is a {}", path.display(), set.kind(), sensor.kind());
-            }
-            let n = set.len();
-            (Source::Dataset(set), path.display().to_string(), n)
+            let source = Source::open_recording(path, &mut config, &origin)?;
+            let n = source.len().unwrap_or(0);
+            (source, path.display().to_string(), n)
         }
         None => {
-            let section = config.scene.clone();
-            let name = args.scene.clone().or_else(|| section.as_ref().map(|s| s.name.clone()));
+            let name = args.scene.clone().or_else(|| config.scene.as_ref().map(|s| s.name.clone()));
             let name = name.with_context(|| format!("{origin} has no [scene] section: give --scene NAME or --dataset PATH"))?;
-            let scene_name: SceneName = name.parse().map_err(|e| anyhow::anyhow!("{e}"))?;
-            let section = section.unwrap_or_else(|| edtmap::config::SceneSection { name: name.clone(), frames: None, seed: 7, range_noise_m: 0.0, dropout: 0.0 });
-            let options = SceneOptions { seed: section.seed, range_noise_m: section.range_noise_m, dropout: section.dropout };
-            let scene = Scene::new(scene_name, &options).context("[scene]")?;
-            let n = section.frames.unwrap_or_else(|| scene.default_frames());
-            (Source::Scene(Box::new(scene)), name, n)
+            let (source, n) = Source::scene(&name, &config)?;
+            (source, name, n)
         }
     };
+    let (sensor, params) = config.mapper_params()?;
+    if let Some(path) = &args.dataset {
+        check_kind(&source, &sensor, path, &origin)?;
+    }
     let frames = args.frames.unwrap_or(default_frames);
     if frames == 0 {
         bail!("--frames must be at least 1");
@@ -206,12 +182,31 @@ pub(crate) fn execute(args: &RunArgs, progress: bool) -> Result<RunOutcome> {
     let mut records = Vec::with_capacity(frames);
     let mut truth = (Vec::new(), Vec::new());
     let mut last_z = 0.0;
-    for i in 0..frames {
-        let frame = match &source {
-            Source::Scene(scene) => scene.frame(&sensor, i).with_context(|| format!("simulating frame {i}"))?,
-            Source::Dataset(set) => set.frame(i).with_context(|| format!("reading frame {i} of {name}"))?,
+    let mut skipped = Vec::new();
+    let mut stopped: Option<Failure> = None;
+    for item in source.frames(&sensor, frames, &name) {
+        let integrated = item.and_then(|frame| match mapper.integrate_frame(&frame) {
+            Ok(stats) => Ok((frame, stats)),
+            Err(e) => {
+                let fatal = matches!(e, edtmap::MapError::Backend(_));
+                Err(Failure { index: records.len() + skipped.len(), message: format!("frame {}: {e:#}", records.len() + skipped.len()), fatal })
+            }
+        });
+        let (frame, stats) = match integrated {
+            Ok(done) => done,
+            Err(failure) => {
+                bar.inc(1);
+                if failure.fatal || config.dataset.on_error == OnError::Stop || matches!(source, Source::Scene(_)) {
+                    stopped = Some(failure);
+                    break;
+                }
+                tracing::warn!("skipped: {}", failure.message);
+                skipped.push(failure);
+                continue;
+            }
         };
-        let stats = mapper.integrate_frame(&frame).with_context(|| format!("frame {i}"))?;
+        tracing::debug!("frame {} at {:.3} s: {:.2} ms", records.len() + skipped.len(), frame.stamp_s, stats.total_ms);
+        let i = records.len() + skipped.len();
         let mut rec = FrameRecord {
             index: i,
             stamp_s: frame.stamp_s,
@@ -258,11 +253,21 @@ pub(crate) fn execute(args: &RunArgs, progress: bool) -> Result<RunOutcome> {
     header.insert("integration".into(), json!(params.global.mode));
     header.insert("connectivity".into(), json!(params.global.connectivity));
     header.insert("max_distance_m".into(), json!(params.global.max_distance_m));
+    header.insert("skipped".into(), json!(skipped.iter().map(|f| json!({"index": f.index, "reason": f.message})).collect::<Vec<_>>()));
+    header.insert("stopped".into(), json!(stopped.as_ref().map(|f| json!({"index": f.index, "reason": f.message}))));
     if let Some(path) = &args.save {
         edtmap::save_map(mapper.map(), path)?;
     }
     let report_path = args.out.join("report.json");
     write_json(&report_path, &report(header, &records))?;
+    if let Some(failure) = stopped {
+        let kept = format!("the {} frames before it are integrated and written to {}", records.len(), args.out.display());
+        if failure.fatal && config.dataset.on_error == OnError::Skip && !matches!(source, Source::Scene(_)) {
+            tracing::warn!("stopped early: {}; {kept}", failure.message);
+        } else {
+            bail!("{}; {kept}", failure.message);
+        }
+    }
     Ok(RunOutcome { frames: records, report_path, pictures, backend: mapper.backend().name() })
 }
 

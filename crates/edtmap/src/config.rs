@@ -18,6 +18,10 @@
 //! ```
 //! The files under `configs/` document every field.
 
+mod dataset;
+
+pub use dataset::{DatasetSection, OnError, DEFAULT_MAX_POSE_GAP_S};
+
 use crate::{MapError, MapperParams};
 use edtmap_core::sensor::{PinholeCamera, RangeLimits, Sensor, SpinningLidar};
 use edtmap_core::{CoreError, EdtParams, GlobalParams, OccupancyParams, VolumeParams};
@@ -48,20 +52,6 @@ pub struct Config {
     /// Recordings replayed with `edtmap run --dataset`.
     #[serde(default)]
     pub dataset: DatasetSection,
-}
-
-/// `[dataset]`: how to read a recording (`edtmap run --dataset PATH`).
-#[derive(Debug, Clone, PartialEq, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct DatasetSection {
-    /// Metres per unit of 16-bit depth images (0.001: millimetres).
-    pub depth_scale_m: f32,
-}
-
-impl Default for DatasetSection {
-    fn default() -> Self {
-        DatasetSection { depth_scale_m: 0.001 }
-    }
 }
 
 /// `[scene]`: which built-in scene and how to simulate it.
@@ -217,6 +207,7 @@ impl Config {
         let in_global = |source| MapError::Config { section: "global", source };
         self.global.cutoff(occ.voxel_size_m).map_err(in_global)?;
         self.global.check_forbidden().map_err(in_global)?;
+        self.dataset.validate().map_err(|source| MapError::Config { section: "dataset", source })?;
         let global = self.global.clone();
         let params = MapperParams { voxel_size_m: occ.voxel_size_m, volume, occupancy: occ.probabilities.clone(), ogm, edt: self.edt, global };
         Ok((sensor, params))

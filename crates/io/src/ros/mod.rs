@@ -12,8 +12,11 @@ pub mod mcap;
 pub mod msg;
 #[cfg(test)]
 mod msg_tests;
+pub mod replay;
 pub mod tf;
 mod wire;
+
+pub use replay::{FrameError, RosOptions, RosReplay};
 
 use std::path::Path;
 

@@ -1,0 +1,135 @@
+//! Where `edtmap run` takes its frames from: a built-in scene, a folder
+//! recording, or a ROS bag / MCAP file; and what to do with a frame that
+//! cannot be used.
+
+use std::path::Path;
+
+use anyhow::{bail, Context, Result};
+use edtmap::config::{Config, SensorKind};
+use edtmap::sensor::{Frame, Sensor};
+use edtmap_io::dataset::Dataset;
+use edtmap_io::ros::{self, RosReplay};
+use edtmap_sim::{Scene, SceneName, SceneOptions};
+
+/// A frame that did not come out, with where it was and why.
+#[derive(Debug, Clone)]
+pub(crate) struct Failure {
+    /// The frame's position in the recording.
+    pub(crate) index: usize,
+    /// File, topic, stamp and reason.
+    pub(crate) message: String,
+    /// Whether nothing after it can be read either.
+    pub(crate) fatal: bool,
+}
+
+/// The frames of a run.
+pub(crate) enum Source {
+    /// A built-in scene, simulated.
+    Scene(Box<Scene>),
+    /// A folder of depth images or point clouds.
+    Folder(Dataset),
+    /// A ROS 1 bag or ROS 2 MCAP file.
+    Ros(Box<RosReplay>),
+}
+
+impl Source {
+    /// Opens the recording at `path`; for depth images from ROS, fills the
+    /// config's missing intrinsics from the recording's camera info.
+    pub(crate) fn open_recording(path: &Path, config: &mut Config, origin: &str) -> Result<Source> {
+        let in_dataset = |e| edtmap::MapError::Config { section: "dataset", source: e };
+        if ros::is_recording(path) {
+            let opts = config.dataset.ros_options().map_err(in_dataset).with_context(|| format!("{origin}: replaying {}", path.display()))?;
+            let replay = RosReplay::open(path, &opts)?;
+            for w in replay.warnings() {
+                tracing::warn!("{w}");
+            }
+            if let (SensorKind::Depth, Some(info)) = (config.sensor.kind, replay.camera_info()) {
+                fill_intrinsics(config, info);
+            }
+            return Ok(Source::Ros(Box::new(replay)));
+        }
+        config.dataset.validate().map_err(in_dataset)?;
+        let (sensor, _) = config.mapper_params()?;
+        let opts = edtmap_io::dataset::DatasetOptions {
+            depth_scale_m: config.dataset.depth_scale_m,
+            range: sensor_range(&sensor),
+            intrinsics: config.sensor.fx.zip(config.sensor.fy).zip(config.sensor.cx.zip(config.sensor.cy)).map(|((fx, fy), (cx, cy))| [fx, fy, cx, cy]),
+            trajectory: config.dataset.trajectory.as_ref().map(|t| path.join(t)),
+            max_pose_gap_s: config.dataset.max_pose_gap_s,
+        };
+        Ok(Source::Folder(Dataset::open_with(path, &opts)?))
+    }
+
+    /// A scene by name, with the config's `[scene]` settings.
+    pub(crate) fn scene(name: &str, config: &Config) -> Result<(Source, usize)> {
+        let section = config.scene.clone();
+        let scene_name: SceneName = name.parse().map_err(|e| anyhow::anyhow!("{e}"))?;
+        let section = section.unwrap_or_else(|| edtmap::config::SceneSection { name: name.into(), frames: None, seed: 7, range_noise_m: 0.0, dropout: 0.0 });
+        let options = SceneOptions { seed: section.seed, range_noise_m: section.range_noise_m, dropout: section.dropout };
+        let scene = Scene::new(scene_name, &options).context("[scene]")?;
+        let n = section.frames.unwrap_or_else(|| scene.default_frames());
+        Ok((Source::Scene(Box::new(scene)), n))
+    }
+
+    /// Frames the source holds (a recording's index; a scene's length).
+    pub(crate) fn len(&self) -> Option<usize> {
+        match self {
+            Source::Scene(_) => None,
+            Source::Folder(d) => Some(d.len()),
+            Source::Ros(r) => Some(r.len()),
+        }
+    }
+
+    /// The sensor kind a recording holds, as `Sensor::kind` names it.
+    pub(crate) fn kind(&self) -> Option<&'static str> {
+        match self {
+            Source::Scene(_) => None,
+            Source::Folder(d) => Some(d.kind()),
+            Source::Ros(r) => Some(r.kind()),
+        }
+    }
+
+    /// The first `n` frames, or failures in their place.
+    pub(crate) fn frames<'a>(&'a self, sensor: &'a Sensor, n: usize, name: &'a str) -> Box<dyn Iterator<Item = Result<Frame, Failure>> + 'a> {
+        match self {
+            Source::Scene(scene) => Box::new((0..n).map(move |i| scene.frame(sensor, i).map_err(|e| Failure { index: i, message: format!("simulating frame {i}: {e}"), fatal: true }))),
+            Source::Folder(set) => Box::new((0..n).map(move |i| set.frame(i).map_err(|e| Failure { index: i, message: format!("frame {i} of {name}: {e}"), fatal: false }))),
+            Source::Ros(replay) => Box::new(replay.frames().take(n).enumerate().map(|(i, r)| r.map_err(|e| Failure { index: i, message: e.to_string(), fatal: e.fatal }))),
+        }
+    }
+}
+
+/// Takes the depth camera's missing intrinsics from a camera info message.
+fn fill_intrinsics(config: &mut Config, info: &ros::msg::CameraInfo) {
+    let s = &mut config.sensor;
+    let k = info.k;
+    let from_info = [(&mut s.fx, k[0]), (&mut s.fy, k[4]), (&mut s.cx, k[2]), (&mut s.cy, k[5])];
+    for (field, value) in from_info {
+        match field {
+            Some(v) if (*v - value).abs() > 1e-6 * value.abs().max(1.0) => tracing::warn!("[sensor] intrinsics differ from the recording's camera info ({v} vs {value}); using the config's"),
+            Some(_) => {}
+            None => *field = Some(value),
+        }
+    }
+    s.width.get_or_insert(info.width);
+    s.height.get_or_insert(info.height);
+    tracing::info!("camera from {}: fx {:.3} fy {:.3} cx {:.3} cy {:.3}, {} x {}", "camera info", k[0], k[4], k[2], k[5], info.width, info.height);
+}
+
+/// The depth range a sensor accepts (for a depth folder's camera).
+fn sensor_range(sensor: &Sensor) -> edtmap::sensor::RangeLimits {
+    match sensor {
+        Sensor::Depth(c) => c.range,
+        Sensor::Lidar(l) => l.range,
+        Sensor::Points(r) => *r,
+        Sensor::Planar => edtmap::sensor::RangeLimits { min_m: 0.0, max_m: f32::MAX },
+    }
+}
+
+/// Refuses a recording whose sensor is not the config's.
+pub(crate) fn check_kind(source: &Source, sensor: &Sensor, path: &Path, origin: &str) -> Result<()> {
+    match source.kind() {
+        Some(kind) if kind != sensor.kind() => bail!("{} holds {kind} frames but {origin}'s [sensor] is a {}", path.display(), sensor.kind()),
+        _ => Ok(()),
+    }
+}

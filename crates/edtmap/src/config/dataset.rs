@@ -1,0 +1,120 @@
+//! `[dataset]`: how a recording becomes frames (`edtmap run --dataset`).
+
+use edtmap_core::CoreError;
+use edtmap_io::ros::RosOptions;
+use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
+use serde::Deserialize;
+use std::path::PathBuf;
+
+/// What a replay does with a frame it cannot use.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum OnError {
+    /// Report the frame, leave it out, go on.
+    #[default]
+    Skip,
+    /// Stop at the frame: keep and write what was integrated, then fail.
+    Stop,
+}
+
+/// Default of `[dataset] max_pose_gap_s`: poses further apart than this
+/// are not interpolated across, seconds.
+pub const DEFAULT_MAX_POSE_GAP_S: f64 = 0.25;
+
+/// `[dataset]`: how to read a recording (`edtmap run --dataset PATH`).
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct DatasetSection {
+    /// Metres per unit of 16-bit depth images (0.001: millimetres; TUM: 0.0002).
+    pub depth_scale_m: f32,
+    /// `skip` (default) or `stop` at a frame that cannot be used.
+    pub on_error: OnError,
+    /// Largest time between two poses a frame is interpolated across, seconds.
+    pub max_pose_gap_s: f64,
+    /// Folders: a TUM trajectory (`t tx ty tz qx qy qz qw`) giving the
+    /// poses; relative to the recording's folder.
+    pub trajectory: Option<PathBuf>,
+    /// ROS: the sensor topic (`PointCloud2`, `Image` or `LaserScan`).
+    pub sensor_topic: Option<String>,
+    /// ROS: camera intrinsics for depth images (default: the image topic's sibling `camera_info`).
+    pub camera_info_topic: Option<String>,
+    /// ROS: the poses (`Odometry`, `PoseStamped`, `TransformStamped`, or `/tf`).
+    pub pose_topic: Option<String>,
+    /// ROS with `/tf`: the static transforms' topic.
+    pub static_tf_topic: String,
+    /// ROS: the fixed frame (default with `/tf`: the root of the tree).
+    pub world_frame: Option<String>,
+    /// ROS with `/tf`: the robot frame the extrinsics are from (default: the sensor's own frame).
+    pub body_frame: Option<String>,
+    /// ROS: the sensor's pose on the robot, `T_body_sensor`, as
+    /// `[x, y, z, qx, qy, qz, qw]` (metres, unit quaternion); identity by default.
+    pub sensor_in_body: Option<[f64; 7]>,
+}
+
+impl Default for DatasetSection {
+    fn default() -> Self {
+        DatasetSection {
+            depth_scale_m: 0.001,
+            on_error: OnError::Skip,
+            max_pose_gap_s: DEFAULT_MAX_POSE_GAP_S,
+            trajectory: None,
+            sensor_topic: None,
+            camera_info_topic: None,
+            pose_topic: None,
+            static_tf_topic: "/tf_static".into(),
+            world_frame: None,
+            body_frame: None,
+            sensor_in_body: None,
+        }
+    }
+}
+
+fn invalid(field: &'static str, value: String, reason: &'static str) -> CoreError {
+    CoreError::InvalidParam { field, value, reason }
+}
+
+impl DatasetSection {
+    /// Checks the values that need no recording.
+    pub fn validate(&self) -> Result<(), CoreError> {
+        if !(self.depth_scale_m > 0.0 && self.depth_scale_m.is_finite()) {
+            return Err(invalid("depth_scale_m", self.depth_scale_m.to_string(), "must be a positive number of metres per unit"));
+        }
+        if !(self.max_pose_gap_s > 0.0) {
+            return Err(invalid("max_pose_gap_s", self.max_pose_gap_s.to_string(), "must be positive seconds"));
+        }
+        self.t_body_sensor()?;
+        Ok(())
+    }
+
+    /// `T_body_sensor` from `sensor_in_body`.
+    pub fn t_body_sensor(&self) -> Result<Isometry3<f64>, CoreError> {
+        let Some([x, y, z, qx, qy, qz, qw]) = self.sensor_in_body else {
+            return Ok(Isometry3::identity());
+        };
+        let q = Quaternion::new(qw, qx, qy, qz);
+        let finite = [x, y, z, qx, qy, qz, qw].iter().all(|v| v.is_finite());
+        if !finite || (q.norm() - 1.0).abs() > 1e-3 {
+            return Err(invalid("sensor_in_body", format!("{:?}", [x, y, z, qx, qy, qz, qw]), "must be [x, y, z, qx, qy, qz, qw] with a unit quaternion"));
+        }
+        Ok(Isometry3::from_parts(Translation3::new(x, y, z), UnitQuaternion::from_quaternion(q)))
+    }
+
+    /// The options of a ROS replay; `sensor_topic` and `pose_topic` are needed.
+    pub fn ros_options(&self) -> Result<RosOptions, CoreError> {
+        self.validate()?;
+        let why = "required to replay a ROS bag or MCAP file";
+        let sensor_topic = self.sensor_topic.clone().ok_or_else(|| invalid("sensor_topic", "missing".into(), why))?;
+        let pose_topic = self.pose_topic.clone().ok_or_else(|| invalid("pose_topic", "missing".into(), why))?;
+        Ok(RosOptions {
+            sensor_topic,
+            camera_info_topic: self.camera_info_topic.clone(),
+            pose_topic,
+            static_tf_topic: self.static_tf_topic.clone(),
+            world_frame: self.world_frame.clone(),
+            body_frame: self.body_frame.clone(),
+            t_body_sensor: self.t_body_sensor()?,
+            max_pose_gap_s: self.max_pose_gap_s,
+            depth_scale_m: self.depth_scale_m,
+        })
+    }
+}

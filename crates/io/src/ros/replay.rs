@@ -1,0 +1,316 @@
+//! A ROS recording replayed as sensor frames with poses: the sensor topic
+//! decoded into measurements, each placed at its stamp by the pose topic
+//! (odometry, stamped poses or transforms, or the `/tf` tree) and the
+//! sensor's extrinsics.
+//!
+//! Opening reads the small topics first (poses, camera info) in one pass;
+//! the sensor messages then stream one at a time. A message that cannot
+//! become a frame (undecodable, no pose at its stamp) is a
+//! [`FrameError`] for that frame alone; damage to the file ends the
+//! stream with a fatal one, after every frame before it.
+
+use super::bag::BagReader;
+use super::mcap::McapReader;
+use super::msg::{CameraInfo, Message, StampedTransform};
+use super::tf::TfBuffer;
+use super::{RawMessage, TopicInfo};
+use crate::trajectory::Trajectory;
+use crate::IoError;
+use edtmap_core::sensor::{Frame, Measurement};
+use nalgebra::Isometry3;
+use std::io::Read;
+use std::path::{Path, PathBuf};
+
+/// How to turn a recording into frames: topics, frames and extrinsics.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RosOptions {
+    /// The sensor's topic: `PointCloud2`, `Image` (depth) or `LaserScan`.
+    pub sensor_topic: String,
+    /// Camera intrinsics for depth images; by default the image topic's
+    /// sibling `camera_info`, when the recording has it.
+    pub camera_info_topic: Option<String>,
+    /// Where poses come from: `Odometry`, `PoseStamped`,
+    /// `TransformStamped` or `TFMessage` (`/tf`).
+    pub pose_topic: String,
+    /// With `/tf`: the static transforms' topic.
+    pub static_tf_topic: String,
+    /// With `/tf`: the fixed frame (default: the root of the tree).
+    pub world_frame: Option<String>,
+    /// With `/tf`: the frame the extrinsics are given in (default: the
+    /// sensor message's own frame, so the tree supplies the extrinsics).
+    pub body_frame: Option<String>,
+    /// `T_body_sensor`: the sensor's pose on the robot.
+    pub t_body_sensor: Isometry3<f64>,
+    /// Largest time between two poses that a frame is interpolated across.
+    pub max_pose_gap_s: f64,
+    /// Metres per unit of 16-bit depth images.
+    pub depth_scale_m: f32,
+}
+
+/// A sensor message that did not become a frame.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{}: topic {topic}, message {index}{}: {reason}", file.display(), stamp_s.map(|s| format!(" (stamp {s:.6} s)")).unwrap_or_default())]
+pub struct FrameError {
+    /// The recording.
+    pub file: PathBuf,
+    /// The sensor topic.
+    pub topic: String,
+    /// The message's position on the topic, from 0.
+    pub index: usize,
+    /// Its stamp, when it was read.
+    pub stamp_s: Option<f64>,
+    /// What went wrong.
+    pub reason: String,
+    /// Whether the rest of the recording is unreadable too.
+    pub fatal: bool,
+}
+
+/// The two containers.
+enum Container {
+    Bag(BagReader),
+    Mcap(McapReader),
+}
+
+impl Container {
+    /// Opens a bag or MCAP file, told apart by its magic bytes.
+    fn open(path: &Path) -> Result<Self, IoError> {
+        let mut magic = [0u8; 8];
+        let mut f = std::fs::File::open(path).map_err(|e| IoError::io(path, e))?;
+        let n = f.read(&mut magic).map_err(|e| IoError::io(path, e))?;
+        match &magic[..n] {
+            m if m.starts_with(b"#ROSBAG") => Ok(Container::Bag(BagReader::open(path)?)),
+            m if m.starts_with(b"\x89MCAP") => Ok(Container::Mcap(McapReader::open(path)?)),
+            _ => Err(IoError::Dataset { path: path.to_path_buf(), reason: "neither a ROS 1 bag (#ROSBAG) nor an MCAP file".into() }),
+        }
+    }
+
+    fn topics(&self) -> Result<Vec<TopicInfo>, IoError> {
+        match self {
+            Container::Bag(b) => b.topics(),
+            Container::Mcap(m) => m.topics(),
+        }
+    }
+
+    fn messages<'a>(&'a self, topics: &'a [String]) -> Box<dyn Iterator<Item = Result<RawMessage, IoError>> + 'a> {
+        match self {
+            Container::Bag(b) => b.messages(topics),
+            Container::Mcap(m) => m.messages(topics),
+        }
+    }
+}
+
+/// Where the robot's pose comes from.
+enum Poses {
+    /// `T_world_body` samples of one topic.
+    Topic(Trajectory),
+    /// The transform tree, with the fixed frame.
+    Tf(TfBuffer, Option<String>),
+}
+
+const SENSOR_TYPES: [&str; 3] = ["sensor_msgs/PointCloud2", "sensor_msgs/Image", "sensor_msgs/LaserScan"];
+const POSE_TYPES: [&str; 5] = ["nav_msgs/Odometry", "geometry_msgs/PoseStamped", "geometry_msgs/TransformStamped", "tf2_msgs/TFMessage", "tf/tfMessage"];
+
+/// A ROS recording opened for replay.
+pub struct RosReplay {
+    path: PathBuf,
+    container: Container,
+    opts: RosOptions,
+    sensor_type: String,
+    sensor_messages: u64,
+    poses: Poses,
+    camera: Option<CameraInfo>,
+    warnings: Vec<String>,
+}
+
+impl std::fmt::Debug for RosReplay {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("RosReplay").field("path", &self.path).field("sensor_type", &self.sensor_type).field("sensor_messages", &self.sensor_messages).finish_non_exhaustive()
+    }
+}
+
+fn bad(path: &Path, reason: String) -> IoError {
+    IoError::Dataset { path: path.to_path_buf(), reason }
+}
+
+fn find<'a>(path: &Path, topics: &'a [TopicInfo], name: &str, role: &str, types: &[&str]) -> Result<&'a TopicInfo, IoError> {
+    let listing = || topics.iter().map(|t| format!("{} ({})", t.topic, t.msg_type)).collect::<Vec<_>>().join(", ");
+    let t = topics.iter().find(|t| t.topic == name).ok_or_else(|| bad(path, format!("{role} topic {name} is not in the recording; it holds {}", listing())))?;
+    if !types.contains(&t.msg_type.as_str()) {
+        return Err(bad(path, format!("{role} topic {name} carries {}, not one of {}", t.msg_type, types.join(", "))));
+    }
+    Ok(t)
+}
+
+impl RosReplay {
+    /// Opens `path` (a `.bag` or `.mcap`), checks the topics, and reads the
+    /// poses and the camera intrinsics.
+    pub fn open(path: &Path, opts: &RosOptions) -> Result<Self, IoError> {
+        let container = Container::open(path)?;
+        let topics = container.topics()?;
+        let sensor = find(path, &topics, &opts.sensor_topic, "sensor", &SENSOR_TYPES)?;
+        let pose = find(path, &topics, &opts.pose_topic, "pose", &POSE_TYPES)?;
+        let is_tf = pose.msg_type.ends_with("TFMessage") || pose.msg_type.ends_with("tfMessage");
+        let info_topic = match &opts.camera_info_topic {
+            Some(t) => Some(find(path, &topics, t, "camera info", &["sensor_msgs/CameraInfo"])?.topic.clone()),
+            None if sensor.msg_type == "sensor_msgs/Image" => {
+                let sibling = match opts.sensor_topic.rsplit_once('/') {
+                    Some((parent, _)) => format!("{parent}/camera_info"),
+                    None => "camera_info".into(),
+                };
+                topics.iter().find(|t| t.topic == sibling && t.msg_type == "sensor_msgs/CameraInfo").map(|t| t.topic.clone())
+            }
+            None => None,
+        };
+        let mut read = vec![pose.topic.clone()];
+        if is_tf && topics.iter().any(|t| t.topic == opts.static_tf_topic) {
+            read.push(opts.static_tf_topic.clone());
+        }
+        read.extend(info_topic.iter().cloned());
+        let mut replay = RosReplay {
+            path: path.to_path_buf(),
+            sensor_type: sensor.msg_type.clone(),
+            sensor_messages: sensor.messages,
+            opts: opts.clone(),
+            poses: Poses::Topic(Trajectory::default()),
+            camera: None,
+            warnings: Vec::new(),
+            container,
+        };
+        replay.read_poses(&read, is_tf)?;
+        Ok(replay)
+    }
+
+    /// One pass over the pose, static-tf and camera-info topics.
+    fn read_poses(&mut self, topics: &[String], is_tf: bool) -> Result<(), IoError> {
+        let mut transforms: Vec<(StampedTransform, bool)> = Vec::new();
+        let mut undecodable = 0usize;
+        for item in self.container.messages(topics) {
+            let raw = match item {
+                Ok(raw) => raw,
+                Err(e) => {
+                    // Damage: keep the poses before it; frames after it fail anyway.
+                    self.warnings.push(format!("poses read up to damage: {e}"));
+                    break;
+                }
+            };
+            match Message::decode(&raw.msg_type, &raw.data, raw.encoding) {
+                Ok(Message::Tf(ts)) => {
+                    let is_static = raw.topic == self.opts.static_tf_topic && raw.topic != self.opts.pose_topic;
+                    transforms.extend(ts.into_iter().map(|t| (t, is_static)));
+                }
+                Ok(Message::Odometry(t) | Message::PoseStamped(t) | Message::TransformStamped(t)) => transforms.push((t, false)),
+                Ok(Message::CameraInfo(info)) => {
+                    self.camera.get_or_insert(info);
+                }
+                Ok(_) => {}
+                Err(e) => {
+                    if undecodable == 0 {
+                        self.warnings.push(format!("{}: topic {}: skipping undecodable messages, the first: {e}", self.path.display(), raw.topic));
+                    }
+                    undecodable += 1;
+                }
+            }
+        }
+        self.poses = if is_tf {
+            Poses::Tf(TfBuffer::new(transforms.iter().map(|(t, s)| (t, *s))), self.opts.world_frame.clone())
+        } else {
+            if let Some(world) = &self.opts.world_frame {
+                let world = world.trim_start_matches('/');
+                if let Some((t, _)) = transforms.iter().find(|(t, _)| t.header.frame_id.trim_start_matches('/') != world) {
+                    return Err(bad(&self.path, format!("pose topic {} gives poses in frame {}, the config's world_frame is {world}", self.opts.pose_topic, t.header.frame_id)));
+                }
+            }
+            Poses::Topic(Trajectory::new(transforms.into_iter().map(|(t, _)| (t.header.stamp_s(), t.transform)).collect()))
+        };
+        if matches!(&self.poses, Poses::Topic(t) if t.is_empty()) {
+            return Err(bad(&self.path, format!("pose topic {} holds no readable pose", self.opts.pose_topic)));
+        }
+        Ok(())
+    }
+
+    /// The sensor topic's message type (`sensor_msgs/PointCloud2`, ...).
+    pub fn sensor_type(&self) -> &str {
+        &self.sensor_type
+    }
+
+    /// The sensor kind the frames are, as `Sensor::kind` names it.
+    pub fn kind(&self) -> &'static str {
+        match self.sensor_type.as_str() {
+            "sensor_msgs/Image" => "depth camera",
+            "sensor_msgs/LaserScan" => "planar LiDAR",
+            _ => "point cloud",
+        }
+    }
+
+    /// Messages on the sensor topic, per the recording's index.
+    pub fn len(&self) -> usize {
+        self.sensor_messages as usize
+    }
+
+    /// Whether the sensor topic is empty.
+    pub fn is_empty(&self) -> bool {
+        self.sensor_messages == 0
+    }
+
+    /// The first camera info, for depth images.
+    pub fn camera_info(&self) -> Option<&CameraInfo> {
+        self.camera.as_ref()
+    }
+
+    /// What was noticed while opening (undecodable pose messages, damage).
+    pub fn warnings(&self) -> &[String] {
+        &self.warnings
+    }
+
+    /// `T_world_sensor` at `stamp_s` for a message in `frame_id`.
+    fn sensor_pose(&self, stamp_s: f64, frame_id: &str) -> Result<Isometry3<f64>, String> {
+        let gap = self.opts.max_pose_gap_s;
+        let t_world_body = match &self.poses {
+            Poses::Topic(traj) => traj.pose_at(stamp_s, gap).map_err(|e| format!("pose topic {}: {e}", self.opts.pose_topic))?,
+            Poses::Tf(tf, world) => {
+                let body = self.opts.body_frame.as_deref().unwrap_or(frame_id);
+                let world = world.clone().unwrap_or_else(|| tf.root_of(body));
+                tf.lookup(&world, body, stamp_s, gap)?
+            }
+        };
+        Ok(t_world_body * self.opts.t_body_sensor)
+    }
+
+    /// The measurement of a decoded sensor message, with its stamp and frame.
+    fn measurement(&self, msg: Message) -> Result<(Measurement, i64, String), String> {
+        match msg {
+            Message::PointCloud2(m) => Ok((Measurement::Points(m.xyz()?), m.header.stamp_ns, m.header.frame_id)),
+            Message::Image(m) => Ok((Measurement::Depth(m.depth(self.opts.depth_scale_m)?), m.header.stamp_ns, m.header.frame_id)),
+            Message::LaserScan(m) => Ok((Measurement::Scan(m.scan()?), m.header.stamp_ns, m.header.frame_id)),
+            other => Err(format!("{} is not a sensor message", other.type_name())),
+        }
+    }
+
+    fn frame(&self, raw: &RawMessage, index: usize) -> Result<Frame, FrameError> {
+        let fail = |stamp_s: Option<f64>, reason: String| FrameError { file: self.path.clone(), topic: raw.topic.clone(), index, stamp_s, reason, fatal: false };
+        let msg = Message::decode(&raw.msg_type, &raw.data, raw.encoding).map_err(|e| fail(None, e))?;
+        let (measurement, stamp_ns, frame_id) = self.measurement(msg).map_err(|e| fail(None, e))?;
+        // Recorders that leave stamps empty: the time the message was logged.
+        let stamp_s = if stamp_ns == 0 { raw.log_time_ns as f64 * 1e-9 } else { stamp_ns as f64 * 1e-9 };
+        let t_world_sensor = self.sensor_pose(stamp_s, &frame_id).map_err(|e| fail(Some(stamp_s), e))?;
+        Ok(Frame { stamp_s, t_world_sensor, measurement })
+    }
+
+    /// The sensor frames in file order; damage ends them with a fatal error.
+    pub fn frames(&self) -> impl Iterator<Item = Result<Frame, FrameError>> + '_ {
+        let topics = std::slice::from_ref(&self.opts.sensor_topic);
+        let mut done = false;
+        self.container.messages(topics).enumerate().map_while(move |(index, item)| {
+            if done {
+                return None;
+            }
+            Some(match item {
+                Ok(raw) => self.frame(&raw, index),
+                Err(e) => {
+                    done = true;
+                    Err(FrameError { file: self.path.clone(), topic: self.opts.sensor_topic.clone(), index, stamp_s: None, reason: format!("the recording is damaged here, the rest is unreadable: {e}"), fatal: true })
+                }
+            })
+        })
+    }
+}
