@@ -9,7 +9,7 @@ use std::path::Path;
 
 /// Which container to write.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Container {
+pub(crate) enum Container {
     /// ROS 1 bag.
     Bag,
     /// ROS 2 MCAP.
@@ -18,7 +18,7 @@ pub enum Container {
 
 impl Container {
     /// The file extension.
-    pub fn ext(self) -> &'static str {
+    pub(crate) fn ext(self) -> &'static str {
         match self {
             Container::Bag => "bag",
             Container::Mcap => "mcap",
@@ -27,22 +27,22 @@ impl Container {
 }
 
 /// One message to record.
-pub struct Msg {
-    pub topic: String,
-    pub msg_type: String,
-    pub message: Option<Message>,
-    pub raw: Vec<u8>,
-    pub log_time_s: f64,
+pub(crate) struct Msg {
+    pub(crate) topic: String,
+    pub(crate) msg_type: String,
+    pub(crate) message: Option<Message>,
+    pub(crate) raw: Vec<u8>,
+    pub(crate) log_time_s: f64,
     /// Store only the first half of the serialized message.
-    pub truncate_payload: bool,
+    pub(crate) truncate_payload: bool,
 }
 
 impl Msg {
-    pub fn new(topic: &str, message: Message, log_time_s: f64) -> Self {
+    pub(crate) fn new(topic: &str, message: Message, log_time_s: f64) -> Self {
         Msg { topic: topic.into(), msg_type: message.type_name().into(), message: Some(message), raw: Vec::new(), log_time_s, truncate_payload: false }
     }
 
-    pub fn raw(topic: &str, msg_type: &str, raw: Vec<u8>, log_time_s: f64) -> Self {
+    pub(crate) fn raw(topic: &str, msg_type: &str, raw: Vec<u8>, log_time_s: f64) -> Self {
         Msg { topic: topic.into(), msg_type: msg_type.into(), message: None, raw, log_time_s, truncate_payload: false }
     }
 
@@ -60,7 +60,7 @@ impl Msg {
 
 /// Writes `msgs` in order; `finish` closes the file properly (index or
 /// summary), else it is left as a recorder killed mid-run leaves it.
-pub fn write_recording(path: &Path, container: Container, msgs: &[Msg], finish: bool) {
+pub(crate) fn write_recording(path: &Path, container: Container, msgs: &[Msg], finish: bool) {
     let ns = |t: f64| (t * 1e9).round() as u64;
     match container {
         Container::Bag => {
