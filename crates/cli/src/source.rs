@@ -94,7 +94,15 @@ impl Source {
         match self {
             Source::Scene(scene) => Box::new((0..n).map(move |i| scene.frame(sensor, i).map_err(|e| Failure { index: i, message: format!("simulating frame {i}: {e}"), fatal: true }))),
             Source::Folder(set) => Box::new((0..n).map(move |i| set.frame(i).map_err(|e| Failure { index: i, message: format!("frame {i} of {name}: {e}"), fatal: false }))),
-            Source::Ros(replay) => Box::new(replay.frames().take(n).enumerate().map(|(i, r)| r.map_err(|e| Failure { index: i, message: e.to_string(), fatal: e.fatal }))),
+            // The index counts only what precedes damage: after the n-th
+            // message, still report the damage that ends the recording.
+            Source::Ros(replay) => Box::new(
+                replay
+                    .frames()
+                    .enumerate()
+                    .take_while(move |(i, r)| *i < n || r.as_ref().is_err_and(|e| e.fatal))
+                    .map(|(i, r)| r.map_err(|e| Failure { index: i, message: e.to_string(), fatal: e.fatal })),
+            ),
         }
     }
 }

@@ -1,4 +1,5 @@
 //! Writes ROS recordings for the tests: bags with edtmap's hand-written
+#![allow(dead_code)] // each test file uses part of it
 //! writer, MCAP files with the `mcap` crate's.
 
 use edtmap_io::ros::bag::BagWriter;
