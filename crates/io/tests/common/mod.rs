@@ -1,6 +1,6 @@
 //! Writes ROS recordings for the tests: bags with edtmap's hand-written
-#![allow(dead_code)] // each test file uses part of it
 //! writer, MCAP files with the `mcap` crate's.
+#![allow(dead_code)] // each test file uses part of it
 
 use edtmap_io::ros::bag::BagWriter;
 use edtmap_io::ros::msg::Message;
