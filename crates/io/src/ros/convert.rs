@@ -56,7 +56,7 @@ impl PointCloud2 {
         if w > 0 && row < w * step {
             return Err(format!("PointCloud2 row_step {row} is shorter than width {w} × point_step {step}"));
         }
-        let need = if h == 0 || w == 0 { 0 } else { (h - 1) * row + w * step };
+        let need = if h == 0 || w == 0 { 0 } else { ((h - 1).saturating_mul(row)).saturating_add(w * step) };
         if need > self.data.len() as u64 {
             return Err(format!("PointCloud2 of {h} × {w} points needs {need} bytes of data, has {}", self.data.len()));
         }

@@ -164,3 +164,38 @@ fn depth_images_in_millimetres_and_metres() {
     assert!(Image { step: 4, ..mm.clone() }.depth(0.001).expect_err("narrow").contains("step"));
     assert!(Image { height: 2, ..mm }.depth(0.001).expect_err("short").contains("needs 16 bytes"));
 }
+
+#[test]
+fn mutated_messages_decode_or_fail_without_panicking() {
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand::rngs::StdRng::seed_from_u64(0x5eed_0006);
+    for encoding in [Encoding::Ros1, Encoding::Cdr] {
+        for m in every_message() {
+            let clean = m.encode(encoding);
+            for _ in 0..300 {
+                let mut bytes = clean.clone();
+                for _ in 0..rng.random_range(1..4) {
+                    let at = rng.random_range(0..bytes.len());
+                    match rng.random_range(0..4) {
+                        0 => bytes[at] ^= 1 << rng.random_range(0..8),
+                        1 => bytes[at] = 0xff,
+                        2 => bytes.truncate(at),
+                        _ => bytes.insert(at, rng.random()),
+                    }
+                    if bytes.is_empty() {
+                        break;
+                    }
+                }
+                // Decoding and converting either succeed or say why.
+                if let Ok(decoded) = Message::decode(m.type_name(), &bytes, encoding) {
+                    match decoded {
+                        Message::PointCloud2(c) => drop(c.xyz()),
+                        Message::Image(i) => drop(i.depth(0.001)),
+                        Message::LaserScan(s) => drop(s.scan()),
+                        _ => {}
+                    }
+                }
+            }
+        }
+    }
+}
