@@ -6,6 +6,7 @@ mod edt;
 mod memory;
 mod pictures;
 mod query;
+mod record;
 mod report;
 mod run;
 mod scenes;
@@ -36,6 +37,8 @@ enum Command {
     Edt(edt::EdtArgs),
     /// Replay a built-in scene through the mapping pipeline; writes report.json and pictures.
     Run(run::RunArgs),
+    /// Write a built-in scene as a ROS 1 bag or ROS 2 MCAP file, with the config that replays it.
+    Record(record::RecordArgs),
     /// Distance, gradient and state at points (CSV) from a saved map.
     Query(query::QueryArgs),
     /// A dense box of distances from a saved map, as .npy.
@@ -65,6 +68,7 @@ fn main() -> ExitCode {
         Command::Demo(args) => demo::run(&args),
         Command::Edt(args) => edt::run(&args),
         Command::Run(args) => run::run(&args),
+        Command::Record(args) => record::record(&args),
         Command::Query(args) => query::query(&args),
         Command::Export(args) => query::export(&args),
         Command::Info(args) => query::info(&args),

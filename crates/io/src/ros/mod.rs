@@ -12,10 +12,12 @@ pub mod mcap;
 pub mod msg;
 #[cfg(test)]
 mod msg_tests;
+pub mod record;
 pub mod replay;
 pub mod tf;
 mod wire;
 
+pub use record::RecordingWriter;
 pub use replay::{FrameError, RosOptions, RosReplay};
 
 use std::path::Path;

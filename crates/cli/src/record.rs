@@ -1,0 +1,142 @@
+//! `edtmap record`: a built-in scene written as a ROS 1 bag or ROS 2 MCAP
+//! file, with the config that replays it, so the recording path can be
+//! tried (and checked) without a robot.
+
+use std::path::PathBuf;
+
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use edtmap::sensor::{DepthData, Frame, Measurement, Sensor};
+use edtmap_io::ros::msg::{CameraInfo, Header, Image, LaserScanMsg, Message, PointCloud2, PointField, StampedTransform};
+use edtmap_io::ros::RecordingWriter;
+
+use crate::scenes::builtin_config;
+use crate::source::Source;
+
+/// Arguments of `edtmap record`.
+#[derive(Args, Debug, Clone)]
+pub(crate) struct RecordArgs {
+    /// Built-in scene: uav_pillars, ugv_corridor, room or planar.
+    #[arg(long)]
+    scene: String,
+    /// Frames to record (default: the scene's length).
+    #[arg(long)]
+    frames: Option<usize>,
+    /// The recording: NAME.bag (ROS 1) or NAME.mcap (ROS 2); NAME.toml is
+    /// written beside it.
+    out: PathBuf,
+}
+
+/// Topics of a recorded scene.
+const ODOM: &str = "/odom";
+const TF: &str = "/tf";
+
+/// Writes the scene's frames, their poses on `/odom` and `/tf`, and the
+/// config that replays them.
+pub(crate) fn record(args: &RecordArgs) -> Result<()> {
+    let text = builtin_config(&args.scene).with_context(|| format!("unknown scene {:?}", args.scene))?;
+    let config = edtmap::config::Config::parse(text, &format!("built-in configs/{}.toml", args.scene))?;
+    let (sensor, _) = config.mapper_params()?;
+    let (source, n) = Source::scene(&args.scene, &config)?;
+    let Source::Scene(scene) = source else { bail!("not a scene") };
+    let frames = args.frames.unwrap_or(n);
+    let mut writer = RecordingWriter::create(&args.out)?;
+    let topic = sensor_topic(&sensor);
+    for i in 0..frames {
+        let frame = scene.frame(&sensor, i).with_context(|| format!("simulating frame {i}"))?;
+        let stamp_ns = (frame.stamp_s * 1e9).round() as i64;
+        let log_ns = u64::try_from(stamp_ns).unwrap_or(0);
+        let pose = StampedTransform { header: header(stamp_ns, "map"), child_frame: "sensor".into(), transform: frame.t_world_sensor };
+        writer.write(ODOM, &Message::Odometry(pose.clone()), log_ns)?;
+        writer.write(TF, &Message::Tf(vec![pose]), log_ns)?;
+        if let Sensor::Depth(c) = &sensor {
+            let info = CameraInfo { header: header(stamp_ns, "sensor"), height: c.height, width: c.width, distortion_model: "plumb_bob".into(), d: vec![0.0; 5], k: [c.fx, 0.0, c.cx, 0.0, c.fy, c.cy, 0.0, 0.0, 1.0] };
+            writer.write("/camera/depth/camera_info", &Message::CameraInfo(info), log_ns)?;
+        }
+        writer.write(topic, &sensor_message(&sensor, &frame, stamp_ns)?, log_ns)?;
+    }
+    writer.finish()?;
+    let config_path = args.out.with_extension("toml");
+    std::fs::write(&config_path, replay_config(text, &sensor, &args)?).with_context(|| format!("cannot write {}", config_path.display()))?;
+    println!("wrote {} ({frames} frames on {topic}, poses on {ODOM} and {TF})", args.out.display());
+    println!("wrote {}: edtmap run --config {} --dataset {}", config_path.display(), config_path.display(), args.out.display());
+    Ok(())
+}
+
+fn header(stamp_ns: i64, frame: &str) -> Header {
+    Header { stamp_ns, frame_id: frame.into() }
+}
+
+fn sensor_topic(sensor: &Sensor) -> &'static str {
+    match sensor {
+        Sensor::Depth(_) => "/camera/depth/image",
+        Sensor::Planar => "/scan",
+        Sensor::Lidar(_) | Sensor::Points(_) => "/points",
+    }
+}
+
+/// The frame's measurement as the ROS message a driver would publish.
+fn sensor_message(sensor: &Sensor, frame: &Frame, stamp_ns: i64) -> Result<Message> {
+    let h = header(stamp_ns, "sensor");
+    Ok(match (&frame.measurement, sensor) {
+        (Measurement::Depth(img), _) => {
+            let (encoding, bytes, data): (&str, u32, Vec<u8>) = match &img.data {
+                DepthData::Metres(v) => ("32FC1", 4, v.iter().flat_map(|d| d.to_le_bytes()).collect()),
+                DepthData::U16 { values, .. } => ("16UC1", 2, values.iter().flat_map(|d| d.to_le_bytes()).collect()),
+            };
+            Message::Image(Image { header: h, height: img.height, width: img.width, encoding: encoding.into(), is_bigendian: false, step: img.width * bytes, data })
+        }
+        (Measurement::Lidar(scan), Sensor::Lidar(lidar)) => {
+            let bins = lidar.azimuth_bins;
+            let points = scan.ranges.iter().enumerate().map(|(i, &r)| {
+                let ok = r.is_finite() && r >= lidar.range.min_m && r <= lidar.range.max_m;
+                if ok { lidar.direction(i / bins, i % bins).map(|c| c as f32 * r) } else { [f32::NAN; 3] }
+            });
+            cloud(h, points.collect())
+        }
+        (Measurement::Points(c), _) => cloud(h, c.points.clone()),
+        (Measurement::Scan(s), _) => {
+            let n = s.ranges.len().saturating_sub(1) as f64;
+            Message::LaserScan(LaserScanMsg {
+                header: h,
+                angle_min: s.angle_min_rad as f32,
+                angle_max: (s.angle_min_rad + n * s.angle_increment_rad) as f32,
+                angle_increment: s.angle_increment_rad as f32,
+                time_increment: 0.0,
+                scan_time: 0.0,
+                range_min: s.range.min_m,
+                range_max: s.range.max_m,
+                ranges: s.ranges.clone(),
+                intensities: Vec::new(),
+            })
+        }
+        (m, _) => bail!("a {} from a {} cannot be recorded", m.kind(), sensor.kind()),
+    })
+}
+
+fn cloud(header: Header, points: Vec<[f32; 3]>) -> Message {
+    let fields = ["x", "y", "z"].iter().enumerate().map(|(i, n)| PointField { name: (*n).into(), offset: 4 * i as u32, datatype: 7, count: 1 }).collect();
+    let width = points.len() as u32;
+    let data = points.iter().flatten().flat_map(|v| v.to_le_bytes()).collect();
+    Message::PointCloud2(PointCloud2 { header, height: 1, width, fields, is_bigendian: false, point_step: 12, row_step: 12 * width, data, is_dense: false })
+}
+
+/// The scene's config without `[scene]`, with the recording's topics; a
+/// spinning LiDAR's range images become point clouds, cast as rays.
+fn replay_config(text: &str, sensor: &Sensor, args: &RecordArgs) -> Result<String> {
+    let mut table: toml::Table = text.parse().context("built-in config")?;
+    table.remove("scene");
+    if let (Sensor::Lidar(_), Some(toml::Value::Table(s))) = (sensor, table.get_mut("sensor")) {
+        for key in ["rings", "elevation_min_deg", "elevation_max_deg", "ring_elevations_deg", "azimuth_bins"] {
+            s.remove(key);
+        }
+        s.insert("kind".into(), "points".into());
+        s.insert("construction".into(), "raycast".into());
+    }
+    let mut dataset = toml::Table::new();
+    dataset.insert("sensor_topic".into(), sensor_topic(sensor).into());
+    dataset.insert("pose_topic".into(), ODOM.into());
+    table.insert("dataset".into(), toml::Value::Table(dataset));
+    let body = toml::to_string(&table).context("config")?;
+    Ok(format!("# Replays {} (edtmap record --scene {}):\n# edtmap run --config THIS --dataset {}\n\n{body}", args.out.display(), args.scene, args.out.display()))
+}

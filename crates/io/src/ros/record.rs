@@ -1,0 +1,89 @@
+//! Writing recordings: ROS 1 bags (edtmap's [`BagWriter`]) or ROS 2 MCAP
+//! files (the `mcap` crate's writer, CDR messages with `ros2msg` schemas),
+//! chosen by the file's extension.
+
+use super::bag::BagWriter;
+use super::msg::Message;
+use super::Encoding;
+use crate::IoError;
+use std::collections::{BTreeMap, HashMap};
+use std::fs::File;
+use std::io::BufWriter;
+use std::path::{Path, PathBuf};
+
+enum Sink {
+    Bag(BagWriter),
+    Mcap(Box<mcap::Writer<BufWriter<File>>>),
+}
+
+/// A recording being written, one message at a time.
+pub struct RecordingWriter {
+    path: PathBuf,
+    sink: Sink,
+    channels: HashMap<String, u32>,
+    sequence: u32,
+}
+
+impl std::fmt::Debug for RecordingWriter {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("RecordingWriter").field("path", &self.path).finish_non_exhaustive()
+    }
+}
+
+fn mcap_error(path: &Path, e: mcap::McapError) -> IoError {
+    IoError::Dataset { path: path.to_path_buf(), reason: format!("writing MCAP: {e}") }
+}
+
+impl RecordingWriter {
+    /// Creates `path`: a `.bag` or an `.mcap`.
+    pub fn create(path: &Path) -> Result<Self, IoError> {
+        let sink = match path.extension().and_then(|e| e.to_str()) {
+            Some("bag") => Sink::Bag(BagWriter::create(path)?),
+            Some("mcap") => {
+                let file = File::create(path).map_err(|e| IoError::io(path, e))?;
+                Sink::Mcap(Box::new(mcap::Writer::new(BufWriter::new(file)).map_err(|e| mcap_error(path, e))?))
+            }
+            _ => return Err(IoError::Dataset { path: path.to_path_buf(), reason: "a recording is written as .bag (ROS 1) or .mcap (ROS 2)".into() }),
+        };
+        Ok(RecordingWriter { path: path.to_path_buf(), sink, channels: HashMap::new(), sequence: 0 })
+    }
+
+    /// The channel (or connection) of `topic`, registered on first use.
+    fn channel(&mut self, topic: &str, msg_type: &str) -> Result<u32, IoError> {
+        if let Some(&c) = self.channels.get(topic) {
+            return Ok(c);
+        }
+        let c = match &mut self.sink {
+            Sink::Bag(w) => w.add_connection(topic, msg_type, "*", "")?,
+            Sink::Mcap(w) => {
+                let ros2_name = msg_type.replacen('/', "/msg/", 1);
+                let schema = w.add_schema(&ros2_name, "ros2msg", b"").map_err(|e| mcap_error(&self.path, e))?;
+                u32::from(w.add_channel(schema, topic, "cdr", &BTreeMap::new()).map_err(|e| mcap_error(&self.path, e))?)
+            }
+        };
+        self.channels.insert(topic.to_string(), c);
+        Ok(c)
+    }
+
+    /// Writes `msg` on `topic`, logged at `log_time_ns`.
+    pub fn write(&mut self, topic: &str, msg: &Message, log_time_ns: u64) -> Result<(), IoError> {
+        let channel = self.channel(topic, msg.type_name())?;
+        self.sequence = self.sequence.wrapping_add(1);
+        match &mut self.sink {
+            Sink::Bag(w) => w.write(channel, log_time_ns, &msg.encode(Encoding::Ros1)),
+            Sink::Mcap(w) => {
+                let channel_id = u16::try_from(channel).map_err(|_| IoError::Dataset { path: self.path.clone(), reason: "more than 65535 MCAP channels".into() })?;
+                let header = mcap::records::MessageHeader { channel_id, sequence: self.sequence, log_time: log_time_ns, publish_time: log_time_ns };
+                w.write_to_known_channel(&header, &msg.encode(Encoding::Cdr)).map_err(|e| mcap_error(&self.path, e))
+            }
+        }
+    }
+
+    /// Closes the file: the bag's index, or the MCAP summary and footer.
+    pub fn finish(self) -> Result<(), IoError> {
+        match self.sink {
+            Sink::Bag(w) => w.finish(),
+            Sink::Mcap(mut w) => w.finish().map(drop).map_err(|e| mcap_error(&self.path, e)),
+        }
+    }
+}
