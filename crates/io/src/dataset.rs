@@ -77,6 +77,28 @@ impl Dataset {
     }
 
     /// Opens the recording at `dir` as `opts` say.
+    ///
+    /// ```no_run
+    /// use edtmap_core::sensor::RangeLimits;
+    /// use edtmap_io::dataset::{Dataset, DatasetOptions};
+    /// use edtmap_io::IoError;
+    /// use std::path::Path;
+    ///
+    /// // A TUM RGB-D sequence: 5000 depth units per metre, no intrinsics file.
+    /// let mut opts = DatasetOptions::new(0.0002, RangeLimits { min_m: 0.3, max_m: 5.0 });
+    /// opts.intrinsics = Some([517.3, 516.5, 318.6, 255.3]);
+    /// let set = Dataset::open_with(Path::new("rgbd_dataset_freiburg1_desk"), &opts)?;
+    /// for i in 0..set.len() {
+    ///     let frame = match set.frame(i) {
+    ///         Ok(frame) => frame,
+    ///         // Before the ground truth starts: skip the image.
+    ///         Err(IoError::NoPose { .. }) => continue,
+    ///         Err(e) => return Err(e),
+    ///     };
+    ///     println!("{:.3} s at {}", frame.stamp_s, frame.t_world_sensor.translation.vector);
+    /// }
+    /// # Ok::<(), IoError>(())
+    /// ```
     pub fn open_with(dir: &Path, opts: &DatasetOptions) -> Result<Self, IoError> {
         if !dir.is_dir() {
             return Err(bad(dir, "not a folder"));
