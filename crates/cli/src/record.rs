@@ -57,7 +57,7 @@ pub(crate) fn record(args: &RecordArgs) -> Result<()> {
     }
     writer.finish()?;
     let config_path = args.out.with_extension("toml");
-    std::fs::write(&config_path, replay_config(text, &sensor, &args)?).with_context(|| format!("cannot write {}", config_path.display()))?;
+    std::fs::write(&config_path, replay_config(text, &sensor, args)?).with_context(|| format!("cannot write {}", config_path.display()))?;
     println!("wrote {} ({frames} frames on {topic}, poses on {ODOM} and {TF})", args.out.display());
     println!("wrote {}: edtmap run --config {} --dataset {}", config_path.display(), config_path.display(), args.out.display());
     Ok(())

@@ -6,8 +6,15 @@
 //!   is accepted (an element is an obstacle when any of its bytes is
 //!   nonzero). C and Fortran order are both supported; outputs keep the
 //!   input's order.
-//! * [`depth_folder`]: 3DMatch-style depth-image folders (16-bit PNGs,
-//!   per-frame 4 × 4 poses, intrinsics) as sensor frames.
+//! * [`dataset`] and [`depth_folder`]: recordings in folders as sensor
+//!   frames with poses: 3DMatch and TUM RGB-D depth images, and PCD, PLY or
+//!   KITTI `.bin` point clouds, posed per file, by KITTI `poses.txt` or by
+//!   a TUM trajectory ([`trajectory`], interpolated at each frame's time).
+//! * [`ros`]: ROS 1 bags and ROS 2 MCAP files, read as raw messages
+//!   ([`ros::bag`], [`ros::mcap`]), decoded from either wire format
+//!   ([`ros::msg`]) and replayed as frames posed by odometry or the `/tf`
+//!   tree ([`ros::RosReplay`]); [`ros::RecordingWriter`] writes both.
+//! * [`ply`]: PLY point clouds, read (ascii and binary) and written.
 //! * [`pcd`]: point clouds in PCL's PCD format ([`read_pcd`]), ascii or
 //!   binary data, float32 or float64 coordinates.
 //! * [`picture`]: PNG pictures of 2D slices with a colour bar.

@@ -101,7 +101,8 @@ fn assert_frames_on_the_wall(replay: &RosReplay, frames: usize) {
 #[test]
 fn clouds_with_odometry_pose_stamped_and_transform_stamped() {
     let dir = tempfile::tempdir().expect("tempdir");
-    let makers: [(&str, fn(f64) -> Message); 3] = [
+    type PoseMessage = fn(f64) -> Message;
+    let makers: [(&str, PoseMessage); 3] = [
         ("/odom", |t| Message::Odometry(stamped(t, "odom", "base_link", body_at(t)))),
         ("/pose", |t| Message::PoseStamped(stamped(t, "map", "", body_at(t)))),
         ("/vicon", |t| Message::TransformStamped(stamped(t, "world", "robot", body_at(t)))),

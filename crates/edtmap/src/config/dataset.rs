@@ -79,7 +79,7 @@ impl DatasetSection {
         if !(self.depth_scale_m > 0.0 && self.depth_scale_m.is_finite()) {
             return Err(invalid("depth_scale_m", self.depth_scale_m.to_string(), "must be a positive number of metres per unit"));
         }
-        if !(self.max_pose_gap_s > 0.0) {
+        if self.max_pose_gap_s.is_nan() || self.max_pose_gap_s <= 0.0 {
             return Err(invalid("max_pose_gap_s", self.max_pose_gap_s.to_string(), "must be positive seconds"));
         }
         self.t_body_sensor()?;

@@ -11,11 +11,14 @@ use crate::trajectory::Trajectory;
 use nalgebra::Isometry3;
 use std::collections::{HashMap, VecDeque};
 
+/// An edge of the tree: `(parent, child)` frame names.
+type Edge = (String, String);
+
 /// Transforms between named frames over time.
 #[derive(Debug, Clone, Default)]
 pub struct TfBuffer {
-    moving: HashMap<(String, String), Trajectory>,
-    fixed: HashMap<(String, String), Isometry3<f64>>,
+    moving: HashMap<Edge, Trajectory>,
+    fixed: HashMap<Edge, Isometry3<f64>>,
 }
 
 /// ROS 1 frame ids may start with `/`; ROS 2's never do.
@@ -27,7 +30,7 @@ impl TfBuffer {
     /// The tree of `(transform, is_static)` pairs: `is_static` for
     /// `/tf_static`, whose transforms hold at all times.
     pub fn new<'a>(transforms: impl IntoIterator<Item = (&'a StampedTransform, bool)>) -> Self {
-        let mut moving: HashMap<(String, String), Vec<(f64, Isometry3<f64>)>> = HashMap::new();
+        let mut moving: HashMap<Edge, Vec<(f64, Isometry3<f64>)>> = HashMap::new();
         let mut fixed = HashMap::new();
         for (t, is_static) in transforms {
             let key = (frame_name(&t.header.frame_id), frame_name(&t.child_frame));
