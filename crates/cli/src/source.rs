@@ -46,6 +46,7 @@ impl Source {
             if let (SensorKind::Depth, Some(info)) = (config.sensor.kind, replay.camera_info()) {
                 fill_intrinsics(config, info);
             }
+            tracing::info!("{}: {} messages of {} on {}", path.display(), replay.len(), replay.sensor_type(), opts.sensor_topic);
             return Ok(Source::Ros(Box::new(replay)));
         }
         config.dataset.validate().map_err(in_dataset)?;
@@ -57,7 +58,9 @@ impl Source {
             trajectory: config.dataset.trajectory.as_ref().map(|t| path.join(t)),
             max_pose_gap_s: config.dataset.max_pose_gap_s,
         };
-        Ok(Source::Folder(Dataset::open_with(path, &opts)?))
+        let set = Dataset::open_with(path, &opts)?;
+        tracing::info!("{}: {} frames of {}", path.display(), set.len(), set.kind());
+        Ok(Source::Folder(set))
     }
 
     /// A scene by name, with the config's `[scene]` settings.
