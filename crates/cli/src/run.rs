@@ -64,6 +64,10 @@ pub(crate) struct RunArgs {
     /// volume's EDT, coloured by distance).
     #[arg(long)]
     pub(crate) ply: bool,
+    /// Height of the occupancy and EDT slices, metres (default: the
+    /// config's [output] slice_height_m, else the sensor's last height).
+    #[arg(long, value_name = "M")]
+    pub(crate) slice_height: Option<f64>,
     /// Replay a recording instead of a scene: a 3DMatch-style depth folder,
     /// or *.pcd point clouds with a KITTI-format poses.txt (needs --config).
     #[arg(long, value_name = "PATH")]
@@ -233,7 +237,7 @@ pub(crate) fn execute(args: &RunArgs, progress: bool) -> Result<RunOutcome> {
         bar.inc(1);
     }
     bar.finish_and_clear();
-    let slice_z = config.output.slice_height_m.unwrap_or(last_z);
+    let slice_z = args.slice_height.or(config.output.slice_height_m).unwrap_or(last_z);
     let mut pictures = write_slices(&mapper, slice_z, &args.out)?;
     if args.ply {
         pictures.extend(write_plys(&mapper, &args.out)?);

@@ -78,9 +78,14 @@ sensor_in_body = [0.1, 0.0, 0.5, 0.0, 0.0, 0.0, 1.0]
 "#;
 
 fn run(dir: &Path, rec: &Path, config: &str) -> Output {
+    run_with(dir, rec, config, &[])
+}
+
+fn run_with(dir: &Path, rec: &Path, config: &str, extra: &[&str]) -> Output {
     let cfg = dir.join("ros.toml");
     std::fs::write(&cfg, config).expect("config");
     Command::new(env!("CARGO_BIN_EXE_edtmap"))
+        .args(extra)
         .args(["run", "--config"])
         .arg(&cfg)
         .arg("--dataset")
@@ -172,8 +177,13 @@ fn frames_without_poses_are_skipped_or_stop_the_run() {
     let dir = tempfile::tempdir().expect("tempdir");
     let rec = dir.path().join("short.mcap");
     write_recording(&rec, Container::Mcap, &msgs, true);
-    let out = run(dir.path(), &rec, CONFIG);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let out = run_with(dir.path(), &rec, CONFIG, &["-vv"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    // -v says what was opened, -vv adds a line per frame; warnings name the skipped frames.
+    assert!(stderr.contains("10 messages of sensor_msgs/PointCloud2 on /points"), "{stderr}");
+    assert_eq!(stderr.lines().filter(|l| l.contains("DEBUG") && l.contains("ms")).count(), 5, "{stderr}");
+    assert_eq!(stderr.lines().filter(|l| l.contains("WARN") && l.contains("skipped")).count(), 5, "{stderr}");
     let r = report(dir.path());
     assert_eq!(frames(&r), Some(5));
     let skipped = r["skipped"].as_array().expect("skipped");
