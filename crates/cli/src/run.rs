@@ -265,7 +265,8 @@ pub(crate) fn execute(args: &RunArgs, progress: bool) -> Result<RunOutcome> {
     let report_path = args.out.join("report.json");
     write_json(&report_path, &report(header, &records))?;
     if let Some(failure) = stopped {
-        let kept = format!("the {} frames before it are integrated and written to {}", records.len(), args.out.display());
+        let plural = if records.len() == 1 { "frame before it is" } else { "frames before it are" };
+        let kept = format!("the {} {plural} integrated and written to {}", records.len(), args.out.display());
         if failure.fatal && config.dataset.on_error == OnError::Skip && !matches!(source, Source::Scene(_)) {
             tracing::warn!("stopped early: {}; {kept}", failure.message);
         } else {

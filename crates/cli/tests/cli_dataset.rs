@@ -96,3 +96,36 @@ fn dataset_mistakes_are_refused_with_the_reason() {
         assert!(!o.status.success() && err.contains(want), "{config} {}: {err}", dir.display());
     }
 }
+
+/// An ascii PCD of a small wall at x = 3 m.
+fn wall_pcd(data_line: &str) -> String {
+    let points: Vec<String> = (0..40).flat_map(|i| (0..10).map(move |k| format!("3 {} {}", -1.0 + 0.05 * i as f64, 0.1 * k as f64))).collect();
+    format!("VERSION .7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH {n}\nHEIGHT 1\nPOINTS {n}\n{data_line}\n{}\n", points.join("\n"), n = points.len())
+}
+
+#[test]
+fn a_bad_cloud_is_skipped_or_stops_the_run_keeping_the_others() {
+    let tmp = tempfile::tempdir().expect("temp dir");
+    let dir = tmp.path().join("clouds");
+    std::fs::create_dir(&dir).expect("dir");
+    for (name, data) in [("000000.pcd", "DATA ascii"), ("000001.pcd", "DATA binary_compressed"), ("000002.pcd", "DATA ascii")] {
+        std::fs::write(dir.join(name), wall_pcd(data)).expect("pcd");
+    }
+    std::fs::write(dir.join("poses.txt"), "1 0 0 0 0 1 0 0 0 0 1 0\n".repeat(3)).expect("poses");
+    let out = tmp.path().join("out");
+    let o = run("velodyne.toml", &dir, &out, &[]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(err.contains("000001.pcd") && err.contains("binary_compressed"), "{err}");
+    let r = report(&out);
+    assert_eq!(r["frames"].as_array().map(|f| f.iter().map(|x| x["index"].as_u64()).collect::<Vec<_>>()), Some(vec![Some(0), Some(2)]));
+    assert!(r["skipped"][0]["reason"].as_str().is_some_and(|s| s.contains("000001.pcd")), "{}", r["skipped"]);
+    // With on_error = "stop": the first frame is kept and written, the run fails naming the file.
+    let config = std::fs::read_to_string(root().join("configs/velodyne.toml")).expect("config") + "\n[dataset]\non_error = \"stop\"\n";
+    let stop = tmp.path().join("stop.toml");
+    std::fs::write(&stop, config).expect("config");
+    let o = Command::new(env!("CARGO_BIN_EXE_edtmap")).args(["run", "--config"]).arg(&stop).arg("--dataset").arg(&dir).arg("--out").arg(&out).output().expect("runs");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && err.contains("000001.pcd") && err.contains("the 1 frame before it is integrated"), "{err}");
+    assert_eq!(report(&out)["frames"].as_array().map(Vec::len), Some(1));
+}
