@@ -19,7 +19,7 @@ use crate::backend::{self, BackendArg, CliMapper};
 use crate::pictures::{write_plys, write_slices, write_timing_plot};
 use crate::report::{report, FrameRecord};
 use crate::scenes::builtin_config;
-use crate::source::{check_kind, Failure, Source};
+use crate::source::{check_kind, Failure, FailureKind, Source};
 
 /// Arguments of `edtmap run`.
 #[derive(Args, Debug, Clone)]
@@ -192,15 +192,16 @@ pub(crate) fn execute(args: &RunArgs, progress: bool) -> Result<RunOutcome> {
         let integrated = item.and_then(|frame| match mapper.integrate_frame(&frame) {
             Ok(stats) => Ok((frame, stats)),
             Err(e) => {
-                let fatal = matches!(e, edtmap::MapError::Backend(_));
-                Err(Failure { index: records.len() + skipped.len(), message: format!("frame {}: {e:#}", records.len() + skipped.len()), fatal })
+                let kind = if matches!(e, edtmap::MapError::Backend(_)) { FailureKind::Fatal } else { FailureKind::Frame };
+                let i = records.len() + skipped.len();
+                Err(Failure { index: i, message: format!("frame {i} (stamp {:.6} s) of {name}: {e:#}", frame.stamp_s), kind })
             }
         });
         let (frame, stats) = match integrated {
             Ok(done) => done,
             Err(failure) => {
                 bar.inc(1);
-                if failure.fatal || config.dataset.on_error == OnError::Stop || matches!(source, Source::Scene(_)) {
+                if failure.kind != FailureKind::Frame || config.dataset.on_error == OnError::Stop || matches!(source, Source::Scene(_)) {
                     stopped = Some(failure);
                     break;
                 }
@@ -237,12 +238,6 @@ pub(crate) fn execute(args: &RunArgs, progress: bool) -> Result<RunOutcome> {
         bar.inc(1);
     }
     bar.finish_and_clear();
-    let slice_z = args.slice_height.or(config.output.slice_height_m).unwrap_or(last_z);
-    let mut pictures = write_slices(&mapper, slice_z, &args.out)?;
-    if args.ply {
-        pictures.extend(write_plys(&mapper, &args.out)?);
-    }
-    pictures.push(write_timing_plot(&records, &mapper.backend().name(), &args.out)?);
     let mut header = Map::new();
     header.insert("edtmap_version".into(), json!(env!("CARGO_PKG_VERSION")));
     header.insert("scene".into(), json!(name));
@@ -259,15 +254,30 @@ pub(crate) fn execute(args: &RunArgs, progress: bool) -> Result<RunOutcome> {
     header.insert("max_distance_m".into(), json!(params.global.max_distance_m));
     header.insert("skipped".into(), json!(skipped.iter().map(|f| json!({"index": f.index, "reason": f.message})).collect::<Vec<_>>()));
     header.insert("stopped".into(), json!(stopped.as_ref().map(|f| json!({"index": f.index, "reason": f.message}))));
-    if let Some(path) = &args.save {
-        edtmap::save_map(mapper.map(), path)?;
-    }
+    // The report first: it says why a run stopped even if a later output fails.
     let report_path = args.out.join("report.json");
     write_json(&report_path, &report(header, &records))?;
+    let outputs = (|| -> Result<Vec<PathBuf>> {
+        if let Some(path) = &args.save {
+            edtmap::save_map(mapper.map(), path)?;
+        }
+        let slice_z = args.slice_height.or(config.output.slice_height_m).unwrap_or(last_z);
+        let mut pictures = write_slices(&mapper, slice_z, &args.out)?;
+        if args.ply {
+            pictures.extend(write_plys(&mapper, &args.out)?);
+        }
+        pictures.push(write_timing_plot(&records, &mapper.backend().name(), &args.out)?);
+        Ok(pictures)
+    })();
+    let pictures = match (outputs, &stopped) {
+        (Ok(p), _) => p,
+        (Err(e), None) => return Err(e),
+        (Err(e), Some(failure)) => return Err(e.context(format!("after the run stopped early: {}", failure.message))),
+    };
     if let Some(failure) = stopped {
         let plural = if records.len() == 1 { "frame before it is" } else { "frames before it are" };
         let kept = format!("the {} {plural} integrated and written to {}", records.len(), args.out.display());
-        if failure.fatal && config.dataset.on_error == OnError::Skip && !matches!(source, Source::Scene(_)) {
+        if failure.kind == FailureKind::Damage && config.dataset.on_error == OnError::Skip {
             tracing::warn!("stopped early: {}; {kept}", failure.message);
         } else {
             bail!("{}; {kept}", failure.message);

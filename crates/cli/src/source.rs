@@ -18,8 +18,21 @@ pub(crate) struct Failure {
     pub(crate) index: usize,
     /// File, topic, stamp and reason.
     pub(crate) message: String,
-    /// Whether nothing after it can be read either.
-    pub(crate) fatal: bool,
+    /// What it means for the run.
+    pub(crate) kind: FailureKind,
+}
+
+/// How a failure weighs on the run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum FailureKind {
+    /// This frame only: skipped or stopping, per `[dataset] on_error`.
+    Frame,
+    /// The recording is damaged here: nothing after it can be read. The run
+    /// ends; an error only with `on_error = "stop"`.
+    Damage,
+    /// The pipeline itself failed (a simulated scene, a lost device): the run
+    /// ends with an error.
+    Fatal,
 }
 
 /// The frames of a run.
@@ -95,17 +108,19 @@ impl Source {
     /// The first `n` frames, or failures in their place.
     pub(crate) fn frames<'a>(&'a self, sensor: &'a Sensor, n: usize, name: &'a str) -> Box<dyn Iterator<Item = Result<Frame, Failure>> + 'a> {
         match self {
-            Source::Scene(scene) => Box::new((0..n).map(move |i| scene.frame(sensor, i).map_err(|e| Failure { index: i, message: format!("simulating frame {i}: {e}"), fatal: true }))),
-            Source::Folder(set) => Box::new((0..n).map(move |i| set.frame(i).map_err(|e| Failure { index: i, message: format!("frame {i} of {name}: {e}"), fatal: false }))),
-            // The index counts only what precedes damage: after the n-th
-            // message, still report the damage that ends the recording.
-            Source::Ros(replay) => Box::new(
-                replay
-                    .frames()
-                    .enumerate()
-                    .take_while(move |(i, r)| *i < n || r.as_ref().is_err_and(|e| e.fatal))
-                    .map(|(i, r)| r.map_err(|e| Failure { index: i, message: e.to_string(), fatal: e.fatal })),
-            ),
+            Source::Scene(scene) => Box::new((0..n).map(move |i| scene.frame(sensor, i).map_err(|e| Failure { index: i, message: format!("simulating frame {i}: {e}"), kind: FailureKind::Fatal }))),
+            Source::Folder(set) => Box::new((0..n).map(move |i| set.frame(i).map_err(|e| Failure { index: i, message: format!("frame {i} of {name}: {e}"), kind: FailureKind::Frame }))),
+            // The index counts only what precedes damage: when every indexed
+            // frame is asked for, still report the damage that ends the file.
+            Source::Ros(replay) => {
+                let all = n >= replay.len();
+                Box::new(replay.frames().enumerate().take_while(move |(i, r)| *i < n || (all && r.as_ref().is_err_and(|e| e.fatal))).map(|(i, r)| {
+                    r.map_err(|e| {
+                        let kind = if e.fatal { FailureKind::Damage } else { FailureKind::Frame };
+                        Failure { index: i, message: e.to_string(), kind }
+                    })
+                }))
+            }
         }
     }
 }

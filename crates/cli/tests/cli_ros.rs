@@ -151,7 +151,8 @@ fn damaged_recordings_keep_what_was_integrated() {
         let full = dir.path().join(format!("full.{}", container.ext()));
         write_recording(&full, container, &recording(), false);
         let bytes = std::fs::read(&full).expect("read");
-        let rec = dir.path().join(format!("cut.{}", container.ext()));
+        // A killed `rosbag record` leaves NAME.bag.active: the magic decides.
+        let rec = dir.path().join(format!("cut.{}.active", container.ext()));
         std::fs::write(&rec, &bytes[..bytes.len() * 3 / 5]).expect("cut");
         // Skip (the default): a warning, the frames before the cut, success.
         let out = run(dir.path(), &rec, CONFIG);

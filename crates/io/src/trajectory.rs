@@ -119,6 +119,9 @@ impl Trajectory {
         if (self.stamps[hi] - t).abs() <= END_TOLERANCE_S {
             return Ok(self.poses[hi]);
         }
+        if t - self.stamps[hi - 1] <= END_TOLERANCE_S {
+            return Ok(self.poses[hi - 1]);
+        }
         let (t0, t1) = (self.stamps[hi - 1], self.stamps[hi]);
         let gap = t1 - t0;
         if gap > max_gap_s {
@@ -202,6 +205,8 @@ mod tests {
         assert!(matches!(traj.pose_at(5.1, 1.0), Err(PoseLookupError::After { .. })));
         assert!(matches!(traj.pose_at(3.0, 1.0), Err(PoseLookupError::Gap { .. })));
         assert!(traj.pose_at(3.0, 4.0).is_ok());
+        // On a sample, up to the tolerance, whatever the gap after it.
+        assert_eq!(traj.pose_at(1.0 + 1e-7, 1.0), Ok(pose(1.0, 0.0)));
         assert_eq!(Trajectory::default().pose_at(0.0, 1.0), Err(PoseLookupError::Empty));
     }
 

@@ -142,6 +142,14 @@ fn clouds_placed_by_the_tf_tree() {
         // The same with the body frame named and the extrinsics from the config.
         let opts = RosOptions { body_frame: Some("base_link".into()), world_frame: Some("map".into()), ..options("/points", "/tf") };
         assert_frames_on_the_wall(&RosReplay::open(&path, &opts).expect("opens"), 9);
+        // Without /tf_static the cloud's frame is in no tree: every frame says so.
+        let no_static = dir.path().join(format!("no_static.{}", container.ext()));
+        write_recording(&no_static, container, &msgs[1..], true);
+        let opts = RosOptions { t_body_sensor: Isometry3::identity(), ..options("/points", "/tf") };
+        for r in RosReplay::open(&no_static, &opts).expect("opens").frames() {
+            let e = r.expect_err("no pose");
+            assert!(!e.fatal && e.reason.contains("\"lidar\" is not in the transform tree"), "{e}");
+        }
     }
 }
 

@@ -52,6 +52,9 @@ impl PointCloud2 {
     /// they are.
     pub fn xyz(&self) -> Result<PointCloud, String> {
         let fields = [self.field("x")?, self.field("y")?, self.field("z")?];
+        if self.width == 0 || self.height == 0 {
+            return Ok(PointCloud { points: Vec::new() });
+        }
         let (h, w, step, row) = (self.height as u64, self.width as u64, self.point_step as u64, self.row_step as u64);
         if w > 0 && row < w * step {
             return Err(format!("PointCloud2 row_step {row} is shorter than width {w} × point_step {step}"));
@@ -85,6 +88,9 @@ impl Image {
             other => return Err(format!("Image encoding {other:?} is not a depth image (16UC1, mono16 or 32FC1)")),
         };
         let (w, h, step) = (self.width as usize, self.height as usize, self.step as usize);
+        if w == 0 || h == 0 {
+            return Err(format!("Image of {w} × {h} pixels is empty"));
+        }
         if step < w * bytes {
             return Err(format!("Image step {step} is shorter than width {w} × {bytes} bytes"));
         }

@@ -65,7 +65,9 @@ pub fn normalize_type(name: &str) -> String {
     name.replacen("/msg/", "/", 1)
 }
 
-/// Whether `path` names a ROS recording by its extension (`.bag`, `.mcap`).
+/// Whether `path` is a file, to be read as a recording (bag or MCAP, told
+/// apart by their magic bytes, whatever the name: a killed `rosbag record`
+/// leaves `NAME.bag.active`); folders are read as [`crate::dataset`]s.
 pub fn is_recording(path: &Path) -> bool {
-    path.is_file() && path.extension().is_some_and(|e| e == "bag" || e == "mcap")
+    path.is_file()
 }

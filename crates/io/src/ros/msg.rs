@@ -413,7 +413,8 @@ fn write_transform_stamped(w: &mut WireWriter, m: &StampedTransform) {
 }
 
 fn read_tf(r: &mut WireReader<'_>) -> WireResult<Vec<StampedTransform>> {
-    // Smallest TransformStamped: a header of 3 × 4 bytes and two empty strings, 7 × 8 bytes of numbers.
-    let n = r.seq_len("transforms", 76)?;
+    // Smallest TransformStamped: stamp and two empty strings (16 bytes at
+    // least), 7 × 8 bytes of numbers.
+    let n = r.seq_len("transforms", 72)?;
     (0..n).map(|_| read_transform_stamped(r)).collect()
 }

@@ -65,6 +65,24 @@ pub struct FrameError {
     pub fatal: bool,
 }
 
+/// Recorders that leave stamps empty: a pose at the time it was logged,
+/// as for sensor messages.
+fn with_log_time(msg: Message, log_time_ns: u64) -> Message {
+    let fix = |mut t: StampedTransform| {
+        if t.header.stamp_ns == 0 {
+            t.header.stamp_ns = i64::try_from(log_time_ns).unwrap_or(i64::MAX);
+        }
+        t
+    };
+    match msg {
+        Message::Tf(ts) => Message::Tf(ts.into_iter().map(fix).collect()),
+        Message::Odometry(t) => Message::Odometry(fix(t)),
+        Message::PoseStamped(t) => Message::PoseStamped(fix(t)),
+        Message::TransformStamped(t) => Message::TransformStamped(fix(t)),
+        other => other,
+    }
+}
+
 /// The two containers.
 enum Container {
     Bag(BagReader),
@@ -193,7 +211,7 @@ impl RosReplay {
                     break;
                 }
             };
-            match Message::decode(&raw.msg_type, &raw.data, raw.encoding) {
+            match Message::decode(&raw.msg_type, &raw.data, raw.encoding).map(|m| with_log_time(m, raw.log_time_ns)) {
                 Ok(Message::Tf(ts)) => {
                     let is_static = raw.topic == self.opts.static_tf_topic && raw.topic != self.opts.pose_topic;
                     transforms.extend(ts.into_iter().map(|t| (t, is_static)));
@@ -208,6 +226,7 @@ impl RosReplay {
                         self.warnings.push(format!("{}: topic {}: skipping undecodable messages, the first: {e}", self.path.display(), raw.topic));
                     }
                     undecodable += 1;
+                    tracing::debug!("{}: undecodable message {undecodable} on {}: {e}", self.path.display(), raw.topic);
                 }
             }
         }
@@ -222,7 +241,11 @@ impl RosReplay {
             }
             Poses::Topic(Trajectory::new(transforms.into_iter().map(|(t, _)| (t.header.stamp_s(), t.transform)).collect()))
         };
-        if matches!(&self.poses, Poses::Topic(t) if t.is_empty()) {
+        let empty = match &self.poses {
+            Poses::Topic(t) => t.is_empty(),
+            Poses::Tf(tf, _) => tf.edges() == 0,
+        };
+        if empty {
             return Err(bad(&self.path, format!("pose topic {} holds no readable pose", self.opts.pose_topic)));
         }
         Ok(())
@@ -269,7 +292,10 @@ impl RosReplay {
             Poses::Topic(traj) => traj.pose_at(stamp_s, gap).map_err(|e| format!("pose topic {}: {e}", self.opts.pose_topic))?,
             Poses::Tf(tf, world) => {
                 let body = self.opts.body_frame.as_deref().unwrap_or(frame_id);
-                let world = world.clone().unwrap_or_else(|| tf.root_of(body));
+                let world = match world {
+                    Some(w) => w.clone(),
+                    None => tf.root_of(body).ok_or_else(|| format!("frame {body:?} is not in the transform tree (frames known: {})", tf.frames().join(", ")))?,
+                };
                 tf.lookup(&world, body, stamp_s, gap)?
             }
         };

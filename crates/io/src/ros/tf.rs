@@ -44,16 +44,20 @@ impl TfBuffer {
         TfBuffer { moving, fixed }
     }
 
-    /// The root of the tree `frame` is in: the ancestor with no parent.
-    pub fn root_of(&self, frame: &str) -> String {
+    /// The root of the tree `frame` is in: the ancestor with no parent;
+    /// `None` when no edge names `frame`.
+    pub fn root_of(&self, frame: &str) -> Option<String> {
         let mut at = frame_name(frame);
+        if !self.moving.keys().chain(self.fixed.keys()).any(|(p, c)| *p == at || *c == at) {
+            return None;
+        }
         for _ in 0..self.edges() {
             match self.moving.keys().chain(self.fixed.keys()).find(|(_, c)| *c == at) {
                 Some((p, _)) => at = p.clone(),
                 None => break,
             }
         }
-        at
+        Some(at)
     }
 
     /// Number of edges.
@@ -98,6 +102,9 @@ impl TfBuffer {
     /// between samples at most `max_gap_s` apart.
     pub fn lookup(&self, target: &str, source: &str, t: f64, max_gap_s: f64) -> Result<Isometry3<f64>, String> {
         let (target, source) = (frame_name(target), frame_name(source));
+        if !self.frames().contains(&source) {
+            return Err(format!("frame {source:?} is not in the transform tree (frames known: {})", self.frames().join(", ")));
+        }
         if target == source {
             return Ok(Isometry3::identity());
         }
@@ -151,7 +158,8 @@ mod tests {
             (edge("base_link", "lidar", 0.0, 0.5, 0.0), true),
         ];
         let tf = TfBuffer::new(edges.iter().map(|(e, s)| (e, *s)));
-        assert_eq!(tf.root_of("/lidar"), "map");
+        assert_eq!(tf.root_of("/lidar").as_deref(), Some("map"));
+        assert_eq!(tf.root_of("camera"), None);
         let got = tf.lookup("map", "lidar", 0.5, 1.0).expect("chain");
         // Expected by hand: x 1, yaw 0.5, then the lidar 0.5 m ahead along the turned x.
         let want = Isometry3::new(Vector3::new(1.0 + 0.5 * 0.5f64.cos(), 0.5 * 0.5f64.sin(), 0.0), Vector3::new(0.0, 0.0, 0.5));
@@ -159,6 +167,6 @@ mod tests {
         let back = tf.lookup("lidar", "map", 0.5, 1.0).expect("inverse chain");
         assert!((back.to_homogeneous() - want.inverse().to_homogeneous()).abs().max() < 1e-12);
         assert!(tf.lookup("map", "lidar", 1.5, 1.0).expect_err("after").contains("odom"));
-        assert!(tf.lookup("map", "camera", 0.5, 1.0).expect_err("unknown").contains("no chain"));
+        assert!(tf.lookup("map", "camera", 0.5, 1.0).expect_err("unknown").contains("not in the transform tree"));
     }
 }

@@ -30,8 +30,8 @@ impl<'a> WireReader<'a> {
             Encoding::Cdr => {
                 let header = data.get(..4).ok_or("shorter than the 4-byte CDR header")?;
                 let big_endian = match header[..2] {
-                    [0, 0] | [0, 2] => true,
-                    [0, 1] | [0, 3] => false,
+                    [0, 0] => true,
+                    [0, 1] => false,
                     _ => return Err(format!("CDR representation {:02x}{:02x} is not plain CDR", header[0], header[1])),
                 };
                 Ok(WireReader { data, pos: 4, origin: 4, cdr: true, big_endian })

@@ -84,6 +84,10 @@ fn parse_summary(section: &[u8]) -> Option<Vec<TopicInfo>> {
     if u32::try_from(channels.len()).ok()? != statistics.channel_count {
         return None;
     }
+    // The spec: an empty map means the counts were not recorded; scan.
+    if statistics.channel_message_counts.is_empty() && statistics.message_count > 0 {
+        return None;
+    }
     let counts = channels.into_values().map(|c| {
         let messages = statistics.channel_message_counts.get(&c.id).copied().unwrap_or(0);
         (c.topic, schemas.get(&c.schema_id).cloned().unwrap_or_default(), messages)
