@@ -7,7 +7,7 @@
 mod common;
 
 use common::{write_recording, Container, Msg};
-use edtmap_io::ros::msg::{Header, Message, PointCloud2, PointField, StampedTransform};
+use edtmap_io::ros::msg::{Header, Message, PointCloud2, StampedTransform};
 use nalgebra::{Isometry3, Point3, Vector3};
 use std::path::Path;
 use std::process::{Command, Output};
@@ -31,17 +31,7 @@ fn cloud_at(t: f64) -> Message {
         .flat_map(|i| (0..30).map(move |k| Point3::new(2.0, -2.0 + 0.05 * i as f64 + 0.5 * t, 0.05 * k as f64)))
         .map(|p| (t_sensor_world * p).coords.map(|v| v as f32).into())
         .collect();
-    Message::PointCloud2(PointCloud2 {
-        header: Header { stamp_ns: (t * 1e9) as i64, frame_id: "lidar".into() },
-        height: 1,
-        width: pts.len() as u32,
-        fields: ["x", "y", "z"].iter().enumerate().map(|(i, n)| PointField { name: (*n).into(), offset: 4 * i as u32, datatype: 7, count: 1 }).collect(),
-        point_step: 12,
-        row_step: 12 * pts.len() as u32,
-        data: pts.iter().flatten().flat_map(|v| v.to_le_bytes()).collect(),
-        is_dense: true,
-        is_bigendian: false,
-    })
+    Message::PointCloud2(PointCloud2::from_points(Header { stamp_ns: (t * 1e9) as i64, frame_id: "lidar".into() }, &pts))
 }
 
 fn recording() -> Vec<Msg> {

@@ -9,7 +9,7 @@ const CONTAINERS: [Container; 2] = [Container::Bag, Container::Mcap];
 
 use common::{write_recording, Container, Msg};
 use edtmap_core::sensor::Measurement;
-use edtmap_io::ros::msg::{CameraInfo, Header, Image, LaserScanMsg, Message, PointCloud2, PointField, StampedTransform};
+use edtmap_io::ros::msg::{CameraInfo, Header, Image, LaserScanMsg, Message, PointCloud2, StampedTransform};
 use edtmap_io::ros::{RosOptions, RosReplay};
 use nalgebra::{Isometry3, Point3, Vector3};
 
@@ -37,18 +37,7 @@ fn wall_world() -> Vec<Point3<f64>> {
 fn cloud_at(t: f64) -> PointCloud2 {
     let t_sensor_world = (body_at(t) * body_sensor()).inverse();
     let pts: Vec<[f32; 3]> = wall_world().iter().map(|p| (t_sensor_world * p).coords.map(|v| v as f32).into()).collect();
-    let fields = ["x", "y", "z"].iter().enumerate().map(|(i, n)| PointField { name: (*n).into(), offset: 4 * i as u32, datatype: 7, count: 1 }).collect();
-    PointCloud2 {
-        header: header(t, "lidar"),
-        height: 1,
-        width: pts.len() as u32,
-        fields,
-        is_bigendian: false,
-        point_step: 12,
-        row_step: 12 * pts.len() as u32,
-        data: pts.iter().flatten().flat_map(|v| v.to_le_bytes()).collect(),
-        is_dense: true,
-    }
+    PointCloud2::from_points(header(t, "lidar"), &pts)
 }
 
 fn stamped(t: f64, parent: &str, child: &str, pose: Isometry3<f64>) -> StampedTransform {

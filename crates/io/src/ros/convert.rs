@@ -36,6 +36,16 @@ fn read_value(code: u8, b: &[u8], big_endian: bool) -> f64 {
 }
 
 impl PointCloud2 {
+    /// An unordered cloud of `x y z` float32 points, as drivers publish
+    /// them (non-finite points: no return).
+    pub fn from_points(header: super::msg::Header, points: &[[f32; 3]]) -> Self {
+        let fields = ["x", "y", "z"].iter().zip(0..).map(|(name, i)| PointField { name: (*name).into(), offset: 4 * i, datatype: 7, count: 1 }).collect();
+        let width = u32::try_from(points.len()).unwrap_or(u32::MAX);
+        let data = points.iter().flatten().flat_map(|v| v.to_le_bytes()).collect();
+        let is_dense = points.iter().flatten().all(|v| v.is_finite());
+        PointCloud2 { header, height: 1, width, fields, is_bigendian: false, point_step: 12, row_step: width.saturating_mul(12), data, is_dense }
+    }
+
     fn field(&self, name: &str) -> Result<(&PointField, usize), String> {
         let f = self.fields.iter().find(|f| f.name == name).ok_or_else(|| {
             let names: Vec<&str> = self.fields.iter().map(|f| f.name.as_str()).collect();

@@ -46,17 +46,7 @@ fn ros1_transform_stamped_matches_the_published_layout() {
 }
 
 fn every_message() -> Vec<Message> {
-    let cloud = PointCloud2 {
-        header: header(5, "lidar"),
-        height: 1,
-        width: 2,
-        fields: ["x", "y", "z"].iter().enumerate().map(|(i, n)| PointField { name: n.to_string(), offset: 4 * i as u32, datatype: 7, count: 1 }).collect(),
-        is_bigendian: false,
-        point_step: 12,
-        row_step: 24,
-        data: [1.0f32, 2.0, 3.0, -1.0, 0.5, 9.0].iter().flat_map(|v| v.to_le_bytes()).collect(),
-        is_dense: true,
-    };
+    let cloud = PointCloud2::from_points(header(5, "lidar"), &[[1.0, 2.0, 3.0], [-1.0, 0.5, 9.0]]);
     let image = Image { header: header(6, "cam"), height: 2, width: 2, encoding: "16UC1".into(), is_bigendian: false, step: 4, data: vec![1, 0, 2, 0, 3, 0, 0, 0] };
     let info = CameraInfo { header: header(6, "cam"), height: 2, width: 2, distortion_model: "plumb_bob".into(), d: vec![0.1, 0.0, 0.0, 0.0, 0.0], k: [500.0, 0.0, 1.0, 0.0, 501.0, 1.0, 0.0, 0.0, 1.0] };
     let scan = LaserScanMsg { header: header(7, "laser"), angle_min: -1.0, angle_max: 1.0, angle_increment: 1.0, time_increment: 0.0, scan_time: 0.1, range_min: 0.1, range_max: 10.0, ranges: vec![1.0, 2.0, f32::INFINITY], intensities: vec![] };

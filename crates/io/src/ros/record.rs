@@ -35,13 +35,30 @@ fn mcap_error(path: &Path, e: mcap::McapError) -> IoError {
 }
 
 impl RecordingWriter {
-    /// Creates `path`: a `.bag` or an `.mcap`.
+    /// Creates `path`: a `.bag` or an `.mcap`, with each writer's default
+    /// chunk size.
     pub fn create(path: &Path) -> Result<Self, IoError> {
+        Self::create_with_chunk_bytes(path, None)
+    }
+
+    /// Creates `path` with chunks of about `chunk_bytes` (small chunks let a
+    /// cut file keep more of what was written before the cut).
+    pub fn create_with_chunk_bytes(path: &Path, chunk_bytes: Option<u32>) -> Result<Self, IoError> {
         let sink = match path.extension().and_then(|e| e.to_str()) {
-            Some("bag") => Sink::Bag(BagWriter::create(path)?),
+            Some("bag") => {
+                let w = BagWriter::create(path)?;
+                Sink::Bag(match chunk_bytes {
+                    Some(b) => w.with_chunk_bytes(b),
+                    None => w,
+                })
+            }
             Some("mcap") => {
                 let file = File::create(path).map_err(|e| IoError::io(path, e))?;
-                Sink::Mcap(Box::new(mcap::Writer::new(BufWriter::new(file)).map_err(|e| mcap_error(path, e))?))
+                let mut options = mcap::WriteOptions::new();
+                if let Some(b) = chunk_bytes {
+                    options = options.chunk_size(Some(u64::from(b)));
+                }
+                Sink::Mcap(Box::new(options.create(BufWriter::new(file)).map_err(|e| mcap_error(path, e))?))
             }
             _ => return Err(IoError::Dataset { path: path.to_path_buf(), reason: "a recording is written as .bag (ROS 1) or .mcap (ROS 2)".into() }),
         };
@@ -65,21 +82,37 @@ impl RecordingWriter {
         Ok(c)
     }
 
+    /// How this container serializes messages: ROS 1 in bags, CDR in MCAP.
+    pub fn encoding(&self) -> Encoding {
+        match self.sink {
+            Sink::Bag(_) => Encoding::Ros1,
+            Sink::Mcap(_) => Encoding::Cdr,
+        }
+    }
+
     /// Writes `msg` on `topic`, logged at `log_time_ns`.
     pub fn write(&mut self, topic: &str, msg: &Message, log_time_ns: u64) -> Result<(), IoError> {
-        let channel = self.channel(topic, msg.type_name())?;
+        self.write_raw(topic, msg.type_name(), &msg.encode(self.encoding()), log_time_ns)
+    }
+
+    /// Writes bytes already serialized in [`Self::encoding`] as a message of
+    /// type `msg_type` (`package/Type`) on `topic`.
+    pub fn write_raw(&mut self, topic: &str, msg_type: &str, data: &[u8], log_time_ns: u64) -> Result<(), IoError> {
+        let channel = self.channel(topic, msg_type)?;
         self.sequence = self.sequence.wrapping_add(1);
         match &mut self.sink {
-            Sink::Bag(w) => w.write(channel, log_time_ns, &msg.encode(Encoding::Ros1)),
+            Sink::Bag(w) => w.write(channel, log_time_ns, data),
             Sink::Mcap(w) => {
                 let channel_id = u16::try_from(channel).map_err(|_| IoError::Dataset { path: self.path.clone(), reason: "more than 65535 MCAP channels".into() })?;
                 let header = mcap::records::MessageHeader { channel_id, sequence: self.sequence, log_time: log_time_ns, publish_time: log_time_ns };
-                w.write_to_known_channel(&header, &msg.encode(Encoding::Cdr)).map_err(|e| mcap_error(&self.path, e))
+                w.write_to_known_channel(&header, data).map_err(|e| mcap_error(&self.path, e))
             }
         }
     }
 
     /// Closes the file: the bag's index, or the MCAP summary and footer.
+    /// Dropped without it, a bag is left as a recorder killed mid-run
+    /// leaves it; the MCAP writer closes its file on drop.
     pub fn finish(self) -> Result<(), IoError> {
         match self.sink {
             Sink::Bag(w) => w.finish(),

@@ -1,11 +1,9 @@
-//! Writes ROS recordings for the tests: bags with edtmap's hand-written
-//! writer, MCAP files with the `mcap` crate's.
+//! Writes ROS recordings for the tests through `RecordingWriter`: bags
+//! with edtmap's hand-written writer, MCAP files with the `mcap` crate's.
 #![allow(dead_code)] // each test file uses part of it
 
-use edtmap_io::ros::bag::BagWriter;
 use edtmap_io::ros::msg::Message;
-use edtmap_io::ros::Encoding;
-use std::collections::{BTreeMap, HashMap};
+use edtmap_io::ros::{Encoding, RecordingWriter};
 use std::path::Path;
 
 /// Which container to write.
@@ -60,51 +58,17 @@ impl Msg {
 }
 
 /// Writes `msgs` in order; `finish` closes the file properly (index or
-/// summary), else it is left as a recorder killed mid-run leaves it.
+/// summary), else a bag is left as a recorder killed mid-run leaves it (the
+/// MCAP writer always closes its file: tests cut it themselves). Chunks are
+/// small, so that a cut file keeps whole chunks before the cut.
 pub(crate) fn write_recording(path: &Path, container: Container, msgs: &[Msg], finish: bool) {
-    let ns = |t: f64| (t * 1e9).round() as u64;
-    match container {
-        Container::Bag => {
-            let mut w = BagWriter::create(path).expect("create bag");
-            let mut conns = HashMap::new();
-            for m in msgs {
-                let conn = match conns.get(&m.topic) {
-                    Some(c) => *c,
-                    None => {
-                        let c = w.add_connection(&m.topic, &m.msg_type, "*", "").expect("connection");
-                        conns.insert(m.topic.clone(), c);
-                        c
-                    }
-                };
-                w.write(conn, ns(m.log_time_s), &m.bytes(Encoding::Ros1)).expect("write");
-            }
-            if finish {
-                w.finish().expect("finish");
-            }
-        }
-        Container::Mcap => {
-            let file = std::io::BufWriter::new(std::fs::File::create(path).expect("create mcap"));
-            // Small chunks, so that a cut file keeps whole chunks before the cut.
-            let mut w = mcap::WriteOptions::new().chunk_size(Some(4096)).create(file).expect("mcap writer");
-            let mut channels = HashMap::new();
-            for (seq, m) in msgs.iter().enumerate() {
-                let channel = match channels.get(&m.topic) {
-                    Some(c) => *c,
-                    None => {
-                        let ros2_name = m.msg_type.replacen('/', "/msg/", 1);
-                        let schema = w.add_schema(&ros2_name, "ros2msg", b"").expect("schema");
-                        let c = w.add_channel(schema, &m.topic, "cdr", &BTreeMap::new()).expect("channel");
-                        channels.insert(m.topic.clone(), c);
-                        c
-                    }
-                };
-                let header = mcap::records::MessageHeader { channel_id: channel, sequence: seq as u32, log_time: ns(m.log_time_s), publish_time: ns(m.log_time_s) };
-                w.write_to_known_channel(&header, &m.bytes(Encoding::Cdr)).expect("write");
-            }
-            // The crate's writer always closes the file; tests cut it
-            // themselves to play a recorder killed mid-run.
-            let _ = finish;
-            w.finish().expect("finish");
-        }
+    assert!(path.extension().is_some_and(|e| e == container.ext()), "{} is not a .{}", path.display(), container.ext());
+    let mut w = RecordingWriter::create_with_chunk_bytes(path, Some(4096)).expect("create recording");
+    for m in msgs {
+        let log_time_ns = (m.log_time_s * 1e9).round() as u64;
+        w.write_raw(&m.topic, &m.msg_type, &m.bytes(w.encoding()), log_time_ns).expect("write");
+    }
+    if finish {
+        w.finish().expect("finish");
     }
 }
