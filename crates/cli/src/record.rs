@@ -7,11 +7,11 @@ use std::path::PathBuf;
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use edtmap::sensor::{DepthData, Frame, Measurement, Sensor};
-use edtmap_io::ros::msg::{CameraInfo, Header, Image, LaserScanMsg, Message, PointCloud2, PointField, StampedTransform};
+use edtmap_io::ros::msg::{CameraInfo, Header, Image, LaserScanMsg, Message, PointCloud2, StampedTransform};
 use edtmap_io::ros::RecordingWriter;
 
 use crate::scenes::builtin_config;
-use crate::source::Source;
+use crate::source::build_scene;
 
 /// Arguments of `edtmap record`.
 #[derive(Args, Debug, Clone)]
@@ -37,8 +37,7 @@ pub(crate) fn record(args: &RecordArgs) -> Result<()> {
     let text = builtin_config(&args.scene).with_context(|| format!("unknown scene {:?}", args.scene))?;
     let config = edtmap::config::Config::parse(text, &format!("built-in configs/{}.toml", args.scene))?;
     let (sensor, _) = config.mapper_params()?;
-    let (source, n) = Source::scene(&args.scene, &config)?;
-    let Source::Scene(scene) = source else { bail!("not a scene") };
+    let (scene, n) = build_scene(&args.scene, &config)?;
     let frames = args.frames.unwrap_or(n);
     let mut writer = RecordingWriter::create(&args.out)?;
     let topic = sensor_topic(&sensor);
@@ -92,9 +91,9 @@ fn sensor_message(sensor: &Sensor, frame: &Frame, stamp_ns: i64) -> Result<Messa
                 let ok = r.is_finite() && r >= lidar.range.min_m && r <= lidar.range.max_m;
                 if ok { lidar.direction(i / bins, i % bins).map(|c| c as f32 * r) } else { [f32::NAN; 3] }
             });
-            cloud(h, points.collect())
+            Message::PointCloud2(PointCloud2::from_points(h, &points.collect::<Vec<_>>()))
         }
-        (Measurement::Points(c), _) => cloud(h, c.points.clone()),
+        (Measurement::Points(c), _) => Message::PointCloud2(PointCloud2::from_points(h, &c.points)),
         (Measurement::Scan(s), _) => {
             let n = s.ranges.len().saturating_sub(1) as f64;
             Message::LaserScan(LaserScanMsg {
@@ -112,13 +111,6 @@ fn sensor_message(sensor: &Sensor, frame: &Frame, stamp_ns: i64) -> Result<Messa
         }
         (m, _) => bail!("a {} from a {} cannot be recorded", m.kind(), sensor.kind()),
     })
-}
-
-fn cloud(header: Header, points: Vec<[f32; 3]>) -> Message {
-    let fields = ["x", "y", "z"].iter().enumerate().map(|(i, n)| PointField { name: (*n).into(), offset: 4 * i as u32, datatype: 7, count: 1 }).collect();
-    let width = points.len() as u32;
-    let data = points.iter().flatten().flat_map(|v| v.to_le_bytes()).collect();
-    Message::PointCloud2(PointCloud2 { header, height: 1, width, fields, is_bigendian: false, point_step: 12, row_step: 12 * width, data, is_dense: false })
 }
 
 /// The scene's config without `[scene]`, with the recording's topics; a

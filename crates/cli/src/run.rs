@@ -188,12 +188,11 @@ pub(crate) fn execute(args: &RunArgs, progress: bool) -> Result<RunOutcome> {
     let mut last_z = 0.0;
     let mut skipped = Vec::new();
     let mut stopped: Option<Failure> = None;
-    for item in source.frames(&sensor, frames, &name) {
+    for (i, item) in source.frames(&sensor, frames, &name).enumerate() {
         let integrated = item.and_then(|frame| match mapper.integrate_frame(&frame) {
             Ok(stats) => Ok((frame, stats)),
             Err(e) => {
                 let kind = if matches!(e, edtmap::MapError::Backend(_)) { FailureKind::Fatal } else { FailureKind::Frame };
-                let i = records.len() + skipped.len();
                 Err(Failure { index: i, message: format!("frame {i} (stamp {:.6} s) of {name}: {e:#}", frame.stamp_s), kind })
             }
         });
@@ -210,8 +209,7 @@ pub(crate) fn execute(args: &RunArgs, progress: bool) -> Result<RunOutcome> {
                 continue;
             }
         };
-        tracing::debug!("frame {} at {:.3} s: {:.2} ms", records.len() + skipped.len(), frame.stamp_s, stats.total_ms);
-        let i = records.len() + skipped.len();
+        tracing::debug!("frame {i} at {:.3} s: {:.2} ms", frame.stamp_s, stats.total_ms);
         let mut rec = FrameRecord {
             index: i,
             stamp_s: frame.stamp_s,

@@ -78,12 +78,7 @@ impl Source {
 
     /// A scene by name, with the config's `[scene]` settings.
     pub(crate) fn scene(name: &str, config: &Config) -> Result<(Source, usize)> {
-        let section = config.scene.clone();
-        let scene_name: SceneName = name.parse().map_err(|e| anyhow::anyhow!("{e}"))?;
-        let section = section.unwrap_or_else(|| edtmap::config::SceneSection { name: name.into(), frames: None, seed: 7, range_noise_m: 0.0, dropout: 0.0 });
-        let options = SceneOptions { seed: section.seed, range_noise_m: section.range_noise_m, dropout: section.dropout };
-        let scene = Scene::new(scene_name, &options).context("[scene]")?;
-        let n = section.frames.unwrap_or_else(|| scene.default_frames());
+        let (scene, n) = build_scene(name, config)?;
         Ok((Source::Scene(Box::new(scene)), n))
     }
 
@@ -123,6 +118,17 @@ impl Source {
             }
         }
     }
+}
+
+/// A built-in scene by name, with the config's `[scene]` settings, and its
+/// number of frames.
+pub(crate) fn build_scene(name: &str, config: &Config) -> Result<(Scene, usize)> {
+    let scene_name: SceneName = name.parse().map_err(|e| anyhow::anyhow!("{e}"))?;
+    let section = config.scene.clone().unwrap_or_else(|| edtmap::config::SceneSection { name: name.into(), frames: None, seed: 7, range_noise_m: 0.0, dropout: 0.0 });
+    let options = SceneOptions { seed: section.seed, range_noise_m: section.range_noise_m, dropout: section.dropout };
+    let scene = Scene::new(scene_name, &options).context("[scene]")?;
+    let n = section.frames.unwrap_or_else(|| scene.default_frames());
+    Ok((scene, n))
 }
 
 /// Takes the depth camera's missing intrinsics from a camera info message.

@@ -159,17 +159,19 @@ mod tests {
     use super::*;
     use edtmap_core::sensor::Measurement;
 
-    fn data(name: &str) -> PathBuf {
-        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data").join(name)
+    /// A folder of `../shared/data`, or `None` (with a note) where it is absent.
+    fn data(name: &str) -> Option<PathBuf> {
+        let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data").join(name);
+        if !dir.exists() {
+            eprintln!("skipping: {} is absent", dir.display());
+            return None;
+        }
+        Some(dir)
     }
 
     #[test]
     fn opens_the_velodyne_pair_with_its_kitti_poses() {
-        let dir = data("velodyne-pair");
-        if !dir.exists() {
-            eprintln!("skipping: {} is absent", dir.display());
-            return;
-        }
+        let Some(dir) = data("velodyne-pair") else { return };
         let set = Dataset::open(&dir, 0.001, RangeLimits { min_m: 0.1, max_m: 100.0 }).expect("opens");
         assert_eq!((set.kind(), set.len()), ("point cloud", 2));
         let first = set.frame(0).expect("frame 0");
@@ -180,11 +182,7 @@ mod tests {
 
     #[test]
     fn opens_the_3dmatch_folder() {
-        let dir = data("3dmatch-seq01");
-        if !dir.exists() {
-            eprintln!("skipping: {} is absent", dir.display());
-            return;
-        }
+        let Some(dir) = data("3dmatch-seq01") else { return };
         let set = Dataset::open(&dir, 0.001, RangeLimits { min_m: 0.3, max_m: 8.0 }).expect("opens");
         assert_eq!((set.kind(), set.len()), ("depth camera", 5));
     }

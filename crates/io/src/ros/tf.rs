@@ -48,7 +48,7 @@ impl TfBuffer {
     /// `None` when no edge names `frame`.
     pub fn root_of(&self, frame: &str) -> Option<String> {
         let mut at = frame_name(frame);
-        if !self.moving.keys().chain(self.fixed.keys()).any(|(p, c)| *p == at || *c == at) {
+        if !self.knows(&at) {
             return None;
         }
         for _ in 0..self.edges() {
@@ -58,6 +58,11 @@ impl TfBuffer {
             }
         }
         Some(at)
+    }
+
+    /// Whether an edge names `frame` (without a leading `/`).
+    fn knows(&self, frame: &str) -> bool {
+        self.moving.keys().chain(self.fixed.keys()).any(|(p, c)| p == frame || c == frame)
     }
 
     /// Number of edges.
@@ -102,7 +107,7 @@ impl TfBuffer {
     /// between samples at most `max_gap_s` apart.
     pub fn lookup(&self, target: &str, source: &str, t: f64, max_gap_s: f64) -> Result<Isometry3<f64>, String> {
         let (target, source) = (frame_name(target), frame_name(source));
-        if !self.frames().contains(&source) {
+        if !self.knows(&source) {
             return Err(format!("frame {source:?} is not in the transform tree (frames known: {})", self.frames().join(", ")));
         }
         if target == source {
