@@ -19,6 +19,7 @@
 //! The files under `configs/` document every field.
 
 mod dataset;
+mod limits;
 
 pub use dataset::{DatasetSection, OnError, DEFAULT_MAX_POSE_GAP_S};
 
@@ -175,7 +176,7 @@ fn default_local_size() -> [f64; 3] {
 #[serde(deny_unknown_fields)]
 pub struct OutputSection {
     /// Height of the pictured horizontal slices, metres (default: the
-    /// sensor's height in the last frame).
+    /// layer of the last local volume with the most observed voxels).
     #[serde(default)]
     pub slice_height_m: Option<f64>,
 }
@@ -194,8 +195,10 @@ impl Config {
         Config::parse(&text, &path.display().to_string())
     }
 
-    /// The sensor and mapper parameters, validated.
+    /// The sensor and mapper parameters, validated: every number in its
+    /// range, then the stages' own checks.
     pub fn mapper_params(&self) -> Result<(Sensor, MapperParams), MapError> {
+        self.check_limits()?;
         let occ = &self.occupancy;
         let in_occ = |source| MapError::Config { section: "occupancy", source };
         edtmap_core::check_voxel_size(occ.voxel_size_m).map_err(in_occ)?;
@@ -207,7 +210,6 @@ impl Config {
         let in_global = |source| MapError::Config { section: "global", source };
         self.global.cutoff(occ.voxel_size_m).map_err(in_global)?;
         self.global.check_forbidden().map_err(in_global)?;
-        self.dataset.validate().map_err(|source| MapError::Config { section: "dataset", source })?;
         let global = self.global.clone();
         let params = MapperParams { voxel_size_m: occ.voxel_size_m, volume, occupancy: occ.probabilities.clone(), ogm, edt: self.edt, global };
         Ok((sensor, params))
@@ -270,17 +272,9 @@ impl SensorSection {
                 return Err(CoreError::InvalidParam { field: "construction", value: "\"projection\"".into(), reason: "a point cloud sensor has no model to project into; use \"raycast\"" })
             }
         };
-        for (field, v, slot) in [
-            ("free_margin_m", self.free_margin_m, &mut o.free_margin_m),
-            ("planar_half_thickness_m", self.planar_half_thickness_m, &mut o.planar_half_thickness_m),
-        ] {
-            if let Some(v) = v {
-                if !(v.is_finite() && v >= 0.0) {
-                    return Err(CoreError::InvalidParam { field, value: v.to_string(), reason: "must be finite and not negative" });
-                }
-                *slot = v;
-            }
-        }
+        // Both are in range: `Config::check_limits` ran first.
+        o.free_margin_m = self.free_margin_m.unwrap_or(o.free_margin_m);
+        o.planar_half_thickness_m = self.planar_half_thickness_m.unwrap_or(o.planar_half_thickness_m);
         Ok(o)
     }
 }

@@ -1,37 +1,86 @@
 use edtmap_core::CoreError;
 use edtmap_cpu::CpuError;
-use thiserror::Error;
+use std::fmt;
 
 /// Errors of the mapping pipeline and its configuration.
-#[derive(Debug, Error)]
+///
+/// Each message is whole on its own: `Display` says everything, and
+/// `source()` returns only causes that `Display` does not already spell
+/// out, so a printed chain (anyhow's `{:#}`) never repeats a message.
+#[derive(Debug)]
 #[non_exhaustive]
 pub enum MapError {
     /// Bad parameters, pose or measurement.
-    #[error(transparent)]
-    Core(#[from] CoreError),
+    Core(CoreError),
     /// The CPU backend refused the input.
-    #[error(transparent)]
-    Cpu(#[from] CpuError),
+    Cpu(CpuError),
     /// The backend failed (no GPU adapter, lost device, device limits).
-    #[error(transparent)]
-    Backend(#[from] edtmap_core::BackendError),
+    Backend(edtmap_core::BackendError),
     /// A map file could not be written or read.
-    #[error(transparent)]
-    Io(#[from] edtmap_io::IoError),
+    Io(edtmap_io::IoError),
     /// A configuration file could not be read or parsed.
-    #[error("{path}: {message}")]
     ConfigFile {
         /// The file.
         path: String,
         /// What went wrong, with the line and field.
         message: String,
     },
-    /// A configuration value is invalid.
-    #[error("config [{section}] {source}")]
+    /// A configuration value is invalid; the message includes `source`'s.
     Config {
         /// The section holding the bad value.
         section: &'static str,
         /// The problem, naming the field.
         source: CoreError,
     },
+}
+
+impl fmt::Display for MapError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            MapError::Core(e) => e.fmt(f),
+            MapError::Cpu(e) => e.fmt(f),
+            MapError::Backend(e) => e.fmt(f),
+            MapError::Io(e) => e.fmt(f),
+            MapError::ConfigFile { path, message } => write!(f, "{path}: {message}"),
+            MapError::Config { section, source } => write!(f, "config [{section}] {source}"),
+        }
+    }
+}
+
+impl std::error::Error for MapError {
+    // The wrapped errors are transparent (their message is this one), and
+    // `Config` prints its cause: none of them is a further source.
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            MapError::Core(e) => e.source(),
+            MapError::Cpu(e) => e.source(),
+            MapError::Backend(e) => e.source(),
+            MapError::Io(e) => e.source(),
+            MapError::ConfigFile { .. } | MapError::Config { .. } => None,
+        }
+    }
+}
+
+impl From<CoreError> for MapError {
+    fn from(e: CoreError) -> Self {
+        MapError::Core(e)
+    }
+}
+
+impl From<CpuError> for MapError {
+    fn from(e: CpuError) -> Self {
+        MapError::Cpu(e)
+    }
+}
+
+impl From<edtmap_core::BackendError> for MapError {
+    fn from(e: edtmap_core::BackendError) -> Self {
+        MapError::Backend(e)
+    }
+}
+
+impl From<edtmap_io::IoError> for MapError {
+    fn from(e: edtmap_io::IoError) -> Self {
+        MapError::Io(e)
+    }
 }

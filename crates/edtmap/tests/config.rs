@@ -75,3 +75,123 @@ fn projection_of_plain_points_is_refused() {
     assert!(error_of(&text).contains("construction"));
 }
 
+
+/// `text` with `key = value` set in `[section]`: the key's line replaced,
+/// or added under the section's header (the section appended if absent).
+fn set(text: &str, section: &str, key: &str, value: &str) -> String {
+    let mut lines: Vec<String> = text.lines().map(str::to_string).collect();
+    let header = format!("[{section}]");
+    let Some(start) = lines.iter().position(|l| l.trim() == header) else {
+        return format!("{text}\n{header}\n{key} = {value}\n");
+    };
+    let end = lines[start + 1..].iter().position(|l| l.trim_start().starts_with('[')).map_or(lines.len(), |i| start + 1 + i);
+    let is_key = |l: &String| l.split('=').next().is_some_and(|k| k.trim() == key);
+    match lines[start + 1..end].iter().position(is_key) {
+        Some(i) => lines[start + 1 + i] = format!("{key} = {value}"),
+        None => lines.insert(start + 1, format!("{key} = {value}")),
+    }
+    lines.join("\n") + "\n"
+}
+
+/// The error and its sources joined as anyhow's `{:#}` prints them.
+fn chain(e: &dyn std::error::Error) -> String {
+    let mut out = e.to_string();
+    let mut next = e.source();
+    while let Some(s) = next {
+        out = format!("{out}: {s}");
+        next = s.source();
+    }
+    out
+}
+
+fn config_text(name: &str) -> String {
+    std::fs::read_to_string(configs_dir().join(name)).expect("shipped config")
+}
+
+/// Every float field refuses NaN, infinities and physically meaningless
+/// values, with one message naming the section, the field (once), the
+/// value and the accepted range.
+#[test]
+fn out_of_range_numbers_name_section_field_value_and_range_once() {
+    let cases: &[(&str, &str, &str, &str, &str)] = &[
+        // (config, section, field, TOML value, value as printed)
+        ("uav_pillars.toml", "scene", "range_noise_m", "-0.1", "-0.1"),
+        ("uav_pillars.toml", "scene", "range_noise_m", "nan", "NaN"),
+        ("uav_pillars.toml", "scene", "dropout", "1.5", "1.5"),
+        ("uav_pillars.toml", "sensor", "min_range_m", "-1.0", "-1.0"),
+        ("uav_pillars.toml", "sensor", "max_range_m", "inf", "inf"),
+        ("uav_pillars.toml", "sensor", "max_range_m", "1e9", "1000000000"),
+        ("uav_pillars.toml", "sensor", "free_margin_m", "-0.1", "-0.1"),
+        ("uav_pillars.toml", "sensor", "planar_half_thickness_m", "100.0", "100.0"),
+        ("uav_pillars.toml", "sensor", "elevation_min_deg", "nan", "NaN"),
+        ("uav_pillars.toml", "sensor", "elevation_max_deg", "95.0", "95.0"),
+        ("uav_pillars.toml", "sensor", "ring_elevations_deg", "[0.0, nan]", "[0.0, NaN]"),
+        ("uav_pillars.toml", "occupancy", "voxel_size_m", "0", "0.0"),
+        ("uav_pillars.toml", "occupancy", "voxel_size_m", "nan", "NaN"),
+        ("uav_pillars.toml", "occupancy", "voxel_size_m", "1e-30", "1e-30"),
+        ("uav_pillars.toml", "occupancy", "local_size_m", "[10.0, nan, 3.0]", "[10.0, NaN, 3.0]"),
+        ("uav_pillars.toml", "occupancy", "local_size_m", "[1e9, 10.0, 3.0]", "1000000000"),
+        ("uav_pillars.toml", "occupancy", "fixed_height_m", "1e30", "1e30"),
+        ("uav_pillars.toml", "occupancy", "prob_hit", "nan", "NaN"),
+        ("uav_pillars.toml", "occupancy", "clamp_max", "1.0", "1"),
+        ("uav_pillars.toml", "occupancy", "occupied_threshold", "inf", "inf"),
+        ("uav_pillars.toml", "global", "max_distance_m", "nan", "NaN"),
+        ("uav_pillars.toml", "global", "max_distance_m", "1e30", "1e30"),
+        ("uav_pillars.toml", "global", "forbidden", "[{ min_m = [0.0, 0.0, 0.0], max_m = [1e30, 1.0, 1.0] }]", "1e30"),
+        ("uav_pillars.toml", "output", "slice_height_m", "nan", "NaN"),
+        ("uav_pillars.toml", "output", "slice_height_m", "-inf", "-inf"),
+        ("3dmatch.toml", "sensor", "fx", "1e-30", "1e-30"),
+        ("3dmatch.toml", "sensor", "fx", "0.5", "0.5"),
+        ("3dmatch.toml", "sensor", "fy", "1e9", "1000000000"),
+        ("3dmatch.toml", "sensor", "cx", "1e30", "1e30"),
+        ("3dmatch.toml", "sensor", "cx", "-1000.0", "-1000.0"),
+        ("3dmatch.toml", "sensor", "cy", "nan", "NaN"),
+        ("3dmatch.toml", "dataset", "depth_scale_m", "1e30", "1e30"),
+        ("3dmatch.toml", "dataset", "depth_scale_m", "0.0", "0.0"),
+        ("3dmatch.toml", "dataset", "depth_scale_m", "nan", "NaN"),
+        ("3dmatch.toml", "dataset", "max_pose_gap_s", "0.0", "0.0"),
+        ("3dmatch.toml", "dataset", "max_pose_gap_s", "1e9", "1000000000"),
+        ("3dmatch.toml", "dataset", "sensor_in_body", "[1e9, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0]", "1000000000"),
+        ("3dmatch.toml", "dataset", "sensor_in_body", "[0.0, 0.0, 0.0, nan, 0.0, 0.0, 1.0]", "NaN"),
+    ];
+    for &(file, section, field, value, shown) in cases {
+        let text = set(&config_text(file), section, field, value);
+        let err = Config::parse(&text, file).expect_err(&format!("{file}: [{section}] {field} = {value} accepted"));
+        let msg = chain(&err);
+        let case = format!("[{section}] {field} = {value}: {msg}");
+        assert!(msg.contains(&format!("[{section}]")), "no section: {case}");
+        assert_eq!(msg.matches(field).count(), 1, "field not named exactly once: {case}");
+        assert!(msg.contains(shown), "value not shown: {case}");
+        assert!(msg.contains("must"), "no accepted range: {case}");
+    }
+}
+
+#[test]
+fn values_at_the_ends_of_their_ranges_are_accepted() {
+    let cases = [
+        ("3dmatch.toml", "sensor", "fx", "1.0"),
+        ("3dmatch.toml", "sensor", "fy", "1e6"),
+        ("3dmatch.toml", "sensor", "cx", "-640.0"),
+        ("3dmatch.toml", "sensor", "cy", "960.0"),
+        ("3dmatch.toml", "dataset", "depth_scale_m", "1000.0"),
+        ("uav_pillars.toml", "output", "slice_height_m", "-0.4"),
+        ("uav_pillars.toml", "scene", "dropout", "1.0"),
+    ];
+    for (file, section, field, value) in cases {
+        let text = set(&config_text(file), section, field, value);
+        if let Err(e) = Config::parse(&text, file) {
+            panic!("[{section}] {field} = {value} refused: {}", chain(&e));
+        }
+    }
+}
+
+/// Regression: the message of a wrapped config error was printed twice
+/// (`invalid fx = missing: …: invalid fx = missing: …`).
+#[test]
+fn config_errors_print_their_cause_once() {
+    let text = shipped().replace("kind = \"lidar\"", "kind = \"depth\"");
+    let msg = chain(&Config::parse(&text, "test.toml").expect_err("no intrinsics"));
+    assert_eq!(msg, "config [sensor] invalid fx = missing: required for kind = \"depth\"");
+    let msg = chain(&Config::parse(&set(&shipped(), "occupancy", "voxel_size_m", "0"), "test.toml").expect_err("zero voxels"));
+    assert_eq!(msg.matches("voxel_size_m").count(), 1, "{msg}");
+}

@@ -1,5 +1,6 @@
 //! `[dataset]`: how a recording becomes frames (`edtmap run --dataset`).
 
+use super::limits::{DEPTH_SCALE_M, OFFSET_M, POSE_GAP_S};
 use edtmap_core::CoreError;
 use edtmap_io::ros::RosOptions;
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
@@ -76,11 +77,10 @@ fn invalid(field: &'static str, value: String, reason: &'static str) -> CoreErro
 impl DatasetSection {
     /// Checks the values that need no recording.
     pub fn validate(&self) -> Result<(), CoreError> {
-        if !(self.depth_scale_m > 0.0 && self.depth_scale_m.is_finite()) {
-            return Err(invalid("depth_scale_m", self.depth_scale_m.to_string(), "must be a positive number of metres per unit"));
-        }
-        if self.max_pose_gap_s.is_nan() || self.max_pose_gap_s <= 0.0 {
-            return Err(invalid("max_pose_gap_s", self.max_pose_gap_s.to_string(), "must be positive seconds"));
+        DEPTH_SCALE_M.f32("depth_scale_m", self.depth_scale_m)?;
+        POSE_GAP_S.f64("max_pose_gap_s", self.max_pose_gap_s)?;
+        if let Some(pose) = &self.sensor_in_body {
+            OFFSET_M.all("sensor_in_body", &pose[..3])?;
         }
         self.t_body_sensor()?;
         Ok(())

@@ -1,0 +1,240 @@
+//! The accepted range of every number of the configuration. Each float
+//! field must be finite and physically meaningful before any stage sees it:
+//! a focal length of 1e-30 px or a depth scale of 1e30 m per unit is a typo,
+//! not a setting, and would otherwise make every frame empty or every ray
+//! overflow. The ranges are generous; the stages check the relations
+//! between fields (min below max, cutoff at least one voxel).
+
+use super::{Config, OccupancySection, OutputSection, SceneSection, SensorSection};
+use crate::MapError;
+use edtmap_core::{CoreError, GlobalParams};
+
+/// A closed, half-open or open interval of accepted values.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Limit {
+    /// Lowest value.
+    pub(crate) lo: f64,
+    /// Whether `lo` itself is refused.
+    pub(crate) lo_open: bool,
+    /// Highest value.
+    pub(crate) hi: f64,
+    /// Whether `hi` itself is refused.
+    pub(crate) hi_open: bool,
+    /// What the error says the value must be: the interval and its unit,
+    /// exactly as [`Limit::describe`] writes it (a unit test checks).
+    pub(crate) accepted: &'static str,
+}
+
+/// Focal lengths, pixels.
+pub(crate) const FOCAL_PX: Limit = Limit { lo: 1.0, lo_open: false, hi: 1e6, hi_open: false, accepted: "must be finite, in [1, 1e6] pixels" };
+/// Sensor range limits, metres.
+pub(crate) const RANGE_M: Limit = Limit { lo: 0.0, lo_open: false, hi: 1000.0, hi_open: false, accepted: "must be finite, in [0, 1000] metres" };
+/// Margins and half thicknesses of the occupancy construction, metres.
+pub(crate) const MARGIN_M: Limit = Limit { lo: 0.0, lo_open: false, hi: 10.0, hi_open: false, accepted: "must be finite, in [0, 10] metres" };
+/// LiDAR ring elevations, degrees.
+pub(crate) const ELEVATION_DEG: Limit = Limit { lo: -90.0, lo_open: true, hi: 90.0, hi_open: true, accepted: "must be finite, in (-90, 90) degrees" };
+/// Voxel edge length, metres.
+pub(crate) const VOXEL_M: Limit = Limit { lo: 1e-4, lo_open: false, hi: 10.0, hi_open: false, accepted: "must be finite, in [1e-4, 10] metres" };
+/// Each edge of the local volume, metres.
+pub(crate) const LOCAL_SIZE_M: Limit = Limit { lo: 0.0, lo_open: true, hi: 1000.0, hi_open: false, accepted: "must be finite, in (0, 1000] metres" };
+/// World coordinates (heights, forbidden zones), metres.
+pub(crate) const WORLD_M: Limit = Limit { lo: -1e6, lo_open: false, hi: 1e6, hi_open: false, accepted: "must be finite, in [-1e6, 1e6] metres" };
+/// Cutoff of the global EDT, metres.
+pub(crate) const MAX_DISTANCE_M: Limit = Limit { lo: 0.0, lo_open: true, hi: 1000.0, hi_open: false, accepted: "must be finite, in (0, 1000] metres" };
+/// Simulated range noise, metres.
+pub(crate) const NOISE_M: Limit = Limit { lo: 0.0, lo_open: false, hi: 1.0, hi_open: false, accepted: "must be finite, in [0, 1] metres" };
+/// A probability that may be 0 or 1.
+pub(crate) const FRACTION: Limit = Limit { lo: 0.0, lo_open: false, hi: 1.0, hi_open: false, accepted: "must be finite, in [0, 1]" };
+/// Scale of 16-bit depth images, metres per unit.
+pub(crate) const DEPTH_SCALE_M: Limit = Limit { lo: 1e-6, lo_open: false, hi: 1000.0, hi_open: false, accepted: "must be finite, in [1e-6, 1000] metres per unit" };
+/// Largest time between two poses, seconds.
+pub(crate) const POSE_GAP_S: Limit = Limit { lo: 0.0, lo_open: true, hi: 3600.0, hi_open: false, accepted: "must be finite, in (0, 3600] seconds" };
+/// The sensor's offset on the robot, metres.
+pub(crate) const OFFSET_M: Limit = Limit { lo: -1000.0, lo_open: false, hi: 1000.0, hi_open: false, accepted: "must be finite, in [-1000, 1000] metres" };
+/// The principal point's x, in image widths from the image's left edge:
+/// within one image width around the image.
+const PRINCIPAL_X: Limit = Limit { lo: -1.0, lo_open: false, hi: 2.0, hi_open: false, accepted: "must be finite, in [-1, 2] × the image width" };
+/// The principal point's y, in image heights from the top edge.
+const PRINCIPAL_Y: Limit = Limit { lo: -1.0, lo_open: false, hi: 2.0, hi_open: false, accepted: "must be finite, in [-1, 2] × the image height" };
+
+impl Limit {
+    /// Whether `v` is finite and inside the interval.
+    pub(crate) fn accepts(&self, v: f64) -> bool {
+        let above = if self.lo_open { v > self.lo } else { v >= self.lo };
+        let below = if self.hi_open { v < self.hi } else { v <= self.hi };
+        v.is_finite() && above && below
+    }
+
+    /// The interval as text, e.g. `finite, in (0, 1000] metres`.
+    #[cfg(test)]
+    fn describe(&self, unit: &str) -> String {
+        let (open, close) = (if self.lo_open { '(' } else { '[' }, if self.hi_open { ')' } else { ']' });
+        let unit = if unit.is_empty() { String::new() } else { format!(" {unit}") };
+        format!("must be finite, in {open}{}, {}{close}{unit}", short(self.lo), short(self.hi))
+    }
+
+    /// Checks `value` of `field`; `shown` is the value as the error prints it.
+    pub(crate) fn check(&self, field: &'static str, value: f64, shown: String) -> Result<(), CoreError> {
+        if self.accepts(value) {
+            Ok(())
+        } else {
+            Err(CoreError::InvalidParam { field, value: shown, reason: self.accepted })
+        }
+    }
+
+    /// Checks an `f64` field.
+    pub(crate) fn f64(&self, field: &'static str, value: f64) -> Result<(), CoreError> {
+        self.check(field, value, format!("{value:?}"))
+    }
+
+    /// Checks an `f32` field (printed as the `f32` it is).
+    pub(crate) fn f32(&self, field: &'static str, value: f32) -> Result<(), CoreError> {
+        self.check(field, f64::from(value), format!("{value:?}"))
+    }
+
+    /// Checks an optional `f64` field, if given.
+    fn opt(&self, field: &'static str, value: Option<f64>) -> Result<(), CoreError> {
+        value.map_or(Ok(()), |v| self.f64(field, v))
+    }
+
+    /// Checks every element of an array field; the error shows the array.
+    pub(crate) fn all(&self, field: &'static str, values: &[f64]) -> Result<(), CoreError> {
+        match values.iter().all(|&v| self.accepts(v)) {
+            true => Ok(()),
+            false => Err(CoreError::InvalidParam { field, value: format!("{values:?}"), reason: self.accepted }),
+        }
+    }
+}
+
+/// A bound as the accepted texts write it: plain for ordinary magnitudes,
+/// `1e6` style for very large or small ones.
+#[cfg(test)]
+fn short(v: f64) -> String {
+    if v == 0.0 || (1e-3..1e4).contains(&v.abs()) {
+        format!("{v}")
+    } else {
+        format!("{v:e}")
+    }
+}
+
+impl Config {
+    /// Checks that every number of the file is finite and in its range,
+    /// naming the section and field of the first that is not.
+    pub(crate) fn check_limits(&self) -> Result<(), MapError> {
+        let in_section = |section| move |source| MapError::Config { section, source };
+        if let Some(scene) = &self.scene {
+            scene.check_limits().map_err(in_section("scene"))?;
+        }
+        self.sensor.check_limits().map_err(in_section("sensor"))?;
+        self.occupancy.check_limits().map_err(in_section("occupancy"))?;
+        check_global(&self.global).map_err(in_section("global"))?;
+        self.output.check_limits().map_err(in_section("output"))?;
+        self.dataset.validate().map_err(in_section("dataset"))
+    }
+}
+
+impl SceneSection {
+    fn check_limits(&self) -> Result<(), CoreError> {
+        NOISE_M.f64("range_noise_m", self.range_noise_m)?;
+        FRACTION.f64("dropout", self.dropout)
+    }
+}
+
+impl SensorSection {
+    fn check_limits(&self) -> Result<(), CoreError> {
+        RANGE_M.f32("min_range_m", self.min_range_m)?;
+        RANGE_M.f32("max_range_m", self.max_range_m)?;
+        for (field, v) in [("free_margin_m", self.free_margin_m), ("planar_half_thickness_m", self.planar_half_thickness_m)] {
+            v.map_or(Ok(()), |v| MARGIN_M.f32(field, v))?;
+        }
+        ELEVATION_DEG.opt("elevation_min_deg", self.elevation_min_deg)?;
+        ELEVATION_DEG.opt("elevation_max_deg", self.elevation_max_deg)?;
+        if let Some(table) = &self.ring_elevations_deg {
+            ELEVATION_DEG.all("ring_elevations_deg", table)?;
+        }
+        FOCAL_PX.opt("fx", self.fx)?;
+        FOCAL_PX.opt("fy", self.fy)?;
+        principal_point(("cx", PRINCIPAL_X), self.cx, self.width, "width")?;
+        principal_point(("cy", PRINCIPAL_Y), self.cy, self.height, "height")
+    }
+}
+
+/// Checks a principal point coordinate against the image size along its
+/// axis, when both are given (a missing one is reported by the sensor).
+fn principal_point((field, limit): (&'static str, Limit), value: Option<f64>, size: Option<u32>, size_name: &str) -> Result<(), CoreError> {
+    let (Some(v), Some(n)) = (value, size) else { return Ok(()) };
+    let images = v / f64::from(n.max(1));
+    limit.check(field, images, format!("{v:?} (image {size_name} {n})"))
+}
+
+impl OccupancySection {
+    fn check_limits(&self) -> Result<(), CoreError> {
+        VOXEL_M.f64("voxel_size_m", self.voxel_size_m)?;
+        LOCAL_SIZE_M.all("local_size_m", &self.local_size_m)?;
+        WORLD_M.opt("fixed_height_m", self.fixed_height_m)
+    }
+}
+
+impl OutputSection {
+    fn check_limits(&self) -> Result<(), CoreError> {
+        WORLD_M.opt("slice_height_m", self.slice_height_m)
+    }
+}
+
+fn check_global(global: &GlobalParams) -> Result<(), CoreError> {
+    MAX_DISTANCE_M.f64("max_distance_m", global.max_distance_m)?;
+    for zone in &global.forbidden {
+        let corners: Vec<f64> = zone.min_m.iter().chain(&zone.max_m).copied().collect();
+        if !corners.iter().all(|&c| WORLD_M.accepts(c)) {
+            let value = format!("{{ min_m = {:?}, max_m = {:?} }}", zone.min_m, zone.max_m);
+            return Err(CoreError::InvalidParam { field: "forbidden", value, reason: "corners must be finite, in [-1e6, 1e6] metres" });
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn accepted_texts_match_the_intervals() {
+        let limits = [
+            (FOCAL_PX, "pixels"),
+            (RANGE_M, "metres"),
+            (MARGIN_M, "metres"),
+            (ELEVATION_DEG, "degrees"),
+            (VOXEL_M, "metres"),
+            (LOCAL_SIZE_M, "metres"),
+            (WORLD_M, "metres"),
+            (MAX_DISTANCE_M, "metres"),
+            (NOISE_M, "metres"),
+            (FRACTION, ""),
+            (DEPTH_SCALE_M, "metres per unit"),
+            (POSE_GAP_S, "seconds"),
+            (OFFSET_M, "metres"),
+            (PRINCIPAL_X, "× the image width"),
+            (PRINCIPAL_Y, "× the image height"),
+        ];
+        for (limit, unit) in limits {
+            assert_eq!(limit.accepted, limit.describe(unit));
+        }
+    }
+
+    #[test]
+    fn ends_open_and_closed() {
+        assert!(FOCAL_PX.accepts(1.0) && FOCAL_PX.accepts(1e6) && !FOCAL_PX.accepts(0.999) && !FOCAL_PX.accepts(f64::NAN));
+        assert!(!ELEVATION_DEG.accepts(90.0) && !ELEVATION_DEG.accepts(-90.0) && ELEVATION_DEG.accepts(89.9));
+        assert!(!LOCAL_SIZE_M.accepts(0.0) && LOCAL_SIZE_M.accepts(1000.0) && !LOCAL_SIZE_M.accepts(f64::INFINITY));
+    }
+
+    #[test]
+    fn principal_point_is_relative_to_the_image() {
+        let cx = ("cx", PRINCIPAL_X);
+        assert!(principal_point(cx, Some(320.0), Some(640), "width").is_ok());
+        assert!(principal_point(cx, Some(-640.0), Some(640), "width").is_ok());
+        assert!(principal_point(cx, Some(-641.0), Some(640), "width").is_err());
+        let e = principal_point(cx, Some(1e30), Some(640), "width").expect_err("far outside");
+        assert_eq!(e.to_string(), "invalid cx = 1e30 (image width 640): must be finite, in [-1, 2] × the image width");
+    }
+}
