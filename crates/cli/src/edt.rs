@@ -60,6 +60,7 @@ pub(crate) fn run(args: &EdtArgs) -> Result<()> {
     ensure_fits(
         &format!("{}: a grid of shape {:?}", args.input.display(), layout.shape()),
         per_voxel.saturating_mul(layout.len() as u64),
+        "a smaller grid, or raise the budget with --max-memory",
     )?;
     let grid = file.read()?;
     let scan = match args.layout {

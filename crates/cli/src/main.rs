@@ -1,5 +1,7 @@
 //! The `edtmap` command-line program.
 
+#[macro_use]
+mod output;
 mod backend;
 mod demo;
 mod edt;
@@ -13,6 +15,7 @@ mod scenes;
 mod source;
 mod timing;
 
+use std::io::Write;
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
@@ -25,6 +28,10 @@ struct Cli {
     /// Log more to stderr: -v progress of each stage, -vv every frame.
     #[arg(short, long, action = clap::ArgAction::Count, global = true)]
     verbose: u8,
+    /// Most memory a job may use (8G, 512M, bytes); default: what the
+    /// system has free, within the process's address-space limit.
+    #[arg(long, global = true, value_name = "SIZE", value_parser = memory::parse)]
+    max_memory: Option<u64>,
     #[command(subcommand)]
     command: Command,
 }
@@ -35,7 +42,7 @@ enum Command {
     Demo(demo::DemoArgs),
     /// Exact Euclidean distance transform of a 2D or 3D .npy grid.
     Edt(edt::EdtArgs),
-    /// Replay a built-in scene through the mapping pipeline; writes report.json and pictures.
+    /// Map a built-in scene or a recording (3DMatch, TUM, PCD, PLY or KITTI folder; ROS 1 bag; MCAP); writes report.json and pictures.
     Run(run::RunArgs),
     /// Write a built-in scene as a ROS 1 bag or ROS 2 MCAP file, with the config that replays it.
     Record(record::RecordArgs),
@@ -64,6 +71,7 @@ fn init_logs(verbose: u8) {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     init_logs(cli.verbose);
+    memory::set_max(cli.max_memory);
     let result = match cli.command {
         Command::Demo(args) => demo::run(&args),
         Command::Edt(args) => edt::run(&args),
@@ -73,10 +81,15 @@ fn main() -> ExitCode {
         Command::Export(args) => query::export(&args),
         Command::Info(args) => query::info(&args),
     };
+    let result = match (result, output::finish()) {
+        (Ok(()), Some(e)) => Err(anyhow::anyhow!("cannot write to standard output: {e}")),
+        (result, _) => result,
+    };
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("edtmap: error: {e:#}");
+            // Stderr may be closed too; there is nowhere left to say it.
+            let _ = writeln!(std::io::stderr(), "edtmap: error: {e:#}");
             ExitCode::FAILURE
         }
     }

@@ -1,28 +1,37 @@
-//! A check that a job fits in the memory the machine has free.
+//! The run's memory budget: `--max-memory`, else the config's
+//! `[memory] max`, else what the system has (see
+//! `edtmap_core::memory`).
 
-use anyhow::{bail, Result};
+use std::sync::OnceLock;
 
-/// Bytes of memory available to new allocations, where the system says
-/// (Linux `MemAvailable`); `None` elsewhere.
-fn available_bytes() -> Option<u64> {
-    let info = std::fs::read_to_string("/proc/meminfo").ok()?;
-    let line = info.lines().find(|l| l.starts_with("MemAvailable:"))?;
-    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kib * 1024)
+use anyhow::Result;
+use edtmap::MemoryBudget;
+
+/// `--max-memory`, parsed, set once by `main`.
+static MAX_MEMORY: OnceLock<Option<u64>> = OnceLock::new();
+
+/// Parses a `--max-memory` value for clap.
+pub(crate) fn parse(text: &str) -> std::result::Result<u64, String> {
+    edtmap::memory::parse_size(text)
 }
 
-/// Fails with a message naming `what` if `needed` bytes exceed the
-/// available memory.
-pub(crate) fn ensure_fits(what: &str, needed: u64) -> Result<()> {
-    if let Some(avail) = available_bytes() {
-        if needed > avail {
-            let gib = |b: u64| b as f64 / (1u64 << 30) as f64;
-            bail!(
-                "{what} needs about {:.1} GiB of memory, only {:.1} GiB is available",
-                gib(needed),
-                gib(avail)
-            );
-        }
-    }
-    Ok(())
+/// Records `--max-memory` for the command.
+pub(crate) fn set_max(bytes: Option<u64>) {
+    let _ = MAX_MEMORY.set(bytes);
+}
+
+/// `--max-memory` in bytes, if given.
+pub(crate) fn max_bytes() -> Option<u64> {
+    MAX_MEMORY.get().copied().flatten()
+}
+
+/// The budget of a job not configured by a file.
+pub(crate) fn budget() -> MemoryBudget {
+    max_bytes().map_or_else(MemoryBudget::from_system, MemoryBudget::with_limit)
+}
+
+/// Fails with a message naming `what` and `setting` if `needed` bytes
+/// exceed the budget.
+pub(crate) fn ensure_fits(what: &str, needed: u64, setting: &str) -> Result<()> {
+    Ok(budget().check(what, needed, setting)?)
 }

@@ -1,5 +1,5 @@
-//! `edtmap run`: replays a built-in scene through the mapping pipeline and
-//! writes `report.json` and pictures.
+//! `edtmap run`: replays a built-in scene or a recording through the
+//! mapping pipeline and writes `report.json` and pictures.
 
 use std::path::{Path, PathBuf};
 
@@ -16,8 +16,8 @@ use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::{json, Map};
 
 use crate::backend::{self, BackendArg, CliMapper};
-use crate::pictures::{write_plys, write_slices, write_timing_plot};
-use crate::report::{report, FrameRecord};
+use crate::pictures::{write_plys, write_slices, write_timing_plot, SliceHeight};
+use crate::report::{median, report, FrameRecord};
 use crate::scenes::builtin_config;
 use crate::source::{check_kind, Failure, FailureKind, Source};
 
@@ -36,14 +36,15 @@ pub(crate) struct RunArgs {
     /// Folder for report.json and the pictures.
     #[arg(long, default_value = "edtmap-out")]
     pub(crate) out: PathBuf,
-    /// Score occupancy against the scene's ground truth every frame.
+    /// Score every frame: occupancy against a built-in scene's ground truth
+    /// (recordings have none), the EDT against the exact EDT of the map.
     #[arg(long)]
     pub(crate) eval: bool,
     /// Override the config's [sensor] construction.
     #[arg(long, value_enum)]
     pub(crate) construction: Option<ConstructionArg>,
     /// Override the config's [occupancy] voxel_size_m (metres).
-    #[arg(long)]
+    #[arg(long, value_name = "M", allow_negative_numbers = true)]
     pub(crate) voxel_size: Option<f64>,
     /// Override the config's [global] mode: wavefront or exact.
     #[arg(long, value_enum)]
@@ -64,14 +65,25 @@ pub(crate) struct RunArgs {
     /// volume's EDT, coloured by distance).
     #[arg(long)]
     pub(crate) ply: bool,
-    /// Height of the occupancy and EDT slices, metres (default: the
-    /// config's [output] slice_height_m, else the sensor's last height).
-    #[arg(long, value_name = "M")]
+    /// Height of the occupancy and EDT slices, metres, negative allowed
+    /// (default: the config's [output] slice_height_m, else the layer of
+    /// the last local volume with the most observed voxels).
+    #[arg(long, value_name = "M", allow_negative_numbers = true, value_parser = finite_metres)]
     pub(crate) slice_height: Option<f64>,
-    /// Replay a recording instead of a scene: a 3DMatch-style depth folder,
-    /// or *.pcd point clouds with a KITTI-format poses.txt (needs --config).
+    /// Replay a recording instead of a scene (needs --config): a folder of
+    /// depth images (3DMatch, TUM RGB-D) or of point clouds (PCD, PLY,
+    /// KITTI .bin) with their poses, a ROS 1 bag, or a ROS 2 MCAP file.
     #[arg(long, value_name = "PATH")]
     pub(crate) dataset: Option<PathBuf>,
+}
+
+/// Parses a height in metres: a finite number within a million metres.
+fn finite_metres(text: &str) -> std::result::Result<f64, String> {
+    match text.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() && v.abs() <= 1e6 => Ok(v),
+        Ok(v) => Err(format!("{v} is not a height: give finite metres within ±1e6")),
+        Err(e) => Err(format!("{text:?} is not a number of metres: {e}")),
+    }
 }
 
 /// Values of `--integration`.
@@ -164,7 +176,13 @@ pub(crate) fn execute(args: &RunArgs, progress: bool) -> Result<RunOutcome> {
             (source, name, n)
         }
     };
-    let (sensor, params) = config.mapper_params()?;
+    if args.eval && !matches!(source, Source::Scene(_)) {
+        tracing::warn!("--eval: {name} is a recording: {RECORDING_EVAL}");
+    }
+    let (sensor, mut params) = config.mapper_params()?;
+    if let Some(bytes) = crate::memory::max_bytes() {
+        params.max_memory_bytes = Some(bytes);
+    }
     if let Some(path) = &args.dataset {
         check_kind(&source, &sensor, path, &origin)?;
     }
@@ -182,17 +200,19 @@ pub(crate) fn execute(args: &RunArgs, progress: bool) -> Result<RunOutcome> {
         mapper.add_prior(&prior).with_context(|| format!("prior map {}", path.display()))?;
     }
     std::fs::create_dir_all(&args.out).with_context(|| format!("cannot create {}", args.out.display()))?;
+    check_outputs(args)?;
     let bar = progress_bar(frames, progress);
-    let mut records = Vec::with_capacity(frames);
+    // Grows with the frames that come: --frames may be far more than a
+    // recording or a soak run delivers.
+    let mut records = Vec::new();
     let mut truth = (Vec::new(), Vec::new());
-    let mut last_z = 0.0;
     let mut skipped = Vec::new();
     let mut stopped: Option<Failure> = None;
     for (i, item) in source.frames(&sensor, frames, &name).enumerate() {
         let integrated = item.and_then(|frame| match mapper.integrate_frame(&frame) {
             Ok(stats) => Ok((frame, stats)),
             Err(e) => {
-                let kind = if matches!(e, edtmap::MapError::Backend(_)) { FailureKind::Fatal } else { FailureKind::Frame };
+                let kind = if e.is_backend_failure() { FailureKind::Fatal } else { FailureKind::Frame };
                 Err(Failure { index: i, message: format!("frame {i} (stamp {:.6} s) of {name}: {e:#}", frame.stamp_s), kind })
             }
         });
@@ -231,11 +251,11 @@ pub(crate) fn execute(args: &RunArgs, progress: bool) -> Result<RunOutcome> {
             }
             rec.edt_errors = edt_error_fields(&mapper)?;
         }
-        last_z = frame.t_world_sensor.translation.vector.z;
         records.push(rec);
         bar.inc(1);
     }
     bar.finish_and_clear();
+    let slice = SliceHeight::choose(args.slice_height, config.output.slice_height_m, &mapper);
     let mut header = Map::new();
     header.insert("edtmap_version".into(), json!(env!("CARGO_PKG_VERSION")));
     header.insert("scene".into(), json!(name));
@@ -250,17 +270,25 @@ pub(crate) fn execute(args: &RunArgs, progress: bool) -> Result<RunOutcome> {
     header.insert("integration".into(), json!(params.global.mode));
     header.insert("connectivity".into(), json!(params.global.connectivity));
     header.insert("max_distance_m".into(), json!(params.global.max_distance_m));
+    header.insert("slice".into(), slice.to_json());
+    if args.eval {
+        header.insert("eval".into(), eval_note(&source));
+    }
     header.insert("skipped".into(), json!(skipped.iter().map(|f| json!({"index": f.index, "reason": f.message})).collect::<Vec<_>>()));
     header.insert("stopped".into(), json!(stopped.as_ref().map(|f| json!({"index": f.index, "reason": f.message}))));
     // The report first: it says why a run stopped even if a later output fails.
     let report_path = args.out.join("report.json");
     write_json(&report_path, &report(header, &records))?;
+    if records.is_empty() {
+        // Nothing to picture or save: an empty map must not replace a
+        // good one, and a run that mapped nothing has failed.
+        bail!("{}", nothing_integrated(&skipped, stopped.as_ref(), &report_path));
+    }
     let outputs = (|| -> Result<Vec<PathBuf>> {
         if let Some(path) = &args.save {
             edtmap::save_map(mapper.map(), path)?;
         }
-        let slice_z = args.slice_height.or(config.output.slice_height_m).unwrap_or(last_z);
-        let mut pictures = write_slices(&mapper, slice_z, &args.out)?;
+        let mut pictures = write_slices(&mapper, slice.z_m, &args.out)?;
         if args.ply {
             pictures.extend(write_plys(&mapper, &args.out)?);
         }
@@ -282,6 +310,48 @@ pub(crate) fn execute(args: &RunArgs, progress: bool) -> Result<RunOutcome> {
         }
     }
     Ok(RunOutcome { frames: records, report_path, pictures, backend: mapper.backend().name() })
+}
+
+/// The files a run writes in `--out`.
+const OUT_FILES: [&str; 6] = ["report.json", "occupancy_slice.png", "edt_slice.png", "timing.png", "occupied.ply", "edt.ply"];
+
+/// Refuses, before any frame, outputs that would replace one another or
+/// write through a link.
+fn check_outputs(args: &RunArgs) -> Result<()> {
+    let outs: Vec<(String, PathBuf)> = OUT_FILES.iter().map(|n| (format!("--out's {n}"), args.out.join(n))).collect();
+    let mut named: Vec<(&str, &Path)> = outs.iter().map(|(n, p)| (n.as_str(), p.as_path())).collect();
+    if let Some(save) = &args.save {
+        named.push(("--save", save));
+    }
+    edtmap_io::files::check_distinct_outputs(&named)?;
+    for (_, path) in &named {
+        edtmap_io::files::check_output(path)?;
+    }
+    Ok(())
+}
+
+/// Why a run integrated no frame, from its skipped and stopping frames.
+fn nothing_integrated(skipped: &[Failure], stopped: Option<&Failure>, report: &Path) -> String {
+    let mut text = String::from("no frame was integrated");
+    if let Some(f) = stopped {
+        text.push_str(&format!(": the run stopped at the first usable frame: {}", f.message));
+    }
+    if let Some(first) = skipped.first() {
+        text.push_str(&format!("; {} frames were skipped, the first because {}", skipped.len(), first.message));
+    }
+    text.push_str(&format!(" (every reason is in {}; no map or picture was written)", report.display()));
+    text
+}
+
+/// What `--eval` cannot do on a recording.
+const RECORDING_EVAL: &str = "no occupancy score (precision, recall): it needs a built-in scene's ground truth; the EDT error against the exact EDT of the map is still computed";
+
+/// `report.json`'s `eval`: what `--eval` scored.
+fn eval_note(source: &Source) -> serde_json::Value {
+    match source {
+        Source::Scene(_) => json!({ "occupancy": true, "edt_errors": true }),
+        _ => json!({ "occupancy": false, "edt_errors": true, "note": format!("a recording: {RECORDING_EVAL}") }),
+    }
 }
 
 fn construction_name(sensor: &Sensor, config: &Config) -> &'static str {
@@ -353,18 +423,15 @@ fn progress_bar(frames: usize, show: bool) -> ProgressBar {
 }
 
 fn write_json(path: &Path, value: &serde_json::Value) -> Result<()> {
-    let text = serde_json::to_string_pretty(value)?;
-    std::fs::write(path, text + "\n").with_context(|| format!("cannot write {}", path.display()))
+    let text = serde_json::to_string_pretty(value)? + "\n";
+    Ok(edtmap_io::files::write_atomic(path, text.as_bytes())?)
 }
 
 /// Prints the per-stage medians and what was written.
 pub(crate) fn print_summary(outcome: &RunOutcome) {
     let f = &outcome.frames;
-    let median = |g: fn(&FrameRecord) -> f64| {
-        let mut v: Vec<f64> = f.iter().map(g).collect();
-        v.sort_by(f64::total_cmp);
-        v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
-    };
+    // The same median as report.json's summary.
+    let median = |g: fn(&FrameRecord) -> f64| median(&f.iter().map(g).collect::<Vec<_>>()).unwrap_or(f64::NAN);
     println!(
         "{} frames on {}: occupancy median {:.2} ms, batch EDT median {:.2} ms, integration median {:.2} ms, total median {:.2} ms per frame",
         f.len(),

@@ -41,6 +41,21 @@ pub enum CoreError {
         /// What the value must be.
         reason: &'static str,
     },
+    /// A job would need more memory than its budget allows
+    /// ([`crate::MemoryBudget`]).
+    #[error("{what} needs about {}, more than {} ({origin}): {setting}", crate::memory::format_bytes(*needed), crate::memory::format_bytes(*limit))]
+    OutOfMemory {
+        /// What would be allocated, with the sizes that make it.
+        what: String,
+        /// Bytes it would need.
+        needed: u64,
+        /// Bytes the budget allows.
+        limit: u64,
+        /// Where the budget comes from.
+        origin: &'static str,
+        /// What to change to need less, or to raise the budget.
+        setting: String,
+    },
     /// A pose is not a rigid transform.
     #[error("invalid pose: {0}")]
     BadPose(String),

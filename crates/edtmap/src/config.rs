@@ -20,8 +20,11 @@
 
 mod dataset;
 mod limits;
+mod memory;
 
-pub use dataset::{DatasetSection, OnError, DEFAULT_MAX_POSE_GAP_S};
+pub use dataset::{DatasetSection, IntrinsicsSource, OnError, DEFAULT_MAX_POSE_GAP_S};
+
+pub use memory::MemorySection;
 
 use crate::{MapError, MapperParams};
 use edtmap_core::sensor::{PinholeCamera, RangeLimits, Sensor, SpinningLidar};
@@ -53,6 +56,9 @@ pub struct Config {
     /// Recordings replayed with `edtmap run --dataset`.
     #[serde(default)]
     pub dataset: DatasetSection,
+    /// The memory budget.
+    #[serde(default)]
+    pub memory: MemorySection,
 }
 
 /// `[scene]`: which built-in scene and how to simulate it.
@@ -191,7 +197,7 @@ impl Config {
 
     /// Reads and parses a configuration file.
     pub fn load(path: &Path) -> Result<Config, MapError> {
-        let text = std::fs::read_to_string(path).map_err(|e| MapError::ConfigFile { path: path.display().to_string(), message: e.to_string() })?;
+        let text = edtmap_io::files::read_text(path)?;
         Config::parse(&text, &path.display().to_string())
     }
 
@@ -211,7 +217,7 @@ impl Config {
         self.global.cutoff(occ.voxel_size_m).map_err(in_global)?;
         self.global.check_forbidden().map_err(in_global)?;
         let global = self.global.clone();
-        let params = MapperParams { voxel_size_m: occ.voxel_size_m, volume, occupancy: occ.probabilities.clone(), ogm, edt: self.edt, global };
+        let params = MapperParams { voxel_size_m: occ.voxel_size_m, volume, occupancy: occ.probabilities.clone(), ogm, edt: self.edt, global, max_memory_bytes: self.memory.max_bytes()? };
         Ok((sensor, params))
     }
 }

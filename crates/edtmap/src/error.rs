@@ -67,9 +67,23 @@ impl From<CoreError> for MapError {
     }
 }
 
+/// A CPU stage's backend error (a GPU lost during ray casting or
+/// projection) is a backend failure like any other, so a lost device is
+/// never taken for bad input.
 impl From<CpuError> for MapError {
     fn from(e: CpuError) -> Self {
-        MapError::Cpu(e)
+        match e {
+            CpuError::Backend(b) => MapError::Backend(b),
+            other => MapError::Cpu(other),
+        }
+    }
+}
+
+impl MapError {
+    /// Whether the backend itself failed (a lost device, say): mapping on
+    /// it cannot go on, whatever the frame.
+    pub fn is_backend_failure(&self) -> bool {
+        matches!(self, MapError::Backend(_))
     }
 }
 

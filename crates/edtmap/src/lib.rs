@@ -50,6 +50,7 @@
 //! ```
 #![warn(missing_docs)]
 
+mod budget;
 pub mod config;
 pub mod eval;
 mod error;

@@ -30,6 +30,10 @@ pub struct MapperParams {
     pub edt: EdtParams,
     /// Global EDT: cutoff, connectivity, mode, forbidden zones.
     pub global: GlobalParams,
+    /// Most memory one frame may need, bytes; `None`: what the system has
+    /// (available memory and the address-space limit). A window that needs
+    /// more is refused when the mapper is made.
+    pub max_memory_bytes: Option<u64>,
 }
 
 impl MapperParams {
@@ -43,6 +47,7 @@ impl MapperParams {
             ogm: OgmOptions::for_voxel_size(voxel_size_m),
             edt: EdtParams::default(),
             global: GlobalParams::default(),
+            max_memory_bytes: None,
         }
     }
 }
@@ -127,8 +132,9 @@ impl<B: Backend> Mapper<B> {
         params.voxel_size_m = map.voxel_size_m();
         params.occupancy = map.occupancy_params.clone();
         params.global = map.params.clone();
-        // Fails early on a bad size rather than at the first frame.
-        LocalVolume::centred(&params.volume, params.voxel_size_m, [0.0; 3])?;
+        // Fails early on a bad size, or one past the memory budget, rather
+        // than at the first frame.
+        crate::budget::check(&params)?;
         let integrator = Integrator::new(&params.global, params.voxel_size_m)?;
         let mask = Grid3::from_vec([1, 1, 1], vec![false])?;
         let global_batch = params.edt.unknown_as_occupied.then(|| (mask.clone(), EdtField::empty()));

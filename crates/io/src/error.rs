@@ -18,6 +18,34 @@ pub enum IoError {
         /// Why, naming the trajectory file and the time span it covers.
         reason: String,
     },
+    /// An input is not a regular file (a FIFO, a device, a directory):
+    /// reading it could block or never end, so it is refused unopened.
+    #[error("{}: is {kind}; edtmap reads only regular files", path.display())]
+    NotRegular {
+        /// The path.
+        path: PathBuf,
+        /// What it is instead, in words.
+        kind: &'static str,
+    },
+    /// An input is longer than edtmap reads for its kind of file.
+    #[error("{}: {bytes} bytes is more than the {limit} bytes read for this kind of file", path.display())]
+    TooLarge {
+        /// The file.
+        path: PathBuf,
+        /// Its length.
+        bytes: u64,
+        /// The cap.
+        limit: u64,
+    },
+    /// An output path is refused: a symbolic link, not a regular file, or
+    /// named twice.
+    #[error("{}: {reason}", path.display())]
+    Output {
+        /// The path.
+        path: PathBuf,
+        /// Why, and what to do instead.
+        reason: String,
+    },
     /// The file could not be opened, read or written.
     #[error("{}: {error}", path.display())]
     Io {
@@ -40,6 +68,15 @@ pub enum IoError {
         /// The file.
         path: PathBuf,
         /// What is wrong with the header.
+        reason: String,
+    },
+    /// An `.npy` file's data breaks its header's promise: bytes after the
+    /// data, or bool elements that are neither 0 nor 1.
+    #[error("{}: bad npy data: {reason}", path.display())]
+    NpyData {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong, naming the counts or the element and its value.
         reason: String,
     },
     /// The array's element type is not accepted.

@@ -24,6 +24,9 @@
 //! * [`plot`]: PNG line and scatter charts of results ([`Chart`]), drawn
 //!   with the same canvas and bitmap font, without a plotting dependency.
 //!
+//! * [`files`]: the one way inputs are opened (regular files only, with a
+//!   size cap) and outputs written (atomically, never through a link).
+//!
 //! Every error names the file and the problem; nothing here panics on bad
 //! input.
 #![warn(missing_docs)]
@@ -31,6 +34,7 @@
 pub mod dataset;
 pub mod depth_folder;
 mod error;
+pub mod files;
 mod font;
 pub mod mapfile;
 pub mod npy;

@@ -56,11 +56,7 @@ mod decode;
 mod encode;
 mod layout;
 
-use std::ffi::OsString;
-use std::fs::{self, File, OpenOptions};
-use std::io::{self, BufWriter};
-use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::path::Path;
 
 use edtmap_core::{EdtMap, GlobalMap, GlobalParams, OccupancyMap, OccupancyParams, StaticMap};
 use thiserror::Error;
@@ -207,64 +203,13 @@ pub fn decode_map(bytes: &[u8]) -> Result<MapContents, MapFileError> {
 /// do not pass [`MapContents::check`] or the file cannot be written.
 pub fn write_map(path: &Path, map: &MapContents) -> Result<(), IoError> {
     let prepared = encode::Prepared::new(map).map_err(|e| e.at(path))?;
-    let (tmp_path, file) = create_temp_beside(path).map_err(|e| IoError::io(path, e))?;
-    let written = write_and_sync(&prepared, file).and_then(|()| fs::rename(&tmp_path, path));
-    if let Err(e) = written {
-        // Best effort: the error that matters is the one being returned.
-        let _ = fs::remove_file(&tmp_path);
-        return Err(IoError::io(path, e));
-    }
-    sync_parent(path);
-    Ok(())
+    crate::files::write_atomic_with(path, |w| prepared.write(w))
 }
 
 /// Loads the map saved at `path`.
 pub fn read_map(path: &Path) -> Result<MapContents, IoError> {
-    let bytes = fs::read(path).map_err(|e| IoError::io(path, e))?;
+    let bytes = crate::files::read_input(path, u64::MAX)?;
     decode_map(&bytes).map_err(|e| e.at(path))
-}
-
-fn write_and_sync(prepared: &encode::Prepared<'_>, file: File) -> io::Result<()> {
-    let mut out = BufWriter::with_capacity(1 << 20, file);
-    prepared.write(&mut out)?;
-    let file = out.into_inner().map_err(|e| e.into_error())?;
-    file.sync_all()
-}
-
-/// Creates a new, empty temporary file in `path`'s folder, named after it.
-fn create_temp_beside(path: &Path) -> io::Result<(PathBuf, File)> {
-    static COUNTER: AtomicU64 = AtomicU64::new(0);
-    let name = path
-        .file_name()
-        .ok_or_else(|| io::Error::new(io::ErrorKind::InvalidInput, "the path does not name a file"))?;
-    let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    loop {
-        let n = COUNTER.fetch_add(1, Ordering::Relaxed);
-        let mut tmp_name = OsString::from(".");
-        tmp_name.push(name);
-        tmp_name.push(format!(".{}.{n}.tmp", std::process::id()));
-        let tmp = dir.join(tmp_name);
-        match OpenOptions::new().write(true).create_new(true).open(&tmp) {
-            Ok(file) => return Ok((tmp, file)),
-            // A stale file of an earlier process with the same id: try the next name.
-            Err(e) if e.kind() == io::ErrorKind::AlreadyExists && n < 1000 => continue,
-            Err(e) => return Err(e),
-        }
-    }
-}
-
-/// Makes the rename durable where the platform allows; a failure here does
-/// not undo a save that has already replaced the file.
-fn sync_parent(path: &Path) {
-    #[cfg(unix)]
-    {
-        let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
-        if let Ok(d) = File::open(dir) {
-            let _ = d.sync_all();
-        }
-    }
-    #[cfg(not(unix))]
-    let _ = path;
 }
 
 #[cfg(test)]

@@ -5,9 +5,16 @@
 //! `(a0, a1, a2)` is the grid `[a2, a1, a0]` (last axis fastest), a
 //! Fortran-order one the grid `[a0, a1, a2]`, so the grid's linear order is
 //! always the file's element order.
+//!
+//! Inputs are read strictly: the file must be a regular file holding
+//! exactly the data its header promises (no trailing bytes), its header
+//! dictionary must name each key once, and a bool array's bytes must be
+//! 0 or 1.
+
+mod header;
 
 use std::fs::File;
-use std::io::{BufReader, BufWriter, Read, Seek, Write};
+use std::io::{BufReader, Read, Write};
 use std::path::{Path, PathBuf};
 
 use edtmap_core::{dist_sq_to_vox, EdtField, Grid3, NO_SITE};
@@ -95,27 +102,40 @@ pub struct ObstacleNpy {
     path: PathBuf,
     layout: ArrayLayout,
     item_size: usize,
+    /// Whether the dtype is bool, whose bytes must be 0 or 1.
+    is_bool: bool,
     reader: BufReader<File>,
 }
 
 impl ObstacleNpy {
-    /// Opens `path` and validates its header: dtype, number of axes, empty
-    /// axes, size limits of the EDT, and that the data is all there.
+    /// Opens `path` (a regular file) and validates its header: each key
+    /// once, dtype, number of axes, empty axes, size limits of the EDT, and
+    /// that the data is all there and nothing follows it.
     pub fn open(path: &Path) -> Result<Self, IoError> {
-        let file = File::open(path).map_err(|e| IoError::io(path, e))?;
-        let file_len = file.metadata().map_err(|e| IoError::io(path, e))?.len();
+        let (file, file_len) = crate::files::open_input(path, u64::MAX)?;
         let mut reader = BufReader::new(file);
-        let header = NpyHeader::from_reader(&mut reader)
+        let header_bytes = header::read_header_bytes(path, &mut reader, file_len)?;
+        let header = NpyHeader::from_reader(&header_bytes[..])
             .map_err(|e| IoError::NotNpy { path: path.into(), reason: e.to_string() })?;
         let item_size = obstacle_item_size(path, &header.dtype())?;
         let layout = checked_layout(path, &header)?;
-        let data_start = reader.stream_position().map_err(|e| IoError::io(path, e))?;
+        let data_start = header_bytes.len() as u64;
         let expected = layout.len() as u64 * item_size as u64;
         let actual = file_len.saturating_sub(data_start);
         if actual < expected {
             return Err(IoError::Truncated { path: path.into(), expected, actual });
         }
-        Ok(ObstacleNpy { path: path.into(), layout, item_size, reader })
+        if actual > expected {
+            let reason = format!(
+                "{} bytes after the data: shape {:?} of {} gives {expected} bytes after the {data_start}-byte header, the file has {actual}",
+                actual - expected,
+                layout.shape(),
+                header.dtype().descr()
+            );
+            return Err(IoError::NpyData { path: path.into(), reason });
+        }
+        let is_bool = matches!(header.dtype(), DType::Plain(ts) if ts.type_char() == TypeChar::Bool);
+        Ok(ObstacleNpy { path: path.into(), layout, item_size, is_bool, reader })
     }
 
     /// The array's shape and order.
@@ -141,6 +161,9 @@ impl ObstacleNpy {
             .take(bytes as u64)
             .read_to_end(&mut raw)
             .map_err(|e| IoError::io(&self.path, e))?;
+        if self.is_bool {
+            check_bools(&self.path, &raw)?;
+        }
         let obstacles: Vec<bool> = raw
             .par_chunks_exact(self.item_size)
             .map(|item| item.iter().any(|&b| b != 0))
@@ -150,6 +173,18 @@ impl ObstacleNpy {
             shape: self.layout.shape.iter().map(|&n| n as u64).collect(),
             reason: e.to_string(),
         })
+    }
+}
+
+/// Refuses bool data with a byte other than 0 or 1 (NumPy never writes
+/// one: such a file is damaged or not what it says).
+fn check_bools(path: &Path, raw: &[u8]) -> Result<(), IoError> {
+    match raw.par_iter().position_first(|&b| b > 1) {
+        Some(at) => Err(IoError::NpyData {
+            path: path.into(),
+            reason: format!("bool element {at} (in file order) has byte value {}: a bool is 0 or 1", raw[at]),
+        }),
+        None => Ok(()),
     }
 }
 
@@ -288,13 +323,13 @@ fn write_array<T: npyz::AutoSerialize>(
             reason: format!("shape {shape:?} needs {expected} values, got {}", data.len()),
         });
     }
-    let file = File::create(path).map_err(|e| IoError::io(path, e))?;
     let shape_u64: Vec<u64> = shape.iter().map(|&n| n as u64).collect();
-    let mut w = npyz::WriteOptions::<T>::new()
+    let mut file = crate::files::AtomicFile::create(path)?;
+    let w = npyz::WriteOptions::<T>::new()
         .default_dtype()
         .shape(&shape_u64)
         .order(order)
-        .writer(BufWriter::new(file))
+        .writer(&mut file)
         .write_header_only()
         .map_err(|e| IoError::io(path, e))?;
     let mut buf = Vec::with_capacity(1 << 16);
@@ -303,7 +338,8 @@ fn write_array<T: npyz::AutoSerialize>(
         chunk.iter().for_each(|v| to_le(v, &mut buf));
         w.write_all(&buf).map_err(|e| IoError::io(path, e))?;
     }
-    w.flush().map_err(|e| IoError::io(path, e))
+    w.flush().map_err(|e| IoError::io(path, e))?;
+    file.commit()
 }
 
 /// Writes distances (from [`distance_array`]) as a `float32` array of the

@@ -27,7 +27,7 @@ pub struct ColouredPoint {
 }
 
 /// Writes `points` to `path` as a binary PLY; `comment` goes into the
-/// header. The file is written next to `path` and renamed into place, so
+/// header. The file is written atomically ([`crate::files::AtomicFile`]), so
 /// a failed write leaves no partial file.
 pub fn write_ply(path: &Path, points: &[ColouredPoint], comment: &str) -> Result<(), IoError> {
     let mut bytes = Vec::with_capacity(200 + points.len() * 15);
@@ -44,9 +44,7 @@ pub fn write_ply(path: &Path, points: &[ColouredPoint], comment: &str) -> Result
         }
         bytes.extend_from_slice(&p.rgb);
     }
-    let tmp = path.with_extension("ply.part");
-    std::fs::write(&tmp, &bytes).map_err(|e| IoError::io(&tmp, e))?;
-    std::fs::rename(&tmp, path).map_err(|e| IoError::io(path, e))
+    crate::files::write_atomic(path, &bytes)
 }
 
 /// Reads the points of a PLY file: the `x`, `y`, `z` of its `vertex`
@@ -55,12 +53,15 @@ pub fn write_ply(path: &Path, points: &[ColouredPoint], comment: &str) -> Result
 /// # Errors
 ///
 /// Every error names the file: [`IoError::Io`] when it cannot be read,
+/// [`IoError::NotRegular`] or [`IoError::TooLarge`] when it is a FIFO, a
+/// device or a folder or more than
+/// [`MAX_CLOUD_BYTES`](crate::files::MAX_CLOUD_BYTES),
 /// [`IoError::Truncated`] when fixed-size binary data is short, and
 /// [`IoError::Dataset`] for the rest (a bad header line, an unknown type,
 /// no `vertex` element or no `x`/`y`/`z`, a bad number at line N, data
 /// that ends early).
 pub fn read_ply(path: &Path) -> Result<PointCloud, IoError> {
-    let bytes = std::fs::read(path).map_err(|e| IoError::io(path, e))?;
+    let bytes = crate::files::read_input(path, crate::files::MAX_CLOUD_BYTES)?;
     parse_ply(path, &bytes)
 }
 

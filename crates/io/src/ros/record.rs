@@ -5,15 +5,14 @@
 use super::bag::BagWriter;
 use super::msg::Message;
 use super::Encoding;
+use crate::files::AtomicFile;
 use crate::IoError;
 use std::collections::{BTreeMap, HashMap};
-use std::fs::File;
-use std::io::BufWriter;
 use std::path::{Path, PathBuf};
 
 enum Sink {
     Bag(BagWriter),
-    Mcap(Box<mcap::Writer<BufWriter<File>>>),
+    Mcap(Box<mcap::Writer<AtomicFile>>),
 }
 
 /// A recording being written, one message at a time.
@@ -53,12 +52,12 @@ impl RecordingWriter {
                 })
             }
             Some("mcap") => {
-                let file = File::create(path).map_err(|e| IoError::io(path, e))?;
+                let file = AtomicFile::create(path)?;
                 let mut options = mcap::WriteOptions::new();
                 if let Some(b) = chunk_bytes {
                     options = options.chunk_size(Some(u64::from(b)));
                 }
-                Sink::Mcap(Box::new(options.create(BufWriter::new(file)).map_err(|e| mcap_error(path, e))?))
+                Sink::Mcap(Box::new(options.create(file).map_err(|e| mcap_error(path, e))?))
             }
             _ => return Err(IoError::Dataset { path: path.to_path_buf(), reason: "a recording is written as .bag (ROS 1) or .mcap (ROS 2)".into() }),
         };
@@ -110,13 +109,26 @@ impl RecordingWriter {
         }
     }
 
-    /// Closes the file: the bag's index, or the MCAP summary and footer.
-    /// Dropped without it, a bag is left as a recorder killed mid-run
-    /// leaves it; the MCAP writer closes its file on drop.
+    /// Closes the file (the bag's index, or the MCAP summary and footer)
+    /// and puts it in place; until then any file at the path is untouched.
+    /// Dropped without it, nothing is written.
     pub fn finish(self) -> Result<(), IoError> {
         match self.sink {
             Sink::Bag(w) => w.finish(),
-            Sink::Mcap(mut w) => w.finish().map(drop).map_err(|e| mcap_error(&self.path, e)),
+            Sink::Mcap(mut w) => {
+                w.finish().map_err(|e| mcap_error(&self.path, e))?;
+                w.into_inner().commit()
+            }
+        }
+    }
+
+    /// Puts the file in place as a recorder killed mid-run leaves it: a
+    /// bag without its index; an MCAP file is closed whole (tests cut it
+    /// themselves). For tests of the readers' recovery.
+    pub fn finish_unindexed(self) -> Result<(), IoError> {
+        match self.sink {
+            Sink::Bag(w) => w.finish_unindexed(),
+            sink @ Sink::Mcap(_) => RecordingWriter { sink, ..self }.finish(),
         }
     }
 }

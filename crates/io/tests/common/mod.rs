@@ -70,5 +70,7 @@ pub(crate) fn write_recording(path: &Path, container: Container, msgs: &[Msg], f
     }
     if finish {
         w.finish().expect("finish");
+    } else {
+        w.finish_unindexed().expect("finish unindexed");
     }
 }

@@ -49,6 +49,8 @@ fn write_bag(path: &Path, messages: &[RawMessage], chunk_bytes: u32, finish: boo
     }
     if finish {
         writer.finish().expect("finish");
+    } else {
+        writer.finish_unindexed().expect("finish unindexed");
     }
 }
 

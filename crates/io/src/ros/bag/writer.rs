@@ -1,11 +1,11 @@
 //! Writing bags: uncompressed chunks laid out as `rosbag record` lays them.
 
 use std::collections::BTreeMap;
-use std::fs::File;
-use std::io::{BufWriter, Seek, SeekFrom, Write};
+use std::io::{Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 
 use super::format::{op, put_u32, record, time_bytes, BAG_HEADER_BYTES, MAGIC, MAX_CHUNK_BYTES};
+use crate::files::AtomicFile;
 use crate::IoError;
 
 /// Chunk size at which a chunk is closed, as `rosbag record` defaults to.
@@ -22,7 +22,7 @@ pub const DEFAULT_CHUNK_BYTES: u32 = 768 * 1024;
 #[derive(Debug)]
 pub struct BagWriter {
     path: PathBuf,
-    file: BufWriter<File>,
+    file: AtomicFile,
     /// Bytes written so far: the offset of the next record.
     pos: u64,
     /// By connection id.
@@ -66,12 +66,13 @@ struct ChunkInfo {
 }
 
 impl BagWriter {
-    /// Creates (or truncates) the bag at `path` and writes its header.
+    /// Starts the bag at `path` and writes its header. The bag replaces
+    /// any file at `path` only when [`Self::finish`] succeeds.
     pub fn create(path: &Path) -> Result<Self, IoError> {
-        let file = File::create(path).map_err(|e| IoError::io(path, e))?;
+        let file = AtomicFile::create(path)?;
         let mut writer = BagWriter {
             path: path.to_path_buf(),
-            file: BufWriter::new(file),
+            file,
             pos: 0,
             conns: Vec::new(),
             chunk: None,
@@ -154,8 +155,8 @@ impl BagWriter {
     }
 
     /// Writes index data, connections and chunk infos, patches the header's
-    /// index_pos. Without finish() the bag is left as a recorder killed
-    /// mid-run leaves it (header index_pos 0) — useful for tests.
+    /// index_pos, and puts the bag in place. Dropped without it, the bag
+    /// is not written at all.
     pub fn finish(mut self) -> Result<(), IoError> {
         self.close_chunk()?;
         let index_pos = self.pos;
@@ -181,7 +182,14 @@ impl BagWriter {
         self.put(&index)?;
         let header = bag_header(index_pos, self.conns.len() as u32, self.chunk_infos.len() as u32);
         self.patch(MAGIC.len() as u64, &header)?;
-        self.file.flush().map_err(|e| IoError::io(&self.path, e))
+        self.file.commit()
+    }
+
+    /// Puts the bag in place as a recorder killed mid-run leaves it: the
+    /// chunks written so far, no index, header index_pos 0. For tests of
+    /// the reader's recovery.
+    pub fn finish_unindexed(self) -> Result<(), IoError> {
+        self.file.commit()
     }
 
     /// Starts a chunk: its header with sizes 0 until it closes.
