@@ -93,7 +93,7 @@ pub(crate) fn run(args: &EdtArgs) -> Result<()> {
             "voxels": layout.len(),
             "backend": backend.name(),
         });
-        println!("{line}");
+        outln!("{line}");
     }
     Ok(())
 }

@@ -3,34 +3,108 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::Result;
-use edtmap::{VoxelIndex, VoxelState, FAR_DIST_SQ};
+use edtmap::{LocalVolume, VoxelIndex, VoxelState, FAR_DIST_SQ};
+use serde_json::{json, Value};
 
 use crate::backend::CliMapper;
 use crate::report::FrameRecord;
 use edtmap_io::plot::{Chart, Series, SeriesStyle};
-use edtmap_io::picture::{viridis, write_slice_png, write_states_png, Slice, SliceStyle};
+use edtmap_io::picture::{viridis, write_slice_png, write_states_png, MapAxes, Slice, SliceStyle};
 use edtmap_io::ply::{write_ply, ColouredPoint};
 
+/// The height of the pictured slices and where it came from.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct SliceHeight {
+    /// Centre of the pictured layer of the local volume, metres.
+    pub(crate) z_m: f64,
+    /// `--slice-height`, `[output] slice_height_m` or `densest observed layer`.
+    pub(crate) from: &'static str,
+    /// The height asked for, if one was.
+    pub(crate) requested_m: Option<f64>,
+}
+
+impl SliceHeight {
+    /// `given` (`--slice-height`), else `configured` (`[output]
+    /// slice_height_m`), else the layer of the latest local volume with the
+    /// most observed voxels: a sensor's own height shows nothing of what a
+    /// camera looking down saw. Logs the choice.
+    pub(crate) fn choose(given: Option<f64>, configured: Option<f64>, mapper: &CliMapper) -> SliceHeight {
+        let requested = given.map(|z| (z, "--slice-height")).or(configured.map(|z| (z, "[output] slice_height_m")));
+        let Some(volume) = mapper.local_volume() else {
+            let (z_m, from) = requested.unwrap_or((0.0, "no frame integrated"));
+            return SliceHeight { z_m, from, requested_m: requested.map(|r| r.0) };
+        };
+        let (layer, from) = match requested {
+            Some((z, from)) => (requested_layer(volume, z, from), from),
+            None => {
+                let (layer, observed) = densest_layer(mapper.local_states().as_slice(), volume.dims);
+                let (z_m, plane) = (layer_centre(volume, layer), volume.dims[0] * volume.dims[1]);
+                tracing::info!("slices at z = {z_m:.2} m: the layer of the local volume with the most observed voxels ({observed} of {plane}); --slice-height picks another");
+                (layer, "densest observed layer")
+            }
+        };
+        SliceHeight { z_m: layer_centre(volume, layer), from, requested_m: requested.map(|r| r.0) }
+    }
+
+    /// `report.json`'s `slice`.
+    pub(crate) fn to_json(&self) -> Value {
+        json!({ "z_m": self.z_m, "from": self.from, "requested_m": self.requested_m })
+    }
+}
+
+/// The z layer of a volume of `dims` (x fastest) with the most voxels that
+/// are not unknown, and their count: the lowest such layer on a tie, the
+/// middle layer when nothing is observed.
+pub(crate) fn densest_layer(states: &[VoxelState], dims: [usize; 3]) -> (usize, usize) {
+    let plane = (dims[0] * dims[1]).max(1);
+    let counts = states.chunks(plane).map(|layer| layer.iter().filter(|s| **s != VoxelState::Unknown).count());
+    counts.enumerate().fold((dims[2] / 2, 0), |best, (z, n)| if n > best.1 { (z, n) } else { best })
+}
+
+/// The layer holding height `z_m`, the nearest one (with a warning) when
+/// `z_m` is outside the volume.
+fn requested_layer(volume: &LocalVolume, z_m: f64, from: &str) -> usize {
+    let layer = layer_of(volume, z_m);
+    let half = volume.voxel_size_m / 2.0;
+    let (lo, hi) = (layer_centre(volume, 0) - half, layer_centre(volume, volume.dims[2] - 1) + half);
+    if !(lo..=hi).contains(&z_m) {
+        tracing::warn!("{from} {z_m} m is outside the last local volume (z from {lo:.2} to {hi:.2} m): picturing its nearest layer, z = {:.2} m", layer_centre(volume, layer));
+    }
+    layer
+}
+
+/// The layer of `volume` holding height `z_m`, clamped into the volume.
+fn layer_of(volume: &LocalVolume, z_m: f64) -> usize {
+    let z = (z_m / volume.voxel_size_m).floor() as i64 - i64::from(volume.origin.0[2]);
+    z.clamp(0, volume.dims[2] as i64 - 1) as usize
+}
+
+/// Height of the centre of layer `z` of `volume`, metres.
+fn layer_centre(volume: &LocalVolume, z: usize) -> f64 {
+    (f64::from(volume.origin.0[2]) + z as f64 + 0.5) * volume.voxel_size_m
+}
+
 /// Writes `occupancy_slice.png` and `edt_slice.png` of the horizontal slice
-/// of the local volume at height `z_m` into `out`.
+/// of the local volume at height `z_m` into `out`, with axes in metres and
+/// the slice's height.
 pub(crate) fn write_slices(mapper: &CliMapper, z_m: f64, out: &Path) -> Result<Vec<PathBuf>> {
     let Some(volume) = mapper.local_volume() else { return Ok(Vec::new()) };
     let vs = volume.voxel_size_m;
-    let [nx, ny, nz] = volume.dims;
-    let z = ((z_m / vs).floor() as i64 - volume.origin.0[2] as i64).clamp(0, nz as i64 - 1) as usize;
-    let height = (volume.origin.0[2] as f64 + z as f64 + 0.5) * vs;
+    let [nx, ny, _] = volume.dims;
+    let z = layer_of(volume, z_m);
+    let [ox, oy, _] = volume.origin.0.map(f64::from);
+    let axes = MapAxes { origin_m: [ox * vs, oy * vs], cell_m: vs, position: format!("z = {:.2} m", layer_centre(volume, z)) };
     let plane = z * nx * ny..(z + 1) * nx * ny;
     let states = &mapper.local_states().as_slice()[plane.clone()];
     let occ_path = out.join("occupancy_slice.png");
-    let title = format!("occupancy z={height:.2} m");
-    write_states_png(&occ_path, nx, ny, states, &title)?;
+    write_states_png(&occ_path, nx, ny, states, "occupancy", Some(&axes))?;
     let edt = mapper.local_edt();
     let dist: Vec<f32> = plane
         .zip(states)
         .map(|(i, s)| if *s == VoxelState::Unknown { f32::NAN } else { edt.distance_vox(i) * vs as f32 })
         .collect();
     let edt_path = out.join("edt_slice.png");
-    let style = SliceStyle { title: format!("local edt z={height:.2} m (grey: unknown)"), unit: "m".into(), max_value: None };
+    let style = SliceStyle { title: "local EDT (grey: unknown)".into(), unit: "m".into(), max_value: None, axes: Some(axes) };
     write_slice_png(&edt_path, Slice { width: nx, height: ny, values: &dist }, &style)?;
     Ok(vec![occ_path, edt_path])
 }
@@ -80,6 +154,52 @@ pub(crate) fn write_plys(mapper: &CliMapper, out: &Path) -> Result<Vec<PathBuf>>
 /// Coordinates of linear index `i` in a volume of `dims`.
 fn volume_coords(dims: [usize; 3], i: usize) -> [usize; 3] {
     [i % dims[0], (i / dims[0]) % dims[1], i / (dims[0] * dims[1])]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The states of a ball of `radius_sq` (voxels²) around `centre` in a
+    /// volume of `dims`: observed (occupied on its surface, free inside)
+    /// within the ball, unknown outside.
+    fn ball(dims: [usize; 3], centre: [i64; 3], radius_sq: i64) -> Vec<VoxelState> {
+        (0..dims[0] * dims[1] * dims[2])
+            .map(|i| {
+                let p = volume_coords(dims, i).map(|c| c as i64);
+                let d: i64 = (0..3).map(|a| (p[a] - centre[a]).pow(2)).sum();
+                match d {
+                    _ if d > radius_sq => VoxelState::Unknown,
+                    _ if d == radius_sq => VoxelState::Occupied,
+                    _ => VoxelState::Free,
+                }
+            })
+            .collect()
+    }
+
+    #[test]
+    fn densest_layer_of_a_ball_is_its_equator() {
+        // A ball of radius 3 around (4, 4, 2): layer 2 holds the lattice
+        // points of the disc x² + y² ≤ 9 (7 + 2·5 + 2·5 + 2·1 = 29), layers
+        // 1 and 3 those of x² + y² ≤ 8 (25), and so on.
+        let dims = [9, 9, 7];
+        assert_eq!(densest_layer(&ball(dims, [4, 4, 2], 9), dims), (2, 29));
+        // Unknown everywhere: the middle layer, nothing observed.
+        assert_eq!(densest_layer(&vec![VoxelState::Unknown; 9 * 9 * 7], dims), (3, 0));
+        // Two equal balls: the lower equator.
+        let two: Vec<VoxelState> =
+            ball(dims, [2, 2, 1], 1).into_iter().zip(ball(dims, [6, 6, 5], 1)).map(|(a, b)| if a == VoxelState::Unknown { b } else { a }).collect();
+        assert_eq!(densest_layer(&two, dims), (1, 5));
+    }
+
+    #[test]
+    fn layers_of_heights() {
+        let volume = LocalVolume { origin: VoxelIndex([0, 0, -4]), dims: [4, 4, 8], voxel_size_m: 0.25 };
+        assert_eq!(layer_of(&volume, -0.4), 2);
+        assert_eq!(layer_centre(&volume, 2), -0.375);
+        assert_eq!(layer_of(&volume, 100.0), 7);
+        assert_eq!(layer_of(&volume, -100.0), 0);
+    }
 }
 
 /// Writes `timing.png`: each stage's time per frame (occupancy, batch

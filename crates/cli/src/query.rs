@@ -3,10 +3,11 @@
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 
-use anyhow::{bail, Context, Result};
+use anyhow::{anyhow, bail, Context, Result};
 use clap::Args;
-use edtmap::cpu::query::{distance_box, distances};
-use edtmap::{load_map, PointState};
+use edtmap::cpu::query::{distance_box, distances, max_query_coordinate_m, DistanceBox, MAX_QUERY_INDEX};
+use edtmap::{load_map, GlobalMap, PointState};
+use edtmap_io::files;
 use edtmap_io::npy::{self, ArrayLayout, ArrayOrder};
 
 /// Arguments of `edtmap query`.
@@ -15,9 +16,26 @@ pub(crate) struct QueryArgs {
     /// A map saved with `edtmap run --save`.
     map: PathBuf,
     /// Points to query: a CSV file with x,y,z (metres, world frame) per line.
-    #[arg(long, value_name = "FILE.csv")]
+    ///
+    /// Each line holds exactly three comma-separated finite decimal numbers
+    /// (spaces around them allowed). Blank lines and lines starting with `#`
+    /// are skipped, and so is a UTF-8 byte order mark and a first line that
+    /// is exactly the column names `x,y,z` (any case). Anything else is an
+    /// error naming the line, the field and the value, as is a coordinate
+    /// farther than 2^30 voxels from the origin.
+    ///
+    /// A point outside the mapped area answers state `outside`, observed
+    /// false and, with no obstacle within the cutoff, the cutoff distance
+    /// (max_distance_m) with saturated true: free as far as the map knows,
+    /// but unknown.
+    #[arg(long, value_name = "FILE.csv", verbatim_doc_comment)]
     points: PathBuf,
     /// Negative distances inside obstacles.
+    ///
+    /// Signed distances are measured to the surface of the obstacle voxels
+    /// (their faces), not between voxel centres: negative exactly when the
+    /// point's voxel is occupied, with a unit gradient pointing away from
+    /// the obstacle.
     #[arg(long)]
     signed: bool,
 }
@@ -31,11 +49,16 @@ pub(crate) struct ExportArgs {
     #[arg(long = "box", value_name = "XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX", value_delimiter = ',', allow_hyphen_values = true)]
     bounds: Vec<f64>,
     /// Output: float32 distances in metres, shape (nz, ny, nx); saturated voxels hold max_distance_m.
+    ///
+    /// Beside it, OUT.json (the name with `.json` appended) records the
+    /// world coordinate of the centre of element [0, 0, 0], the voxel size,
+    /// shape, axis order, dtype and what the values mean (docs/FORMAT.md).
     output: PathBuf,
     /// Also write each voxel's state as uint8: 0 outside, 1 unknown, 2 free, 3 occupied.
     #[arg(long, value_name = "STATES.npy")]
     states: Option<PathBuf>,
-    /// Negative distances inside obstacles.
+    /// Negative distances inside obstacles, measured from each voxel centre
+    /// to the surface of the obstacle voxels.
     #[arg(long)]
     signed: bool,
 }
@@ -54,13 +77,13 @@ pub(crate) struct InfoArgs {
 pub(crate) fn info(args: &InfoArgs) -> Result<()> {
     let map = load_map(&args.map)?;
     let vs = map.voxel_size_m();
-    println!("{}: voxel {vs} m, cutoff {} m, connectivity {}, integration {:?}", args.map.display(), map.params.max_distance_m, u8::from(map.params.connectivity), map.params.mode);
-    println!("blocks: {} occupancy, {} EDT, {} fixed; {:.1} MB", map.occupancy.len(), map.edt.len(), map.fixed.len(), map.bytes() as f64 / 1e6);
+    outln!("{}: voxel {vs} m, cutoff {} m, connectivity {}, integration {:?}", args.map.display(), map.params.max_distance_m, u8::from(map.params.connectivity), map.params.mode);
+    outln!("blocks: {} occupancy, {} EDT, {} fixed; {:.1} MB", map.occupancy.len(), map.edt.len(), map.fixed.len(), map.bytes() as f64 / 1e6);
     if let Some((lo, hi)) = map.occupancy.key_bounds() {
         let side = f64::from(edtmap::BLOCK_SIDE) * vs;
         let lo: Vec<f64> = lo.iter().map(|&b| f64::from(b) * side).collect();
         let hi: Vec<f64> = hi.iter().map(|&b| f64::from(b + 1) * side).collect();
-        println!("mapped box (m): {:.2},{:.2},{:.2} to {:.2},{:.2},{:.2}", lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]);
+        outln!("mapped box (m): {:.2},{:.2},{:.2} to {:.2},{:.2},{:.2}", lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]);
     }
     let (mut free, mut occupied) = (0usize, 0usize);
     for (_, b) in map.occupancy.iter() {
@@ -73,15 +96,15 @@ pub(crate) fn info(args: &InfoArgs) -> Result<()> {
         }
     }
     let frontiers = map.frontiers();
-    println!("voxels: {free} free, {occupied} occupied, {} exploration frontiers", frontiers.len());
+    outln!("voxels: {free} free, {occupied} occupied, {} exploration frontiers", frontiers.len());
     if let Some(path) = &args.frontiers {
         let mut text = String::from("x,y,z\n");
         for v in &frontiers {
             let c = v.centre(vs);
             text.push_str(&format!("{},{},{}\n", c[0], c[1], c[2]));
         }
-        std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))?;
-        println!("wrote {}", path.display());
+        edtmap_io::files::write_atomic(path, text.as_bytes())?;
+        outln!("wrote {}", path.display());
     }
     Ok(())
 }
@@ -89,7 +112,7 @@ pub(crate) fn info(args: &InfoArgs) -> Result<()> {
 /// Prints distance, gradient and state of every point as CSV.
 pub(crate) fn query(args: &QueryArgs) -> Result<()> {
     let map = load_map(&args.map)?;
-    let points = read_points(&args.points)?;
+    let points = read_points(&args.points, map.voxel_size_m())?;
     let answers = distances(&map, &points, args.signed);
     let stdout = std::io::stdout();
     let mut out = BufWriter::new(stdout.lock());
@@ -105,30 +128,89 @@ pub(crate) fn query(args: &QueryArgs) -> Result<()> {
         }
         out.flush()
     };
-    match write() {
-        // A closed pipe (`| head`) is not an error.
-        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
-        other => Ok(other?),
+    // A closed pipe (`| head`) is not an error; a full disk is, at exit.
+    if let Err(e) = write() {
+        crate::output::record(e);
     }
+    Ok(())
 }
 
-/// Writes a dense box of distances (and states) as `.npy`.
+/// Writes a dense box of distances (and states) as `.npy`, and beside the
+/// distances a JSON sidecar saying where the box lies and what it holds.
 pub(crate) fn export(args: &ExportArgs) -> Result<()> {
     let b = &args.bounds;
     if b.len() != 6 {
         bail!("--box takes six numbers: xmin,ymin,zmin,xmax,ymax,zmax");
     }
+    let sidecar = sidecar_path(&args.output);
+    let mut outputs = vec![("OUT", args.output.as_path()), ("the sidecar OUT.json", sidecar.as_path())];
+    if let Some(states) = &args.states {
+        outputs.push(("--states", states.as_path()));
+    }
+    files::check_distinct_outputs(&outputs)?;
     let map = load_map(&args.map)?;
     let dense = distance_box(&map, [b[0], b[1], b[2]], [b[3], b[4], b[5]], args.signed).context("--box")?;
     let [nx, ny, nz] = dense.dims;
     let layout = ArrayLayout::new(vec![nz, ny, nx], ArrayOrder::C).context("empty box")?;
     npy::write_distances(&args.output, &layout, &dense.distance_m)?;
-    println!("wrote {} ({nz} x {ny} x {nx} voxels from world voxel {:?})", args.output.display(), dense.origin.0);
+    let origin = dense.origin.centre(map.voxel_size_m());
+    outln!("wrote {} ({nz} x {ny} x {nx} voxels; element [0, 0, 0] is world voxel {:?}, centre {origin:?} m)", args.output.display(), dense.origin.0);
     if let Some(path) = &args.states {
         npy::write_bytes(path, &layout, &dense.state)?;
-        println!("wrote {}", path.display());
+        outln!("wrote {}", path.display());
     }
+    let text = sidecar_json(&map, &dense, args);
+    files::write_atomic(&sidecar, text.as_bytes())?;
+    outln!("wrote {}", sidecar.display());
     Ok(())
+}
+
+/// The sidecar of export's output `OUT`: `OUT.json` (`box.npy` gives
+/// `box.npy.json`), which can never be `OUT` itself.
+pub(crate) fn sidecar_path(output: &Path) -> PathBuf {
+    let mut name = output.as_os_str().to_owned();
+    name.push(".json");
+    PathBuf::from(name)
+}
+
+/// The sidecar's text (docs/FORMAT.md, "Exported boxes").
+fn sidecar_json(map: &GlobalMap, dense: &DistanceBox, args: &ExportArgs) -> String {
+    let vs = map.voxel_size_m();
+    let [nx, ny, nz] = dense.dims;
+    let corner = dense.origin.0.map(|i| f64::from(i) * vs);
+    let name = |p: &Path| p.file_name().map(|n| n.to_string_lossy().into_owned());
+    let distances = if args.signed {
+        "metres from each voxel centre to the surface of the obstacle voxels, negative inside them"
+    } else {
+        "metres from each voxel centre to the nearest obstacle voxel centre; 0 at obstacle voxels"
+    };
+    let json = serde_json::json!({
+        "format": "edtmap export",
+        "version": 1,
+        "distances": name(&args.output),
+        "states": args.states.as_deref().and_then(name),
+        "map": args.map.display().to_string(),
+        "dtype": "float32",
+        "states_dtype": "uint8",
+        "shape": [nz, ny, nx],
+        "axis_order": ["z", "y", "x"],
+        "memory_order": "C",
+        "voxel_size_m": vs,
+        "origin_m": dense.origin.centre(vs),
+        "origin_is": "the world coordinate (metres) of the centre of element [0, 0, 0]; element [k, j, i] is centred at origin_m + voxel_size_m * [i, j, k]",
+        "origin_corner_m": corner,
+        "origin_voxel": dense.origin.0,
+        "box_m": { "min": &args.bounds[..3], "max": &args.bounds[3..] },
+        "signed": args.signed,
+        "distance_meaning": distances,
+        "max_distance_m": map.params.max_distance_m,
+        "saturated": "a voxel with no obstacle within the cutoff holds max_distance_m (signed: -max_distance_m inside an obstacle deeper than the cutoff); the true distance is at least that",
+        "unknown": "unknown and outside voxels count as free: their distance is to the nearest obstacle the map knows; the states array tells them apart",
+        "state_values": { "0": "outside (no mapped block)", "1": "unknown", "2": "free", "3": "occupied (or a fixed obstacle)" },
+    });
+    let mut text = serde_json::to_string_pretty(&json).unwrap_or_default();
+    text.push('\n');
+    text
 }
 
 fn state_name(s: PointState) -> &'static str {
@@ -140,22 +222,64 @@ fn state_name(s: PointState) -> &'static str {
     }
 }
 
-/// Reads `x,y,z` lines; blank lines, `#` comments and a header line are skipped.
-fn read_points(path: &Path) -> Result<Vec<[f64; 3]>> {
-    let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+/// Reads the points file (see `--points`): a UTF-8 byte order mark, blank
+/// lines, `#` comment lines and a first line of column names are skipped;
+/// every other line must be three finite numbers within the query range at
+/// `voxel_size_m`. Errors name the file, the line, the field and the value.
+fn read_points(path: &Path, voxel_size_m: f64) -> Result<Vec<[f64; 3]>> {
+    let text = files::read_text(path)?;
+    let text = text.strip_prefix('\u{feff}').unwrap_or(&text);
+    let limit_m = max_query_coordinate_m(voxel_size_m);
     let mut points = Vec::new();
+    let mut first = true;
     for (n, line) in text.lines().enumerate() {
         let line = line.trim();
         if line.is_empty() || line.starts_with('#') {
             continue;
         }
-        let fields: Vec<&str> = line.split([',', ' ', '\t']).filter(|f| !f.is_empty()).collect();
-        let parsed: Result<Vec<f64>, _> = fields.iter().map(|f| f.parse::<f64>()).collect();
-        match parsed {
-            Ok(v) if v.len() == 3 => points.push([v[0], v[1], v[2]]),
-            Err(_) if n == 0 => continue,
-            _ => bail!("{}:{}: expected x,y,z (three numbers), got {line:?}", path.display(), n + 1),
+        if std::mem::take(&mut first) && is_header(line) {
+            continue;
         }
+        let point = parse_point(line, limit_m, voxel_size_m).map_err(|e| anyhow!("{}: line {}: {e}", path.display(), n + 1))?;
+        points.push(point);
     }
     Ok(points)
+}
+
+/// Whether `line` is exactly the column names `x,y,z` (any case, spaces
+/// around the names allowed).
+fn is_header(line: &str) -> bool {
+    let names: Vec<String> = line.split(',').map(|f| f.trim().to_ascii_lowercase()).collect();
+    names == ["x", "y", "z"]
+}
+
+/// One point: three comma-separated finite numbers, each at most
+/// `limit_m` in absolute value.
+fn parse_point(line: &str, limit_m: f64, voxel_size_m: f64) -> Result<[f64; 3], String> {
+    let fields: Vec<&str> = line.split(',').collect();
+    if fields.len() != 3 {
+        let found = fields.len();
+        return Err(format!("{line:?} has {found} comma-separated field{}, expected 3 numbers x,y,z", if found == 1 { "" } else { "s" }));
+    }
+    let mut point = [0.0; 3];
+    for ((slot, field), axis) in point.iter_mut().zip(&fields).zip(["x", "y", "z"]) {
+        let text = field.trim();
+        let value: f64 = text.parse().map_err(|_| format!("{axis} = {text:?} is not a number"))?;
+        if !value.is_finite() || !is_decimal(text) {
+            return Err(format!("{axis} = {text:?} is not a finite number"));
+        }
+        if value.abs() > limit_m {
+            return Err(format!(
+                "{axis} = {text:?} is beyond \u{b1}{limit_m:.0} m, the largest coordinate a query takes ({MAX_QUERY_INDEX} voxels of the map's voxel_size_m = {voxel_size_m})"
+            ));
+        }
+        *slot = value;
+    }
+    Ok(point)
+}
+
+/// Whether `text`, which parses as a float, is spelled with digits (not
+/// `inf` or `NaN`, which Rust's float parser also takes).
+fn is_decimal(text: &str) -> bool {
+    text.bytes().any(|b| b.is_ascii_digit()) && text.bytes().all(|b| b.is_ascii_digit() || b"+-.eE".contains(&b))
 }

@@ -2,13 +2,14 @@
 //! file, with the config that replays it, so the recording path can be
 //! tried (and checked) without a robot.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use edtmap::sensor::{DepthData, Frame, Measurement, Sensor};
 use edtmap_io::ros::msg::{CameraInfo, Header, Image, LaserScanMsg, Message, PointCloud2, StampedTransform};
-use edtmap_io::ros::RecordingWriter;
+use edtmap_io::ros::{Encoding, RecordingWriter};
+use edtmap_sim::Scene;
 
 use crate::scenes::builtin_config;
 use crate::source::build_scene;
@@ -19,9 +20,13 @@ pub(crate) struct RecordArgs {
     /// Built-in scene: uav_pillars, ugv_corridor, room or planar.
     #[arg(long)]
     scene: String,
-    /// Frames to record (default: the scene's length).
+    /// Frames to record (default: the scene's length; the scene's path
+    /// repeats, so any number can be recorded, disk space allowing).
     #[arg(long)]
     frames: Option<usize>,
+    /// Replace an existing NAME.toml beside the recording.
+    #[arg(long)]
+    force: bool,
     /// The recording: NAME.bag (ROS 1) or NAME.mcap (ROS 2); NAME.toml is
     /// written beside it.
     out: PathBuf,
@@ -39,26 +44,77 @@ pub(crate) fn record(args: &RecordArgs) -> Result<()> {
     let (sensor, _) = config.mapper_params()?;
     let (scene, n) = build_scene(&args.scene, &config)?;
     let frames = args.frames.unwrap_or(n);
-    let mut writer = RecordingWriter::create(&args.out)?;
+    if frames == 0 {
+        bail!("--frames must be at least 1");
+    }
+    let config_path = args.out.with_extension("toml");
+    check_outputs(args, &config_path)?;
     let topic = sensor_topic(&sensor);
+    let first = frame_messages(&scene, &sensor, 0)?;
+    check_disk(args, frames, &first)?;
+    let mut writer = RecordingWriter::create(&args.out)?;
     for i in 0..frames {
-        let frame = scene.frame(&sensor, i).with_context(|| format!("simulating frame {i}"))?;
-        let stamp_ns = (frame.stamp_s * 1e9).round() as i64;
-        let log_ns = u64::try_from(stamp_ns).unwrap_or(0);
-        let pose = StampedTransform { header: header(stamp_ns, "map"), child_frame: "sensor".into(), transform: frame.t_world_sensor };
-        writer.write(ODOM, &Message::Odometry(pose.clone()), log_ns)?;
-        writer.write(TF, &Message::Tf(vec![pose]), log_ns)?;
-        if let Sensor::Depth(c) = &sensor {
-            let info = CameraInfo { header: header(stamp_ns, "sensor"), height: c.height, width: c.width, distortion_model: "plumb_bob".into(), d: vec![0.0; 5], k: [c.fx, 0.0, c.cx, 0.0, c.fy, c.cy, 0.0, 0.0, 1.0] };
-            writer.write("/camera/depth/camera_info", &Message::CameraInfo(info), log_ns)?;
+        let messages = if i == 0 { first.clone() } else { frame_messages(&scene, &sensor, i)? };
+        for (topic, msg, log_ns) in &messages {
+            writer.write(topic, msg, *log_ns)?;
         }
-        writer.write(topic, &sensor_message(&sensor, &frame, stamp_ns)?, log_ns)?;
     }
     writer.finish()?;
-    let config_path = args.out.with_extension("toml");
-    std::fs::write(&config_path, replay_config(text, &sensor, args)?).with_context(|| format!("cannot write {}", config_path.display()))?;
-    println!("wrote {} ({frames} frames on {topic}, poses on {ODOM} and {TF})", args.out.display());
-    println!("wrote {}: edtmap run --config {} --dataset {}", config_path.display(), config_path.display(), args.out.display());
+    edtmap_io::files::write_atomic(&config_path, replay_config(text, &sensor, args)?.as_bytes())?;
+    outln!("wrote {} ({frames} frames on {topic}, poses on {ODOM} and {TF})", args.out.display());
+    outln!("wrote {}: edtmap run --config {} --dataset {}", config_path.display(), config_path.display(), args.out.display());
+    Ok(())
+}
+
+/// The messages of frame `i`: its pose on `/odom` and `/tf`, the camera
+/// info of a depth camera, and the measurement; each with its log time.
+fn frame_messages(scene: &Scene, sensor: &Sensor, i: usize) -> Result<Vec<(&'static str, Message, u64)>> {
+    let frame = scene.frame(sensor, i).with_context(|| format!("simulating frame {i}"))?;
+    let stamp_ns = (frame.stamp_s * 1e9).round() as i64;
+    let log_ns = u64::try_from(stamp_ns).unwrap_or(0);
+    let pose = StampedTransform { header: header(stamp_ns, "map"), child_frame: "sensor".into(), transform: frame.t_world_sensor };
+    let mut out = vec![(ODOM, Message::Odometry(pose.clone()), log_ns), (TF, Message::Tf(vec![pose]), log_ns)];
+    if let Sensor::Depth(c) = sensor {
+        let info = CameraInfo { header: header(stamp_ns, "sensor"), height: c.height, width: c.width, distortion_model: "plumb_bob".into(), d: vec![0.0; 5], k: [c.fx, 0.0, c.cx, 0.0, c.fy, c.cy, 0.0, 0.0, 1.0] };
+        out.push(("/camera/depth/camera_info", Message::CameraInfo(info), log_ns));
+    }
+    out.push((sensor_topic(sensor), sensor_message(sensor, &frame, stamp_ns)?, log_ns));
+    Ok(out)
+}
+
+/// Refuses to replace a replay config the user did not ask to replace, or
+/// to write through links.
+fn check_outputs(args: &RecordArgs, config_path: &Path) -> Result<()> {
+    edtmap_io::files::check_output(&args.out)?;
+    edtmap_io::files::check_output(config_path)?;
+    if config_path.exists() && !args.force {
+        bail!(
+            "{} exists and would be replaced by the config that replays {}: remove it, record under another name, or pass --force",
+            config_path.display(),
+            args.out.display()
+        );
+    }
+    Ok(())
+}
+
+/// Refuses a recording that would not fit on its disk, estimated from
+/// the first frame's messages (with 10 % for the container's records).
+fn check_disk(args: &RecordArgs, frames: usize, first: &[(&str, Message, u64)]) -> Result<()> {
+    let encoding = if args.out.extension().is_some_and(|e| e == "bag") { Encoding::Ros1 } else { Encoding::Cdr };
+    let per_frame: u64 = first.iter().map(|(t, m, _)| (m.encode(encoding).len() + t.len() + 64) as u64).sum();
+    let needed = per_frame.saturating_mul(frames as u64).saturating_mul(11) / 10;
+    let dir = args.out.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    if let Some(free) = edtmap_io::files::free_space(dir) {
+        if needed > free {
+            bail!(
+                "{frames} frames of {} would take about {} and {} has {} free: ask for fewer --frames",
+                args.scene,
+                edtmap::memory::format_bytes(needed),
+                dir.display(),
+                edtmap::memory::format_bytes(free)
+            );
+        }
+    }
     Ok(())
 }
 

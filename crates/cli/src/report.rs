@@ -58,15 +58,26 @@ impl FrameRecord {
     }
 }
 
-/// Mean, median and 95th percentile (nearest rank) of `values`.
-pub(crate) fn stats(values: &[f64]) -> Value {
-    if values.is_empty() {
-        return Value::Null;
-    }
+/// The median of `values`: the middle value, or the mean of the two
+/// middle values of an even count; `None` when there are none. The one
+/// definition of the printed summary and of `report.json`.
+pub(crate) fn median(values: &[f64]) -> Option<f64> {
     let mut v = values.to_vec();
     v.sort_by(f64::total_cmp);
     let n = v.len();
-    let median = if n % 2 == 1 { v[n / 2] } else { (v[n / 2 - 1] + v[n / 2]) / 2.0 };
+    match n {
+        0 => None,
+        _ if n % 2 == 1 => Some(v[n / 2]),
+        _ => Some((v[n / 2 - 1] + v[n / 2]) / 2.0),
+    }
+}
+
+/// Mean, median and 95th percentile (nearest rank) of `values`.
+pub(crate) fn stats(values: &[f64]) -> Value {
+    let Some(median) = median(values) else { return Value::Null };
+    let mut v = values.to_vec();
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
     let p95 = v[((0.95 * n as f64).ceil() as usize).clamp(1, n) - 1];
     json!({ "mean": v.iter().sum::<f64>() / n as f64, "median": median, "p95": p95, "min": v[0], "max": v[n - 1] })
 }
@@ -109,5 +120,15 @@ mod tests {
         let s = stats(&(1..=100).map(f64::from).collect::<Vec<_>>());
         assert_eq!(s["p95"], 95.0);
         assert_eq!(stats(&[]), Value::Null);
+    }
+
+    #[test]
+    fn median_of_an_even_count_is_the_mean_of_the_middle_two() {
+        // Sorted: 1, 2, 10, 40: the middle two are 2 and 10.
+        assert_eq!(median(&[40.0, 2.0, 1.0, 10.0]), Some(6.0));
+        assert_eq!(median(&[3.0, 1.0, 2.0]), Some(2.0));
+        assert_eq!(median(&[7.5]), Some(7.5));
+        assert_eq!(median(&[]), None);
+        assert_eq!(stats(&[40.0, 2.0, 1.0, 10.0])["median"], 6.0);
     }
 }

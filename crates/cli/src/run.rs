@@ -432,7 +432,7 @@ pub(crate) fn print_summary(outcome: &RunOutcome) {
     let f = &outcome.frames;
     // The same median as report.json's summary.
     let median = |g: fn(&FrameRecord) -> f64| median(&f.iter().map(g).collect::<Vec<_>>()).unwrap_or(f64::NAN);
-    println!(
+    outln!(
         "{} frames on {}: occupancy median {:.2} ms, batch EDT median {:.2} ms, integration median {:.2} ms, total median {:.2} ms per frame",
         f.len(),
         outcome.backend,
@@ -446,18 +446,18 @@ pub(crate) fn print_summary(outcome: &RunOutcome) {
         (!v.is_empty()).then(|| v.iter().sum::<f64>() / v.len() as f64)
     };
     if let (Some(p), Some(r), Some(rs)) = (mean(|r| r.precision), mean(|r| r.recall), mean(|r| r.strict_recall)) {
-        println!("occupancy vs ground truth (mean over frames): precision {p:.3}, recall of the seen surface {r:.3} (strict recall {rs:.3})");
+        outln!("occupancy vs ground truth (mean over frames): precision {p:.3}, recall of the seen surface {r:.3} (strict recall {rs:.3})");
     }
     let field_mean = |key: &str| {
         let v: Vec<f64> = f.iter().filter_map(|r| r.field(key)).collect();
         (!v.is_empty()).then(|| v.iter().sum::<f64>() / v.len() as f64)
     };
     if let (Some(l), Some(g), Some(gm)) = (field_mean("local_rms_m"), field_mean("global_rms_m"), field_mean("global_max_m")) {
-        println!("EDT vs exact EDT of the map (mean over frames): local RMS {l:.5} m, global RMS {g:.5} m, global max {gm:.4} m");
+        outln!("EDT vs exact EDT of the map (mean over frames): local RMS {l:.5} m, global RMS {g:.5} m, global max {gm:.4} m");
     }
-    println!("wrote {}", outcome.report_path.display());
+    outln!("wrote {}", outcome.report_path.display());
     for p in &outcome.pictures {
-        println!("wrote {}", p.display());
+        outln!("wrote {}", p.display());
     }
 }
 

@@ -5,7 +5,7 @@
 use std::path::Path;
 
 use anyhow::{bail, Context, Result};
-use edtmap::config::{Config, SensorKind};
+use edtmap::config::{Config, IntrinsicsSource, SensorKind};
 use edtmap::sensor::{Frame, Sensor};
 use edtmap_io::dataset::Dataset;
 use edtmap_io::ros::{self, RosReplay};
@@ -46,8 +46,10 @@ pub(crate) enum Source {
 }
 
 impl Source {
-    /// Opens the recording at `path`; for depth images from ROS, fills the
-    /// config's missing intrinsics from the recording's camera info.
+    /// Opens the recording at `path`. For a depth camera, the recording's
+    /// calibration (a folder's `camera-intrinsics.txt` with its first
+    /// image's size, a ROS camera info) replaces `[sensor]`'s, with a
+    /// warning where they differ, unless `[dataset] intrinsics = "config"`.
     pub(crate) fn open_recording(path: &Path, config: &mut Config, origin: &str) -> Result<Source> {
         let in_dataset = |e| edtmap::MapError::Config { section: "dataset", source: e };
         if ros::is_recording(path) {
@@ -57,7 +59,9 @@ impl Source {
                 tracing::warn!("{w}");
             }
             if let (SensorKind::Depth, Some(info)) = (config.sensor.kind, replay.camera_info()) {
-                fill_intrinsics(config, info);
+                let k = info.k;
+                let from = format!("the camera info of {}", path.display());
+                use_calibration(config, &Calibration { k: [k[0], k[4], k[2], k[5]], width: info.width, height: info.height, from }, origin);
             }
             tracing::info!("{}: {} messages of {} on {}", path.display(), replay.len(), replay.sensor_type(), opts.sensor_topic);
             return Ok(Source::Ros(Box::new(replay)));
@@ -68,10 +72,21 @@ impl Source {
             depth_scale_m: config.dataset.depth_scale_m,
             range: sensor_range(&sensor),
             intrinsics: config.sensor.fx.zip(config.sensor.fy).zip(config.sensor.cx.zip(config.sensor.cy)).map(|((fx, fy), (cx, cy))| [fx, fy, cx, cy]),
+            folder_intrinsics: config.dataset.intrinsics == IntrinsicsSource::Recording,
             trajectory: config.dataset.trajectory.as_ref().map(|t| path.join(t)),
             max_pose_gap_s: config.dataset.max_pose_gap_s,
         };
         let set = Dataset::open_with(path, &opts)?;
+        for w in set.warnings() {
+            tracing::warn!("{w}");
+        }
+        if let (SensorKind::Depth, Dataset::Depth(folder)) = (config.sensor.kind, &set) {
+            if let Some(file) = &folder.intrinsics_file {
+                let c = &folder.camera;
+                let from = format!("{} (size from the first image)", file.display());
+                use_calibration(config, &Calibration { k: [c.fx, c.fy, c.cx, c.cy], width: c.width, height: c.height, from }, origin);
+            }
+        }
         tracing::info!("{}: {} frames of {}", path.display(), set.len(), set.kind());
         Ok(Source::Folder(set))
     }
@@ -131,21 +146,62 @@ pub(crate) fn build_scene(name: &str, config: &Config) -> Result<(Scene, usize)>
     Ok((scene, n))
 }
 
-/// Takes the depth camera's missing intrinsics from a camera info message.
-fn fill_intrinsics(config: &mut Config, info: &ros::msg::CameraInfo) {
+/// A depth camera's calibration as a recording gives it.
+struct Calibration {
+    /// `[fx, fy, cx, cy]`, pixels.
+    k: [f64; 4],
+    /// Image width, pixels.
+    width: u32,
+    /// Image height, pixels.
+    height: u32,
+    /// Where it comes from, for the messages.
+    from: String,
+}
+
+/// The camera `[sensor]` describes, in the words of the messages.
+fn describe(k: [Option<f64>; 4], width: Option<u32>, height: Option<u32>) -> String {
+    let show = |v: Option<f64>| v.map_or_else(|| "unset".to_string(), |v| v.to_string());
+    let size = |v: Option<u32>| v.map_or_else(|| "unset".to_string(), |v| v.to_string());
+    format!("fx {}, fy {}, cx {}, cy {}, {} x {} pixels", show(k[0]), show(k[1]), show(k[2]), show(k[3]), size(width), size(height))
+}
+
+/// Applies a recording's calibration to `[sensor]` as `[dataset]
+/// intrinsics` says: the recording's wins (default) or `[sensor]`'s, its
+/// unset fields filled from the recording's. Where both give a value and
+/// they differ, a warning names both and the one used.
+fn use_calibration(config: &mut Config, cal: &Calibration, origin: &str) {
+    let policy = config.dataset.intrinsics;
     let s = &mut config.sensor;
-    let k = info.k;
-    let from_info = [(&mut s.fx, k[0]), (&mut s.fy, k[4]), (&mut s.cx, k[2]), (&mut s.cy, k[5])];
-    for (field, value) in from_info {
-        match field {
-            Some(v) if (*v - value).abs() > 1e-6 * value.abs().max(1.0) => tracing::warn!("[sensor] intrinsics differ from the recording's camera info ({v} vs {value}); using the config's"),
-            Some(_) => {}
-            None => *field = Some(value),
+    let theirs = describe(cal.k.map(Some), Some(cal.width), Some(cal.height));
+    let ours = describe([s.fx, s.fy, s.cx, s.cy], s.width, s.height);
+    let close = |a: f64, b: f64| (a - b).abs() <= 1e-6 * b.abs().max(1.0);
+    let mut differ = false;
+    for (field, value) in [(&mut s.fx, cal.k[0]), (&mut s.fy, cal.k[1]), (&mut s.cx, cal.k[2]), (&mut s.cy, cal.k[3])] {
+        differ |= field.is_some_and(|v| !close(v, value));
+        if policy == IntrinsicsSource::Recording || field.is_none() {
+            *field = Some(value);
         }
     }
-    s.width.get_or_insert(info.width);
-    s.height.get_or_insert(info.height);
-    tracing::info!("camera from {}: fx {:.3} fy {:.3} cx {:.3} cy {:.3}, {} x {}", "camera info", k[0], k[4], k[2], k[5], info.width, info.height);
+    for (field, value) in [(&mut s.width, cal.width), (&mut s.height, cal.height)] {
+        differ |= field.is_some_and(|v| v != value);
+        if policy == IntrinsicsSource::Recording || field.is_none() {
+            *field = Some(value);
+        }
+    }
+    if differ {
+        match policy {
+            IntrinsicsSource::Recording => tracing::warn!(
+                "the depth camera of {origin} [sensor] ({ours}) differs from {} ({theirs}): using the recording's; set [dataset] intrinsics = \"config\" to use [sensor]'s",
+                cal.from
+            ),
+            IntrinsicsSource::Config => tracing::warn!(
+                "the depth camera of {origin} [sensor] ({ours}) differs from {} ({theirs}): using [sensor]'s, as [dataset] intrinsics = \"config\" says",
+                cal.from
+            ),
+        }
+    }
+    let used = describe([s.fx, s.fy, s.cx, s.cy], s.width, s.height);
+    tracing::info!("depth camera: {used} (recording: {})", cal.from);
 }
 
 /// The depth range a sensor accepts (for a depth folder's camera).

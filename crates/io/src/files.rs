@@ -255,6 +255,32 @@ pub fn write_atomic_with(path: &Path, fill: impl FnOnce(&mut AtomicFile) -> io::
     file.commit()
 }
 
+/// Bytes an unprivileged writer may still put on the file system that
+/// holds `dir`; `None` where that cannot be told.
+pub fn free_space(dir: &Path) -> Option<u64> {
+    #[cfg(unix)]
+    {
+        use std::os::unix::ffi::OsStrExt;
+        let c_path = std::ffi::CString::new(dir.as_os_str().as_bytes()).ok()?;
+        let mut st = std::mem::MaybeUninit::<libc::statvfs>::uninit();
+        // SAFETY: `c_path` is a NUL-terminated path that outlives the call,
+        // and `st` points to writable memory of the struct's size.
+        let rc = unsafe { libc::statvfs(c_path.as_ptr(), st.as_mut_ptr()) };
+        if rc != 0 {
+            return None;
+        }
+        // SAFETY: statvfs returned 0, so it filled the struct.
+        let st = unsafe { st.assume_init() };
+        #[allow(clippy::unnecessary_cast)] // the field types differ by platform
+        Some((st.f_bavail as u64).saturating_mul(st.f_frsize as u64))
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = dir;
+        None
+    }
+}
+
 /// The temporary names of `path`: `.NAME.PID.N.tmp` in its folder.
 fn temp_prefix(path: &Path) -> Option<OsString> {
     let mut prefix = OsString::from(".");
@@ -390,6 +416,14 @@ mod tests {
         let dir = tempfile::tempdir().expect("tempdir");
         let err = read_text(dir.path()).expect_err("a directory");
         assert!(err.to_string().contains("directory"), "{err}");
+    }
+
+    #[test]
+    fn free_space_is_known_on_unix() {
+        if cfg!(unix) {
+            assert!(free_space(Path::new(".")).is_some_and(|b| b > 0));
+            assert_eq!(free_space(Path::new("/no/such/folder")), None);
+        }
     }
 
     #[test]
