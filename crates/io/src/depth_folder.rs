@@ -13,10 +13,19 @@
 //! Intrinsics come from `camera-intrinsics.txt` (3 × 3 K) when the folder
 //! has one, else from [`DatasetOptions::intrinsics`]. Depth units are the
 //! caller's: millimetres in 3DMatch, 1/5000 m in TUM.
+//!
+//! The first image's header gives the folder its size; every other image's
+//! header must give the same before it is decoded ([`read_depth_png`]), so
+//! a file claiming a huge image is refused without allocating it.
+
+mod depth_png;
+
+pub use depth_png::{read_depth_png, ExpectedSize, MAX_DEPTH_IMAGE_BYTES};
 
 use crate::dataset::frames::{bad, file_name, list_dir, read_text, FrameFile, FramePose, TrajectoryFile};
 use crate::dataset::DatasetOptions;
-use crate::IoError;
+use crate::{files, IoError};
+use depth_png::DepthPng;
 use edtmap_core::sensor::{DepthData, DepthImage, Frame, Measurement, PinholeCamera, RangeLimits};
 use std::path::{Path, PathBuf};
 
@@ -44,26 +53,28 @@ impl DepthFolder {
     }
 
     /// Opens `dir` (either layout), resolving every frame's time and pose
-    /// and reading the intrinsics and the first image's size.
+    /// and reading the intrinsics and the first image's size (from its
+    /// header: the image is decoded with its frame).
     pub fn open_with(dir: &Path, opts: &DatasetOptions) -> Result<Self, IoError> {
         let entries = list_dir(dir)?;
         let frames = if is_tum(dir) { tum_frames(dir, opts)? } else { threedmatch_frames(dir, &entries, opts)? };
         let first = frames.first().ok_or_else(|| bad(dir, "no depth images"))?;
         let [fx, fy, cx, cy] = intrinsics(dir, opts)?;
-        let (width, height, _) = read_depth_png(&first.path)?;
+        let DepthPng { width, height, .. } = DepthPng::open(&first.path, None)?;
         let camera = PinholeCamera { fx, fy, cx, cy, width, height, range: opts.range };
         Ok(DepthFolder { camera, frames, metres_per_unit: opts.depth_scale_m })
     }
 
     /// Frame `i`: its depth image, time and pose. A frame whose time the
-    /// trajectory does not cover is [`IoError::NoPose`].
+    /// trajectory does not cover is [`IoError::NoPose`]; an image whose
+    /// header gives another size than the camera's is refused before it is
+    /// decoded.
     pub fn frame(&self, i: usize) -> Result<Frame, IoError> {
         let file = self.frames.get(i).ok_or_else(|| bad(Path::new("."), format!("frame {i} of {}", self.frames.len())))?;
         let pose = file.pose()?;
-        let (width, height, values) = read_depth_png(&file.path)?;
-        if (width, height) != (self.camera.width, self.camera.height) {
-            return Err(bad(&file.path, format!("{width} x {height} pixels, the folder's first frame has {} x {}", self.camera.width, self.camera.height)));
-        }
+        let (width, height) = (self.camera.width, self.camera.height);
+        let expected = ExpectedSize { width, height, source: "the folder's first image" };
+        let (width, height, values) = read_depth_png(&file.path, Some(expected))?;
         let image = DepthImage { width, height, data: DepthData::U16 { values, metres_per_unit: self.metres_per_unit } };
         Ok(Frame { stamp_s: file.stamp_s, t_world_sensor: pose, measurement: Measurement::Depth(image) })
     }
@@ -155,9 +166,7 @@ fn parse_depth_list(dir: &Path, list: &Path, text: &str) -> Result<Vec<(f64, Pat
         let shown: String = stamp.chars().take(40).collect();
         let t = stamp.parse::<f64>().ok().filter(|t| t.is_finite()).ok_or_else(|| at(format!("{shown:?} is not a time")))?;
         let path = dir.join(name);
-        if !path.is_file() {
-            return Err(at(format!("{} does not exist", path.display())));
-        }
+        files::check_regular(&path).map_err(|e| at(e.to_string()))?;
         images.push((t, path));
     }
     Ok(images)
@@ -205,21 +214,6 @@ fn check_intrinsics([fx, fy, cx, cy]: [f64; 4]) -> Result<(), String> {
         return Err(format!("principal point cx = {cx}, cy = {cy} must be finite"));
     }
     Ok(())
-}
-
-/// Width, height and values of a 16-bit greyscale PNG.
-fn read_depth_png(path: &Path) -> Result<(u32, u32, Vec<u16>), IoError> {
-    let file = std::fs::File::open(path).map_err(|e| IoError::io(path, e))?;
-    let mut reader = png::Decoder::new(std::io::BufReader::new(file)).read_info().map_err(|e| bad(path, format!("not a PNG: {e}")))?;
-    let info = reader.info();
-    let (width, height) = (info.width, info.height);
-    if info.color_type != png::ColorType::Grayscale || info.bit_depth != png::BitDepth::Sixteen {
-        return Err(bad(path, format!("depth must be 16-bit greyscale, found {:?} {:?}", info.color_type, info.bit_depth)));
-    }
-    let mut buf = vec![0; reader.output_buffer_size().ok_or_else(|| bad(path, "image too large"))?];
-    let frame = reader.next_frame(&mut buf).map_err(|e| bad(path, format!("corrupt PNG data: {e}")))?;
-    let values = buf[..frame.buffer_size()].chunks_exact(2).map(|b| u16::from_be_bytes([b[0], b[1]])).collect();
-    Ok((width, height, values))
 }
 
 #[cfg(test)]

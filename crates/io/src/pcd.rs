@@ -11,6 +11,12 @@
 //! Only the fields `x`, `y`, `z` are read; they must be `F` of size 4 or 8
 //! and count 1. Every other field, of any type, size and count, is skipped
 //! (`SIZE × COUNT` bytes in binary data, `COUNT` values in ascii data).
+//!
+//! The data must hold exactly `POINTS` points: fewer, or more (the rest
+//! would be silently dropped), is refused. What is allocated is bounded
+//! by the data's length, not by `POINTS` (binary data is checked against
+//! `POINTS` × point size first), so no header can make the reader
+//! allocate much more than the file.
 
 use std::path::Path;
 
@@ -33,18 +39,23 @@ use crate::IoError;
 ///
 /// Every error names the file:
 /// * [`IoError::Io`]: the file cannot be read;
+/// * [`IoError::NotRegular`], [`IoError::TooLarge`]: the path is a FIFO,
+///   a device or a folder, or a file of more than
+///   [`MAX_CLOUD_BYTES`](crate::files::MAX_CLOUD_BYTES);
 /// * [`IoError::PcdHeader`]: the header is malformed or inconsistent
 ///   (no `DATA` line, `FIELDS`/`SIZE`/`TYPE`/`COUNT` of different lengths,
-///   a bad number, `WIDTH × HEIGHT ≠ POINTS`, a repeated keyword, ...);
+///   a bad number, `WIDTH × HEIGHT ≠ POINTS`, a repeated keyword, binary
+///   data longer than `POINTS` points, ...);
 /// * [`IoError::PcdField`]: `x`, `y` or `z` is missing or not `F4`/`F8`;
 /// * [`IoError::PcdUnsupportedData`]: `DATA` is neither `ascii` nor
 ///   `binary` (e.g. `binary_compressed`);
 /// * [`IoError::Truncated`]: binary data shorter than
 ///   `POINTS × point size`;
 /// * [`IoError::PcdAscii`]: in ascii data, a bad number in `x`, `y` or `z`,
-///   a line with the wrong number of values, or fewer lines than `POINTS`.
+///   a line with the wrong number of values, or fewer or more lines than
+///   `POINTS`.
 pub fn read_pcd(path: &Path) -> Result<PointCloud, IoError> {
-    let bytes = std::fs::read(path).map_err(|e| IoError::io(path, e))?;
+    let bytes = crate::files::read_input(path, crate::files::MAX_CLOUD_BYTES)?;
     parse_pcd(path, &bytes)
 }
 
@@ -327,6 +338,18 @@ fn read_binary(path: &Path, header: &Header, data: &[u8]) -> Result<Vec<[f32; 3]
     if data.len() < expected {
         return Err(IoError::Truncated { path: path.into(), expected: expected as u64, actual: data.len() as u64 });
     }
+    if data.len() > expected {
+        return Err(header_err(
+            path,
+            format!(
+                "POINTS {} × {} bytes a point is {expected} bytes of binary data, the file has {} ({} bytes past the last point)",
+                header.points,
+                header.point_size,
+                data.len(),
+                data.len() - expected
+            ),
+        ));
+    }
     if header.points == 0 {
         return Ok(Vec::new());
     }
@@ -388,7 +411,21 @@ fn read_ascii(path: &Path, header: &Header, data: &[u8]) -> Result<Vec<[f32; 3]>
             reason: format!("the header promises {} points, the data has {}", header.points, points.len()),
         });
     }
+    refuse_extra_lines(path, header, data, line_no)?;
     Ok(points)
+}
+
+/// Refuses ascii data with points after the `POINTS` the header promises
+/// (`line_no` is the line of the last one read); blank lines may follow.
+fn refuse_extra_lines(path: &Path, header: &Header, data: &[u8], line_no: usize) -> Result<(), IoError> {
+    let mut lines = data.split(|&b| b == b'\n').enumerate().skip(line_no - header.header_lines);
+    let Some((first, _)) = lines.find(|(_, l)| l.iter().any(|b| !b.is_ascii_whitespace())) else { return Ok(()) };
+    let extra = 1 + lines.filter(|(_, l)| l.iter().any(|b| !b.is_ascii_whitespace())).count();
+    Err(IoError::PcdAscii {
+        path: path.into(),
+        line: header.header_lines + first + 1,
+        reason: format!("POINTS is {0} but the data has {1} lines of points ({extra} past the first {0})", header.points, header.points + extra),
+    })
 }
 
 /// Moves points given in the viewpoint's frame into the sensor frame:

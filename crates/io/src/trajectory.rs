@@ -139,7 +139,7 @@ impl Trajectory {
     /// pose (seconds, metres, unit quaternion), `#` comments and blank lines
     /// ignored; commas may separate the numbers.
     pub fn read_tum(path: &Path) -> Result<Self, IoError> {
-        let text = std::fs::read_to_string(path).map_err(|e| IoError::io(path, e))?;
+        let text = crate::files::read_text(path)?;
         Self::parse_tum(&text).map_err(|reason| IoError::Dataset { path: path.to_path_buf(), reason })
     }
 

@@ -244,3 +244,68 @@ fn huge_header_counts_are_refused_without_allocating() {
         assert!(largest <= ALLOCATION_LIMIT, "{huge}: an allocation of {largest} bytes");
     }
 }
+
+/// A PCD whose `POINTS` is smaller than its data is refused, not cut to
+/// `POINTS` points: ascii with extra lines, binary with extra bytes.
+#[test]
+fn pcd_data_past_points_is_refused() {
+    let head = |points: usize, data: &str| {
+        format!("VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH {points}\nHEIGHT 1\nPOINTS {points}\nDATA {data}\n")
+    };
+    let ascii = format!("{}1 2 3\n4 5 6\n7 8 9\n\n", head(2, "ascii"));
+    let err = parse_pcd(Path::new("more.pcd"), ascii.as_bytes()).expect_err("3 lines for POINTS 2").to_string();
+    assert!(err.contains("more.pcd") && err.contains("line 12") && err.contains("POINTS is 2") && err.contains("3 lines"), "{err}");
+    // Blank lines after the points are not points.
+    let ascii = format!("{}1 2 3\n4 5 6\n\n  \n", head(2, "ascii"));
+    assert_eq!(parse_pcd(Path::new("ok.pcd"), ascii.as_bytes()).expect("2 points").points.len(), 2);
+
+    let mut binary = head(2, "binary").into_bytes();
+    binary.extend((0..9).flat_map(|k| (k as f32).to_le_bytes()));
+    let err = parse_pcd(Path::new("more.pcd"), &binary).expect_err("36 bytes for POINTS 2").to_string();
+    assert!(err.contains("more.pcd") && err.contains("POINTS 2") && err.contains("24 bytes") && err.contains("36") && err.contains("12 bytes past"), "{err}");
+    binary.truncate(binary.len() - 12);
+    assert_eq!(parse_pcd(Path::new("ok.pcd"), &binary).expect("2 points").points, vec![[0.0, 1.0, 2.0], [3.0, 4.0, 5.0]]);
+}
+
+/// An npy version 1.0 file written by hand: `dict` as the header, then
+/// `data`.
+fn raw_npy(dict: &str, data: &[u8]) -> Vec<u8> {
+    let mut header = dict.as_bytes().to_vec();
+    while !(10 + header.len() + 1).is_multiple_of(64) {
+        header.push(b' ');
+    }
+    header.push(b'\n');
+    let mut bytes = b"\x93NUMPY\x01\x00".to_vec();
+    bytes.extend((header.len() as u16).to_le_bytes());
+    bytes.extend(header);
+    bytes.extend(data);
+    bytes
+}
+
+/// The error (or `Ok`) of opening and reading `bytes` as an obstacle npy.
+fn read_npy(name: &str, bytes: &[u8]) -> Result<usize, String> {
+    let tmp = tempfile::tempdir().expect("temp dir");
+    let path = tmp.path().join(name);
+    std::fs::write(&path, bytes).expect("write");
+    let grid = edtmap_io::npy::ObstacleNpy::open(&path).and_then(|f| f.read()).map_err(|e| e.to_string())?;
+    Ok(grid.as_slice().iter().filter(|&&o| o).count())
+}
+
+#[test]
+fn npy_trailing_bytes_duplicate_keys_and_bad_bools_are_refused() {
+    let dict = "{'descr': '|b1', 'fortran_order': False, 'shape': (2, 3), }";
+    assert_eq!(read_npy("ok.npy", &raw_npy(dict, &[0, 1, 1, 0, 0, 1])), Ok(3));
+
+    let err = read_npy("tail.npy", &raw_npy(dict, &[0, 1, 1, 0, 0, 1, 9, 9])).expect_err("trailing");
+    assert!(err.contains("tail.npy") && err.contains("2 bytes after the data") && err.contains("[2, 3]") && err.contains("gives 6 bytes") && err.contains("has 8"), "{err}");
+
+    let twice = "{'descr': '|b1', 'fortran_order': False, 'shape': (2, 3), 'shape': (3, 2), }";
+    let err = read_npy("twice.npy", &raw_npy(twice, &[0; 6])).expect_err("duplicate key");
+    assert!(err.contains("twice.npy") && err.contains("\"shape\" twice"), "{err}");
+
+    let err = read_npy("seven.npy", &raw_npy(dict, &[0, 1, 1, 7, 0, 1])).expect_err("bool 7");
+    assert!(err.contains("seven.npy") && err.contains("element 3") && err.contains("value 7"), "{err}");
+    // Integer dtypes keep "nonzero is an obstacle".
+    let bytes = "{'descr': '|u1', 'fortran_order': False, 'shape': (2, 3), }";
+    assert_eq!(read_npy("u8.npy", &raw_npy(bytes, &[0, 1, 1, 7, 0, 1])), Ok(4));
+}

@@ -3,6 +3,7 @@
 
 use super::frames::{bad, file_name, list_dir, parse_kitti_poses, parse_times, read_text, stem_time, FrameFile, FramePose, TrajectoryFile};
 use super::DatasetOptions;
+use crate::files::{self, MAX_CLOUD_BYTES};
 use crate::ply::read_ply;
 use crate::{read_pcd, IoError};
 use edtmap_core::sensor::{Frame, Measurement, PointCloud};
@@ -119,9 +120,10 @@ fn per_file_poses(dir: &Path, clouds: &[PathBuf]) -> Result<Vec<FramePose>, IoEr
 }
 
 /// A KITTI Velodyne scan: little-endian float32 `x y z reflectance` per
-/// point (reflectance unused).
+/// point (reflectance unused); a regular file of at most
+/// [`MAX_CLOUD_BYTES`].
 pub fn read_kitti_bin(path: &Path) -> Result<PointCloud, IoError> {
-    let bytes = std::fs::read(path).map_err(|e| IoError::io(path, e))?;
+    let bytes = files::read_input(path, MAX_CLOUD_BYTES)?;
     parse_kitti_bin(path, &bytes)
 }
 

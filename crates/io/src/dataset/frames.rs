@@ -148,9 +148,10 @@ pub fn parse_times(path: &Path, text: &str) -> Result<Vec<f64>, IoError> {
     Ok(times)
 }
 
-/// Reads `path`'s text.
+/// Reads `path`'s text: a regular file of at most
+/// [`crate::files::MAX_TEXT_BYTES`], UTF-8.
 pub(crate) fn read_text(path: &Path) -> Result<String, IoError> {
-    std::fs::read_to_string(path).map_err(|e| IoError::io(path, e))
+    crate::files::read_text(path)
 }
 
 /// Reads a pose matrix file: 16 numbers (4 × 4 row-major) or 12 (the top

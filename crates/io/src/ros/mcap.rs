@@ -22,7 +22,6 @@ mod summary;
 mod tests;
 
 use std::collections::BTreeMap;
-use std::fs::File;
 use std::io::{ErrorKind, Read};
 use std::path::{Path, PathBuf};
 
@@ -59,9 +58,10 @@ pub struct McapReader {
 }
 
 impl McapReader {
-    /// Opens an MCAP file: checks the magic.
+    /// Opens an MCAP file: checks that it is a regular file (streamed, so
+    /// of any size) and its magic.
     pub fn open(path: &Path) -> Result<Self, IoError> {
-        let mut file = File::open(path).map_err(|e| IoError::io(path, e))?;
+        let (mut file, _) = crate::files::open_input(path, u64::MAX)?;
         let mut magic = [0; 8];
         match file.read_exact(&mut magic) {
             Ok(()) if magic[..] == *MAGIC => Ok(Self { path: path.to_path_buf() }),
@@ -79,7 +79,7 @@ impl McapReader {
     /// the summary's statistics when the file has a valid summary, else by
     /// a scan (a truncated file lists what it holds before the damage).
     pub fn topics(&self) -> Result<Vec<TopicInfo>, IoError> {
-        let mut file = File::open(&self.path).map_err(|e| IoError::io(&self.path, e))?;
+        let (mut file, _) = crate::files::open_input(&self.path, u64::MAX)?;
         if let Some(topics) = summary_topics(&mut file, &self.path)? {
             return Ok(topics);
         }

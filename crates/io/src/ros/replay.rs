@@ -93,7 +93,7 @@ impl Container {
     /// Opens a bag or MCAP file, told apart by its magic bytes.
     fn open(path: &Path) -> Result<Self, IoError> {
         let mut magic = [0u8; 8];
-        let mut f = std::fs::File::open(path).map_err(|e| IoError::io(path, e))?;
+        let (mut f, _) = crate::files::open_input(path, u64::MAX)?;
         let n = f.read(&mut magic).map_err(|e| IoError::io(path, e))?;
         match &magic[..n] {
             m if m.starts_with(b"#ROSBAG") => Ok(Container::Bag(BagReader::open(path)?)),

@@ -243,8 +243,8 @@ pub(super) struct Source {
 
 impl Source {
     pub(super) fn open(path: &Path) -> Result<Self, IoError> {
-        let file = File::open(path).map_err(|e| IoError::io(path, e))?;
-        let len = file.metadata().map_err(|e| IoError::io(path, e))?.len();
+        // Streamed, so no size cap: the check is that it is a regular file.
+        let (file, len) = crate::files::open_input(path, u64::MAX)?;
         Ok(Source { path: path.to_path_buf(), file: BufReader::with_capacity(1 << 16, file), len, pos: 0 })
     }
 

@@ -196,8 +196,8 @@ pub(super) struct Stream<'a> {
 
 impl<'a> Stream<'a> {
     pub(super) fn new(path: &'a Path, topics: Option<&'a [String]>) -> Result<Self, IoError> {
-        let file = File::open(path).map_err(|e| IoError::io(path, e))?;
-        let file_len = file.metadata().map_err(|e| IoError::io(path, e))?.len();
+        // Streamed, so no size cap: the check is that it is a regular file.
+        let (file, file_len) = crate::files::open_input(path, u64::MAX)?;
         let limit = usize::try_from(file_len).unwrap_or(usize::MAX);
         let reader = LinearReader::new_with_options(
             LinearReaderOptions::default()
