@@ -1,0 +1,213 @@
+//! Signed distance to the surface of the obstacle voxels: the nearest
+//! obstacle cube outside, the nearest free cube inside. The definition, and
+//! why it is not interpolated, are in the docs of [`crate::query`].
+
+use super::{Distance, PointState};
+use edtmap_core::{GlobalMap, Obstacles, VoxelIndex, FAR_DIST_SQ};
+
+/// The closest point (voxel units) to `u` of the cube of voxel `w`, which
+/// spans `[w, w + 1)` on each axis.
+fn closest_on_cube(u: [f64; 3], w: VoxelIndex) -> [f64; 3] {
+    [0, 1, 2].map(|a| u[a].clamp(f64::from(w.0[a]), f64::from(w.0[a]) + 1.0))
+}
+
+fn dist_sq(a: [f64; 3], b: [f64; 3]) -> f64 {
+    (0..3).map(|k| (a[k] - b[k]).powi(2)).sum()
+}
+
+/// The unit vector along the axis where `from` lies farthest from the
+/// centre of voxel `w` (its outward face normal when `from` is on the
+/// cube); the first such axis on a tie.
+fn face_normal(from: [f64; 3], w: VoxelIndex) -> [f64; 3] {
+    let off = [0, 1, 2].map(|a| from[a] - (f64::from(w.0[a]) + 0.5));
+    let axis = (1..3).fold(0, |best, a| if off[a].abs() > off[best].abs() { a } else { best });
+    let mut n = [0.0; 3];
+    n[axis] = if off[axis] < 0.0 { -1.0 } else { 1.0 };
+    n
+}
+
+/// The unit vector from `a` to `b`, or `fallback` when they coincide.
+fn unit(a: [f64; 3], b: [f64; 3], fallback: [f64; 3]) -> [f64; 3] {
+    let d = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+    let n = dist_sq(a, b).sqrt();
+    if n > 0.0 {
+        d.map(|c| c / n)
+    } else {
+        fallback
+    }
+}
+
+/// The obstacle voxel whose cube is nearest `u` (voxel units, inside the
+/// non-obstacle voxel `v`), from the EDT's nearest obstacles of `v` and its
+/// 26 neighbours; `None` when none has one within the cutoff.
+fn nearest_obstacle(map: &GlobalMap, u: [f64; 3], v: VoxelIndex) -> Option<(f64, VoxelIndex)> {
+    let mut best: Option<(f64, VoxelIndex)> = None;
+    for k in 0..27 {
+        let n = VoxelIndex([v.0[0] + k % 3 - 1, v.0[1] + (k / 3) % 3 - 1, v.0[2] + k / 9 - 1]);
+        let (d, site) = map.entry(n);
+        if d == FAR_DIST_SQ {
+            continue;
+        }
+        let d2 = dist_sq(u, closest_on_cube(u, site));
+        if best.is_none_or(|(b, _)| d2 < b) {
+            best = Some((d2, site));
+        }
+    }
+    best
+}
+
+/// The non-obstacle voxel whose cube is nearest `u` (voxel units, inside
+/// the obstacle voxel `v`), searched in the shells of voxels at Chebyshev
+/// distance 1, 2, … from `v` out to `reach`; `None` when every voxel there
+/// is an obstacle.
+fn nearest_free(obstacles: &Obstacles<'_>, u: [f64; 3], v: VoxelIndex, reach: i32) -> Option<(f64, VoxelIndex)> {
+    let mut best: Option<(f64, VoxelIndex)> = None;
+    for r in 1..=reach.min(10_000) {
+        // `u` lies in `v`'s cube, so every cube of shell `r` is at least
+        // `r - 1` away.
+        if best.is_some_and(|(b, _)| b <= f64::from(r - 1).powi(2)) {
+            break;
+        }
+        for_shell(v, r, |w| {
+            if !obstacles.contains(w) {
+                let d2 = dist_sq(u, closest_on_cube(u, w));
+                if best.is_none_or(|(b, _)| d2 < b) {
+                    best = Some((d2, w));
+                }
+            }
+        });
+    }
+    best
+}
+
+/// Calls `f` on every voxel at Chebyshev distance exactly `r >= 1` from `v`.
+fn for_shell(v: VoxelIndex, r: i32, mut f: impl FnMut(VoxelIndex)) {
+    let [x, y, z] = v.0;
+    for dz in -r..=r {
+        for dy in -r..=r {
+            if dz.abs() == r || dy.abs() == r {
+                (-r..=r).for_each(|dx| f(VoxelIndex([x + dx, y + dy, z + dz])));
+            } else {
+                f(VoxelIndex([x - r, y + dy, z + dz]));
+                f(VoxelIndex([x + r, y + dy, z + dz]));
+            }
+        }
+    }
+}
+
+/// Signed distance and gradient at world point `p` (metres), which lies in
+/// voxel `v`; `v` must be at least the cutoff's reach plus one voxel inside
+/// the `i32` index range (see [`super::MAX_QUERY_INDEX`]).
+pub(super) fn signed_at(map: &GlobalMap, p: [f64; 3], v: VoxelIndex, state: PointState, observed: bool) -> Distance {
+    let vs = map.voxel_size_m();
+    let max = map.params.max_distance_m;
+    let u = p.map(|c| c / vs);
+    let obstacles = map.obstacles();
+    let inside = obstacles.contains(v);
+    let found = if inside { nearest_free(&obstacles, u, v, map.cutoff.reach) } else { nearest_obstacle(map, u, v) };
+    let Some((d2, w)) = found else {
+        let distance_m = if inside { -max } else { max };
+        return Distance { distance_m, gradient: [0.0; 3], state, observed, saturated: true };
+    };
+    let q = closest_on_cube(u, w);
+    let (magnitude, gradient) = if inside {
+        // Towards the free cube: where the distance rises to zero.
+        (d2.sqrt() * vs, unit(u, q, face_normal(u, w).map(|c| -c)))
+    } else {
+        (d2.sqrt() * vs, unit(q, u, face_normal(u, w)))
+    };
+    let saturated = magnitude >= max;
+    let magnitude = magnitude.min(max);
+    // No negative zero on the surface.
+    let distance_m = if inside && magnitude > 0.0 { -magnitude } else { magnitude };
+    Distance { distance_m, gradient, state, observed, saturated }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::edt::{edt_with, ScanLayout};
+    use crate::integrate::Integrator;
+    use edtmap_core::{GlobalParams, Grid3, IntegrationMode, LocalVolume, OccupancyParams};
+
+    const VS: f64 = 0.1;
+
+    /// SplitMix64: a small seeded generator.
+    struct Rng(u64);
+    impl Rng {
+        fn next(&mut self) -> f64 {
+            self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+            let mut z = self.0;
+            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+            ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
+        }
+    }
+
+    /// A map observed over `dims` voxels from the origin, `mask` voxels
+    /// occupied, its global EDT computed exactly.
+    fn map_of(mask: &Grid3<bool>) -> GlobalMap {
+        let params = GlobalParams { max_distance_m: 1.2, mode: IntegrationMode::Exact, ..Default::default() };
+        let mut map = GlobalMap::new(VS, OccupancyParams::default(), params).expect("valid");
+        let window = LocalVolume { origin: VoxelIndex([0; 3]), dims: mask.dims(), voxel_size_m: VS };
+        let (min, max) = (map.log_odds.min, map.log_odds.max);
+        for (i, &o) in mask.as_slice().iter().enumerate() {
+            let v = window.world(mask.coords(i));
+            map.occupancy.get_or_insert(v.block()).log_odds[v.offset_in_block()] = if o { max } else { min };
+        }
+        let batch = edt_with(mask, |&o| o, ScanLayout::default()).expect("batch");
+        let mut integrator = Integrator::new(&map.params, VS).expect("valid");
+        let (edt, obstacles) = map.edt_and_obstacles();
+        integrator.integrate(edt, &obstacles, &window, &batch).expect("integrate");
+        map
+    }
+
+    /// The signed distance (voxels) of `u` by brute force over every voxel of the grid.
+    fn brute(mask: &Grid3<bool>, u: [f64; 3], inside: bool) -> f64 {
+        let mut best = f64::INFINITY;
+        for (i, &o) in mask.as_slice().iter().enumerate() {
+            if o != inside {
+                let [x, y, z] = mask.coords(i).map(|c| c as i32);
+                best = best.min(dist_sq(u, closest_on_cube(u, VoxelIndex([x, y, z]))));
+            }
+        }
+        if inside { -best.sqrt() } else { best.sqrt() }
+    }
+
+    #[test]
+    fn signed_distance_matches_brute_force_to_the_voxel_surface() {
+        // Random blobs well inside a free margin, so every nearest free voxel
+        // of an obstacle lies in the grid.
+        let n = 20;
+        let mut rng = Rng(13);
+        let blobs: Vec<([f64; 3], f64)> = (0..6).map(|_| ([0, 1, 2].map(|_| 5.0 + 10.0 * rng.next()), 1.0 + 2.5 * rng.next())).collect();
+        let mask = Grid3::from_fn([n; 3], |x, y, z| {
+            let c = [x, y, z].map(|i| i as f64 + 0.5);
+            blobs.iter().any(|(b, r)| dist_sq(c, *b) <= r * r)
+        })
+        .expect("dims");
+        let map = map_of(&mask);
+        let (mut worst, mut signs, mut inexact) = (0.0f64, 0, 0);
+        for _ in 0..4000 {
+            let u = [0, 1, 2].map(|_| 3.0 + 14.0 * rng.next());
+            let v = VoxelIndex(u.map(|c| c.floor() as i32));
+            let inside = mask.get(v.0.map(|c| c as usize)).copied().unwrap_or(false);
+            if !inside {
+                assert!(map.entry(v).0 != FAR_DIST_SQ, "the cutoff covers the grid");
+            }
+            let d = signed_at(&map, u.map(|c| c * VS), v, PointState::Unknown, false);
+            let truth = brute(&mask, u, inside);
+            // Outside, the cube found is a real obstacle: never nearer than the nearest.
+            assert!(d.distance_m / VS >= truth - 1e-9, "{u:?}: {} below the exact {truth}", d.distance_m / VS);
+            let err = (d.distance_m / VS - truth).abs();
+            worst = worst.max(err);
+            inexact += usize::from(err > 1e-9);
+            signs += usize::from((d.distance_m < 0.0) != inside);
+            let g = d.gradient;
+            assert!(((g[0] * g[0] + g[1] * g[1] + g[2] * g[2]).sqrt() - 1.0).abs() < 1e-9, "{u:?}: gradient {g:?}");
+        }
+        assert_eq!(signs, 0, "sign differs from the voxel's");
+        // The EDT's nearest obstacle by centre is nearly always the nearest cube.
+        assert!(worst < 0.1 && inexact < 40, "largest error {worst} voxels, {inexact} of 4000 inexact");
+    }
+}
