@@ -60,7 +60,7 @@ impl Source {
             }
             if let (SensorKind::Depth, Some(info)) = (config.sensor.kind, replay.camera_info()) {
                 let k = info.k;
-                let from = format!("the camera info of {}", path.display());
+                let from = format!("the camera info of {} says", path.display());
                 use_calibration(config, &Calibration { k: [k[0], k[4], k[2], k[5]], width: info.width, height: info.height, from }, origin);
             }
             tracing::info!("{}: {} messages of {} on {}", path.display(), replay.len(), replay.sensor_type(), opts.sensor_topic);
@@ -83,7 +83,7 @@ impl Source {
         if let (SensorKind::Depth, Dataset::Depth(folder)) = (config.sensor.kind, &set) {
             if let Some(file) = &folder.intrinsics_file {
                 let c = &folder.camera;
-                let from = format!("{} (size from the first image)", file.display());
+                let from = format!("{} and the first image say", file.display());
                 use_calibration(config, &Calibration { k: [c.fx, c.fy, c.cx, c.cy], width: c.width, height: c.height, from }, origin);
             }
         }
@@ -154,7 +154,8 @@ struct Calibration {
     width: u32,
     /// Image height, pixels.
     height: u32,
-    /// Where it comes from, for the messages.
+    /// Where it comes from, as the subject of `says`: `the camera info
+    /// of drive.bag says`.
     from: String,
 }
 
@@ -191,17 +192,17 @@ fn use_calibration(config: &mut Config, cal: &Calibration, origin: &str) {
     if differ {
         match policy {
             IntrinsicsSource::Recording => tracing::warn!(
-                "the depth camera of {origin} [sensor] ({ours}) differs from {} ({theirs}): using the recording's; set [dataset] intrinsics = \"config\" to use [sensor]'s",
+                "depth camera: {origin} [sensor] says {ours} but {} {theirs}: using the recording's; set [dataset] intrinsics = \"config\" to use [sensor]'s",
                 cal.from
             ),
             IntrinsicsSource::Config => tracing::warn!(
-                "the depth camera of {origin} [sensor] ({ours}) differs from {} ({theirs}): using [sensor]'s, as [dataset] intrinsics = \"config\" says",
+                "depth camera: {origin} [sensor] says {ours} but {} {theirs}: using [sensor]'s, as [dataset] intrinsics = \"config\" asks",
                 cal.from
             ),
         }
     }
     let used = describe([s.fx, s.fy, s.cx, s.cy], s.width, s.height);
-    tracing::info!("depth camera: {used} (recording: {})", cal.from);
+    tracing::info!("depth camera: {used} ({} {theirs})", cal.from);
 }
 
 /// The depth range a sensor accepts (for a depth folder's camera).

@@ -11,9 +11,19 @@
 //!   per cloud) or a `<stem>.pose.txt` beside each cloud.
 //!
 //! Poses are resolved when the folder is opened: they are just numbers.
-//! A frame whose time the trajectory does not cover opens fine and fails
-//! on [`Dataset::frame`] with [`IoError::NoPose`], naming the file, the
-//! time and the trajectory's span, so that the caller may skip it.
+//!
+//! **What fails where.** Opening fails only for the recording as a whole:
+//! the folder is missing or holds no frames, a file that serves every
+//! frame (trajectory, `poses.txt`, `times.txt`, `depth.txt`,
+//! `camera-intrinsics.txt`) cannot be read or parsed, or no frame has a
+//! pose at all. Anything about one frame opens fine and fails on
+//! [`Dataset::frame`] for that frame only, naming its file: its image or
+//! cloud cannot be read, its pose file is missing or bad
+//! ([`IoError::NoPose`] when nothing gives it a pose; the trajectory's
+//! span is named when the trajectory does not cover its time). Files that
+//! look like frames but do not follow the layout's naming
+//! (`frame-abc.depth.png`, `depth/notes.png`) are not frames: they are
+//! left out, each with a line in [`Dataset::warnings`].
 
 mod cloud_folder;
 pub(crate) mod frames;
@@ -41,8 +51,13 @@ pub struct DatasetOptions {
     /// The depth camera's valid range.
     pub range: RangeLimits,
     /// The depth camera's `[fx, fy, cx, cy]`, pixels, for folders without
-    /// `camera-intrinsics.txt`.
+    /// `camera-intrinsics.txt` (or all folders when `folder_intrinsics` is
+    /// false).
     pub intrinsics: Option<[f64; 4]>,
+    /// Whether a folder's own `camera-intrinsics.txt` gives the camera
+    /// (the default). When false the file is not read and `intrinsics` is
+    /// used.
+    pub folder_intrinsics: bool,
     /// A TUM trajectory file giving the poses, interpolated at each frame's
     /// time; it overrides the folder's own poses.
     pub trajectory: Option<PathBuf>,
@@ -55,7 +70,7 @@ impl DatasetOptions {
     /// Options with the folder's own poses and intrinsics and
     /// [`DEFAULT_MAX_POSE_GAP_S`].
     pub fn new(depth_scale_m: f32, range: RangeLimits) -> Self {
-        DatasetOptions { depth_scale_m, range, intrinsics: None, trajectory: None, max_pose_gap_s: DEFAULT_MAX_POSE_GAP_S }
+        DatasetOptions { depth_scale_m, range, intrinsics: None, folder_intrinsics: true, trajectory: None, max_pose_gap_s: DEFAULT_MAX_POSE_GAP_S }
     }
 }
 
@@ -144,8 +159,17 @@ impl Dataset {
         }
     }
 
-    /// Frame `i`, read from disk. [`IoError::NoPose`] when the trajectory
-    /// does not cover its time.
+    /// What opening left out, one line each (files named like frames that
+    /// are not frames), for the caller to show.
+    pub fn warnings(&self) -> &[String] {
+        match self {
+            Dataset::Depth(d) => &d.warnings,
+            Dataset::Clouds(_) => &[],
+        }
+    }
+
+    /// Frame `i`, read from disk. [`IoError::NoPose`] when nothing gives
+    /// it a pose (its time outside the trajectory, its pose file missing).
     pub fn frame(&self, i: usize) -> Result<Frame, IoError> {
         match self {
             Dataset::Depth(d) => d.frame(i),

@@ -11,10 +11,15 @@
 //!   or the folder's `groundtruth.txt`.
 //!
 //! Intrinsics come from `camera-intrinsics.txt` (3 × 3 K) when the folder
-//! has one, else from [`DatasetOptions::intrinsics`]. Depth units are the
-//! caller's: millimetres in 3DMatch, 1/5000 m in TUM.
+//! has one (unless [`DatasetOptions::folder_intrinsics`] is false), else
+//! from [`DatasetOptions::intrinsics`]. Depth units are the caller's:
+//! millimetres in 3DMatch, 1/5000 m in TUM.
 //!
-//! The first image's header gives the folder its size; every other image's
+//! A frame whose image or pose file is missing or unreadable fails on
+//! [`DepthFolder::frame`] alone; only problems of the whole folder fail
+//! [`DepthFolder::open_with`] (see [`crate::dataset`]).
+//!
+//! The first image with a readable header gives the folder its size; every other image's
 //! header must give the same before it is decoded ([`read_depth_png`]), so
 //! a file claiming a huge image is refused without allocating it.
 
@@ -43,6 +48,12 @@ pub struct DepthFolder {
     pub frames: Vec<FrameFile>,
     /// Metres per depth unit (0.001 for millimetres).
     pub metres_per_unit: f32,
+    /// The `camera-intrinsics.txt` that gave the camera's intrinsics;
+    /// `None` when they came from [`DatasetOptions::intrinsics`].
+    pub intrinsics_file: Option<PathBuf>,
+    /// Files left out at open (named like frames but not frames), one
+    /// line each.
+    pub warnings: Vec<String>,
 }
 
 impl DepthFolder {
@@ -57,12 +68,17 @@ impl DepthFolder {
     /// header: the image is decoded with its frame).
     pub fn open_with(dir: &Path, opts: &DatasetOptions) -> Result<Self, IoError> {
         let entries = list_dir(dir)?;
-        let frames = if is_tum(dir) { tum_frames(dir, opts)? } else { threedmatch_frames(dir, &entries, opts)? };
-        let first = frames.first().ok_or_else(|| bad(dir, "no depth images"))?;
-        let [fx, fy, cx, cy] = intrinsics(dir, opts)?;
-        let DepthPng { width, height, .. } = DepthPng::open(&first.path, None)?;
+        let mut warnings = Vec::new();
+        let frames = if is_tum(dir) { tum_frames(dir, opts, &mut warnings)? } else { threedmatch_frames(dir, &entries, opts, &mut warnings)? };
+        if frames.is_empty() {
+            let layout = if is_tum(dir) { "listed in depth.txt or named depth/<timestamp>.png" } else { "named frame-XXXXXX.depth.png (XXXXXX the frame number)" };
+            let left_out = if warnings.is_empty() { String::new() } else { format!(" ({} files left out: {})", warnings.len(), warnings.join("; ")) };
+            return Err(bad(dir, format!("no depth images {layout}{left_out}")));
+        }
+        let ([fx, fy, cx, cy], intrinsics_file) = intrinsics(dir, opts)?;
+        let (width, height) = first_image_size(dir, &frames)?;
         let camera = PinholeCamera { fx, fy, cx, cy, width, height, range: opts.range };
-        Ok(DepthFolder { camera, frames, metres_per_unit: opts.depth_scale_m })
+        Ok(DepthFolder { camera, frames, metres_per_unit: opts.depth_scale_m, intrinsics_file, warnings })
     }
 
     /// Frame `i`: its depth image, time and pose. A frame whose time the
@@ -89,35 +105,55 @@ fn is_tum(dir: &Path) -> bool {
     dir.join("depth.txt").is_file() || dir.join("depth").is_dir()
 }
 
+/// The frame number of a 3DMatch image name, `frame-XXXXXX.depth.png`.
+fn threedmatch_number(name: &str) -> Option<u32> {
+    let digits = name.strip_prefix("frame-")?.strip_suffix(".depth.png")?;
+    if digits.is_empty() || !digits.bytes().all(|b| b.is_ascii_digit()) {
+        return None;
+    }
+    digits.parse().ok()
+}
+
 /// The 3DMatch frames: `frame-XXXXXX.depth.png`, posed by their
-/// `.pose.txt` files or by the trajectory at `XXXXXX / 30` s.
-fn threedmatch_frames(dir: &Path, entries: &[PathBuf], opts: &DatasetOptions) -> Result<Vec<FrameFile>, IoError> {
+/// `.pose.txt` files or by the trajectory at `XXXXXX / 30` s. Other
+/// `*.depth.png` names are left out with a warning; a frame without its
+/// pose file fails alone, but a folder where no frame has one is refused.
+fn threedmatch_frames(dir: &Path, entries: &[PathBuf], opts: &DatasetOptions, warnings: &mut Vec<String>) -> Result<Vec<FrameFile>, IoError> {
     let traj = opts.trajectory.as_deref().map(|p| TrajectoryFile::read(p, opts.max_pose_gap_s)).transpose()?;
     let mut frames = Vec::new();
     for path in entries {
         let name = file_name(path);
         let Some(stem) = name.strip_suffix(".depth.png") else { continue };
-        // The frame number when the name has one; else the position.
-        let number = stem.strip_prefix("frame-").and_then(|n| n.parse::<u32>().ok()).map_or(frames.len() as f64, f64::from);
-        let stamp_s = number / THREEDMATCH_RATE_HZ;
+        let Some(number) = threedmatch_number(name) else {
+            warnings.push(format!("{}: not a frame, left out: 3DMatch frames are named frame-XXXXXX.depth.png (XXXXXX the frame number)", path.display()));
+            continue;
+        };
+        let stamp_s = f64::from(number) / THREEDMATCH_RATE_HZ;
         let pose = match &traj {
             Some(traj) => traj.pose_at(stamp_s),
             None => {
                 let pose = dir.join(format!("{stem}.pose.txt"));
-                if !pose.exists() {
-                    return Err(bad(&pose, format!("missing: {name} has no pose file")));
+                if pose.exists() {
+                    FramePose::File(pose)
+                } else {
+                    FramePose::Missing(format!("its pose file {} is missing (or set [dataset] trajectory)", file_name(&pose)))
                 }
-                FramePose::File(pose)
             }
         };
         frames.push(FrameFile { path: path.clone(), stamp_s, pose });
+    }
+    if traj.is_none() && !frames.is_empty() && frames.iter().all(|f| matches!(f.pose, FramePose::Missing(_))) {
+        return Err(bad(
+            dir,
+            format!("no poses: none of the {} frames has its pose file (frame-XXXXXX.pose.txt, 4 × 4 T_world_camera; {} is missing): add them or set [dataset] trajectory", frames.len(), file_name(&frames[0].path).replace(".depth.png", ".pose.txt")),
+        ));
     }
     Ok(frames)
 }
 
 /// The TUM frames, posed by the trajectory at each image's time.
-fn tum_frames(dir: &Path, opts: &DatasetOptions) -> Result<Vec<FrameFile>, IoError> {
-    let images = tum_images(dir)?;
+fn tum_frames(dir: &Path, opts: &DatasetOptions, warnings: &mut Vec<String>) -> Result<Vec<FrameFile>, IoError> {
+    let images = tum_images(dir, warnings)?;
     let traj_path = match &opts.trajectory {
         Some(p) => p.clone(),
         None => dir.join("groundtruth.txt"),
@@ -130,8 +166,9 @@ fn tum_frames(dir: &Path, opts: &DatasetOptions) -> Result<Vec<FrameFile>, IoErr
 }
 
 /// `(time, image)` of every TUM depth image: as `depth.txt` lists them,
-/// else the `depth/` folder's `<timestamp>.png` in time order.
-fn tum_images(dir: &Path) -> Result<Vec<(f64, PathBuf)>, IoError> {
+/// else the `depth/` folder's `<timestamp>.png` in time order (other
+/// names left out with a warning).
+fn tum_images(dir: &Path, warnings: &mut Vec<String>) -> Result<Vec<(f64, PathBuf)>, IoError> {
     let list = dir.join("depth.txt");
     if list.is_file() {
         return parse_depth_list(dir, &list, &read_text(&list)?);
@@ -141,8 +178,10 @@ fn tum_images(dir: &Path) -> Result<Vec<(f64, PathBuf)>, IoError> {
     for path in list_dir(&folder)? {
         if path.extension().is_some_and(|e| e == "png") {
             let stem = path.file_stem().and_then(|s| s.to_str()).unwrap_or_default();
-            let t = stem.parse::<f64>().ok().filter(|t| t.is_finite()).ok_or_else(|| bad(&path, "the name is not a time: depth/ holds <timestamp>.png images"))?;
-            images.push((t, path));
+            match stem.parse::<f64>().ok().filter(|t| t.is_finite()) {
+                Some(t) => images.push((t, path)),
+                None => warnings.push(format!("{}: not a frame, left out: the name is not a time (depth/ holds <timestamp>.png images)", path.display())),
+            }
         }
     }
     images.sort_by(|a, b| a.0.total_cmp(&b.0));
@@ -172,17 +211,34 @@ fn parse_depth_list(dir: &Path, list: &Path, text: &str) -> Result<Vec<(f64, Pat
     Ok(images)
 }
 
-/// `[fx, fy, cx, cy]` from `camera-intrinsics.txt`, else the options.
-fn intrinsics(dir: &Path, opts: &DatasetOptions) -> Result<[f64; 4], IoError> {
+/// `[fx, fy, cx, cy]` and the file they came from: `camera-intrinsics.txt`
+/// when the folder has one and the options allow, else the options.
+fn intrinsics(dir: &Path, opts: &DatasetOptions) -> Result<([f64; 4], Option<PathBuf>), IoError> {
     let path = dir.join("camera-intrinsics.txt");
-    if path.exists() {
-        return parse_intrinsics(&path, &read_text(&path)?);
+    if opts.folder_intrinsics && path.exists() {
+        return Ok((parse_intrinsics(&path, &read_text(&path)?)?, Some(path)));
     }
     let Some(k) = opts.intrinsics else {
         return Err(bad(dir, "no camera-intrinsics.txt: set the depth camera's intrinsics [sensor] fx, fy, cx, cy (pixels) in the config"));
     };
     check_intrinsics(k).map_err(|reason| bad(dir, format!("[sensor] fx, fy, cx, cy: {reason}")))?;
-    Ok(k)
+    Ok((k, None))
+}
+
+/// The size of the first depth image whose header reads (a frame whose
+/// header does not fails later, alone); an error when none does.
+fn first_image_size(dir: &Path, frames: &[FrameFile]) -> Result<(u32, u32), IoError> {
+    let mut first_error = None;
+    for frame in frames {
+        match DepthPng::open(&frame.path, None) {
+            Ok(png) => return Ok((png.width, png.height)),
+            Err(e) => {
+                first_error.get_or_insert(e);
+            }
+        }
+    }
+    let first = first_error.map_or_else(String::new, |e| format!(", the first: {e}"));
+    Err(bad(dir, format!("none of the {} depth images can be read{first}", frames.len())))
 }
 
 /// Parses a `camera-intrinsics.txt`: the 9 numbers of the 3 × 3 K,

@@ -224,8 +224,13 @@ fn clouds_with_a_pose_file_each() {
     let pcd = "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 2\nPOINTS 2\nDATA ascii\n1 0 0\n0 1 0\n";
     std::fs::write(dir.join("a.pcd"), pcd).expect("write");
     std::fs::write(dir.join("b.pcd"), pcd).expect("write");
+    // No cloud has a pose: the folder is refused.
+    let err = Dataset::open(dir, 0.001, RANGE).expect_err("no poses").to_string();
+    assert!(err.contains("a.pcd") && err.contains("a.pose.txt"), "{err}");
+    // Only b has none: b alone fails, naming its pose file.
     std::fs::write(dir.join("a.pose.txt"), "1 0 0 1\n0 1 0 2\n0 0 1 3\n0 0 0 1\n").expect("write");
-    let err = Dataset::open(dir, 0.001, RANGE).expect_err("b has no pose").to_string();
+    let set = Dataset::open(dir, 0.001, RANGE).expect("opens");
+    let err = set.frame(1).expect_err("b has no pose").to_string();
     assert!(err.contains("b.pcd") && err.contains("b.pose.txt"), "{err}");
     std::fs::write(dir.join("b.pose.txt"), "0 -1 0 0\n1 0 0 0\n0 0 1 x\n0 0 0 1\n").expect("write");
     let set = Dataset::open(dir, 0.001, RANGE).expect("opens");

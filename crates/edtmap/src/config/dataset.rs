@@ -8,14 +8,42 @@ use serde::Deserialize;
 use std::path::PathBuf;
 
 /// What a replay does with a frame it cannot use.
+///
+/// The same rule holds for every kind of recording (3DMatch and TUM
+/// folders, PCD/PLY/KITTI cloud folders, ROS bags, MCAP files). A problem
+/// of the recording as a whole refuses the run before anything is mapped,
+/// whatever this says: the folder or file is missing or holds no frames,
+/// a file serving every frame (trajectory, `poses.txt`, `times.txt`,
+/// `depth.txt`, `camera-intrinsics.txt`) cannot be read, no frame has a
+/// pose, a topic is absent, the config does not fit. A problem of one
+/// frame is this setting's: its image, cloud or message cannot be read or
+/// decoded, its pose file is missing or bad, no pose covers its stamp, the
+/// mapper refuses it. Files named like frames that are not frames
+/// (`frame-abc.depth.png`) are left out with a warning.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum OnError {
-    /// Report the frame, leave it out, go on.
+    /// Report the frame (a warning, `skipped` in `report.json`), leave it
+    /// out, go on.
     #[default]
     Skip,
     /// Stop at the frame: keep and write what was integrated, then fail.
     Stop,
+}
+
+/// Where a depth camera's intrinsics and image size come from when both
+/// the recording and `[sensor]` give them (`[dataset] intrinsics`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum IntrinsicsSource {
+    /// The recording's own calibration: a folder's `camera-intrinsics.txt`
+    /// with its first image's size, a ROS camera info. `[sensor] fx, fy,
+    /// cx, cy, width, height` serve recordings without one (TUM); where
+    /// they differ from the recording's, a warning names both.
+    #[default]
+    Recording,
+    /// `[sensor]`'s, always: the recording's calibration is not used.
+    Config,
 }
 
 /// Default of `[dataset] max_pose_gap_s`: poses further apart than this
@@ -28,8 +56,13 @@ pub const DEFAULT_MAX_POSE_GAP_S: f64 = 0.25;
 pub struct DatasetSection {
     /// Metres per unit of 16-bit depth images (0.001: millimetres; TUM: 0.0002).
     pub depth_scale_m: f32,
-    /// `skip` (default) or `stop` at a frame that cannot be used.
+    /// `skip` (default) or `stop` at a frame that cannot be used; see
+    /// [`OnError`] for what is a frame's problem and what the recording's.
     pub on_error: OnError,
+    /// Depth cameras: `recording` (default: the recording's calibration
+    /// wins over `[sensor]`'s, with a warning where they differ) or
+    /// `config` (`[sensor]`'s always).
+    pub intrinsics: IntrinsicsSource,
     /// Largest time between two poses a frame is interpolated across, seconds.
     pub max_pose_gap_s: f64,
     /// Folders: a TUM trajectory (`t tx ty tz qx qy qz qw`) giving the
@@ -57,6 +90,7 @@ impl Default for DatasetSection {
         DatasetSection {
             depth_scale_m: 0.001,
             on_error: OnError::Skip,
+            intrinsics: IntrinsicsSource::Recording,
             max_pose_gap_s: DEFAULT_MAX_POSE_GAP_S,
             trajectory: None,
             sensor_topic: None,

@@ -102,21 +102,27 @@ fn sorted_clouds(dir: &Path) -> Result<Vec<PathBuf>, IoError> {
     Ok(clouds)
 }
 
-/// A `<stem>.pose.txt` beside every cloud, or an error naming the first
-/// cloud without one.
+/// A `<stem>.pose.txt` beside each cloud: a cloud without one fails as
+/// its frame; a folder where no cloud has one is refused, naming the
+/// first.
 fn per_file_poses(dir: &Path, clouds: &[PathBuf]) -> Result<Vec<FramePose>, IoError> {
-    clouds
+    let poses: Vec<FramePose> = clouds
         .iter()
         .map(|cloud| {
             let stem = cloud.file_stem().and_then(|s| s.to_str()).unwrap_or_default();
             let pose = dir.join(format!("{stem}.pose.txt"));
             if pose.exists() {
-                Ok(FramePose::File(pose))
+                FramePose::File(pose)
             } else {
-                Err(bad(cloud, format!("no pose: give a trajectory, a poses.txt (KITTI) in the folder, or a {stem}.pose.txt (4 × 4 row-major) beside each cloud")))
+                FramePose::Missing(format!("its pose file {stem}.pose.txt is missing (4 × 4 row-major, beside the cloud)"))
             }
         })
-        .collect()
+        .collect();
+    if let (Some(first), true) = (clouds.first(), poses.iter().all(|p| matches!(p, FramePose::Missing(_)))) {
+        let stem = first.file_stem().and_then(|s| s.to_str()).unwrap_or_default();
+        return Err(bad(first, format!("no pose: give a trajectory, a poses.txt (KITTI) in the folder, or a {stem}.pose.txt (4 × 4 row-major) beside each cloud")));
+    }
+    Ok(poses)
 }
 
 /// A KITTI Velodyne scan: little-endian float32 `x y z reflectance` per
