@@ -52,6 +52,14 @@ enum Layout {
 const WORK_BYTES_PER_VOXEL: u64 = 1 + 4 + 4 + 4;
 
 pub(crate) fn run(args: &EdtArgs) -> Result<()> {
+    let mut outputs = vec![("OUT", args.output.as_path())];
+    if let Some(nearest) = &args.nearest {
+        outputs.push(("--nearest", nearest.as_path()));
+    }
+    edtmap_io::files::check_distinct_outputs(&outputs)?;
+    for (_, path) in &outputs {
+        edtmap_io::files::check_output(path)?;
+    }
     let file = ObstacleNpy::open(&args.input)?;
     let layout = file.layout().clone();
     let ndim = layout.shape().len() as u64;

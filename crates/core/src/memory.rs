@@ -3,7 +3,7 @@
 //! happens, and refused with an error that says how much would be needed
 //! and which setting to change, instead of aborting the process.
 //!
-//! The budget is what the system can give: `MemAvailable` (Linux), and
+//! The budget is what the system can give: 80 % of `MemAvailable` (Linux), and
 //! the room left under the process's address-space limit (`RLIMIT_AS`,
 //! `prlimit --as`, `ulimit -v`), read from `/proc/self/limits` and
 //! `/proc/self/status`. A limit set by the user (`--max-memory`, the
@@ -33,10 +33,11 @@ impl MemoryBudget {
         MemoryBudget { limit_bytes: None, origin: "no limit" }
     }
 
-    /// What the system can give now: the smaller of `MemAvailable` and the
+    /// What the system can give now: the smaller of 80 % of `MemAvailable`
+    /// (the rest is left to the system and the allocator's slack) and the
     /// room under `RLIMIT_AS`; unlimited where neither is known.
     pub fn from_system() -> Self {
-        let avail = available_bytes().map(|b| (b, "the available memory (MemAvailable)"));
+        let avail = available_bytes().map(|b| (b / 5 * 4, "80 % of the available memory (MemAvailable)"));
         let room = address_space_room().map(|b| (b, "the room left under the address-space limit (RLIMIT_AS)"));
         match (avail, room) {
             (Some(a), Some(r)) => Self::from_pair(if r.0 < a.0 { r } else { a }),

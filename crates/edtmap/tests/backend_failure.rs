@@ -60,3 +60,34 @@ fn a_backend_failure_returns_the_error_and_keeps_the_map_whole() {
         }
     }
 }
+
+/// A backend whose device is lost in the occupancy stage (ray casting).
+struct LostInRaycast;
+
+impl BatchEdt for LostInRaycast {
+    fn batch_edt(&mut self, mask: &Grid3<bool>, out: &mut EdtField) -> Result<(), BackendError> {
+        CpuBackend::default().batch_edt(mask, out)
+    }
+}
+
+impl Backend for LostInRaycast {
+    fn name(&self) -> String {
+        "lost-in-raycast".into()
+    }
+    fn cast_rays(&mut self, _: &[edtmap::FixedRay], _: u32, _: [usize; 3], _: &mut Vec<u8>) -> Result<bool, BackendError> {
+        Err(BackendError::DeviceLost("lost while casting rays".into()))
+    }
+}
+
+#[test]
+fn a_device_lost_in_the_occupancy_stage_is_a_backend_failure() {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../configs/uav_pillars.toml");
+    let mut config = Config::load(&path).expect("config");
+    config.sensor.construction = edtmap::config::ConstructionName::Raycast;
+    let (sensor, params) = config.mapper_params().expect("valid");
+    let scene = Scene::new(SceneName::UavPillars, &SceneOptions::default()).expect("scene");
+    let mut mapper = Mapper::new_on(LostInRaycast, sensor.clone(), params).expect("mapper");
+    let err = mapper.integrate_frame(&scene.frame(&sensor, 0).expect("frame")).expect_err("the device is lost");
+    assert!(err.is_backend_failure(), "{err:?}");
+    assert!(matches!(err, MapError::Backend(BackendError::DeviceLost(_))), "{err:?}");
+}
