@@ -25,14 +25,14 @@ fn saved_map_answers_queries_and_exports() {
     assert!(listed > 0 && info.contains(&format!("{listed} exploration frontiers")), "{info}");
 
     let points = dir.path().join("points.csv");
-    std::fs::write(&points, "x,y,z\n# a comment\n0.5,0.5,1.0\n1e9,0,0\n").expect("write");
+    std::fs::write(&points, "x,y,z\n# a comment\n0.5,0.5,1.0\n1e5,0,0\n").expect("write");
     let (ok, csv, err) = edtmap(&["query", s(&map), "--points", s(&points)]);
     assert!(ok, "{err}");
     let lines: Vec<&str> = csv.lines().collect();
     assert_eq!(lines[0], "x,y,z,distance_m,grad_x,grad_y,grad_z,state,observed,saturated");
     assert_eq!(lines.len(), 3, "{csv}");
     let far: Vec<&str> = lines[2].split(',').collect();
-    assert_eq!((far[3], far[7]), ("NaN", "outside"), "a point beyond the index range");
+    assert_eq!((far[7], far[9]), ("outside", "true"), "a point far outside the mapped area reads the cutoff, saturated");
 
     let npy = dir.path().join("box.npy");
     let states = dir.path().join("states.npy");
@@ -44,7 +44,7 @@ fn saved_map_answers_queries_and_exports() {
     // Bad input: a malformed points file and a truncated map name the file.
     std::fs::write(&points, "1,2\n").expect("write");
     let (ok, _, err) = edtmap(&["query", s(&map), "--points", s(&points)]);
-    assert!(!ok && err.contains("points.csv:1"), "{err}");
+    assert!(!ok && err.contains("points.csv: line 1"), "{err}");
     let cut = dir.path().join("cut.edtmap");
     std::fs::write(&cut, &std::fs::read(&map).expect("map")[..200]).expect("write");
     let (ok, _, err) = edtmap(&["info", s(&cut)]);
