@@ -2,10 +2,16 @@
 //! a frame's own problem (its image or cloud corrupt, its pose missing) is
 //! skipped under `on_error = "skip"` and stops the run under `"stop"`,
 //! keeping and writing the frames before it, whether it is the first frame
-//! or a later one and whatever the kind: 3DMatch, TUM, PCD, PLY, KITTI.
-//! Files named like frames that are not frames are left out with a
-//! warning under both. ROS recordings follow the same rule (`cli_ros.rs`).
+//! or a later one and whatever the kind: 3DMatch, TUM, PCD, PLY, KITTI,
+//! ROS bags and MCAP files. Files named like frames that are not frames
+//! are left out with a warning under both.
 
+#[path = "../../io/tests/common/mod.rs"]
+mod common;
+
+use common::{write_recording, Container, Msg};
+use edtmap_io::ros::msg::{Header, Message, PointCloud2, StampedTransform};
+use nalgebra::Isometry3;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -21,6 +27,8 @@ enum Kind {
     Pcd,
     Ply,
     Bin,
+    Bag,
+    Mcap,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -37,6 +45,12 @@ enum Fault {
 const FRAMES: usize = 3;
 /// TUM image times, seconds.
 const TUM_TIMES: [f64; FRAMES] = [10.0, 10.5, 11.0];
+/// ROS cloud stamps, seconds.
+const ROS_TIMES: [f64; FRAMES] = [0.1, 0.5, 0.9];
+/// Replays the ROS recordings: a LiDAR's clouds placed by odometry.
+const ROS_CONFIG: &str = "[sensor]\nkind = \"points\"\nconstruction = \"raycast\"\nmin_range_m = 0.2\nmax_range_m = 10.0\n\n\
+    [occupancy]\nvoxel_size_m = 0.1\nlocal_size_m = [8.0, 8.0, 4.0]\n\n[global]\nmax_distance_m = 1.0\n\n\
+    [dataset]\nsensor_topic = \"/points\"\npose_topic = \"/odom\"\n";
 const IDENTITY: &str = "1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n";
 
 fn write_depth_png(path: &Path, width: u32, height: u32, value: u16) {
@@ -74,19 +88,55 @@ fn ext(kind: Kind) -> &'static str {
     }
 }
 
-/// Frame `k`'s file and pose file names (TUM: no pose file).
+/// Frame `k`'s file and pose file names (TUM: no pose file; ROS: the
+/// message).
 fn names(kind: Kind, k: usize) -> (String, Option<String>) {
     match kind {
+        Kind::Bag | Kind::Mcap => (format!("topic /points, message {k}"), None),
         Kind::ThreeDMatch => (format!("frame-{k:06}.depth.png"), Some(format!("frame-{k:06}.pose.txt"))),
         Kind::Tum => (format!("{:.6}.png", TUM_TIMES[k]), None),
         _ => (format!("{k:06}.{}", ext(kind)), Some(format!("{k:06}.pose.txt"))),
     }
 }
 
+/// A ROS recording of `FRAMES` clouds of the wall, posed by odometry
+/// every 50 ms; a hole of ±0.2 s in the odometry at the cloud without a
+/// pose, a cut payload for the corrupt one.
+fn ros_recording(path: &Path, container: Container, fault: Fault) {
+    let header = |t: f64, frame: &str| Header { stamp_ns: (t * 1e9) as i64, frame_id: frame.into() };
+    let mut msgs = Vec::new();
+    for i in 0..=24 {
+        let t = 0.05 * f64::from(i);
+        if matches!(fault, Fault::NoPose(k) if (t - ROS_TIMES[k]).abs() < 0.2) {
+            continue;
+        }
+        let odom = StampedTransform { header: header(t, "odom"), child_frame: "base_link".into(), transform: Isometry3::identity() };
+        msgs.push(Msg::new("/odom", Message::Odometry(odom), t));
+    }
+    for (k, t) in ROS_TIMES.into_iter().enumerate() {
+        let mut cloud = Msg::new("/points", Message::PointCloud2(PointCloud2::from_points(header(t, "lidar"), &wall())), t + 0.001);
+        cloud.truncate_payload = fault == Fault::Corrupt(k);
+        msgs.push(cloud);
+    }
+    msgs.sort_by(|a, b| a.log_time_s.total_cmp(&b.log_time_s));
+    write_recording(path, container, &msgs, true);
+}
+
 /// Writes a recording of `FRAMES` frames of `kind` with `fault`; returns
-/// the shipped config that replays it.
-fn recording(dir: &Path, kind: Kind, fault: Fault) -> &'static str {
+/// it and the text of the config that replays it (a shipped one for
+/// folders).
+fn recording(dir: &Path, kind: Kind, fault: Fault) -> (PathBuf, String) {
     std::fs::create_dir_all(dir).expect("dir");
+    let shipped = |name: &str| std::fs::read_to_string(root().join("configs").join(name)).expect("config");
+    if let Some(container) = match kind {
+        Kind::Bag => Some(Container::Bag),
+        Kind::Mcap => Some(Container::Mcap),
+        _ => None,
+    } {
+        let path = dir.join(format!("rec.{}", container.ext()));
+        ros_recording(&path, container, fault);
+        return (path, ROS_CONFIG.to_string());
+    }
     let config = match kind {
         Kind::ThreeDMatch => {
             // A 40 × 30 camera: the folder's intrinsics, not the config's 640 × 480.
@@ -96,7 +146,7 @@ fn recording(dir: &Path, kind: Kind, fault: Fault) -> &'static str {
                 write_depth_png(&dir.join(image), 40, 30, 1500);
                 std::fs::write(dir.join(pose.expect("pose")), IDENTITY).expect("pose");
             }
-            "3dmatch.toml"
+            shipped("3dmatch.toml")
         }
         Kind::Tum => {
             std::fs::create_dir(dir.join("depth")).expect("depth/");
@@ -115,7 +165,7 @@ fn recording(dir: &Path, kind: Kind, fault: Fault) -> &'static str {
                 writeln!(gt, "{t:.6} 0 0 0 0 0 0 1").expect("format");
             }
             std::fs::write(dir.join("groundtruth.txt"), gt).expect("groundtruth");
-            "tum.toml"
+            shipped("tum.toml")
         }
         _ => {
             for k in 0..FRAMES {
@@ -123,7 +173,7 @@ fn recording(dir: &Path, kind: Kind, fault: Fault) -> &'static str {
                 std::fs::write(dir.join(cloud), cloud_bytes(kind)).expect("cloud");
                 std::fs::write(dir.join(pose.expect("pose")), IDENTITY).expect("pose");
             }
-            "velodyne.toml"
+            shipped("velodyne.toml")
         }
     };
     match fault {
@@ -147,12 +197,11 @@ fn recording(dir: &Path, kind: Kind, fault: Fault) -> &'static str {
             _ => unreachable!("cloud folders take every cloud"),
         },
     }
-    config
+    (dir.to_path_buf(), config)
 }
 
-/// The shipped `config` with `[dataset] on_error = policy`.
-fn config_with(dir: &Path, config: &str, policy: &str) -> PathBuf {
-    let text = std::fs::read_to_string(root().join("configs").join(config)).expect("config");
+/// `text` with `[dataset] on_error = policy`, written beside `dir`.
+fn config_with(dir: &Path, text: &str, policy: &str) -> PathBuf {
     let line = format!("on_error = \"{policy}\"\n");
     let text = if text.contains("[dataset]\n") { text.replace("[dataset]\n", &format!("[dataset]\n{line}")) } else { format!("{text}\n[dataset]\n{line}") };
     let path = dir.join(format!("{policy}.toml"));
@@ -172,8 +221,7 @@ fn indices(v: &serde_json::Value) -> Vec<u64> {
 /// against the rule.
 fn check(kind: Kind, fault: Fault) {
     let tmp = tempfile::tempdir().expect("temp dir");
-    let data = tmp.path().join("rec");
-    let config = recording(&data, kind, fault);
+    let (data, config) = recording(&tmp.path().join("rec"), kind, fault);
     let what = format!("{kind:?} {fault:?}");
     // The file the messages must name.
     let named = match fault {
@@ -186,7 +234,7 @@ fn check(kind: Kind, fault: Fault) {
         let out = tmp.path().join(format!("out-{policy}"));
         let o = Command::new(env!("CARGO_BIN_EXE_edtmap"))
             .args(["run", "--config"])
-            .arg(config_with(tmp.path(), config, policy))
+            .arg(config_with(tmp.path(), &config, policy))
             .arg("--dataset")
             .arg(&data)
             .arg("--out")
@@ -232,8 +280,8 @@ fn check(kind: Kind, fault: Fault) {
 }
 
 #[test]
-fn a_bad_first_or_later_frame_is_skipped_or_stops_the_run_for_every_folder_kind() {
-    for kind in [Kind::ThreeDMatch, Kind::Tum, Kind::Pcd, Kind::Ply, Kind::Bin] {
+fn a_bad_first_or_later_frame_is_skipped_or_stops_the_run_for_every_kind() {
+    for kind in [Kind::ThreeDMatch, Kind::Tum, Kind::Pcd, Kind::Ply, Kind::Bin, Kind::Bag, Kind::Mcap] {
         for fault in [Fault::Corrupt(0), Fault::Corrupt(1), Fault::NoPose(0), Fault::NoPose(1)] {
             check(kind, fault);
         }
