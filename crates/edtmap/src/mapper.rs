@@ -325,7 +325,9 @@ impl<B: Backend> Mapper<B> {
         query::distance(&self.map, p, false)
     }
 
-    /// [`Self::distance`] with negative values inside obstacles.
+    /// Signed distance at world point `p` (metres) to the surface of the
+    /// obstacle voxels, with a unit gradient: negative exactly when `p`'s
+    /// voxel is an obstacle (see [`edtmap_cpu::query`]).
     pub fn signed_distance(&self, p: [f64; 3]) -> Distance {
         query::distance(&self.map, p, true)
     }
