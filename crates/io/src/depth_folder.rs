@@ -29,7 +29,7 @@ pub use depth_png::{read_depth_png, ExpectedSize, MAX_DEPTH_IMAGE_BYTES};
 
 use crate::dataset::frames::{bad, file_name, list_dir, read_text, FrameFile, FramePose, TrajectoryFile};
 use crate::dataset::DatasetOptions;
-use crate::{files, IoError};
+use crate::IoError;
 use depth_png::DepthPng;
 use edtmap_core::sensor::{DepthData, DepthImage, Frame, Measurement, PinholeCamera, RangeLimits};
 use std::path::{Path, PathBuf};
@@ -189,7 +189,8 @@ fn tum_images(dir: &Path, warnings: &mut Vec<String>) -> Result<Vec<(f64, PathBu
 }
 
 /// Parses a TUM `depth.txt`: `timestamp path` per line, the path relative
-/// to `dir`; every listed image must exist.
+/// to `dir`. A listed image that is missing or not a regular file fails as
+/// its frame, when it is read.
 fn parse_depth_list(dir: &Path, list: &Path, text: &str) -> Result<Vec<(f64, PathBuf)>, IoError> {
     let mut images = Vec::new();
     for (k, line) in text.lines().enumerate() {
@@ -204,9 +205,7 @@ fn parse_depth_list(dir: &Path, list: &Path, text: &str) -> Result<Vec<(f64, Pat
         };
         let shown: String = stamp.chars().take(40).collect();
         let t = stamp.parse::<f64>().ok().filter(|t| t.is_finite()).ok_or_else(|| at(format!("{shown:?} is not a time")))?;
-        let path = dir.join(name);
-        files::check_regular(&path).map_err(|e| at(e.to_string()))?;
-        images.push((t, path));
+        images.push((t, dir.join(name)));
     }
     Ok(images)
 }
@@ -296,7 +295,7 @@ mod tests {
         let list = dir.path().join("depth.txt");
         let got = parse_depth_list(dir.path(), &list, "# c\n1.5 depth/1.5.png\n").expect("one");
         assert_eq!(got, vec![(1.5, dir.path().join("depth/1.5.png"))]);
-        for (text, want) in [("x depth/1.5.png\n", "line 1: \"x\" is not a time"), ("1.5\n", "line 1: expected"), ("# c\n2 depth/2.png\n", "line 2:")] {
+        for (text, want) in [("x depth/1.5.png\n", "line 1: \"x\" is not a time"), ("1.5\n", "line 1: expected"), ("# c\n2 depth/2.png extra\n", "line 2:")] {
             let err = parse_depth_list(dir.path(), &list, text).expect_err(want).to_string();
             assert!(err.contains("depth.txt") && err.contains(want), "{err}");
         }

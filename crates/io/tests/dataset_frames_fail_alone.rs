@@ -133,6 +133,13 @@ fn a_tum_image_named_otherwise_is_left_out_and_a_corrupt_one_fails_alone() {
     assert!(set.frame(1).is_ok());
     // The config's intrinsics for TUM: no file in the folder.
     assert_eq!((depth(&set).camera.fx, depth(&set).intrinsics_file.clone()), (500.0, None));
+    // A depth.txt that lists a missing image: that frame alone fails, naming it.
+    std::fs::write(dir.join("depth.txt"), "10.0 depth/10.000000.png\n10.05 depth/gone.png\n10.1 depth/10.100000.png\n").expect("depth.txt");
+    let set = Dataset::open_with(dir, &opts).expect("opens");
+    assert_eq!(set.len(), 3);
+    let err = set.frame(1).expect_err("missing").to_string();
+    assert!(err.contains("gone.png"), "{err}");
+    assert!(set.frame(2).is_ok());
 }
 
 const PCD: &str = "VERSION .7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 1\nHEIGHT 1\nPOINTS 1\nDATA ascii\n1 2 3\n";
