@@ -156,6 +156,24 @@ fn volume_coords(dims: [usize; 3], i: usize) -> [usize; 3] {
     [i % dims[0], (i / dims[0]) % dims[1], i / (dims[0] * dims[1])]
 }
 
+/// Writes `timing.png`: each stage's time per frame (occupancy, batch
+/// EDT, integration, whole frame), in ms.
+pub(crate) fn write_timing_plot(frames: &[FrameRecord], backend: &str, out: &Path) -> Result<PathBuf> {
+    let series = |name: &str, get: fn(&FrameRecord) -> f64| {
+        Series::new(name, frames.iter().map(|f| (f.index as f64, get(f))), SeriesStyle::Line)
+    };
+    let chart = Chart::new(format!("time per frame ({backend})"))
+        .x_label("frame")
+        .y_label("ms")
+        .series(series("occupancy", |f| f.ogm_ms))
+        .series(series("batch EDT", |f| f.batch_edt_ms))
+        .series(series("integration", |f| f.integrate_ms))
+        .series(series("total", |f| f.total_ms));
+    let path = out.join("timing.png");
+    chart.write_png(&path)?;
+    Ok(path)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -200,22 +218,4 @@ mod tests {
         assert_eq!(layer_of(&volume, 100.0), 7);
         assert_eq!(layer_of(&volume, -100.0), 0);
     }
-}
-
-/// Writes `timing.png`: each stage's time per frame (occupancy, batch
-/// EDT, integration, whole frame), in ms.
-pub(crate) fn write_timing_plot(frames: &[FrameRecord], backend: &str, out: &Path) -> Result<PathBuf> {
-    let series = |name: &str, get: fn(&FrameRecord) -> f64| {
-        Series::new(name, frames.iter().map(|f| (f.index as f64, get(f))), SeriesStyle::Line)
-    };
-    let chart = Chart::new(format!("time per frame ({backend})"))
-        .x_label("frame")
-        .y_label("ms")
-        .series(series("occupancy", |f| f.ogm_ms))
-        .series(series("batch EDT", |f| f.batch_edt_ms))
-        .series(series("integration", |f| f.integrate_ms))
-        .series(series("total", |f| f.total_ms));
-    let path = out.join("timing.png");
-    chart.write_png(&path)?;
-    Ok(path)
 }

@@ -34,16 +34,10 @@ impl RunTimes {
         self.ms.iter().copied().fold(f64::INFINITY, f64::min)
     }
 
-    /// The median (mean of the two middle runs for an even count).
+    /// The median (mean of the two middle runs for an even count), as
+    /// `report.json` and `run`'s summary define it.
     pub(crate) fn median_ms(&self) -> f64 {
-        let mut sorted = self.ms.clone();
-        sorted.sort_by(f64::total_cmp);
-        let n = sorted.len();
-        if n % 2 == 1 {
-            sorted[n / 2]
-        } else {
-            (sorted[n / 2 - 1] + sorted[n / 2]) / 2.0
-        }
+        crate::report::median(&self.ms).unwrap_or(f64::NAN)
     }
 }
 

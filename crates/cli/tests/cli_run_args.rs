@@ -1,0 +1,92 @@
+//! `edtmap run`'s arguments and what they put in `report.json`: negative
+//! slice heights, the default slice, `--eval` on a recording, the printed
+//! medians, the help text.
+
+use std::path::Path;
+use std::process::Command;
+
+use serde_json::Value;
+
+fn edtmap(args: &[&str]) -> (bool, String, String) {
+    let o = Command::new(env!("CARGO_BIN_EXE_edtmap")).args(args).output().expect("edtmap runs");
+    (o.status.success(), String::from_utf8_lossy(&o.stdout).into(), String::from_utf8_lossy(&o.stderr).into())
+}
+
+fn report(out: &Path) -> Value {
+    serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).expect("report.json")).expect("json")
+}
+
+fn path(p: &Path) -> &str {
+    p.to_str().expect("utf-8 path")
+}
+
+/// Regression: `--slice-height -0.4` was refused (`unexpected argument '-0'`).
+#[test]
+fn negative_slice_height_is_a_value() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (ok, stdout, stderr) = edtmap(&["run", "--scene", "planar", "--frames", "2", "--slice-height", "-0.4", "--out", path(dir.path())]);
+    assert!(ok, "{stdout}\n{stderr}");
+    let slice = &report(dir.path())["slice"];
+    assert_eq!(slice["from"], "--slice-height");
+    assert_eq!(slice["requested_m"], -0.4);
+    assert!(slice["z_m"].is_number(), "{slice}");
+    let (ok, _, stderr) = edtmap(&["run", "--scene", "planar", "--frames", "1", "--slice-height", "nan", "--out", path(dir.path())]);
+    assert!(!ok && stderr.contains("--slice-height") && stderr.contains("finite"), "{stderr}");
+}
+
+#[test]
+fn default_slice_is_the_densest_observed_layer_and_is_logged() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (ok, stdout, stderr) = edtmap(&["-v", "run", "--scene", "room", "--frames", "2", "--construction", "raycast", "--out", path(dir.path())]);
+    assert!(ok, "{stdout}\n{stderr}");
+    let slice = &report(dir.path())["slice"];
+    assert_eq!(slice["from"], "densest observed layer");
+    assert_eq!(slice["requested_m"], Value::Null);
+    let z = slice["z_m"].as_f64().expect("z_m");
+    assert!(stderr.contains(&format!("slices at z = {z:.2} m")), "{stderr}");
+}
+
+/// Regression: the summary printed `v[n / 2]`, report.json the mean of the
+/// two middle values.
+#[test]
+fn printed_medians_are_report_medians() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (ok, stdout, stderr) = edtmap(&["run", "--scene", "planar", "--frames", "4", "--out", path(dir.path())]);
+    assert!(ok, "{stdout}\n{stderr}");
+    let summary = &report(dir.path())["summary"];
+    for (printed, key) in [("occupancy", "ogm_ms"), ("batch EDT", "batch_edt_ms"), ("integration", "integrate_ms"), ("total", "total_ms")] {
+        let median = summary[key]["median"].as_f64().expect("median");
+        let text = format!("{printed} median {median:.2} ms");
+        assert!(stdout.contains(&text), "{text:?} not in {stdout}");
+    }
+}
+
+#[test]
+fn eval_on_a_recording_says_there_is_no_occupancy_score() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let mcap = dir.path().join("planar.mcap");
+    let (ok, stdout, stderr) = edtmap(&["record", "--scene", "planar", "--frames", "3", path(&mcap)]);
+    assert!(ok, "{stdout}\n{stderr}");
+    let out = dir.path().join("out");
+    let config = dir.path().join("planar.toml");
+    let (ok, stdout, stderr) = edtmap(&["run", "--config", path(&config), "--dataset", path(&mcap), "--eval", "--out", path(&out)]);
+    assert!(ok, "{stdout}\n{stderr}");
+    assert!(stderr.contains("--eval") && stderr.contains("ground truth") && stderr.contains("EDT error"), "{stderr}");
+    assert!(stdout.contains("EDT vs exact EDT") && !stdout.contains("precision"), "{stdout}");
+    let eval = &report(&out)["eval"];
+    assert_eq!(eval["occupancy"], false);
+    assert_eq!(eval["edt_errors"], true);
+}
+
+/// Regression: the help said "Replay a built-in scene" and named two kinds
+/// of recording.
+#[test]
+fn run_help_names_scenes_and_every_kind_of_recording() {
+    let (ok, top, _) = edtmap(&["--help"]);
+    assert!(ok && top.contains("built-in scene or a recording"), "{top}");
+    let (ok, help, _) = edtmap(&["run", "--help"]);
+    assert!(ok, "{help}");
+    for kind in ["3DMatch", "TUM", "PCD", "PLY", "KITTI", "ROS 1 bag", "MCAP"] {
+        assert!(help.contains(kind), "run --help does not name {kind}: {help}");
+    }
+}
