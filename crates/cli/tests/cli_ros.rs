@@ -202,7 +202,7 @@ fn recorded_scenes_replay_into_the_scenes_own_map() {
     let dir = tempfile::tempdir().expect("tempdir");
     for (scene, ext) in [("room", "bag"), ("planar", "mcap"), ("room", "mcap"), ("planar", "bag")] {
         let rec = format!("{scene}.{ext}");
-        let out = edtmap(&["record", "--scene", scene, "--frames", "6", &rec], dir.path());
+        let out = edtmap(&["record", "--scene", scene, "--frames", "6", "--force", &rec], dir.path());
         assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
         let out = edtmap(&["run", "--config", &format!("{scene}.toml"), "--dataset", &rec, "--out", "rec", "--save", "rec.edtmap"], dir.path());
         assert!(out.status.success(), "{rec}: {}", String::from_utf8_lossy(&out.stderr));

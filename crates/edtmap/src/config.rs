@@ -263,6 +263,9 @@ impl SensorSection {
         }
         let why = "required for kind = \"lidar\" without ring_elevations_deg";
         let rings = need(self.rings, "rings", why)?;
+        if !(1..=edtmap_core::sensor::MAX_RINGS).contains(&rings) {
+            return Err(CoreError::InvalidParam { field: "rings", value: rings.to_string(), reason: "must be between 1 and 4096" });
+        }
         let (lo, hi) = (need(self.elevation_min_deg, "elevation_min_deg", why)?, need(self.elevation_max_deg, "elevation_max_deg", why)?);
         Ok(SpinningLidar::uniform(rings, lo.to_radians(), hi.to_radians(), bins, range))
     }

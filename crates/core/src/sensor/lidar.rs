@@ -26,6 +26,9 @@ pub struct LidarScan {
     pub ranges: Vec<f32>,
 }
 
+/// Most rings a spinning LiDAR may have (real ones have up to 128).
+pub const MAX_RINGS: usize = 1 << 12;
+
 impl SpinningLidar {
     /// `rings` rings evenly spread over `[lowest, highest]` radians.
     pub fn uniform(rings: usize, lowest_rad: f64, highest_rad: f64, azimuth_bins: usize, range: RangeLimits) -> Self {
@@ -39,6 +42,9 @@ impl SpinningLidar {
         let rings = &self.ring_elevations_rad;
         let sorted = rings.windows(2).all(|w| w[0] < w[1]);
         let in_range = rings.iter().all(|e| e.is_finite() && e.abs() < PI / 2.0);
+        if rings.len() > MAX_RINGS {
+            return Err(CoreError::InvalidParam { field: "ring_elevations", value: format!("{} rings", rings.len()), reason: "at most 4096 rings" });
+        }
         if rings.is_empty() || !sorted || !in_range {
             return Err(CoreError::InvalidParam { field: "ring_elevations", value: format!("{rings:?}"), reason: "need at least one ring, strictly increasing, within ±90°" });
         }

@@ -71,6 +71,9 @@ impl DepthImage {
     }
 }
 
+/// Most pixels a depth image may have: 8192 × 8192.
+pub const MAX_IMAGE_PIXELS: u64 = 1 << 26;
+
 impl PinholeCamera {
     /// Checks the intrinsics.
     pub fn validate(&self) -> Result<(), CoreError> {
@@ -86,6 +89,9 @@ impl PinholeCamera {
         }
         if self.width == 0 || self.height == 0 {
             return Err(CoreError::InvalidParam { field: "width/height", value: format!("{}x{}", self.width, self.height), reason: "image must have pixels" });
+        }
+        if u64::from(self.width) * u64::from(self.height) > MAX_IMAGE_PIXELS {
+            return Err(CoreError::InvalidParam { field: "width/height", value: format!("{}x{}", self.width, self.height), reason: "at most 2^26 pixels (8192 × 8192)" });
         }
         check_range(&self.range)
     }
