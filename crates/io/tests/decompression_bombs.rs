@@ -7,6 +7,8 @@
 //! 1 GiB are refused outright (the test then fails on the allocation
 //! error instead of taking the machine).
 
+mod watch;
+
 use edtmap_core::sensor::RangeLimits;
 use edtmap_io::dataset::Dataset;
 use edtmap_io::depth_folder::{read_depth_png, ExpectedSize, MAX_DEPTH_IMAGE_BYTES};
@@ -14,9 +16,9 @@ use edtmap_io::npy::ObstacleNpy;
 use edtmap_io::pcd::parse_pcd;
 use edtmap_io::ply::parse_ply;
 use edtmap_io::{read_pcd, IoError};
-use std::alloc::{GlobalAlloc, Layout, System};
 use std::path::Path;
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::atomic::Ordering;
+use watch::LARGEST;
 use std::time::{Duration, Instant};
 
 /// The most any refusal here may allocate at once: the files are tiny.
@@ -24,39 +26,8 @@ const ALLOCATION_LIMIT: usize = 16 << 20;
 /// The most any refusal here may take.
 const TIME_LIMIT: Duration = Duration::from_millis(500);
 
-struct Watch;
-
-static LARGEST: AtomicUsize = AtomicUsize::new(0);
-
-// SAFETY: every call is forwarded unchanged to `System`, or refused with
-// a null pointer, which `GlobalAlloc` allows.
-unsafe impl GlobalAlloc for Watch {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        LARGEST.fetch_max(layout.size(), Ordering::Relaxed);
-        if layout.size() > 1 << 30 {
-            return std::ptr::null_mut();
-        }
-        // SAFETY: the caller's contract is `System`'s.
-        unsafe { System.alloc(layout) }
-    }
-
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        // SAFETY: `ptr` came from `System` with this layout.
-        unsafe { System.dealloc(ptr, layout) }
-    }
-
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        LARGEST.fetch_max(new_size, Ordering::Relaxed);
-        if new_size > 1 << 30 {
-            return std::ptr::null_mut();
-        }
-        // SAFETY: as for `alloc` and `dealloc`.
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
-
 #[global_allocator]
-static GLOBAL: Watch = Watch;
+static GLOBAL: watch::Watch = watch::Watch;
 
 /// Runs `refuse`, which must fail, and checks it was quick and small;
 /// returns the error's message.

@@ -3,6 +3,8 @@
 //! huge counts) must give `Ok` or `Err`, never a panic, and never ask for
 //! an absurd amount of memory. Seeded, so a failure repeats.
 
+mod watch;
+
 use edtmap_io::dataset::{parse_kitti_bin, parse_kitti_poses, parse_matrix, parse_times};
 use edtmap_io::depth_folder::parse_intrinsics;
 use edtmap_io::pcd::parse_pcd;
@@ -10,9 +12,9 @@ use edtmap_io::ply::{parse_ply, write_ply, ColouredPoint};
 use edtmap_io::Trajectory;
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
-use std::alloc::{GlobalAlloc, Layout, System};
 use std::path::Path;
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::atomic::Ordering;
+use watch::LARGEST;
 
 /// Mutated files per reader.
 const CASES: usize = 500;
@@ -20,42 +22,8 @@ const CASES: usize = 500;
 /// (each under a few kilobytes).
 const ALLOCATION_LIMIT: usize = 64 << 20;
 
-/// Forwards to the system allocator, remembering the largest request.
-/// Requests above 1 GiB are refused outright (the test aborts) rather than
-/// risk the machine.
-struct Watch;
-
-static LARGEST: AtomicUsize = AtomicUsize::new(0);
-
-// SAFETY: every call is forwarded unchanged to `System`, or refused with
-// a null pointer, which `GlobalAlloc` allows.
-unsafe impl GlobalAlloc for Watch {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        LARGEST.fetch_max(layout.size(), Ordering::Relaxed);
-        if layout.size() > 1 << 30 {
-            return std::ptr::null_mut();
-        }
-        // SAFETY: the caller's contract is `System`'s.
-        unsafe { System.alloc(layout) }
-    }
-
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        // SAFETY: `ptr` came from `System` with this layout.
-        unsafe { System.dealloc(ptr, layout) }
-    }
-
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        LARGEST.fetch_max(new_size, Ordering::Relaxed);
-        if new_size > 1 << 30 {
-            return std::ptr::null_mut();
-        }
-        // SAFETY: as for `alloc` and `dealloc`.
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
-
 #[global_allocator]
-static GLOBAL: Watch = Watch;
+static GLOBAL: watch::Watch = watch::Watch;
 
 /// Numbers that break counts: past u32, past u64, negative, not integers.
 const HUGE: [&str; 8] = ["4000000000", "18446744073709551615", "18446744073709551616", "4294967296", "-1", "0", "1e9", "nan"];
