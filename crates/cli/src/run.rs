@@ -30,7 +30,9 @@ pub(crate) struct RunArgs {
     /// Configuration file (TOML); default: the scene's own, as in configs/.
     #[arg(long)]
     pub(crate) config: Option<PathBuf>,
-    /// Frames to replay (default: the config's, else the scene's length).
+    /// Frames to replay (default: the config's, else the scene's or
+    /// recording's length). A built-in scene's path repeats, so it runs as
+    /// many frames as asked; a recording has the frames it has.
     #[arg(long)]
     pub(crate) frames: Option<usize>,
     /// Folder for report.json and the pictures.

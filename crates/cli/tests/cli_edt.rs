@@ -334,5 +334,6 @@ fn grid_beyond_memory_is_refused() {
     let case = Case::new();
     // 4.1 G voxels need about 53 GiB of working memory.
     let input = sparse_npy(&case, "big.npy", "(1600, 1600, 1600)", 4_096_000_000);
-    assert!(expect_error(&input).contains("GiB of memory"));
+    let err = expect_error(&input);
+    assert!(err.contains("GiB") && err.contains("--max-memory"), "{err}");
 }

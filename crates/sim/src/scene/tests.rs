@@ -149,7 +149,10 @@ fn unusable_sensors_are_refused() {
     let scene = still(Vec::new(), [0.0; 3], Sensor::Planar, SceneOptions::default());
     let mut huge = camera();
     (huge.width, huge.height) = (1 << 16, 1 << 16);
-    assert!(matches!(scene.frame(&Sensor::Depth(huge), 0), Err(SimError::TooManyRays { .. })));
+    let err = scene.frame(&Sensor::Depth(huge), 0).expect_err("a 65536² camera");
+    assert!(err.to_string().contains("pixels"), "{err}");
+    let dense = SpinningLidar::uniform(4096, -0.5, 0.5, 1 << 20, RangeLimits { min_m: 0.2, max_m: 20.0 });
+    assert!(matches!(scene.frame(&Sensor::Lidar(dense), 0), Err(SimError::TooManyRays { .. })));
     let mut bad = camera();
     bad.fx = -1.0;
     assert!(scene.frame(&Sensor::Depth(bad), 0).expect_err("negative focal length").to_string().contains("fx"));
