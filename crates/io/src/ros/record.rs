@@ -11,7 +11,7 @@ use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
 
 enum Sink {
-    Bag(BagWriter),
+    Bag(Box<BagWriter>),
     Mcap(Box<mcap::Writer<AtomicFile>>),
 }
 
@@ -46,10 +46,10 @@ impl RecordingWriter {
         let sink = match path.extension().and_then(|e| e.to_str()) {
             Some("bag") => {
                 let w = BagWriter::create(path)?;
-                Sink::Bag(match chunk_bytes {
+                Sink::Bag(Box::new(match chunk_bytes {
                     Some(b) => w.with_chunk_bytes(b),
                     None => w,
-                })
+                }))
             }
             Some("mcap") => {
                 let file = AtomicFile::create(path)?;
