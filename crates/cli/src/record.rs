@@ -7,8 +7,8 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use edtmap::sensor::{DepthData, Frame, Measurement, Sensor};
-use edtmap_io::ros::msg::{CameraInfo, Header, Image, LaserScanMsg, Message, PointCloud2, StampedTransform};
-use edtmap_io::ros::{Encoding, RecordingWriter};
+use edtmap_ros::msg::{CameraInfo, Header, Image, LaserScanMsg, Message, PointCloud2, StampedTransform};
+use edtmap_ros::{Encoding, RecordingWriter};
 use edtmap_sim::Scene;
 
 use crate::scenes::builtin_config;

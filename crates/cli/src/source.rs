@@ -8,7 +8,7 @@ use anyhow::{bail, Context, Result};
 use edtmap::config::{Config, IntrinsicsSource, SensorKind};
 use edtmap::sensor::{Frame, Sensor};
 use edtmap_io::dataset::Dataset;
-use edtmap_io::ros::{self, RosReplay};
+use edtmap_ros::{self as ros, RosOptions, RosReplay};
 use edtmap_sim::{Scene, SceneName, SceneOptions};
 
 /// A frame that did not come out, with where it was and why.
@@ -53,7 +53,7 @@ impl Source {
     pub(crate) fn open_recording(path: &Path, config: &mut Config, origin: &str) -> Result<Source> {
         let in_dataset = |e| edtmap::MapError::Config { section: "dataset", source: e };
         if ros::is_recording(path) {
-            let opts = config.dataset.ros_options().map_err(in_dataset).with_context(|| format!("{origin}: replaying {}", path.display()))?;
+            let opts = ros_options(&config.dataset).map_err(in_dataset).with_context(|| format!("{origin}: replaying {}", path.display()))?;
             let replay = RosReplay::open(path, &opts)?;
             for w in replay.warnings() {
                 tracing::warn!("{w}");
@@ -221,4 +221,22 @@ pub(crate) fn check_kind(source: &Source, sensor: &Sensor, path: &Path, origin: 
         Some(kind) if kind != sensor.kind() => bail!("{} holds {kind} frames but {origin}'s [sensor] is a {}", path.display(), sensor.kind()),
         _ => Ok(()),
     }
+}
+
+/// The options of a ROS replay from `[dataset]`; `sensor_topic` and
+/// `pose_topic` are needed.
+fn ros_options(d: &edtmap::config::DatasetSection) -> std::result::Result<RosOptions, edtmap::CoreError> {
+    d.validate()?;
+    let missing = |field: &'static str| edtmap::CoreError::InvalidParam { field, value: "missing".into(), reason: "required to replay a ROS bag or MCAP file" };
+    Ok(RosOptions {
+        sensor_topic: d.sensor_topic.clone().ok_or_else(|| missing("sensor_topic"))?,
+        camera_info_topic: d.camera_info_topic.clone(),
+        pose_topic: d.pose_topic.clone().ok_or_else(|| missing("pose_topic"))?,
+        static_tf_topic: d.static_tf_topic.clone(),
+        world_frame: d.world_frame.clone(),
+        body_frame: d.body_frame.clone(),
+        t_body_sensor: d.t_body_sensor()?,
+        max_pose_gap_s: d.max_pose_gap_s,
+        depth_scale_m: d.depth_scale_m,
+    })
 }

@@ -3,11 +3,11 @@
 //! voxels must lie on the wall, and a damaged recording keeps the frames
 //! before the damage under both `on_error` policies.
 
-#[path = "../../io/tests/common/mod.rs"]
+#[path = "../../ros/tests/common/mod.rs"]
 mod common;
 
 use common::{write_recording, Container, Msg};
-use edtmap_io::ros::msg::{Header, Message, PointCloud2, StampedTransform};
+use edtmap_ros::msg::{Header, Message, PointCloud2, StampedTransform};
 use nalgebra::{Isometry3, Point3, Vector3};
 use std::path::Path;
 use std::process::{Command, Output};

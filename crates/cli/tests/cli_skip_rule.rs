@@ -6,11 +6,11 @@
 //! ROS bags and MCAP files. Files named like frames that are not frames
 //! are left out with a warning under both.
 
-#[path = "../../io/tests/common/mod.rs"]
+#[path = "../../ros/tests/common/mod.rs"]
 mod common;
 
 use common::{write_recording, Container, Msg};
-use edtmap_io::ros::msg::{Header, Message, PointCloud2, StampedTransform};
+use edtmap_ros::msg::{Header, Message, PointCloud2, StampedTransform};
 use nalgebra::Isometry3;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};

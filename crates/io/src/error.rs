@@ -185,7 +185,8 @@ pub enum IoError {
 }
 
 impl IoError {
-    pub(crate) fn io(path: &std::path::Path, source: std::io::Error) -> Self {
+    /// An operating-system error on `path`.
+    pub fn io(path: &std::path::Path, source: std::io::Error) -> Self {
         IoError::Io { path: path.to_path_buf(), error: source }
     }
 }

@@ -10,10 +10,9 @@
 //!   frames with poses: 3DMatch and TUM RGB-D depth images, and PCD, PLY or
 //!   KITTI `.bin` point clouds, posed per file, by KITTI `poses.txt` or by
 //!   a TUM trajectory ([`trajectory`], interpolated at each frame's time).
-//! * [`ros`]: ROS 1 bags and ROS 2 MCAP files, read as raw messages
-//!   ([`ros::bag`], [`ros::mcap`]), decoded from either wire format
-//!   ([`ros::msg`]) and replayed as frames posed by odometry or the `/tf`
-//!   tree ([`ros::RosReplay`]); [`ros::RecordingWriter`] writes both.
+//! * ROS 1 bags and ROS 2 MCAP files are read and written by the
+//!   `edtmap-ros` crate, so that saving a map needs none of their
+//!   dependencies.
 //! * [`ply`]: PLY point clouds, read (ascii and binary) and written.
 //! * [`pcd`]: point clouds in PCL's PCD format ([`read_pcd`]), ascii or
 //!   binary data, float32 or float64 coordinates.
@@ -42,7 +41,6 @@ pub mod pcd;
 pub mod picture;
 pub mod ply;
 pub mod plot;
-pub mod ros;
 pub mod trajectory;
 
 pub use error::IoError;

@@ -12,9 +12,6 @@ use edtmap_io::dataset::{read_kitti_bin, read_matrix_file, Dataset};
 use edtmap_io::depth_folder::read_depth_png;
 use edtmap_io::npy::ObstacleNpy;
 use edtmap_io::ply::read_ply;
-use edtmap_io::ros::bag::BagReader;
-use edtmap_io::ros::mcap::McapReader;
-use edtmap_io::ros::{RosOptions, RosReplay};
 use edtmap_io::{read_map, read_pcd, IoError, Trajectory};
 use std::path::{Path, PathBuf};
 use std::sync::mpsc;
@@ -129,26 +126,11 @@ fn a_fifo_poses_or_times_file_is_refused() {
     }
 }
 
-/// Replay options for a LiDAR posed by odometry.
-fn ros_options() -> RosOptions {
-    RosOptions {
-        sensor_topic: "/points".into(),
-        camera_info_topic: None,
-        pose_topic: "/odom".into(),
-        static_tf_topic: "/tf_static".into(),
-        world_frame: None,
-        body_frame: None,
-        t_body_sensor: nalgebra::Isometry3::identity(),
-        max_pose_gap_s: 0.1,
-        depth_scale_m: 0.001,
-    }
-}
-
-/// Every file reader, on a FIFO of the kind's name and on `/dev/zero`.
+/// Every file reader (the ROS ones are tested in `edtmap-ros`), on a FIFO of the kind's name and on `/dev/zero`.
 #[test]
 fn every_reader_refuses_fifos_and_devices() {
     type Reader = fn(&Path) -> Result<(), IoError>;
-    let readers: [(&str, Reader); 11] = [
+    let readers: [(&str, Reader); 8] = [
         ("x.depth.png", |p| read_depth_png(p, None).map(drop)),
         ("x.pcd", |p| read_pcd(p).map(drop)),
         ("x.ply", |p| read_ply(p).map(drop)),
@@ -157,9 +139,6 @@ fn every_reader_refuses_fifos_and_devices() {
         ("x.edtmap", |p| read_map(p).map(drop)),
         ("groundtruth.txt", |p| Trajectory::read_tum(p).map(drop)),
         ("x.pose.txt", |p| read_matrix_file(p).map(drop)),
-        ("x.bag", |p| BagReader::open(p).map(drop)),
-        ("x.mcap", |p| McapReader::open(p).map(drop)),
-        ("z.bag", |p| RosReplay::open(p, &ros_options()).map(drop)),
     ];
     let tmp = tempfile::tempdir().expect("temp dir");
     for (name, read) in readers {

@@ -2,7 +2,6 @@
 
 use super::limits::{DEPTH_SCALE_M, OFFSET_M, POSE_GAP_S};
 use edtmap_core::CoreError;
-use edtmap_io::ros::RosOptions;
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
 use serde::Deserialize;
 use std::path::PathBuf;
@@ -131,24 +130,5 @@ impl DatasetSection {
             return Err(invalid("sensor_in_body", format!("{:?}", [x, y, z, qx, qy, qz, qw]), "must be [x, y, z, qx, qy, qz, qw] with a unit quaternion"));
         }
         Ok(Isometry3::from_parts(Translation3::new(x, y, z), UnitQuaternion::from_quaternion(q)))
-    }
-
-    /// The options of a ROS replay; `sensor_topic` and `pose_topic` are needed.
-    pub fn ros_options(&self) -> Result<RosOptions, CoreError> {
-        self.validate()?;
-        let why = "required to replay a ROS bag or MCAP file";
-        let sensor_topic = self.sensor_topic.clone().ok_or_else(|| invalid("sensor_topic", "missing".into(), why))?;
-        let pose_topic = self.pose_topic.clone().ok_or_else(|| invalid("pose_topic", "missing".into(), why))?;
-        Ok(RosOptions {
-            sensor_topic,
-            camera_info_topic: self.camera_info_topic.clone(),
-            pose_topic,
-            static_tf_topic: self.static_tf_topic.clone(),
-            world_frame: self.world_frame.clone(),
-            body_frame: self.body_frame.clone(),
-            t_body_sensor: self.t_body_sensor()?,
-            max_pose_gap_s: self.max_pose_gap_s,
-            depth_scale_m: self.depth_scale_m,
-        })
     }
 }

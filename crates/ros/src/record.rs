@@ -5,8 +5,8 @@
 use super::bag::BagWriter;
 use super::msg::Message;
 use super::Encoding;
-use crate::files::AtomicFile;
-use crate::IoError;
+use edtmap_io::files::AtomicFile;
+use edtmap_io::IoError;
 use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
 

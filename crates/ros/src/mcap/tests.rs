@@ -12,8 +12,8 @@ use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 
 use super::{split_records, summary_topics, topic_list, McapReader, RECORD_PREFIX};
-use crate::ros::{normalize_type, Encoding, RawMessage, TopicInfo};
-use crate::IoError;
+use crate::{normalize_type, Encoding, RawMessage, TopicInfo};
+use edtmap_io::IoError;
 
 const TOPICS: [(&str, &str); 3] = [
     ("/velodyne_points", "sensor_msgs/msg/PointCloud2"),

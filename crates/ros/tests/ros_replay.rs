@@ -9,8 +9,8 @@ const CONTAINERS: [Container; 2] = [Container::Bag, Container::Mcap];
 
 use common::{write_recording, Container, Msg};
 use edtmap_core::sensor::Measurement;
-use edtmap_io::ros::msg::{CameraInfo, Header, Image, LaserScanMsg, Message, PointCloud2, StampedTransform};
-use edtmap_io::ros::{RosOptions, RosReplay};
+use edtmap_ros::msg::{CameraInfo, Header, Image, LaserScanMsg, Message, PointCloud2, StampedTransform};
+use edtmap_ros::{RosOptions, RosReplay};
 use nalgebra::{Isometry3, Point3, Vector3};
 
 /// The robot's pose in the world at `t`: x 0.1 t, y 0.5 t, yaw 0.2 t.

@@ -14,8 +14,8 @@ use super::mcap::McapReader;
 use super::msg::{CameraInfo, Message, StampedTransform};
 use super::tf::TfBuffer;
 use super::{RawMessage, TopicInfo};
-use crate::trajectory::Trajectory;
-use crate::IoError;
+use edtmap_io::trajectory::Trajectory;
+use edtmap_io::IoError;
 use edtmap_core::sensor::{Frame, Measurement};
 use nalgebra::Isometry3;
 use std::io::Read;
@@ -93,7 +93,7 @@ impl Container {
     /// Opens a bag or MCAP file, told apart by its magic bytes.
     fn open(path: &Path) -> Result<Self, IoError> {
         let mut magic = [0u8; 8];
-        let (mut f, _) = crate::files::open_input(path, u64::MAX)?;
+        let (mut f, _) = edtmap_io::files::open_input(path, u64::MAX)?;
         let n = f.read(&mut magic).map_err(|e| IoError::io(path, e))?;
         match &magic[..n] {
             m if m.starts_with(b"#ROSBAG") => Ok(Container::Bag(BagReader::open(path)?)),

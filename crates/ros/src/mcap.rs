@@ -28,7 +28,7 @@ use std::path::{Path, PathBuf};
 use ::mcap::MAGIC;
 
 use super::{RawMessage, TopicInfo};
-use crate::IoError;
+use edtmap_io::IoError;
 use stream::Stream;
 use summary::summary_topics;
 
@@ -39,7 +39,7 @@ const RECORD_PREFIX: usize = 1 + 8;
 ///
 /// ```no_run
 /// # fn main() -> Result<(), edtmap_io::IoError> {
-/// use edtmap_io::ros::mcap::McapReader;
+/// use edtmap_ros::mcap::McapReader;
 ///
 /// let mcap = McapReader::open(std::path::Path::new("run.mcap"))?;
 /// for topic in mcap.topics()? {
@@ -61,7 +61,7 @@ impl McapReader {
     /// Opens an MCAP file: checks that it is a regular file (streamed, so
     /// of any size) and its magic.
     pub fn open(path: &Path) -> Result<Self, IoError> {
-        let (mut file, _) = crate::files::open_input(path, u64::MAX)?;
+        let (mut file, _) = edtmap_io::files::open_input(path, u64::MAX)?;
         let mut magic = [0; 8];
         match file.read_exact(&mut magic) {
             Ok(()) if magic[..] == *MAGIC => Ok(Self { path: path.to_path_buf() }),
@@ -79,7 +79,7 @@ impl McapReader {
     /// the summary's statistics when the file has a valid summary, else by
     /// a scan (a truncated file lists what it holds before the damage).
     pub fn topics(&self) -> Result<Vec<TopicInfo>, IoError> {
-        let (mut file, _) = crate::files::open_input(&self.path, u64::MAX)?;
+        let (mut file, _) = edtmap_io::files::open_input(&self.path, u64::MAX)?;
         if let Some(topics) = summary_topics(&mut file, &self.path)? {
             return Ok(topics);
         }

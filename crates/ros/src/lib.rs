@@ -67,7 +67,7 @@ pub fn normalize_type(name: &str) -> String {
 
 /// Whether `path` is a file, to be read as a recording (bag or MCAP, told
 /// apart by their magic bytes, whatever the name: a killed `rosbag record`
-/// leaves `NAME.bag.active`); folders are read as [`crate::dataset`]s.
+/// leaves `NAME.bag.active`); folders are read as [`edtmap_io::dataset`]s.
 pub fn is_recording(path: &Path) -> bool {
     path.is_file()
 }

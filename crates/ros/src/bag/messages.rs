@@ -6,8 +6,8 @@ use rosbag::{ChunkRecord, MessageRecord, RosBag};
 
 use super::format::{op, split_record, Damage, Fields, MAX_CHUNK_BYTES};
 use super::reader::{connection, read_index, BagReader, Head, Source};
-use crate::ros::{normalize_type, Encoding, RawMessage};
-use crate::IoError;
+use crate::{normalize_type, Encoding, RawMessage};
+use edtmap_io::IoError;
 
 /// A record found in a chunk (or, in a bag never closed, after the
 /// placeholder header of its last chunk).

@@ -8,8 +8,8 @@ use std::path::{Path, PathBuf};
 
 use super::format::{le_u32, op, split_record, Damage, Fields, MAGIC, MAX_HEADER_BYTES};
 use super::messages::Messages;
-use crate::ros::{normalize_type, RawMessage, TopicInfo};
-use crate::IoError;
+use crate::{normalize_type, RawMessage, TopicInfo};
+use edtmap_io::IoError;
 
 /// A ROS 1 bag (format 2.0) opened for reading.
 ///
@@ -244,7 +244,7 @@ pub(super) struct Source {
 impl Source {
     pub(super) fn open(path: &Path) -> Result<Self, IoError> {
         // Streamed, so no size cap: the check is that it is a regular file.
-        let (file, len) = crate::files::open_input(path, u64::MAX)?;
+        let (file, len) = edtmap_io::files::open_input(path, u64::MAX)?;
         Ok(Source { path: path.to_path_buf(), file: BufReader::with_capacity(1 << 16, file), len, pos: 0 })
     }
 

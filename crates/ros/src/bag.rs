@@ -15,7 +15,7 @@
 //!   chunk that uses them), so the tests can make bags killed mid-run.
 //!
 //! ```
-//! use edtmap_io::ros::bag::{BagReader, BagWriter};
+//! use edtmap_ros::bag::{BagReader, BagWriter};
 //!
 //! # fn main() -> Result<(), edtmap_io::IoError> {
 //! let path = std::env::temp_dir().join(format!("edtmap-doc-{}.bag", std::process::id()));

@@ -2,8 +2,8 @@
 //! with edtmap's hand-written writer, MCAP files with the `mcap` crate's.
 #![allow(dead_code)] // each test file uses part of it
 
-use edtmap_io::ros::msg::Message;
-use edtmap_io::ros::{Encoding, RecordingWriter};
+use edtmap_ros::msg::Message;
+use edtmap_ros::{Encoding, RecordingWriter};
 use std::path::Path;
 
 /// Which container to write.

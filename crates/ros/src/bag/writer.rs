@@ -5,8 +5,8 @@ use std::io::{Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 
 use super::format::{op, put_u32, record, time_bytes, BAG_HEADER_BYTES, MAGIC, MAX_CHUNK_BYTES};
-use crate::files::AtomicFile;
-use crate::IoError;
+use edtmap_io::files::AtomicFile;
+use edtmap_io::IoError;
 
 /// Chunk size at which a chunk is closed, as `rosbag record` defaults to.
 pub const DEFAULT_CHUNK_BYTES: u32 = 768 * 1024;

@@ -11,8 +11,8 @@ use ::mcap::sans_io::{LinearReadEvent, LinearReader, LinearReaderOptions};
 use ::mcap::{parse_record, McapError, MAGIC};
 
 use super::{dataset, split_records, RECORD_PREFIX};
-use crate::ros::{normalize_type, Encoding, RawMessage};
-use crate::IoError;
+use crate::{normalize_type, Encoding, RawMessage};
+use edtmap_io::IoError;
 
 /// Largest decompressed chunk read, bytes: a chunk that claims more is
 /// taken for damage rather than allocated.
@@ -197,7 +197,7 @@ pub(super) struct Stream<'a> {
 impl<'a> Stream<'a> {
     pub(super) fn new(path: &'a Path, topics: Option<&'a [String]>) -> Result<Self, IoError> {
         // Streamed, so no size cap: the check is that it is a regular file.
-        let (file, file_len) = crate::files::open_input(path, u64::MAX)?;
+        let (file, file_len) = edtmap_io::files::open_input(path, u64::MAX)?;
         let limit = usize::try_from(file_len).unwrap_or(usize::MAX);
         let reader = LinearReader::new_with_options(
             LinearReaderOptions::default()

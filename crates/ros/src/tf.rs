@@ -7,7 +7,7 @@
 //! time. Static edges hold at all times.
 
 use super::msg::StampedTransform;
-use crate::trajectory::Trajectory;
+use edtmap_io::trajectory::Trajectory;
 use nalgebra::Isometry3;
 use std::collections::{HashMap, VecDeque};
 
@@ -141,7 +141,7 @@ impl TfBuffer {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::ros::msg::Header;
+    use crate::msg::Header;
     use nalgebra::Vector3;
 
     fn edge(parent: &str, child: &str, t: f64, x: f64, yaw: f64) -> StampedTransform {

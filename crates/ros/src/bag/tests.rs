@@ -8,8 +8,8 @@ use rand::{Rng, SeedableRng};
 
 use super::format::op;
 use super::{BagReader, BagWriter};
-use crate::ros::{Encoding, RawMessage, TopicInfo};
-use crate::IoError;
+use crate::{Encoding, RawMessage, TopicInfo};
+use edtmap_io::IoError;
 
 /// (topic, type, md5sum) of the sample bags.
 const TOPICS: [(&str, &str, &str); 3] = [

@@ -10,8 +10,8 @@ use ::mcap::records::{op, Record};
 use ::mcap::{parse_record, MAGIC};
 
 use super::{split_records, topic_list, RECORD_PREFIX};
-use crate::ros::{normalize_type, TopicInfo};
-use crate::IoError;
+use crate::{normalize_type, TopicInfo};
+use edtmap_io::IoError;
 
 /// Largest summary section read, bytes: a bigger one is skipped for a scan.
 const MAX_SUMMARY_BYTES: u64 = 1 << 28;
