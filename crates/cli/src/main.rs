@@ -30,7 +30,7 @@ struct Cli {
     verbose: u8,
     /// Most memory a job may use (8G, 512M, bytes); default: what the
     /// system has free, within the process's address-space limit.
-    #[arg(long, global = true, value_name = "SIZE", value_parser = memory::parse)]
+    #[arg(long, global = true, value_name = "SIZE", value_parser = edtmap::memory::parse_size)]
     max_memory: Option<u64>,
     #[command(subcommand)]
     command: Command,

@@ -10,11 +10,6 @@ use edtmap::MemoryBudget;
 /// `--max-memory`, parsed, set once by `main`.
 static MAX_MEMORY: OnceLock<Option<u64>> = OnceLock::new();
 
-/// Parses a `--max-memory` value for clap.
-pub(crate) fn parse(text: &str) -> std::result::Result<u64, String> {
-    edtmap::memory::parse_size(text)
-}
-
 /// Records `--max-memory` for the command.
 pub(crate) fn set_max(bytes: Option<u64>) {
     let _ = MAX_MEMORY.set(bytes);

@@ -12,6 +12,19 @@ use edtmap_io::plot::{Chart, Series, SeriesStyle};
 use edtmap_io::picture::{viridis, write_slice_png, write_states_png, MapAxes, Slice, SliceStyle};
 use edtmap_io::ply::{write_ply, ColouredPoint};
 
+/// The occupancy slice `edtmap run` writes in `--out`.
+pub(crate) const OCCUPANCY_SLICE: &str = "occupancy_slice.png";
+/// The slice of the global EDT.
+pub(crate) const EDT_SLICE: &str = "edt_slice.png";
+/// Occupied voxels as a point cloud (`--ply`).
+pub(crate) const OCCUPIED_PLY: &str = "occupied.ply";
+/// The EDT as a point cloud (`--ply`).
+pub(crate) const EDT_PLY: &str = "edt.ply";
+/// The per-frame timing chart.
+pub(crate) const TIMING_PLOT: &str = "timing.png";
+/// Every picture and cloud a run may write.
+pub(crate) const OUT_PICTURES: [&str; 5] = [OCCUPANCY_SLICE, EDT_SLICE, TIMING_PLOT, OCCUPIED_PLY, EDT_PLY];
+
 /// The height of the pictured slices and where it came from.
 #[derive(Debug, Clone, PartialEq)]
 pub(crate) struct SliceHeight {
@@ -96,14 +109,14 @@ pub(crate) fn write_slices(mapper: &CliMapper, z_m: f64, out: &Path) -> Result<V
     let axes = MapAxes { origin_m: [ox * vs, oy * vs], cell_m: vs, position: format!("z = {:.2} m", layer_centre(volume, z)) };
     let plane = z * nx * ny..(z + 1) * nx * ny;
     let states = &mapper.local_states().as_slice()[plane.clone()];
-    let occ_path = out.join("occupancy_slice.png");
+    let occ_path = out.join(OCCUPANCY_SLICE);
     write_states_png(&occ_path, nx, ny, states, "occupancy", Some(&axes))?;
     let edt = mapper.local_edt();
     let dist: Vec<f32> = plane
         .zip(states)
         .map(|(i, s)| if *s == VoxelState::Unknown { f32::NAN } else { edt.distance_vox(i) * vs as f32 })
         .collect();
-    let edt_path = out.join("edt_slice.png");
+    let edt_path = out.join(EDT_SLICE);
     let style = SliceStyle { title: "local EDT (grey: unknown)".into(), unit: "m".into(), max_value: None, axes: Some(axes) };
     write_slice_png(&edt_path, Slice { width: nx, height: ny, values: &dist }, &style)?;
     Ok(vec![occ_path, edt_path])
@@ -128,7 +141,7 @@ pub(crate) fn write_plys(mapper: &CliMapper, out: &Path) -> Result<Vec<PathBuf>>
     let (lo, hi) = occupied.iter().fold((f32::MAX, f32::MIN), |(lo, hi), p| (lo.min(p[2]), hi.max(p[2])));
     let by_height: Vec<ColouredPoint> =
         occupied.iter().map(|&xyz| ColouredPoint { xyz, rgb: viridis(if hi > lo { (xyz[2] - lo) / (hi - lo) } else { 0.0 }) }).collect();
-    let occ_path = out.join("occupied.ply");
+    let occ_path = out.join(OCCUPIED_PLY);
     write_ply(&occ_path, &by_height, "edtmap occupied voxels, coloured by height")?;
     let mut edt_points = Vec::new();
     if let Some(volume) = mapper.local_volume() {
@@ -145,7 +158,7 @@ pub(crate) fn write_plys(mapper: &CliMapper, out: &Path) -> Result<Vec<PathBuf>>
             }
         }
     }
-    let edt_path = out.join("edt.ply");
+    let edt_path = out.join(EDT_PLY);
     let comment = format!("edtmap EDT of the last local volume, coloured by distance 0 to {} m", map.params.max_distance_m);
     write_ply(&edt_path, &edt_points, &comment)?;
     Ok(vec![occ_path, edt_path])
@@ -169,7 +182,7 @@ pub(crate) fn write_timing_plot(frames: &[FrameRecord], backend: &str, out: &Pat
         .series(series("batch EDT", |f| f.batch_edt_ms))
         .series(series("integration", |f| f.integrate_ms))
         .series(series("total", |f| f.total_ms));
-    let path = out.join("timing.png");
+    let path = out.join(TIMING_PLOT);
     chart.write_png(&path)?;
     Ok(path)
 }

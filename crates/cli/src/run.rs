@@ -279,7 +279,7 @@ pub(crate) fn execute(args: &RunArgs, progress: bool) -> Result<RunOutcome> {
     header.insert("skipped".into(), json!(skipped.iter().map(|f| json!({"index": f.index, "reason": f.message})).collect::<Vec<_>>()));
     header.insert("stopped".into(), json!(stopped.as_ref().map(|f| json!({"index": f.index, "reason": f.message}))));
     // The report first: it says why a run stopped even if a later output fails.
-    let report_path = args.out.join("report.json");
+    let report_path = args.out.join(REPORT);
     write_json(&report_path, &report(header, &records))?;
     if records.is_empty() {
         // Nothing to picture or save: an empty map must not replace a
@@ -314,13 +314,14 @@ pub(crate) fn execute(args: &RunArgs, progress: bool) -> Result<RunOutcome> {
     Ok(RunOutcome { frames: records, report_path, pictures, backend: mapper.backend().name() })
 }
 
-/// The files a run writes in `--out`.
-const OUT_FILES: [&str; 6] = ["report.json", "occupancy_slice.png", "edt_slice.png", "timing.png", "occupied.ply", "edt.ply"];
+/// The run's report in `--out`.
+const REPORT: &str = "report.json";
 
 /// Refuses, before any frame, outputs that would replace one another or
 /// write through a link.
 fn check_outputs(args: &RunArgs) -> Result<()> {
-    let outs: Vec<(String, PathBuf)> = OUT_FILES.iter().map(|n| (format!("--out's {n}"), args.out.join(n))).collect();
+    let names = std::iter::once(REPORT).chain(crate::pictures::OUT_PICTURES);
+    let outs: Vec<(String, PathBuf)> = names.map(|n| (format!("--out's {n}"), args.out.join(n))).collect();
     let mut named: Vec<(&str, &Path)> = outs.iter().map(|(n, p)| (n.as_str(), p.as_path())).collect();
     if let Some(save) = &args.save {
         named.push(("--save", save));

@@ -111,12 +111,9 @@ fn a_full_disk_keeps_the_previous_outputs() {
     assert_eq!(temporaries(&dir.join("out")), Vec::<String>::new());
     // edt and export outputs: the same rule.
     let grid = dir.join("g.npy");
-    let mut npy = b"\x93NUMPY\x01\x00".to_vec();
-    let text = format!("{:<117}\n", "{'descr': '|u1', 'fortran_order': False, 'shape': (64, 64, 64), }");
-    npy.extend_from_slice(&(text.len() as u16).to_le_bytes());
-    npy.extend_from_slice(text.as_bytes());
-    npy.extend(std::iter::repeat_n(0u8, 64 * 64 * 64 - 1));
-    npy.push(1);
+    let mut data = vec![0u8; 64 * 64 * 64];
+    data[0] = 1;
+    let npy = common::npy_u8("(64, 64, 64)", &data);
     if std::fs::write(&grid, &npy).is_ok() {
         let run = run_in(dir, &["edt", "g.npy", "dist.npy", "--nearest", "idx.npy"], SHORT);
         assert_refused(&run, &["No space left"]);

@@ -52,12 +52,7 @@ fn the_config_sets_the_budget_and_the_option_overrides_it() {
 /// A sparse 1000³ u8 grid: 1 GB on disk that takes no space, 14 GB to
 /// transform.
 fn sparse_grid(path: &std::path::Path) {
-    let mut header = b"\x93NUMPY\x01\x00".to_vec();
-    let dict = "{'descr': '|u1', 'fortran_order': False, 'shape': (1000, 1000, 1000), }";
-    let pad = 64 - (10 + dict.len() + 1) % 64;
-    let text = format!("{dict}{}\n", " ".repeat(pad));
-    header.extend_from_slice(&(text.len() as u16).to_le_bytes());
-    header.extend_from_slice(text.as_bytes());
+    let header = common::npy_u8("(1000, 1000, 1000)", &[]);
     std::fs::write(path, &header).expect("write header");
     let f = std::fs::OpenOptions::new().write(true).open(path).expect("open");
     f.set_len(header.len() as u64 + 1_000_000_000).expect("sparse data");

@@ -7,12 +7,7 @@ use common::{assert_refused, run_in, SHORT};
 use std::path::Path;
 
 fn grid(path: &Path) {
-    let mut npy = b"\x93NUMPY\x01\x00".to_vec();
-    let text = format!("{:<53}\n", "{'descr': '|u1', 'fortran_order': False, 'shape': (4, 4), }");
-    npy.extend_from_slice(&(text.len() as u16).to_le_bytes());
-    npy.extend_from_slice(text.as_bytes());
-    npy.extend_from_slice(&[0, 0, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0]);
-    std::fs::write(path, npy).expect("write grid");
+    std::fs::write(path, common::npy_u8("(4, 4)", &[0, 0, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0])).expect("write grid");
 }
 
 #[cfg(unix)]

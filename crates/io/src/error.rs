@@ -37,6 +37,16 @@ pub enum IoError {
         /// The cap.
         limit: u64,
     },
+    /// An input is too large to be read whole within the memory budget.
+    #[error("{}: reading its {} needs more memory than the budget's {}: free memory, or raise the budget with --max-memory", path.display(), edtmap_core::memory::format_bytes(*bytes), edtmap_core::memory::format_bytes(*limit))]
+    OverBudget {
+        /// The file.
+        path: PathBuf,
+        /// Its length.
+        bytes: u64,
+        /// The memory budget.
+        limit: u64,
+    },
     /// An output path is refused: a symbolic link, not a regular file, or
     /// named twice.
     #[error("{}: {reason}", path.display())]

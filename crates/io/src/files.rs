@@ -85,10 +85,19 @@ pub fn open_input(path: &Path, max_bytes: u64) -> Result<(File, u64), IoError> {
     Ok((file, meta.len()))
 }
 
+/// Files up to this size are read without asking the memory budget.
+const UNBUDGETED_READ_BYTES: u64 = 64 << 20;
+
 /// The whole of the regular file `path`, refused if longer than
-/// `max_bytes`.
+/// `max_bytes` or, for a file over 64 MiB, than the memory budget
+/// ([`edtmap_core::MemoryBudget::from_system`]) allows.
 pub fn read_input(path: &Path, max_bytes: u64) -> Result<Vec<u8>, IoError> {
     let (file, len) = open_input(path, max_bytes)?;
+    if len > UNBUDGETED_READ_BYTES {
+        if let Some(limit) = edtmap_core::MemoryBudget::from_system().limit_bytes().filter(|&l| len > l) {
+            return Err(IoError::OverBudget { path: path.to_path_buf(), bytes: len, limit });
+        }
+    }
     let mut bytes = Vec::with_capacity(usize::try_from(len).unwrap_or(0));
     // One byte past the cap tells a file that grew since the check.
     file.take(max_bytes.saturating_add(1)).read_to_end(&mut bytes).map_err(|e| IoError::io(path, e))?;
@@ -424,6 +433,20 @@ mod tests {
             assert!(free_space(Path::new(".")).is_some_and(|b| b > 0));
             assert_eq!(free_space(Path::new("/no/such/folder")), None);
         }
+    }
+
+    #[test]
+    fn a_file_past_the_memory_budget_is_refused_before_reading() {
+        let Some(limit) = edtmap_core::MemoryBudget::from_system().limit_bytes() else { return };
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("huge.edtmap");
+        let file = File::create(&path).expect("create");
+        // Sparse where the file system allows: no disk is used.
+        if file.set_len(limit.saturating_add(1 << 30)).is_err() {
+            return;
+        }
+        let err = read_input(&path, u64::MAX).expect_err("past the budget");
+        assert!(matches!(err, IoError::OverBudget { limit: l, .. } if l <= limit), "{err}");
     }
 
     #[test]

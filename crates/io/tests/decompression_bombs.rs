@@ -7,7 +7,7 @@
 //! 1 GiB are refused outright (the test then fails on the allocation
 //! error instead of taking the machine).
 
-mod watch;
+mod support;
 
 use edtmap_core::sensor::RangeLimits;
 use edtmap_io::dataset::Dataset;
@@ -18,7 +18,7 @@ use edtmap_io::ply::parse_ply;
 use edtmap_io::{read_pcd, IoError};
 use std::path::Path;
 use std::sync::atomic::Ordering;
-use watch::LARGEST;
+use support::LARGEST;
 use std::time::{Duration, Instant};
 
 /// The most any refusal here may allocate at once: the files are tiny.
@@ -27,7 +27,7 @@ const ALLOCATION_LIMIT: usize = 16 << 20;
 const TIME_LIMIT: Duration = Duration::from_millis(500);
 
 #[global_allocator]
-static GLOBAL: watch::Watch = watch::Watch;
+static GLOBAL: support::Watch = support::Watch;
 
 /// Runs `refuse`, which must fail, and checks it was quick and small;
 /// returns the error's message.
@@ -197,16 +197,7 @@ fn an_npy_shape_beyond_the_file_is_refused_before_allocating() {
     let tmp = tempfile::tempdir().expect("temp dir");
     let path = tmp.path().join("big.npy");
     let dict = "{'descr': '|u1', 'fortran_order': False, 'shape': (1000, 1000, 1000), }";
-    let mut header = dict.as_bytes().to_vec();
-    while !(10 + header.len() + 1).is_multiple_of(64) {
-        header.push(b' ');
-    }
-    header.push(b'\n');
-    let mut bytes = b"\x93NUMPY\x01\x00".to_vec();
-    bytes.extend((header.len() as u16).to_le_bytes());
-    bytes.extend(header);
-    bytes.extend([1u8; 64]);
-    std::fs::write(&path, bytes).expect("write");
+    std::fs::write(&path, support::raw_npy(dict, &[1u8; 64])).expect("write");
     let err = refused("1e9 elements", || ObstacleNpy::open(&path).map(|f| f.item_size()));
     assert!(err.contains("big.npy") && err.contains("1000000000") && err.contains("64"), "{err}");
 }

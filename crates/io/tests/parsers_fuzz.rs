@@ -3,7 +3,7 @@
 //! huge counts) must give `Ok` or `Err`, never a panic, and never ask for
 //! an absurd amount of memory. Seeded, so a failure repeats.
 
-mod watch;
+mod support;
 
 use edtmap_io::dataset::{parse_kitti_bin, parse_kitti_poses, parse_matrix, parse_times};
 use edtmap_io::depth_folder::parse_intrinsics;
@@ -14,7 +14,7 @@ use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 use std::path::Path;
 use std::sync::atomic::Ordering;
-use watch::LARGEST;
+use support::LARGEST;
 
 /// Mutated files per reader.
 const CASES: usize = 500;
@@ -23,7 +23,7 @@ const CASES: usize = 500;
 const ALLOCATION_LIMIT: usize = 64 << 20;
 
 #[global_allocator]
-static GLOBAL: watch::Watch = watch::Watch;
+static GLOBAL: support::Watch = support::Watch;
 
 /// Numbers that break counts: past u32, past u64, negative, not integers.
 const HUGE: [&str; 8] = ["4000000000", "18446744073709551615", "18446744073709551616", "4294967296", "-1", "0", "1e9", "nan"];
@@ -235,20 +235,6 @@ fn pcd_data_past_points_is_refused() {
     assert_eq!(parse_pcd(Path::new("ok.pcd"), &binary).expect("2 points").points, vec![[0.0, 1.0, 2.0], [3.0, 4.0, 5.0]]);
 }
 
-/// An npy version 1.0 file written by hand: `dict` as the header, then
-/// `data`.
-fn raw_npy(dict: &str, data: &[u8]) -> Vec<u8> {
-    let mut header = dict.as_bytes().to_vec();
-    while !(10 + header.len() + 1).is_multiple_of(64) {
-        header.push(b' ');
-    }
-    header.push(b'\n');
-    let mut bytes = b"\x93NUMPY\x01\x00".to_vec();
-    bytes.extend((header.len() as u16).to_le_bytes());
-    bytes.extend(header);
-    bytes.extend(data);
-    bytes
-}
 
 /// The error (or `Ok`) of opening and reading `bytes` as an obstacle npy.
 fn read_npy(name: &str, bytes: &[u8]) -> Result<usize, String> {
@@ -262,18 +248,18 @@ fn read_npy(name: &str, bytes: &[u8]) -> Result<usize, String> {
 #[test]
 fn npy_trailing_bytes_duplicate_keys_and_bad_bools_are_refused() {
     let dict = "{'descr': '|b1', 'fortran_order': False, 'shape': (2, 3), }";
-    assert_eq!(read_npy("ok.npy", &raw_npy(dict, &[0, 1, 1, 0, 0, 1])), Ok(3));
+    assert_eq!(read_npy("ok.npy", &support::raw_npy(dict, &[0, 1, 1, 0, 0, 1])), Ok(3));
 
-    let err = read_npy("tail.npy", &raw_npy(dict, &[0, 1, 1, 0, 0, 1, 9, 9])).expect_err("trailing");
+    let err = read_npy("tail.npy", &support::raw_npy(dict, &[0, 1, 1, 0, 0, 1, 9, 9])).expect_err("trailing");
     assert!(err.contains("tail.npy") && err.contains("2 bytes after the data") && err.contains("[2, 3]") && err.contains("gives 6 bytes") && err.contains("has 8"), "{err}");
 
     let twice = "{'descr': '|b1', 'fortran_order': False, 'shape': (2, 3), 'shape': (3, 2), }";
-    let err = read_npy("twice.npy", &raw_npy(twice, &[0; 6])).expect_err("duplicate key");
+    let err = read_npy("twice.npy", &support::raw_npy(twice, &[0; 6])).expect_err("duplicate key");
     assert!(err.contains("twice.npy") && err.contains("\"shape\" twice"), "{err}");
 
-    let err = read_npy("seven.npy", &raw_npy(dict, &[0, 1, 1, 7, 0, 1])).expect_err("bool 7");
+    let err = read_npy("seven.npy", &support::raw_npy(dict, &[0, 1, 1, 7, 0, 1])).expect_err("bool 7");
     assert!(err.contains("seven.npy") && err.contains("element 3") && err.contains("value 7"), "{err}");
     // Integer dtypes keep "nonzero is an obstacle".
     let bytes = "{'descr': '|u1', 'fortran_order': False, 'shape': (2, 3), }";
-    assert_eq!(read_npy("u8.npy", &raw_npy(bytes, &[0, 1, 1, 7, 0, 1])), Ok(4));
+    assert_eq!(read_npy("u8.npy", &support::raw_npy(bytes, &[0, 1, 1, 7, 0, 1])), Ok(4));
 }

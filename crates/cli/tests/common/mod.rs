@@ -86,6 +86,21 @@ pub(crate) fn assert_refused(run: &Run, needles: &[&str]) {
     }
 }
 
+/// The bytes of a `uint8` npy file (version 1.0, C order) of `shape`
+/// (NumPy's text, e.g. `"(4, 4)"`) holding `data`.
+pub(crate) fn npy_u8(shape: &str, data: &[u8]) -> Vec<u8> {
+    let mut text = format!("{{'descr': '|u1', 'fortran_order': False, 'shape': {shape}, }}");
+    while (10 + text.len() + 1) % 64 != 0 {
+        text.push(' ');
+    }
+    text.push('\n');
+    let mut bytes = b"\x93NUMPY\x01\x00".to_vec();
+    bytes.extend_from_slice(&(text.len() as u16).to_le_bytes());
+    bytes.extend_from_slice(text.as_bytes());
+    bytes.extend_from_slice(data);
+    bytes
+}
+
 /// The shipped config `name` (configs/NAME.toml) as text.
 pub(crate) fn shipped_config(name: &str) -> String {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../configs").join(format!("{name}.toml"));

@@ -1,7 +1,8 @@
-//! An allocator for the parser tests: it forwards to the system's,
-//! remembers the largest request, and refuses any over 1 GiB (the test
-//! then aborts) rather than risk the machine. A test file installs it with
-//! `#[global_allocator] static GLOBAL: watch::Watch = watch::Watch;`.
+//! What the parser tests share: an allocator that forwards to the
+//! system's, remembers the largest request and refuses any over 1 GiB (the
+//! test then aborts) rather than risk the machine, installed with
+//! `#[global_allocator] static GLOBAL: support::Watch = support::Watch;`;
+//! and npy files written by hand.
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -40,3 +41,17 @@ unsafe impl GlobalAlloc for Watch {
     }
 }
 
+/// An npy version 1.0 file written by hand: `dict` as the header, then
+/// `data`.
+pub(crate) fn raw_npy(dict: &str, data: &[u8]) -> Vec<u8> {
+    let mut header = dict.as_bytes().to_vec();
+    while !(10 + header.len() + 1).is_multiple_of(64) {
+        header.push(b' ');
+    }
+    header.push(b'\n');
+    let mut bytes = b"\x93NUMPY\x01\x00".to_vec();
+    bytes.extend((header.len() as u16).to_le_bytes());
+    bytes.extend(header);
+    bytes.extend(data);
+    bytes
+}
