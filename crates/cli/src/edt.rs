@@ -76,7 +76,7 @@ pub(crate) fn run(args: &EdtArgs) -> Result<()> {
         Layout::TiledEnvelope => ScanLayout::TiledEnvelope { lanes: DEFAULT_TILE_LANES },
         Layout::PerLine => ScanLayout::PerLine,
     };
-    let mut backend = backend::open(args.backend, CpuBackend { layout: scan })?;
+    let mut backend = backend::open(args.backend, CpuBackend::with_layout(scan))?;
     // Buffers are reused across repeats, as a mapper reuses them per frame.
     let mut field = EdtField::empty();
     let (mut dist, mut idx) = (Vec::new(), Vec::new());

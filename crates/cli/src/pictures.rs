@@ -131,9 +131,9 @@ pub(crate) fn write_plys(mapper: &CliMapper, out: &Path) -> Result<Vec<PathBuf>>
     let vs = map.voxel_size_m();
     let centre = |v: VoxelIndex| v.0.map(|c| ((c as f64 + 0.5) * vs) as f32);
     let mut occupied = Vec::new();
-    for (key, block) in map.occupancy.iter() {
+    for (key, block) in map.occupancy().iter() {
         for (offset, &value) in block.log_odds.iter().enumerate() {
-            if map.log_odds.state(value) == VoxelState::Occupied {
+            if map.log_odds().state(value) == VoxelState::Occupied {
                 occupied.push(centre(key.voxel(offset)));
             }
         }
@@ -145,13 +145,13 @@ pub(crate) fn write_plys(mapper: &CliMapper, out: &Path) -> Result<Vec<PathBuf>>
     write_ply(&occ_path, &by_height, "edtmap occupied voxels, coloured by height")?;
     let mut edt_points = Vec::new();
     if let Some(volume) = mapper.local_volume() {
-        let max_m = map.params.max_distance_m as f32;
+        let max_m = map.params().max_distance_m as f32;
         for (i, state) in mapper.local_states().as_slice().iter().enumerate() {
             if *state == VoxelState::Unknown {
                 continue;
             }
             let v = volume.world(volume_coords(volume.dims, i));
-            let (dist_sq, _) = map.edt.entry(v);
+            let (dist_sq, _) = map.edt().entry(v);
             if dist_sq != FAR_DIST_SQ {
                 let d = (f64::from(dist_sq).sqrt() * vs) as f32;
                 edt_points.push(ColouredPoint { xyz: centre(v), rgb: viridis(d / max_m) });
@@ -159,7 +159,7 @@ pub(crate) fn write_plys(mapper: &CliMapper, out: &Path) -> Result<Vec<PathBuf>>
         }
     }
     let edt_path = out.join(EDT_PLY);
-    let comment = format!("edtmap EDT of the last local volume, coloured by distance 0 to {} m", map.params.max_distance_m);
+    let comment = format!("edtmap EDT of the last local volume, coloured by distance 0 to {} m", map.params().max_distance_m);
     write_ply(&edt_path, &edt_points, &comment)?;
     Ok(vec![occ_path, edt_path])
 }

@@ -77,18 +77,18 @@ pub(crate) struct InfoArgs {
 pub(crate) fn info(args: &InfoArgs) -> Result<()> {
     let map = load_map(&args.map)?;
     let vs = map.voxel_size_m();
-    outln!("{}: voxel {vs} m, cutoff {} m, connectivity {}, integration {:?}", args.map.display(), map.params.max_distance_m, u8::from(map.params.connectivity), map.params.mode);
-    outln!("blocks: {} occupancy, {} EDT, {} fixed; {:.1} MB", map.occupancy.len(), map.edt.len(), map.fixed.len(), map.bytes() as f64 / 1e6);
-    if let Some((lo, hi)) = map.occupancy.key_bounds() {
+    outln!("{}: voxel {vs} m, cutoff {} m, connectivity {}, integration {:?}", args.map.display(), map.params().max_distance_m, u8::from(map.params().connectivity), map.params().mode);
+    outln!("blocks: {} occupancy, {} EDT, {} fixed; {:.1} MB", map.occupancy().len(), map.edt().len(), map.fixed_obstacles().len(), map.bytes() as f64 / 1e6);
+    if let Some((lo, hi)) = map.occupancy().key_bounds() {
         let side = f64::from(edtmap::BLOCK_SIDE) * vs;
         let lo: Vec<f64> = lo.iter().map(|&b| f64::from(b) * side).collect();
         let hi: Vec<f64> = hi.iter().map(|&b| f64::from(b + 1) * side).collect();
         outln!("mapped box (m): {:.2},{:.2},{:.2} to {:.2},{:.2},{:.2}", lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]);
     }
     let (mut free, mut occupied) = (0usize, 0usize);
-    for (_, b) in map.occupancy.iter() {
+    for (_, b) in map.occupancy().iter() {
         for &v in &b.log_odds {
-            match map.log_odds.state(v) {
+            match map.log_odds().state(v) {
                 edtmap::VoxelState::Free => free += 1,
                 edtmap::VoxelState::Occupied => occupied += 1,
                 edtmap::VoxelState::Unknown => {}
@@ -203,7 +203,7 @@ fn sidecar_json(map: &GlobalMap, dense: &DistanceBox, args: &ExportArgs) -> Stri
         "box_m": { "min": &args.bounds[..3], "max": &args.bounds[3..] },
         "signed": args.signed,
         "distance_meaning": distances,
-        "max_distance_m": map.params.max_distance_m,
+        "max_distance_m": map.params().max_distance_m,
         "saturated": "a voxel with no obstacle within the cutoff holds max_distance_m (signed: -max_distance_m inside an obstacle deeper than the cutoff); the true distance is at least that",
         "unknown": "unknown and outside voxels count as free: their distance is to the nearest obstacle the map knows; the states array tells them apart",
         "state_values": { "0": "outside (no mapped block)", "1": "unknown", "2": "free", "3": "occupied (or a fixed obstacle)" },

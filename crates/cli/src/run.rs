@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context, Result};
 use clap::{Args, ValueEnum};
 use edtmap::config::{Config, ConstructionName, OnError};
-use edtmap::cpu::integrate::region::Region;
+use edtmap::region::Region;
 use edtmap::eval::{edt_errors, edt_extent, EdtErrors, OccupancyScores};
 use edtmap::sensor::{Frame, Sensor};
 use edtmap::cpu::CpuBackend;
@@ -268,7 +268,7 @@ pub(crate) fn execute(args: &RunArgs, progress: bool) -> Result<RunOutcome> {
     header.insert("construction".into(), json!(construction_name(&sensor, &config)));
     header.insert("voxel_size_m".into(), json!(params.voxel_size_m));
     header.insert("local_dims".into(), json!(mapper.local_volume().map(|v| v.dims)));
-    header.insert("map_blocks".into(), json!(mapper.map().occupancy.len()));
+    header.insert("map_blocks".into(), json!(mapper.map().occupancy().len()));
     header.insert("integration".into(), json!(params.global.mode));
     header.insert("connectivity".into(), json!(params.global.connectivity));
     header.insert("max_distance_m".into(), json!(params.global.max_distance_m));

@@ -64,7 +64,7 @@ fn replays_the_3dmatch_frames_and_the_velodyne_pair() {
         }
         // occupied.ply holds exactly the saved map's occupied voxels.
         let map = edtmap::load_map(&out.join("map.edtmap")).expect("saved map");
-        let occupied = map.occupancy.iter().flat_map(|(_, b)| b.log_odds.iter()).filter(|&&v| map.log_odds.state(v) == edtmap::VoxelState::Occupied).count();
+        let occupied = map.occupancy().iter().flat_map(|(_, b)| b.log_odds.iter()).filter(|&&v| map.log_odds().state(v) == edtmap::VoxelState::Occupied).count();
         assert_eq!(ply_vertices(&out.join("occupied.ply")), occupied, "{name}");
         assert!(ply_vertices(&out.join("edt.ply")) > 1000, "{name}");
         // Every field of the report is in its schema, docs/REPORT.md.

@@ -102,9 +102,9 @@ fn occupied_x(dir: &Path) -> Vec<f64> {
     let map = edtmap::load_map(&dir.join("map.edtmap")).expect("map");
     let vs = map.voxel_size_m();
     let mut xs = Vec::new();
-    for (key, block) in map.occupancy.iter() {
+    for (key, block) in map.occupancy().iter() {
         for (offset, &v) in block.log_odds.iter().enumerate() {
-            if map.log_odds.state(v) == edtmap::VoxelState::Occupied {
+            if map.log_odds().state(v) == edtmap::VoxelState::Occupied {
                 xs.push(key.voxel(offset).centre(vs)[0]);
             }
         }

@@ -1,5 +1,6 @@
 //! What a backend (the CPU with rayon, a GPU with wgpu) provides to the
-//! pipeline, as capability traits the mapper is generic over.
+//! pipeline: one trait, [`Backend`], with a method per device stage, that
+//! every backend implements in full.
 //!
 //! Every backend gives the same integer answers: the conformance suite in
 //! `edtmap-sim` checks each one against the same oracles, bit for bit.
@@ -13,7 +14,7 @@
 
 use crate::fixed_ray::FixedRay;
 use crate::projection::ProjectJob;
-use crate::{BlockKey, CoreError, Cutoff, EdtField, EdtMap, Grid3, LocalVolume};
+use crate::{BlockKey, CoreError, Cutoff, EdtField, EdtMap, Grid3, LocalVolume, Observations, Obstacles, Region};
 
 /// Errors a backend can raise besides those of the data it is given.
 #[derive(Debug, thiserror::Error, Clone, PartialEq, Eq)]
@@ -52,62 +53,85 @@ pub trait BatchEdt {
     fn batch_edt(&mut self, mask: &Grid3<bool>, out: &mut EdtField) -> Result<(), BackendError>;
 }
 
-/// A backend the mapper can run on.
+/// A backend the mapper can run on: every stage of the pipeline that runs
+/// on a device. Each backend implements each method itself; what is
+/// shared (ray set-up, the projection's definition, regions, fusion) is
+/// host code in this crate that every backend calls.
+///
+/// # Caches
+/// A backend may keep what it learnt of the global EDT between jobs (the
+/// CPU: where each block's nearest obstacles lie; a GPU: the working
+/// region, resident on the device). It keys what it keeps on
+/// [`EdtMap::stamp`], which moves on with every change of the map, and
+/// which no two maps share (clones included): a map changed by anything
+/// else (another backend, fixed obstacles laid down, a loaded file) is
+/// seen as changed and the cache dropped. Callers never tell a backend
+/// about changes.
+///
+/// # Failures
+/// A method that fails with a device error ([`BackendError::DeviceLost`],
+/// [`BackendError::Device`], [`BackendError::OverLimit`]) has left its
+/// output unspecified but the map whole: an integration writes the map only
+/// after the device finished. The caller may redo the job on another
+/// backend (the mapper finishes the frame on the CPU).
 pub trait Backend: BatchEdt {
     /// What it runs on, for reports and logs: `cpu (N threads)`, or the
     /// GPU's name and API.
     fn name(&self) -> String;
 
-    /// Ray casting (paper §IV-A): walks `rays`, set up at scale `q` for a
-    /// volume of `dims` ([`crate::fixed_ray`]), into `bits`: one byte per
-    /// voxel, `OBS_MISS` for every voxel a walk visits, `OBS_HIT` for every
-    /// hit, both where both happen. `Ok(false)` leaves it to the CPU (the
-    /// default).
-    fn cast_rays(&mut self, rays: &[FixedRay], q: u32, dims: [usize; 3], bits: &mut Vec<u8>) -> Result<bool, BackendError> {
-        let _ = (rays, q, dims, bits);
-        Ok(false)
-    }
+    /// Ray casting (paper §IV-A): walks `rays`, set up at scale `q` for
+    /// `obs`'s volume ([`crate::fixed_ray::prepare_rays`]), into `obs`
+    /// (freshly reset): [`crate::OBS_MISS`] for every voxel a walk visits,
+    /// [`crate::OBS_HIT`] for every hit, exactly as
+    /// [`crate::fixed_ray::walk`] defines them.
+    fn cast_rays(&mut self, rays: &[FixedRay], q: u32, obs: &Observations) -> Result<(), BackendError>;
 
-    /// Tells the backend that the global EDT was changed by other means
-    /// (the CPU's integrator, fixed obstacles laid down, another map), so
-    /// whatever it holds of it is stale.
-    fn map_changed(&mut self) {}
+    /// Volumetric projection (paper §IV-A): marks every voxel of
+    /// `job.volume` for which [`ProjectJob::is_miss`] holds as
+    /// [`crate::OBS_MISS`] in `obs` (freshly reset), and no other. Hits
+    /// are left to the host ([`crate::stages::scatter_returns`]).
+    fn project_volume(&mut self, job: &ProjectJob<'_>, obs: &Observations) -> Result<(), BackendError>;
 
-    /// Volumetric projection (paper §IV-A) of every voxel of `job.volume`
-    /// into `bits`, one byte per voxel (linear order): [`crate::PROJ_MISS`]
-    /// where [`ProjectJob::is_miss`] holds, [`crate::PROJ_NOT_MISS`] where
-    /// it does not, [`crate::PROJ_UNCERTAIN`] where the backend cannot be
-    /// sure (the host then decides). Hits are left to the host. `Ok(false)`
-    /// leaves the whole projection to the CPU (the default).
-    fn project_volume(&mut self, job: ProjectJob<'_>, bits: &mut Vec<u8>) -> Result<bool, BackendError> {
-        let _ = (job, bits);
-        Ok(false)
-    }
-
-    /// The wavefront integration of one frame (paper §IV-C, Algorithms 2
-    /// and 3): merges `batch`, the batch EDT of `window`, into `map`.
-    /// `Ok(None)` leaves it to the CPU's integrator (the default); a
-    /// backend that does it must give the CPU's map, bit for bit.
-    fn integrate_wavefront(&mut self, job: WavefrontJob<'_>) -> Result<Option<IntegrateReport>, BackendError> {
-        let _ = job;
-        Ok(None)
-    }
+    /// Global integration (paper §IV-C): one [`IntegrateJob`] into
+    /// `job.map`, writing back only the voxels that changed. Every
+    /// backend gives the same map, bit for bit.
+    fn integrate(&mut self, job: IntegrateJob<'_>) -> Result<IntegrateReport, BackendError>;
 }
 
-/// One frame's wavefront integration, as [`Backend::integrate_wavefront`]
-/// receives it.
+/// One integration, as [`Backend::integrate`] receives it.
 #[derive(Debug)]
-pub struct WavefrontJob<'a> {
+pub struct IntegrateJob<'a> {
     /// The global EDT.
     pub map: &'a mut EdtMap,
-    /// The frame's window.
-    pub window: &'a LocalVolume,
-    /// Exact EDT of the window's obstacles (unknown voxels free).
-    pub batch: &'a EdtField,
+    /// The obstacles the EDT is that of (the other layers of the map).
+    pub obstacles: Obstacles<'a>,
     /// The cutoff in voxels.
     pub cutoff: Cutoff,
-    /// Neighbour offsets the waves move along (6, 18 or 26).
-    pub offsets: &'a [[i32; 3]],
+    /// What to do.
+    pub work: Integration<'a>,
+}
+
+/// The two kinds of integration ([`crate::IntegrationMode`]).
+#[derive(Debug, Clone, Copy)]
+pub enum Integration<'a> {
+    /// The paper's wavefronts (Algorithms 2 and 3): merges `batch`, the
+    /// exact EDT of `window`'s obstacles (unknown voxels free), into the
+    /// map, over the window grown by the cutoff's reach plus one.
+    Wavefront {
+        /// The frame's window.
+        window: &'a LocalVolume,
+        /// Exact EDT of the window's obstacles.
+        batch: &'a EdtField,
+        /// Neighbour offsets the waves move along (6, 18 or 26).
+        offsets: &'a [[i32; 3]],
+    },
+    /// Exact recomputation of every voxel of `region` from the obstacles
+    /// (a frame in exact mode: its window grown by the reach; fixed
+    /// obstacles laid down: tiles of their box).
+    Recompute {
+        /// The voxels recomputed.
+        region: Region,
+    },
 }
 
 /// What one integration did.
@@ -155,19 +179,23 @@ impl<B: Backend + ?Sized> Backend for Box<B> {
         (**self).name()
     }
 
-    fn integrate_wavefront(&mut self, job: WavefrontJob<'_>) -> Result<Option<IntegrateReport>, BackendError> {
-        (**self).integrate_wavefront(job)
+    fn cast_rays(&mut self, rays: &[FixedRay], q: u32, obs: &Observations) -> Result<(), BackendError> {
+        (**self).cast_rays(rays, q, obs)
     }
 
-    fn cast_rays(&mut self, rays: &[FixedRay], q: u32, dims: [usize; 3], bits: &mut Vec<u8>) -> Result<bool, BackendError> {
-        (**self).cast_rays(rays, q, dims, bits)
+    fn project_volume(&mut self, job: &ProjectJob<'_>, obs: &Observations) -> Result<(), BackendError> {
+        (**self).project_volume(job, obs)
     }
 
-    fn map_changed(&mut self) {
-        (**self).map_changed()
+    fn integrate(&mut self, job: IntegrateJob<'_>) -> Result<IntegrateReport, BackendError> {
+        (**self).integrate(job)
     }
+}
 
-    fn project_volume(&mut self, job: ProjectJob<'_>, bits: &mut Vec<u8>) -> Result<bool, BackendError> {
-        (**self).project_volume(job, bits)
+impl BackendError {
+    /// Whether the device failed (lost, refused, erred), as opposed to the
+    /// input being invalid: the job can be redone on another backend.
+    pub fn is_device_failure(&self) -> bool {
+        !matches!(self, BackendError::Core(_))
     }
 }

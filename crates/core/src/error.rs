@@ -62,4 +62,8 @@ pub enum CoreError {
     /// A measurement does not fit the sensor it claims to come from.
     #[error("measurement does not fit the sensor: {0}")]
     BadMeasurement(String),
+    /// The requested operation does not apply to this input (projection
+    /// from a sensor that cannot project, say).
+    #[error("not supported: {0}")]
+    Unsupported(String),
 }

@@ -13,8 +13,15 @@
 //!   exact `u32` arithmetic (no floats, no 64-bit integers, no wrapping), so
 //!   that a WGSL shader can copy it line by line and visit the same voxels in
 //!   the same order.
+//!
+//! [`prepare_rays`] runs [`setup_ray`] for a whole frame, from the sensor's
+//! rays and pose; every backend's [`crate::Backend::cast_rays`] then walks
+//! its output.
 
-use crate::CoreError;
+use crate::sensor::SensorRay;
+use crate::{CoreError, LocalVolume, Observations, OBS_HIT, OBS_MISS};
+use nalgebra::{Isometry3, Vector3};
+use rayon::prelude::*;
 
 /// [`FixedRay::flags`] bit: the segment meets the volume and is walked.
 pub const RAY_WALK: u32 = 1;
@@ -258,6 +265,58 @@ impl Axis {
             linear - stride
         }
     }
+}
+
+/// Rays per rayon task: enough to amortise scheduling, small enough to
+/// balance rays of very different lengths.
+pub const RAYS_PER_TASK: usize = 256;
+
+/// Sets up every ray (sensor frame) from the pose for a walk through
+/// `obs_volume`, into `out` (one per ray, in order), and returns the
+/// fixed-point scale `q` they use.
+///
+/// A voxel is a miss only if the ray leaves it more than `free_margin_m`
+/// (metres) before the return: the surface is located to a voxel, so a
+/// voxel the ray crosses just before it may hold part of the surface. The
+/// return's own voxel is the hit.
+pub fn prepare_rays(obs_volume: &LocalVolume, t_world_sensor: &Isometry3<f64>, rays: &[SensorRay], free_margin_m: f32, out: &mut Vec<FixedRay>) -> Result<u32, CoreError> {
+    let (dims, inv) = (obs_volume.dims, 1.0 / obs_volume.voxel_size_m);
+    let q = fixed_scale(dims)?;
+    let corner = Vector3::from(obs_volume.min_corner_m());
+    let origin = (t_world_sensor.translation.vector - corner) * inv;
+    let rot = t_world_sensor.rotation.to_rotation_matrix();
+    rays.par_iter()
+        .with_min_len(RAYS_PER_TASK)
+        .map(|ray| {
+            let dir = rot * Vector3::new(ray.dir[0] as f64, ray.dir[1] as f64, ray.dir[2] as f64) * inv;
+            let end = origin + dir * ray.range_m as f64;
+            // Voxels the ray leaves before `free_end` are misses: walk to it
+            // and, for a return, leave out its own voxel, which the ray
+            // leaves beyond it.
+            let margin = if ray.hit { free_margin_m.min(ray.range_m) as f64 } else { 0.0 };
+            let free_end = origin + dir * (ray.range_m as f64 - margin);
+            setup_ray(origin.into(), free_end.into(), end.into(), ray.hit, dims, q)
+        })
+        .collect_into_vec(out);
+    Ok(q)
+}
+
+/// Walks rays prepared for `obs`'s volume at scale `q` ([`prepare_rays`])
+/// on the host's cores: the voxels they pass through become misses, their
+/// hits hits. The CPU backend's ray casting, and the reference a device
+/// falls back on where its kernel does not apply.
+pub fn cast_fixed(obs: &Observations, rays: &[FixedRay], q: u32) {
+    let dims = obs.volume().dims;
+    rays.par_chunks(RAYS_PER_TASK).for_each(|chunk| {
+        for ray in chunk {
+            walk_cells(ray, dims, q, |c, i| obs.mark(c.map(|v| v as usize), i as usize, OBS_MISS));
+            if ray.hit != NO_HIT && (ray.hit as usize) < obs.volume().len() {
+                let i = ray.hit as usize;
+                let c = [i % dims[0], (i / dims[0]) % dims[1], i / (dims[0] * dims[1])];
+                obs.mark(c, i, OBS_HIT);
+            }
+        }
+    });
 }
 
 #[cfg(test)]

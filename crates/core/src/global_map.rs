@@ -7,53 +7,106 @@ use crate::{
     VoxelIndex, VoxelState,
 };
 
-/// The global map. Its fields are public so a backend can update the
-/// occupancy and the EDT in one borrow; keep them consistent (the EDT is
-/// that of [`GlobalMap::obstacles`] within the cutoff).
+/// The global map, as layers over one voxel grid (nvblox's layer cake):
+/// log-odds occupancy, the global EDT and fixed obstacles, with the one
+/// voxel size and the parameters that say how to read them. The layers are
+/// reached through methods; the EDT is that of [`GlobalMap::obstacles`]
+/// within the cutoff, which the pipeline keeps true.
 #[derive(Debug, Clone)]
 pub struct GlobalMap {
-    /// Log-odds occupancy.
-    pub occupancy: OccupancyMap,
-    /// The global EDT.
-    pub edt: EdtMap,
-    /// Fixed obstacles: forbidden zones, a prior map.
-    pub fixed: StaticMap,
-    /// The probabilities behind `log_odds`.
-    pub occupancy_params: OccupancyParams,
-    /// How log-odds read as states.
-    pub log_odds: LogOdds,
-    /// Parameters of the global EDT.
-    pub params: GlobalParams,
-    /// The cutoff in voxels.
-    pub cutoff: Cutoff,
+    voxel_size_m: f64,
+    occupancy: OccupancyMap,
+    edt: EdtMap,
+    fixed: StaticMap,
+    occupancy_params: OccupancyParams,
+    log_odds: LogOdds,
+    params: GlobalParams,
+    cutoff: Cutoff,
 }
 
 impl GlobalMap {
     /// An empty map, checking every parameter; forbidden zones are laid
     /// down as fixed obstacles.
     pub fn new(voxel_size_m: f64, occupancy_params: OccupancyParams, params: GlobalParams) -> Result<Self, CoreError> {
+        let mut map = Self::from_layers(voxel_size_m, occupancy_params, params, OccupancyMap::new(), EdtMap::new(), StaticMap::new())?;
+        for zone in &map.params.forbidden {
+            map.fixed.add_zone(zone, voxel_size_m)?;
+        }
+        Ok(map)
+    }
+
+    /// A map of the given layers (a map file read back, say), checking
+    /// every parameter; the fixed obstacles are taken as they are
+    /// (forbidden zones are not laid down again).
+    pub fn from_layers(
+        voxel_size_m: f64,
+        occupancy_params: OccupancyParams,
+        params: GlobalParams,
+        occupancy: OccupancyMap,
+        edt: EdtMap,
+        fixed: StaticMap,
+    ) -> Result<Self, CoreError> {
         crate::check_voxel_size(voxel_size_m)?;
         let log_odds = occupancy_params.log_odds()?;
         let cutoff = params.cutoff(voxel_size_m)?;
         params.check_forbidden()?;
-        let mut fixed = StaticMap::new(voxel_size_m)?;
-        for zone in &params.forbidden {
-            fixed.add_zone(zone)?;
-        }
-        Ok(GlobalMap {
-            occupancy: OccupancyMap::new(voxel_size_m)?,
-            edt: EdtMap::new(voxel_size_m)?,
-            fixed,
-            occupancy_params,
-            log_odds,
-            params,
-            cutoff,
-        })
+        Ok(GlobalMap { voxel_size_m, occupancy, edt, fixed, occupancy_params, log_odds, params, cutoff })
+    }
+
+    /// The log-odds occupancy layer.
+    pub fn occupancy(&self) -> &OccupancyMap {
+        &self.occupancy
+    }
+
+    /// The occupancy layer, to fuse observations into.
+    pub fn occupancy_mut(&mut self) -> &mut OccupancyMap {
+        &mut self.occupancy
+    }
+
+    /// The global EDT layer.
+    pub fn edt(&self) -> &EdtMap {
+        &self.edt
+    }
+
+    /// The fixed-obstacle layer (forbidden zones, a prior map).
+    pub fn fixed_obstacles(&self) -> &StaticMap {
+        &self.fixed
+    }
+
+    /// The fixed-obstacle layer, to add to. The EDT does not follow by
+    /// itself: the mapper lays new fixed obstacles down.
+    pub fn fixed_obstacles_mut(&mut self) -> &mut StaticMap {
+        &mut self.fixed
+    }
+
+    /// The probabilities behind the log-odds.
+    pub fn occupancy_params(&self) -> &OccupancyParams {
+        &self.occupancy_params
+    }
+
+    /// How log-odds read as states.
+    pub fn log_odds(&self) -> &LogOdds {
+        &self.log_odds
+    }
+
+    /// Parameters of the global EDT.
+    pub fn params(&self) -> &GlobalParams {
+        &self.params
+    }
+
+    /// The cutoff in voxels.
+    pub fn cutoff(&self) -> Cutoff {
+        self.cutoff
+    }
+
+    /// Fuses `obs` into the occupancy layer.
+    pub fn fuse(&mut self, obs: &crate::Observations) -> crate::FuseReport {
+        crate::fuse::fuse(&mut self.occupancy, obs, &self.log_odds)
     }
 
     /// Voxel edge length in metres.
     pub fn voxel_size_m(&self) -> f64 {
-        self.occupancy.voxel_size_m()
+        self.voxel_size_m
     }
 
     /// The EDT's obstacle test (unknown voxels are free).
@@ -119,14 +172,14 @@ mod tests {
     #[test]
     fn frontiers_are_free_voxels_beside_unknown() {
         let mut map = GlobalMap::new(0.1, OccupancyParams::default(), GlobalParams::default()).expect("defaults");
-        let lo = map.log_odds;
+        let lo = *map.log_odds();
         // A free 3 x 1 x 1 bar next to an occupied voxel, all else unknown.
         for x in 0..3 {
             let v = VoxelIndex([x, 0, 0]);
-            map.occupancy.get_or_insert(v.block()).log_odds[v.offset_in_block()] = lo.min;
+            map.occupancy_mut().get_or_insert(v.block()).log_odds[v.offset_in_block()] = lo.min;
         }
         let wall = VoxelIndex([3, 0, 0]);
-        map.occupancy.get_or_insert(wall.block()).log_odds[wall.offset_in_block()] = lo.max;
+        map.occupancy_mut().get_or_insert(wall.block()).log_odds[wall.offset_in_block()] = lo.max;
         assert_eq!(map.frontiers(), vec![VoxelIndex([0, 0, 0]), VoxelIndex([1, 0, 0]), VoxelIndex([2, 0, 0])]);
         assert_eq!(map.state(wall), VoxelState::Occupied);
         assert!(map.obstacles().contains(wall));

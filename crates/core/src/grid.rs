@@ -9,6 +9,13 @@ pub struct Grid3<T> {
     data: Vec<T>,
 }
 
+/// A grid of one voxel holding `T::default()`: a buffer to be resized.
+impl<T: Default> Default for Grid3<T> {
+    fn default() -> Self {
+        Grid3 { dims: [1, 1, 1], data: vec![T::default()] }
+    }
+}
+
 impl<T> Grid3<T> {
     /// Checks that `dims` has no empty axis and that its voxel count fits in
     /// `usize`; returns the voxel count.

@@ -1,10 +1,18 @@
-//! Core types shared by every edtmap backend and front end.
+//! The shared layer of edtmap: the types every backend and front end
+//! works on, the [`Backend`] trait a device implements, and the host code
+//! every backend shares.
 //!
-//! The crate holds plain data and no algorithms: dense grids
-//! ([`Grid3`]), voxel states ([`VoxelState`]), the result of a batch
-//! Euclidean distance transform ([`EdtField`]) and its parameters
-//! ([`EdtParams`]). Backends (`edtmap-cpu`, later `edtmap-gpu`) compute on
-//! these types and must agree on them bit for bit.
+//! * Data: dense grids ([`Grid3`]), voxel states ([`VoxelState`]), the
+//!   batch EDT's result ([`EdtField`]), the block maps and the layered
+//!   [`GlobalMap`] (occupancy, global EDT, fixed obstacles).
+//! * The device interface: [`Backend`], one method per device stage,
+//!   implemented in full by `edtmap-cpu` and `edtmap-gpu`, which must
+//!   agree on it bit for bit.
+//! * Host code both backends use: ray set-up in fixed point
+//!   ([`fixed_ray`]), the projection's per-voxel definition
+//!   ([`projection`]), integration regions and write-back ([`region`]),
+//!   frame observations and their fusion ([`Observations`], [`fuse()`]),
+//!   and the three pipeline stages ([`stages`]).
 //!
 //! # Conventions
 //! * A dense grid has dimensions `[nx, ny, nz]` with `x` varying fastest:
@@ -18,9 +26,13 @@
 
 pub mod backend;
 mod edt;
+mod fuse;
+mod observations;
+pub mod region;
+pub mod stages;
 mod error;
 pub mod fixed_ray;
-mod global;
+mod edt_map;
 mod global_map;
 mod grid;
 mod index;
@@ -32,17 +44,20 @@ pub mod sensor;
 mod state;
 mod volume;
 
-pub use backend::{Backend, BackendError, BatchEdt, IntegrateReport, WaveCounts, WavefrontJob};
+pub use backend::{Backend, BackendError, BatchEdt, IntegrateJob, IntegrateReport, Integration, WaveCounts};
+pub use fuse::{fuse, read_states, FuseReport};
+pub use observations::Observations;
+pub use region::Region;
 pub use edt::{dist_sq_to_vox, EdtField, EdtParams, NO_SITE, UNREACHABLE_DIST_SQ};
 pub use error::CoreError;
-pub use fixed_ray::{fixed_scale, setup_ray, walk, FixedRay};
-pub use global::{Connectivity, Cutoff, EdtBlock, EdtMap, ForbiddenZone, GlobalParams, IntegrationMode, DEFAULT_MAX_DISTANCE_M, FAR_DIST_SQ, NO_OBSTACLE};
+pub use fixed_ray::{cast_fixed, fixed_scale, prepare_rays, setup_ray, walk, FixedRay};
+pub use edt_map::{Connectivity, Cutoff, EdtBlock, EdtMap, ForbiddenZone, GlobalParams, IntegrationMode, DEFAULT_MAX_DISTANCE_M, FAR_DIST_SQ, NO_OBSTACLE};
 pub use global_map::GlobalMap;
 pub use grid::Grid3;
 pub use memory::MemoryBudget;
 pub use obstacles::{Obstacles, StaticBlock, StaticMap, MAX_STATIC_BLOCKS};
 pub use index::{BlockKey, VoxelIndex, BLOCK_SIDE, BLOCK_VOXELS};
-pub use projection::{ProjectJob, VoxelToSensor, PROJ_MISS, PROJ_NOT_MISS, PROJ_UNCERTAIN};
-pub use occupancy::{BlockMap, LogOdds, OccupancyBlock, OccupancyMap, OccupancyParams, OBS_HIT, OBS_MISS, OBS_NONE, UNOBSERVED};
+pub use projection::{decide_uncertain, mark_misses, ProjectJob, VoxelToSensor, PROJ_MISS, PROJ_NOT_MISS, PROJ_UNCERTAIN};
+pub use occupancy::{BlockMap, MapStamp, LogOdds, OccupancyBlock, OccupancyMap, OccupancyParams, OBS_HIT, OBS_MISS, OBS_NONE, UNOBSERVED};
 pub use volume::{check_voxel_size, LocalVolume, VolumeParams};
 pub use state::VoxelState;

@@ -1,7 +1,7 @@
 //! What the EDT counts as an obstacle: occupied voxels of the map plus
 //! fixed obstacles the user knows about (forbidden zones, a prior map).
 
-use crate::global::ForbiddenZone;
+use crate::edt_map::ForbiddenZone;
 use crate::{BlockMap, CoreError, LogOdds, OccupancyMap, VoxelIndex, VoxelState, BLOCK_SIDE};
 
 /// Most blocks a set of fixed obstacles may span (about 200 MB).
@@ -31,11 +31,11 @@ impl StaticMap {
         self.get(v.block()).is_some_and(|b| b.bits[i / 64] >> (i % 64) & 1 == 1)
     }
 
-    /// Makes every voxel that overlaps `zone` a fixed obstacle; returns how
-    /// many. Fails, leaving the map as it was, on a zone that is not a box or
-    /// would take the map past [`MAX_STATIC_BLOCKS`].
-    pub fn add_zone(&mut self, zone: &ForbiddenZone) -> Result<usize, CoreError> {
-        let vs = self.voxel_size_m();
+    /// Makes every voxel (of `vs` metres) that overlaps `zone` a fixed
+    /// obstacle; returns how many. Fails, leaving the map as it was, on a
+    /// zone that is not a box or would take the map past
+    /// [`MAX_STATIC_BLOCKS`].
+    pub fn add_zone(&mut self, zone: &ForbiddenZone, vs: f64) -> Result<usize, CoreError> {
         let bad = |reason| CoreError::InvalidParam {
             field: "forbidden",
             value: format!("{{ min_m = {:?}, max_m = {:?} }}", zone.min_m, zone.max_m),
@@ -124,23 +124,23 @@ mod tests {
 
     #[test]
     fn zone_covers_overlapping_voxels() {
-        let mut fixed = StaticMap::new(0.5).expect("voxel size");
+        let mut fixed = StaticMap::new();
         let zone = ForbiddenZone { min_m: [-0.2, 0.0, 0.0], max_m: [0.6, 0.5, 0.1] };
-        assert_eq!(fixed.add_zone(&zone).expect("valid"), 3);
+        assert_eq!(fixed.add_zone(&zone, 0.5).expect("valid"), 3);
         for x in -1..=1 {
             assert!(fixed.contains(VoxelIndex([x, 0, 0])));
         }
         assert!(!fixed.contains(VoxelIndex([2, 0, 0])) && !fixed.contains(VoxelIndex([0, 1, 0])));
         let huge = ForbiddenZone { min_m: [0.0; 3], max_m: [1e5, 1e5, 1e3] };
-        assert!(fixed.add_zone(&huge).expect_err("too large").to_string().contains("forbidden"));
+        assert!(fixed.add_zone(&huge, 0.5).expect_err("too large").to_string().contains("forbidden"));
         assert_eq!(fixed.len(), 2, "x = -1 and x = 0..1 lie in two blocks");
     }
 
     #[test]
     fn rows_match_single_voxel_test() {
         let lo = OccupancyParams::default().log_odds().expect("defaults");
-        let mut map = OccupancyMap::new(0.1).expect("voxel size");
-        let mut fixed = StaticMap::new(0.1).expect("voxel size");
+        let mut map = OccupancyMap::new();
+        let mut fixed = StaticMap::new();
         for x in [-9, -3, 0, 5, 12] {
             let v = VoxelIndex([x, 2, -1]);
             map.get_or_insert(v.block()).log_odds[v.offset_in_block()] = lo.max;

@@ -8,6 +8,7 @@
 use crate::{BlockKey, CoreError, VoxelIndex, VoxelState, BLOCK_VOXELS};
 use serde::{Deserialize, Serialize};
 use std::collections::HashMap;
+use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 
 /// Log-odds of a voxel never observed.
 pub const UNOBSERVED: f32 = f32::NEG_INFINITY;
@@ -128,25 +129,56 @@ impl Default for OccupancyBlock {
 }
 
 /// An unbounded map of blocks, allocated as they are first touched.
-#[derive(Debug, Clone)]
+///
+/// Every change moves its [`Self::stamp`] on, so whatever a backend keeps
+/// of the map can tell whether it is still current.
+#[derive(Debug)]
 pub struct BlockMap<B> {
     blocks: HashMap<BlockKey, Box<B>>,
-    voxel_size_m: f64,
+    stamp: MapStamp,
+}
+
+/// Which map, and which version of it: [`BlockMap::stamp`]. Two stamps are
+/// equal only for the same map with no change between them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct MapStamp {
+    /// Unique to one map (a clone is another map).
+    pub map: u64,
+    /// Changes so far.
+    pub revision: u64,
+}
+
+impl MapStamp {
+    fn fresh() -> Self {
+        static NEXT: AtomicU64 = AtomicU64::new(1);
+        MapStamp { map: NEXT.fetch_add(1, Relaxed), revision: 0 }
+    }
+}
+
+impl<B: Clone> Clone for BlockMap<B> {
+    fn clone(&self) -> Self {
+        BlockMap { blocks: self.blocks.clone(), stamp: MapStamp::fresh() }
+    }
+}
+
+impl<B: Default> Default for BlockMap<B> {
+    fn default() -> Self {
+        BlockMap { blocks: HashMap::new(), stamp: MapStamp::fresh() }
+    }
 }
 
 /// The global occupancy map.
 pub type OccupancyMap = BlockMap<OccupancyBlock>;
 
 impl<B: Default> BlockMap<B> {
-    /// An empty map with voxels of `voxel_size_m` metres.
-    pub fn new(voxel_size_m: f64) -> Result<Self, CoreError> {
-        crate::check_voxel_size(voxel_size_m)?;
-        Ok(BlockMap { blocks: HashMap::new(), voxel_size_m })
+    /// An empty map.
+    pub fn new() -> Self {
+        Self::default()
     }
 
-    /// Voxel edge length in metres.
-    pub fn voxel_size_m(&self) -> f64 {
-        self.voxel_size_m
+    /// This map and its version: moves on with every change.
+    pub fn stamp(&self) -> MapStamp {
+        self.stamp
     }
 
     /// Number of allocated blocks.
@@ -166,17 +198,20 @@ impl<B: Default> BlockMap<B> {
 
     /// The block at `key`, allocated if missing.
     pub fn get_or_insert(&mut self, key: BlockKey) -> &mut B {
+        self.stamp.revision += 1;
         self.blocks.entry(key).or_default()
     }
 
     /// Takes the blocks at `keys` out of the map (allocating missing ones)
     /// so they can be updated in parallel; give them back with [`Self::restore`].
     pub fn take(&mut self, keys: &[BlockKey]) -> Vec<(BlockKey, Box<B>)> {
+        self.stamp.revision += 1;
         keys.iter().map(|&k| (k, self.blocks.remove(&k).unwrap_or_default())).collect()
     }
 
     /// Puts back blocks taken with [`Self::take`].
     pub fn restore(&mut self, blocks: Vec<(BlockKey, Box<B>)>) {
+        self.stamp.revision += 1;
         self.blocks.extend(blocks);
     }
 
@@ -231,7 +266,7 @@ mod tests {
 
     #[test]
     fn take_and_restore_keep_blocks() {
-        let mut m = OccupancyMap::new(0.1).expect("valid");
+        let mut m = OccupancyMap::new();
         m.get_or_insert(BlockKey([0, 0, 0])).log_odds[3] = 1.0;
         let taken = m.take(&[BlockKey([0, 0, 0]), BlockKey([1, 0, 0])]);
         assert_eq!(m.len(), 0);

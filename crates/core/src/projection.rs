@@ -17,8 +17,9 @@
 //! those with this function, so the result is this function's, bit for bit.
 
 use crate::sensor::{Measurement, Projection, RangeLimits, Sensor};
-use crate::LocalVolume;
+use crate::{LocalVolume, Observations, OBS_MISS};
 use nalgebra::Isometry3;
+use rayon::prelude::*;
 
 /// [`crate::Backend::project_volume`]'s byte for a voxel that is not a miss.
 pub const PROJ_NOT_MISS: u8 = 0;
@@ -152,3 +153,38 @@ impl ProjectJob<'_> {
         }
     }
 }
+
+/// Marks every voxel of `obs`'s volume that `job` shows as free a miss, on
+/// the host's cores: the CPU backend's projection, and the reference a
+/// device falls back on where its kernel does not apply (a LiDAR's rings).
+pub fn mark_misses(obs: &Observations, job: &ProjectJob<'_>) {
+    let geom = job.voxel_to_sensor();
+    let [nx, ny, nz] = job.volume.dims;
+    (0..ny * nz).into_par_iter().with_min_len(8).for_each(|row| {
+        let (y, z) = (row % ny, row / ny);
+        let shared = geom.row(y, z);
+        for x in 0..nx {
+            if job.is_miss_at(geom.point_in_row(&shared, x)) {
+                obs.mark([x, y, z], x + nx * row, OBS_MISS);
+            }
+        }
+    });
+}
+
+/// Decides every voxel a backend left [`PROJ_UNCERTAIN`] in `bits` (one
+/// byte per voxel of `job.volume`) with [`ProjectJob::is_miss`], leaving
+/// only `OBS_MISS` or nothing; returns how many there were.
+pub fn decide_uncertain(job: &ProjectJob<'_>, bits: &mut [u8]) -> usize {
+    let geom = job.voxel_to_sensor();
+    let [nx, ny, _] = job.volume.dims;
+    bits.par_chunks_mut(nx).enumerate().map(|(row, line)| {
+        let (y, z) = (row % ny, row / ny);
+        let mut n = 0;
+        for (x, b) in line.iter_mut().enumerate().filter(|(_, b)| **b == PROJ_UNCERTAIN) {
+            *b = if job.is_miss(&geom, [x, y, z]) { OBS_MISS } else { 0 };
+            n += 1;
+        }
+        n
+    }).sum()
+}
+

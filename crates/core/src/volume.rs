@@ -1,7 +1,7 @@
 //! The local volume: a dense box of voxels centred on the sensor, moved with
 //! every update (paper §IV-A; GIE-mapping re-centres it on the robot's voxel).
 
-use crate::{BlockKey, CoreError, VoxelIndex, BLOCK_SIDE};
+use crate::{BlockKey, CoreError, Region, VoxelIndex, BLOCK_SIDE};
 use serde::{Deserialize, Serialize};
 
 /// Where the local volume sits: its size and an optional fixed height.
@@ -52,9 +52,16 @@ impl LocalVolume {
         Ok(LocalVolume { origin, dims, voxel_size_m })
     }
 
+    /// The box of world voxels the volume covers: the one box type every
+    /// stage works with (the volume adds only its voxel size).
+    #[inline]
+    pub fn region(&self) -> Region {
+        Region { origin: self.origin.0, dims: self.dims }
+    }
+
     /// Number of voxels.
     pub fn len(&self) -> usize {
-        self.dims.iter().product()
+        self.region().len()
     }
 
     /// Whether the volume has no voxel (never true for a built volume).
@@ -64,25 +71,17 @@ impl LocalVolume {
 
     /// Local coordinates of world voxel `v`, if inside.
     pub fn local(&self, v: VoxelIndex) -> Option<[usize; 3]> {
-        let mut out = [0usize; 3];
-        for (a, o) in out.iter_mut().enumerate() {
-            let d = v.0[a] as i64 - self.origin.0[a] as i64;
-            if d < 0 || d >= self.dims[a] as i64 {
-                return None;
-            }
-            *o = d as usize;
-        }
-        Some(out)
+        self.region().local(v)
     }
 
     /// World voxel at local coordinates `c`.
     pub fn world(&self, c: [usize; 3]) -> VoxelIndex {
-        VoxelIndex([0, 1, 2].map(|a| self.origin.0[a] + c[a] as i32))
+        self.region().world(c)
     }
 
     /// Linear index of local coordinates `c` (x fastest).
     pub fn linear(&self, c: [usize; 3]) -> usize {
-        c[0] + self.dims[0] * (c[1] + self.dims[1] * c[2])
+        self.region().linear(c)
     }
 
     /// Lowest corner of the volume in world metres.
@@ -92,7 +91,7 @@ impl LocalVolume {
 
     /// Every block that overlaps the volume, z slowest then y then x.
     pub fn blocks(&self) -> Vec<BlockKey> {
-        BlockKey::span(self.origin, self.world(self.dims.map(|d| d - 1)))
+        self.region().blocks()
     }
 
     /// The local-coordinate range `[lo, hi)` per axis that block `key` covers.

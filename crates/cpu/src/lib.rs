@@ -1,5 +1,6 @@
-//! The CPU backend of edtmap: every stage of the pipeline on all cores with
-//! rayon. It is the reference the other backends are tested against.
+//! The CPU backend of edtmap: every device stage of the pipeline
+//! ([`edtmap_core::Backend`]) on all cores with rayon, and the distance
+//! queries. It is the reference the other backends are tested against.
 //!
 //! # Batch EDT (paper §IV-B, Algorithm 1)
 //! [`edt::edt_with`] computes the exact squared Euclidean distance and the
@@ -25,7 +26,6 @@
 mod backend;
 pub mod edt;
 pub mod integrate;
-pub mod occupancy;
 pub mod query;
 mod error;
 

@@ -116,12 +116,12 @@ pub fn point_state(map: &GlobalMap, p: [f64; 3]) -> PointState {
 
 /// State of world voxel `v`.
 pub fn voxel_state(map: &GlobalMap, v: VoxelIndex) -> PointState {
-    if map.fixed.contains(v) {
+    if map.fixed_obstacles().contains(v) {
         return PointState::Occupied;
     }
-    match map.occupancy.get(v.block()) {
+    match map.occupancy().get(v.block()) {
         None => PointState::Outside,
-        Some(b) => match map.log_odds.state(b.log_odds[v.offset_in_block()]) {
+        Some(b) => match map.log_odds().state(b.log_odds[v.offset_in_block()]) {
             VoxelState::Unknown => PointState::Unknown,
             VoxelState::Free => PointState::Free,
             VoxelState::Occupied => PointState::Occupied,
@@ -144,7 +144,7 @@ pub fn voxel_distance(map: &GlobalMap, v: VoxelIndex, signed: bool) -> (f64, boo
     }
     let (d, _) = map.entry(v);
     if d == FAR_DIST_SQ {
-        (map.params.max_distance_m, true)
+        (map.params().max_distance_m, true)
     } else {
         (f64::from(d).sqrt() * vs, false)
     }

@@ -1,22 +1,24 @@
 //! The global EDT after every step of random occupancy changes in a window
 //! that moves over the map, against a brute-force EDT of the whole map.
 
+use edtmap_core::stages::IntegrationStage;
 use edtmap_core::{Connectivity, EdtMap, GlobalParams, IntegrationMode};
 use edtmap_cpu::edt::{edt_with, ScanLayout};
-use edtmap_cpu::integrate::Integrator;
+use edtmap_cpu::CpuBackend;
 use edtmap_sim::conformance::IntegrationWorld;
 use proptest::prelude::*;
 
 /// Runs `steps` steps of the world of `seed`; returns the worst excess.
 fn run(seed: u64, params: &GlobalParams, steps: usize) -> Result<f64, TestCaseError> {
     let mut world = IntegrationWorld::new(seed);
-    let mut edt = EdtMap::new(IntegrationWorld::VOXEL_M).expect("size");
-    let mut integrator = Integrator::new(params, IntegrationWorld::VOXEL_M).expect("valid");
+    let mut edt = EdtMap::new();
+    let stage = IntegrationStage::new(params, IntegrationWorld::VOXEL_M).expect("valid");
+    let mut cpu = CpuBackend::default();
     let mut worst: f64 = 0.0;
     for _ in 0..steps {
         let (window, mask) = world.step();
         let batch = edt_with(&mask, |&o| o, ScanLayout::default()).expect("batch");
-        integrator.integrate(&mut edt, &world.obstacles(), &window, &batch).expect("integrate");
+        stage.integrate(&mut cpu, &mut edt, world.obstacles(), &window, &batch).expect("integrate");
         worst = worst.max(world.check(&edt, params).map_err(TestCaseError::fail)?);
     }
     Ok(worst)

@@ -10,7 +10,9 @@
 //! Points beyond the maximum range clear space up to it, as in OctoMap.
 //! Prints one JSON line.
 
-use edtmap::cpu::occupancy::{fuse, Construction, OccupancyStage, OgmOptions};
+use edtmap::fuse;
+use edtmap::cpu::CpuBackend;
+use edtmap::stages::{Construction, OccupancyStage, OgmOptions};
 use edtmap::sensor::{Frame, Measurement, RangeLimits, Sensor};
 use edtmap::{LocalVolume, OccupancyMap, OccupancyParams, VolumeParams};
 use nalgebra::Isometry3;
@@ -68,9 +70,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut times = Vec::new();
     let mut last = None;
     for _ in 0..args.repeat {
-        let mut map = OccupancyMap::new(args.voxel_size_m)?;
+        let mut map = OccupancyMap::new();
         let t = Instant::now();
-        let obs = stage.observe(&sensor, &frame, volume, &opts)?;
+        let obs = stage.observe(&mut CpuBackend::default(), &sensor, &frame, volume, &opts)?;
         let report = fuse(&mut map, obs, &lo);
         times.push(t.elapsed().as_secs_f64() * 1e3);
         last = Some((map, report));

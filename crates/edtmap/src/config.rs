@@ -29,7 +29,7 @@ pub use memory::MemorySection;
 use crate::{MapError, MapperParams};
 use edtmap_core::sensor::{PinholeCamera, RangeLimits, Sensor, SpinningLidar};
 use edtmap_core::{CoreError, EdtParams, GlobalParams, OccupancyParams, VolumeParams};
-use edtmap_cpu::occupancy::{Construction, OgmOptions};
+use edtmap_core::stages::{Construction, OgmOptions};
 use serde::Deserialize;
 use std::path::Path;
 

@@ -87,9 +87,13 @@ impl MapError {
     }
 }
 
+/// Bad input a backend refused is the frame's error, not the backend's.
 impl From<edtmap_core::BackendError> for MapError {
     fn from(e: edtmap_core::BackendError) -> Self {
-        MapError::Backend(e)
+        match e {
+            edtmap_core::BackendError::Core(c) => MapError::Core(c),
+            other => MapError::Backend(other),
+        }
     }
 }
 

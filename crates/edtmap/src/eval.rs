@@ -14,8 +14,8 @@
 
 use crate::MapError;
 use edtmap_core::{GlobalMap, VoxelState, FAR_DIST_SQ};
-use edtmap_cpu::integrate::exact::exact_region;
-use edtmap_cpu::integrate::region::Region;
+use edtmap_core::region::Region;
+use edtmap_core::stages::exact::exact_region;
 
 /// Occupancy scores of one volume (or the sum of several).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -136,9 +136,9 @@ pub struct EdtErrors {
 /// EDT computed from its obstacles. Distances beyond the cutoff count as
 /// the cutoff.
 pub fn edt_errors(map: &GlobalMap, region: &Region) -> Result<EdtErrors, MapError> {
-    let exact = exact_region(&map.obstacles(), region, map.cutoff)?;
+    let exact = exact_region(&mut edtmap_cpu::CpuBackend::default(), &map.obstacles(), region, map.cutoff())?;
     let vs = map.voxel_size_m();
-    let cap = f64::from(map.cutoff.max_dist_sq).sqrt();
+    let cap = f64::from(map.cutoff().max_dist_sq).sqrt();
     let metres = |d: u32| if d == FAR_DIST_SQ { cap * vs } else { f64::from(d).sqrt() * vs };
     let (mut sum_sq, mut max, mut wrong, mut voxels) = (0.0, 0.0f64, 0usize, 0usize);
     for (i, &truth) in exact.iter().enumerate() {
@@ -156,5 +156,5 @@ pub fn edt_errors(map: &GlobalMap, region: &Region) -> Result<EdtErrors, MapErro
 
 /// The box spanned by `map`'s EDT blocks, if any.
 pub fn edt_extent(map: &GlobalMap) -> Option<Region> {
-    map.edt.key_bounds().map(Region::of_blocks)
+    map.edt().key_bounds().map(Region::of_blocks)
 }

@@ -2,18 +2,17 @@
 
 use crate::MapError;
 use edtmap_core::GlobalMap;
-use edtmap_io::mapfile::{read_map, write_map, MapContents};
+use edtmap_io::mapfile::{read_map, write_map};
 use std::path::Path;
 
 /// Writes `map` (occupancy, global EDT, fixed obstacles and their
 /// parameters) to `path`, atomically: a failed save leaves no half file.
 pub fn save_map(map: &GlobalMap, path: &Path) -> Result<(), MapError> {
-    Ok(write_map(path, &MapContents::from(map.clone()))?)
+    Ok(write_map(path, map)?)
 }
 
 /// Reads a map written by [`save_map`]; a corrupt, truncated or newer file
 /// is an error naming it.
 pub fn load_map(path: &Path) -> Result<GlobalMap, MapError> {
-    let contents = read_map(path)?;
-    contents.into_global().map_err(|e| MapError::Io(edtmap_io::IoError::MapFile { path: path.to_path_buf(), error: e }))
+    Ok(read_map(path)?)
 }

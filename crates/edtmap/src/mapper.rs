@@ -2,17 +2,13 @@
 
 use crate::MapError;
 use edtmap_core::sensor::{Frame, Sensor};
+use edtmap_core::stages::{BatchEdtStage, IntegrationStage, OccupancyStage, OgmOptions};
 use edtmap_core::{
-    Backend, BlockKey, IntegrationMode, WavefrontJob, EdtField, EdtParams, GlobalMap, GlobalParams, Grid3, LocalVolume, OccupancyParams, VolumeParams,
-    VoxelIndex, VoxelState,
+    read_states, Backend, BlockKey, EdtField, EdtParams, GlobalMap, GlobalParams, Grid3, IntegrateReport, LocalVolume, OccupancyParams, Region, VolumeParams,
+    VoxelIndex, VoxelState, WaveCounts,
 };
-use edtmap_cpu::integrate::exact::fill_mask;
-use edtmap_cpu::integrate::region::Region;
-use edtmap_cpu::integrate::{IntegrateReport, Integrator, WaveCounts};
-use edtmap_cpu::occupancy::{fuse, read_states, OccupancyStage, OgmOptions};
 use edtmap_cpu::query::{self, Distance, PointState};
 use edtmap_cpu::CpuBackend;
-use edtmap_core::BatchEdt;
 use std::time::Instant;
 
 /// Everything a [`Mapper`] needs to know besides the sensor.
@@ -87,20 +83,28 @@ pub struct FrameStats {
 /// Builds the occupancy map and the local EDT from a stream of frames, on
 /// backend `B` (the CPU by default; `edtmap_gpu::GpuBackend` for a GPU).
 /// Every backend gives the same map, bit for bit.
+///
+/// Each frame runs the three stages of `edtmap_core::stages` in turn:
+/// occupancy (fused into the map), the batch EDT of the local volume, its
+/// integration into the global EDT. **When the backend fails** at the EDT
+/// stages (a lost GPU) after the frame's occupancy was fused, the mapper
+/// finishes them on a CPU backend it keeps for the purpose, so the map is
+/// never half-updated, and returns the backend's error for the caller to
+/// act on (switch backends, stop). That is the only fallback; backends
+/// keep their own caches coherent (see `edtmap_core::Backend`).
 #[derive(Debug)]
 pub struct Mapper<B: Backend = CpuBackend> {
     backend: B,
+    /// Finishes a frame the backend failed (made at the first failure).
+    fallback: Option<CpuBackend>,
     params: MapperParams,
     sensor: Sensor,
     map: GlobalMap,
     occupancy: OccupancyStage,
-    integrator: Integrator,
+    batch: BatchEdtStage,
+    integration: IntegrationStage,
     volume: Option<LocalVolume>,
     local_states: Grid3<VoxelState>,
-    local_mask: Grid3<bool>,
-    local_edt: EdtField,
-    /// The batch EDT with unknown voxels free, when `local_edt` is not.
-    global_batch: Option<(Grid3<bool>, EdtField)>,
 }
 
 impl Mapper<CpuBackend> {
@@ -130,25 +134,22 @@ impl<B: Backend> Mapper<B> {
     pub fn with_map_on(backend: B, sensor: Sensor, mut params: MapperParams, map: GlobalMap) -> Result<Self, MapError> {
         sensor.validate()?;
         params.voxel_size_m = map.voxel_size_m();
-        params.occupancy = map.occupancy_params.clone();
-        params.global = map.params.clone();
+        params.occupancy = map.occupancy_params().clone();
+        params.global = map.params().clone();
         // Fails early on a bad size, or one past the memory budget, rather
         // than at the first frame.
         crate::budget::check(&params)?;
-        let integrator = Integrator::new(&params.global, params.voxel_size_m)?;
-        let mask = Grid3::from_vec([1, 1, 1], vec![false])?;
-        let global_batch = params.edt.unknown_as_occupied.then(|| (mask.clone(), EdtField::empty()));
+        let integration = IntegrationStage::new(&params.global, params.voxel_size_m)?;
         let mut mapper = Mapper {
             backend,
+            fallback: None,
             sensor,
             map,
             occupancy: OccupancyStage::default(),
-            integrator,
+            batch: BatchEdtStage::new(params.edt.unknown_as_occupied),
+            integration,
             volume: None,
-            local_states: Grid3::from_vec([1, 1, 1], vec![VoxelState::Unknown])?,
-            local_mask: mask,
-            local_edt: EdtField::empty(),
-            global_batch,
+            local_states: Grid3::default(),
             params,
         };
         mapper.lay_down_fixed()?;
@@ -158,11 +159,9 @@ impl<B: Backend> Mapper<B> {
     /// Brings the fixed obstacles (forbidden zones, priors) into the global
     /// EDT at once, rather than when a window first passes over them.
     fn lay_down_fixed(&mut self) -> Result<(), MapError> {
-        // The backend may hold part of the map; it no longer matches.
-        self.backend.map_changed();
-        let Some(keys) = self.map.fixed.key_bounds() else { return Ok(()) };
+        let Some(keys) = self.map.fixed_obstacles().key_bounds() else { return Ok(()) };
         let (edt, obstacles) = self.map.edt_and_obstacles();
-        self.integrator.recompute(edt, &obstacles, &Region::of_blocks(keys))?;
+        self.integration.recompute(&mut self.backend, edt, obstacles, &Region::of_blocks(keys))?;
         Ok(())
     }
 
@@ -173,14 +172,14 @@ impl<B: Backend> Mapper<B> {
         self.sensor.check(frame)?;
         let volume = LocalVolume::centred(&self.params.volume, self.params.voxel_size_m, frame.t_world_sensor.translation.vector.into())?;
         // §IV-A: occupancy of the local volume, fused into the global map.
-        let obs = self.occupancy.observe_on(&mut self.backend, &self.sensor, frame, volume, &self.params.ogm)?;
-        let fused = fuse(&mut self.map.occupancy, obs, &self.map.log_odds);
-        read_states(&self.map.occupancy, &volume, &self.map.log_odds, &mut self.local_states)?;
+        let obs = self.occupancy.observe(&mut self.backend, &self.sensor, frame, volume, &self.params.ogm)?;
+        let fused = self.map.fuse(obs);
+        read_states(self.map.occupancy(), &volume, self.map.log_odds(), &mut self.local_states)?;
         let ogm_ms = ms_since(start);
         // §IV-B, Alg. 1: exact batch EDT of the local volume.
         let t = Instant::now();
-        if let Err(e) = self.batch_edt(&volume) {
-            return Err(self.recover(&volume, e));
+        if let Err(e) = self.batch.run(&mut self.backend, &self.map, &volume) {
+            return Err(self.recover(&volume, e.into()));
         }
         let batch_edt_ms = ms_since(t);
         // §IV-C, Alg. 2 and 3: the batch EDT merged into the global EDT.
@@ -191,7 +190,7 @@ impl<B: Backend> Mapper<B> {
         };
         let integrate_ms = ms_since(t);
         self.volume = Some(volume);
-        let mapped_voxels = (self.map.occupancy.len() * edtmap_core::BLOCK_VOXELS).max(1);
+        let mapped_voxels = (self.map.occupancy().len() * edtmap_core::BLOCK_VOXELS).max(1);
         Ok(FrameStats {
             ogm_ms,
             batch_edt_ms,
@@ -204,26 +203,24 @@ impl<B: Backend> Mapper<B> {
             change_score_m: merged.change_sum_vox * self.params.voxel_size_m / mapped_voxels as f64,
             integrate_region_voxels: merged.region_voxels,
             waves: merged.waves,
-            map_blocks: self.map.occupancy.len() + self.map.edt.len() + self.map.fixed.len(),
+            map_blocks: self.map.occupancy().len() + self.map.edt().len() + self.map.fixed_obstacles().len(),
             map_bytes: self.map.bytes(),
         })
     }
 
     /// After the backend failed (a lost GPU, say) with the frame's
-    /// occupancy already fused: finishes the frame's EDT stages on the CPU,
-    /// so the map stays whole, and returns the backend's error for the
-    /// caller to act on (switch backends, stop).
+    /// occupancy already fused: finishes the frame's EDT stages on the CPU
+    /// fallback, so the map stays whole, and returns the backend's error
+    /// for the caller to act on (switch backends, stop).
     fn recover(&mut self, volume: &LocalVolume, failure: MapError) -> MapError {
-        if !matches!(failure, MapError::Backend(_)) {
+        if !failure.is_backend_failure() {
             return failure;
         }
-        self.backend.map_changed();
-        let finished = window_edts(&mut CpuBackend::default(), &self.map, self.params.edt.unknown_as_occupied, volume, &mut self.local_mask, &mut self.local_edt, &mut self.global_batch)
-            .and_then(|()| {
-                let batch = self.global_batch.as_ref().map_or(&self.local_edt, |(_, f)| f);
-                let (edt, obstacles) = self.map.edt_and_obstacles();
-                Ok(self.integrator.integrate(edt, &obstacles, volume, batch)?)
-            });
+        let cpu = self.fallback.get_or_insert_with(CpuBackend::default);
+        let finished = self.batch.run(cpu, &self.map, volume).map_err(MapError::from).and_then(|()| {
+            let (edt, obstacles) = self.map.edt_and_obstacles();
+            Ok(self.integration.integrate(cpu, edt, obstacles, volume, self.batch.for_global())?)
+        });
         match finished {
             Ok(_) => {
                 self.volume = Some(*volume);
@@ -233,30 +230,9 @@ impl<B: Backend> Mapper<B> {
         }
     }
 
-    /// The exact EDT of the window's obstacles into `local_edt` (and, when
-    /// unknown voxels are obstacles locally, the one the global map needs).
-    fn batch_edt(&mut self, volume: &LocalVolume) -> Result<(), MapError> {
-        window_edts(&mut self.backend, &self.map, self.params.edt.unknown_as_occupied, volume, &mut self.local_mask, &mut self.local_edt, &mut self.global_batch)
-    }
-
     fn integrate(&mut self, volume: &LocalVolume) -> Result<IntegrateReport, MapError> {
-        let batch = self.global_batch.as_ref().map_or(&self.local_edt, |(_, f)| f);
-        if self.integrator.mode() == IntegrationMode::Wavefront {
-            let job = WavefrontJob {
-                map: &mut self.map.edt,
-                window: volume,
-                batch,
-                cutoff: self.integrator.cutoff(),
-                offsets: self.integrator.offsets(),
-            };
-            if let Some(report) = self.backend.integrate_wavefront(job)? {
-                self.integrator.forget(&report.changed_blocks);
-                return Ok(report);
-            }
-        }
-        self.backend.map_changed();
         let (edt, obstacles) = self.map.edt_and_obstacles();
-        Ok(self.integrator.integrate(edt, &obstacles, volume, batch)?)
+        Ok(self.integration.integrate(&mut self.backend, edt, obstacles, volume, self.batch.for_global())?)
     }
 
     /// The backend the stages run on.
@@ -306,11 +282,11 @@ impl<B: Backend> Mapper<B> {
             }));
         }
         let mut added = 0;
-        for (key, block) in prior.occupancy.iter() {
+        for (key, block) in prior.occupancy().iter() {
             for (offset, &value) in block.log_odds.iter().enumerate() {
                 let v = key.voxel(offset);
-                if prior.log_odds.state(value) == VoxelState::Occupied || prior.fixed.contains(v) {
-                    self.map.fixed.insert(v);
+                if prior.log_odds().state(value) == VoxelState::Occupied || prior.fixed_obstacles().contains(v) {
+                    self.map.fixed_obstacles_mut().insert(v);
                     added += 1;
                 }
             }
@@ -360,32 +336,8 @@ impl<B: Backend> Mapper<B> {
     /// Exact EDT of the latest local volume, in its voxel units: the
     /// high-rate local distance field of the paper, for local planners.
     pub fn local_edt(&self) -> &EdtField {
-        &self.local_edt
+        self.batch.local()
     }
-}
-
-/// The exact EDT of the window's obstacles into `local_edt` (and, when
-/// unknown voxels are obstacles locally, the one the global map needs,
-/// with unknown voxels free, into `global_batch`), on `backend`.
-fn window_edts<B: BatchEdt + ?Sized>(
-    backend: &mut B,
-    map: &GlobalMap,
-    unknown_as_occupied: bool,
-    volume: &LocalVolume,
-    local_mask: &mut Grid3<bool>,
-    local_edt: &mut EdtField,
-    global_batch: &mut Option<(Grid3<bool>, EdtField)>,
-) -> Result<(), MapError> {
-    let region = Region { origin: volume.origin.0, dims: volume.dims };
-    let mut obstacles = map.obstacles();
-    obstacles.unknown_as_occupied = unknown_as_occupied;
-    fill_mask(&obstacles, &region, local_mask)?;
-    backend.batch_edt(local_mask, local_edt)?;
-    if let Some((mask, field)) = global_batch {
-        fill_mask(&map.obstacles(), &region, mask)?;
-        backend.batch_edt(mask, field)?;
-    }
-    Ok(())
 }
 
 fn ms_since(t: Instant) -> f64 {

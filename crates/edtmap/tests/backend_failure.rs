@@ -4,7 +4,7 @@
 
 use edtmap::config::Config;
 use edtmap::cpu::CpuBackend;
-use edtmap::{Backend, BackendError, BatchEdt, EdtField, Grid3, MapError, Mapper};
+use edtmap::{Backend, BackendError, BatchEdt, EdtField, FixedRay, Grid3, IntegrateJob, IntegrateReport, MapError, Mapper, Observations, ProjectJob};
 use edtmap_sim::{Scene, SceneName, SceneOptions};
 use std::path::PathBuf;
 
@@ -31,6 +31,15 @@ impl Backend for Flaky {
     fn name(&self) -> String {
         "flaky".into()
     }
+    fn cast_rays(&mut self, rays: &[FixedRay], q: u32, obs: &Observations) -> Result<(), BackendError> {
+        self.cpu.cast_rays(rays, q, obs)
+    }
+    fn project_volume(&mut self, job: &ProjectJob<'_>, obs: &Observations) -> Result<(), BackendError> {
+        self.cpu.project_volume(job, obs)
+    }
+    fn integrate(&mut self, job: IntegrateJob<'_>) -> Result<IntegrateReport, BackendError> {
+        self.cpu.integrate(job)
+    }
 }
 
 #[test]
@@ -54,19 +63,19 @@ fn a_backend_failure_returns_the_error_and_keeps_the_map_whole() {
         }
         assert!(mapper.local_edt() == reference.local_edt(), "frame {i}: local EDT");
         let (a, b) = (mapper.map(), reference.map());
-        assert_eq!(a.edt.len(), b.edt.len(), "frame {i}");
-        for (key, block) in b.edt.iter() {
-            assert!(a.edt.get(key) == Some(block), "frame {i}: block {key:?}");
+        assert_eq!(a.edt().len(), b.edt().len(), "frame {i}");
+        for (key, block) in b.edt().iter() {
+            assert!(a.edt().get(key) == Some(block), "frame {i}: block {key:?}");
         }
     }
 }
 
 /// A backend whose device is lost in the occupancy stage (ray casting).
-struct LostInRaycast;
+struct LostInRaycast(CpuBackend);
 
 impl BatchEdt for LostInRaycast {
     fn batch_edt(&mut self, mask: &Grid3<bool>, out: &mut EdtField) -> Result<(), BackendError> {
-        CpuBackend::default().batch_edt(mask, out)
+        self.0.batch_edt(mask, out)
     }
 }
 
@@ -74,8 +83,14 @@ impl Backend for LostInRaycast {
     fn name(&self) -> String {
         "lost-in-raycast".into()
     }
-    fn cast_rays(&mut self, _: &[edtmap::FixedRay], _: u32, _: [usize; 3], _: &mut Vec<u8>) -> Result<bool, BackendError> {
+    fn cast_rays(&mut self, _: &[FixedRay], _: u32, _: &Observations) -> Result<(), BackendError> {
         Err(BackendError::DeviceLost("lost while casting rays".into()))
+    }
+    fn project_volume(&mut self, job: &ProjectJob<'_>, obs: &Observations) -> Result<(), BackendError> {
+        self.0.project_volume(job, obs)
+    }
+    fn integrate(&mut self, job: IntegrateJob<'_>) -> Result<IntegrateReport, BackendError> {
+        self.0.integrate(job)
     }
 }
 
@@ -86,7 +101,7 @@ fn a_device_lost_in_the_occupancy_stage_is_a_backend_failure() {
     config.sensor.construction = edtmap::config::ConstructionName::Raycast;
     let (sensor, params) = config.mapper_params().expect("valid");
     let scene = Scene::new(SceneName::UavPillars, &SceneOptions::default()).expect("scene");
-    let mut mapper = Mapper::new_on(LostInRaycast, sensor.clone(), params).expect("mapper");
+    let mut mapper = Mapper::new_on(LostInRaycast(CpuBackend::default()), sensor.clone(), params).expect("mapper");
     let err = mapper.integrate_frame(&scene.frame(&sensor, 0).expect("frame")).expect_err("the device is lost");
     assert!(err.is_backend_failure(), "{err:?}");
     assert!(matches!(err, MapError::Backend(BackendError::DeviceLost(_))), "{err:?}");

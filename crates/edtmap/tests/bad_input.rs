@@ -17,7 +17,7 @@ fn wall_frame(width: u32, height: u32) -> Frame {
 }
 
 fn digest(m: &Mapper) -> Vec<(edtmap::BlockKey, Vec<u32>)> {
-    let mut d: Vec<_> = m.map().occupancy.iter().map(|(k, b)| (k, b.log_odds.iter().map(|v| v.to_bits()).collect())).collect();
+    let mut d: Vec<_> = m.map().occupancy().iter().map(|(k, b)| (k, b.log_odds.iter().map(|v| v.to_bits()).collect())).collect();
     d.sort_by_key(|(k, _)| *k);
     d
 }
@@ -82,7 +82,7 @@ fn empty_scans_are_refused() {
     let scan = LaserScan { angle_min_rad: 0.0, angle_increment_rad: 0.01, ranges: vec![], range: RangeLimits { min_m: 0.1, max_m: 5.0 } };
     let f = Frame { stamp_s: 0.0, t_world_sensor: Isometry3::identity(), measurement: Measurement::Scan(scan) };
     assert!(m.integrate_frame(&f).expect_err("empty").to_string().contains("no ranges"));
-    assert!(m.map().occupancy.is_empty() && m.map().edt.is_empty());
+    assert!(m.map().occupancy().is_empty() && m.map().edt().is_empty());
 }
 
 #[test]

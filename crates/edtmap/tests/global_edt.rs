@@ -58,14 +58,14 @@ fn save_and_load_round_trip_bit_identical() {
     save_map(mapper.map(), &path).expect("save");
     let loaded = load_map(&path).expect("load");
     let blocks = |m: &GlobalMap| {
-        let mut occ: Vec<_> = m.occupancy.iter().map(|(k, b)| (k, b.log_odds.map(f32::to_bits))).collect();
-        let mut edt: Vec<_> = m.edt.iter().map(|(k, b)| (k, b.dist_sq, b.nearest)).collect();
+        let mut occ: Vec<_> = m.occupancy().iter().map(|(k, b)| (k, b.log_odds.map(f32::to_bits))).collect();
+        let mut edt: Vec<_> = m.edt().iter().map(|(k, b)| (k, b.dist_sq, b.nearest)).collect();
         occ.sort_by_key(|b| b.0);
         edt.sort_by_key(|b| b.0);
         (occ, edt)
     };
     assert!(blocks(mapper.map()) == blocks(&loaded));
-    assert_eq!((loaded.params.clone(), loaded.occupancy_params.clone()), (mapper.map().params.clone(), mapper.map().occupancy_params.clone()));
+    assert_eq!((loaded.params().clone(), loaded.occupancy_params().clone()), (mapper.map().params().clone(), mapper.map().occupancy_params().clone()));
     // A loaded map goes on mapping.
     let (scene, sensor, params) = setup("room");
     let mut again = Mapper::with_map(sensor.clone(), params, loaded).expect("mapper");

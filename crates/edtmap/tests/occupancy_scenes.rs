@@ -2,7 +2,7 @@
 //! both constructions, their agreement, and dynamic obstacles.
 
 use edtmap::config::Config;
-use edtmap::cpu::occupancy::Construction;
+use edtmap::stages::Construction;
 use edtmap::eval::{agreement, OccupancyScores};
 use edtmap::sensor::Sensor;
 use edtmap::{Mapper, MapperParams, VoxelIndex, VoxelState};
@@ -152,9 +152,9 @@ fn maps_do_not_depend_on_thread_count() {
             for i in 0..6 {
                 m.integrate_frame(&scene.frame(&sensor, i * 5).expect("frame")).expect("frame");
             }
-            let mut blocks: Vec<_> = m.map().occupancy.iter().map(|(k, b)| (k, b.log_odds.map(f32::to_bits))).collect();
+            let mut blocks: Vec<_> = m.map().occupancy().iter().map(|(k, b)| (k, b.log_odds.map(f32::to_bits))).collect();
             blocks.sort_by_key(|(k, _)| *k);
-            let mut edt: Vec<_> = m.map().edt.iter().map(|(k, b)| (k, b.dist_sq, b.nearest)).collect();
+            let mut edt: Vec<_> = m.map().edt().iter().map(|(k, b)| (k, b.dist_sq, b.nearest)).collect();
             edt.sort_by_key(|(k, _, _)| *k);
             (blocks, edt, m.local_edt().dist_sq_vox().to_vec())
         })

@@ -4,7 +4,8 @@
 //! centres.
 
 use edtmap::cpu::edt::{edt_with, ScanLayout};
-use edtmap::cpu::integrate::Integrator;
+use edtmap::cpu::CpuBackend;
+use edtmap::stages::IntegrationStage;
 use edtmap::cpu::query::{distance, distance_box, distances, PointState};
 use edtmap::{GlobalMap, GlobalParams, Grid3, IntegrationMode, LocalVolume, OccupancyParams, VoxelIndex};
 
@@ -16,16 +17,16 @@ fn map_of(lo: [i32; 3], dims: [usize; 3], obstacle: impl Fn([f64; 3]) -> bool) -
     let params = GlobalParams { max_distance_m: 1.5, mode: IntegrationMode::Exact, ..Default::default() };
     let mut map = GlobalMap::new(VS, OccupancyParams::default(), params).expect("valid");
     let window = LocalVolume { origin: VoxelIndex(lo), dims, voxel_size_m: VS };
-    let (min, max) = (map.log_odds.min, map.log_odds.max);
+    let (min, max) = (map.log_odds().min, map.log_odds().max);
     let mask = Grid3::from_fn(dims, |x, y, z| obstacle(window.world([x, y, z]).centre(VS))).expect("dims");
     for (i, &o) in mask.as_slice().iter().enumerate() {
         let v = window.world(mask.coords(i));
-        map.occupancy.get_or_insert(v.block()).log_odds[v.offset_in_block()] = if o { max } else { min };
+        map.occupancy_mut().get_or_insert(v.block()).log_odds[v.offset_in_block()] = if o { max } else { min };
     }
     let batch = edt_with(&mask, |&o| o, ScanLayout::default()).expect("batch");
-    let mut integrator = Integrator::new(&map.params, VS).expect("valid");
+    let stage = IntegrationStage::new(map.params(), VS).expect("valid");
     let (edt, obstacles) = map.edt_and_obstacles();
-    integrator.integrate(edt, &obstacles, &window, &batch).expect("integrate");
+    stage.integrate(&mut CpuBackend::default(), edt, obstacles, &window, &batch).expect("integrate");
     map
 }
 

@@ -1,11 +1,13 @@
 //! Wavefront integration on the GPU (`integrate.wgsl`), bit-identical to
-//! the CPU's `edtmap_cpu::integrate::wavefront`.
+//! the CPU backend's.
 //!
 //! The region a frame can change (the window grown by the cutoff's reach
-//! plus one) is read from the CPU's block map with the CPU's own packing
-//! and region code, worked on in device memory, and written back where it
-//! changed, so the CPU map (which queries read) is the same as the CPU
-//! backend's after every frame. The waves run level by level on the
+//! plus one) is read from the host's block map with the shared packing
+//! and region code (`edtmap_core::region`), worked on in device memory,
+//! and written back where it changed, so the host map (which queries read)
+//! is the same as the CPU backend's after every frame. The region stays
+//! resident on the device between frames while the map's stamp says
+//! nothing else changed it. The waves run level by level on the
 //! device; the host only reads the frontier's size after every
 //! `LEVELS_PER_SUBMIT` levels to know when they are done. Frontier sizes
 //! drive the dispatches through indirect arguments the device writes
@@ -13,8 +15,8 @@
 
 use crate::context::GpuContext;
 use crate::dispatch::{groups_1d, storage_entry, uniform_entry, Kernel};
-use edtmap_core::{BackendError, BlockKey, IntegrateReport, WaveCounts, WavefrontJob};
-use edtmap_cpu::integrate::region::{read_region_except, write_back_with, Packing, Region, FAR};
+use edtmap_core::region::{read_region_except, write_back_with, Packing, Region, FAR};
+use edtmap_core::{BackendError, BlockKey, Cutoff, EdtField, EdtMap, IntegrateReport, LocalVolume, MapStamp, WaveCounts};
 
 /// Levels encoded per submission before the host checks for the end.
 const LEVELS_PER_SUBMIT: usize = 4;
@@ -78,8 +80,10 @@ pub struct GpuIntegrator {
     old: Vec<u64>,
     cur: Vec<u64>,
     /// The region whose values the device holds in `cur`, equal to the
-    /// CPU map's there, unless the map changed by other means since.
+    /// host map's there while the map's stamp is `seen`.
     resident: Option<Region>,
+    /// The map's stamp after this integrator last wrote it.
+    seen: Option<MapStamp>,
     /// The newly covered voxels' (index, S, D, 0), uploaded when resident.
     fresh: Vec<[u32; 4]>,
     /// The changed blocks (indices in the region's blocks) and their
@@ -185,6 +189,7 @@ impl GpuIntegrator {
                 old: Vec::new(),
                 cur: Vec::new(),
                 resident: None,
+                seen: None,
                 fresh: Vec::new(),
                 changed_list: Vec::new(),
                 changed_pairs: Vec::new(),
@@ -192,15 +197,14 @@ impl GpuIntegrator {
         })
     }
 
-    /// Forgets the region held on the device: the map was changed by other
-    /// means (another integrator, a prior laid down, a new map).
-    pub fn map_changed(&mut self) {
-        self.resident = None;
-    }
-
-    /// Merges `job.batch` into `job.map` (see the module docs).
-    pub fn run(&mut self, job: WavefrontJob<'_>) -> Result<IntegrateReport, BackendError> {
-        let WavefrontJob { map, window, batch, cutoff, offsets } = job;
+    /// Merges `batch`, the batch EDT of `window`, into `map` (see the
+    /// module docs).
+    pub fn run(&mut self, map: &mut EdtMap, window: &LocalVolume, batch: &EdtField, cutoff: Cutoff, offsets: &[[i32; 3]]) -> Result<IntegrateReport, BackendError> {
+        if self.seen != Some(map.stamp()) {
+            // Changed by other means (another backend, fixed obstacles
+            // laid down, another map): what the device holds is stale.
+            self.resident = None;
+        }
         if batch.dims() != window.dims {
             return Err(BackendError::Device(format!("batch EDT of {:?} voxels for a window of {:?}", batch.dims(), window.dims)));
         }
@@ -363,6 +367,7 @@ impl GpuIntegrator {
         let mut written = write_back_with(map, &packing, &keys, &self.old, |i| cur[i]);
         written.changed_blocks.sort_unstable();
         self.resident = Some(region);
+        self.seen = Some(map.stamp());
         Ok(IntegrateReport {
             voxels_changed: written.voxels_changed,
             change_sum_vox: written.change_sum_vox,

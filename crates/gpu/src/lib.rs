@@ -22,11 +22,19 @@ pub use integrate::GpuIntegrator;
 pub use project::GpuProject;
 pub use raycast::GpuRaycast;
 
-use edtmap_core::fixed_ray::FixedRay;
-use edtmap_core::{Backend, BackendError, BatchEdt, EdtField, Grid3, IntegrateReport, ProjectJob, WavefrontJob};
+use edtmap_core::fixed_ray::{cast_fixed, FixedRay};
+use edtmap_core::region::{Packing, Region};
+use edtmap_core::stages::exact::{recompute_exact, ExactBuffers};
+use edtmap_core::{
+    decide_uncertain, mark_misses, Backend, BackendError, BatchEdt, EdtField, Grid3, IntegrateJob, IntegrateReport, Integration, Observations, ProjectJob,
+    WaveCounts,
+};
 
 /// The GPU as a [`Backend`] of the mapper: one device, kernels compiled
-/// once, buffers reused across frames.
+/// once, buffers reused across frames. Every stage runs on the device
+/// where its kernel applies; where it does not (a LiDAR's projection, a
+/// volume past the fixed-point walk's range) the backend computes the
+/// same definition on the host, so its results are the CPU's either way.
 #[derive(Debug)]
 pub struct GpuBackend {
     ctx: GpuContext,
@@ -34,6 +42,9 @@ pub struct GpuBackend {
     integrator: GpuIntegrator,
     raycast: GpuRaycast,
     project: GpuProject,
+    exact: ExactBuffers,
+    /// Observation bytes read back from the device.
+    bits: Vec<u8>,
 }
 
 impl GpuBackend {
@@ -45,12 +56,27 @@ impl GpuBackend {
         let integrator = GpuIntegrator::new(&ctx)?;
         let raycast = GpuRaycast::new(&ctx)?;
         let project = GpuProject::new(&ctx)?;
-        Ok(GpuBackend { ctx, edt, integrator, raycast, project })
+        Ok(GpuBackend { ctx, edt, integrator, raycast, project, exact: ExactBuffers::default(), bits: Vec::new() })
     }
 
     /// The device in use.
     pub fn context(&self) -> &GpuContext {
         &self.ctx
+    }
+
+    /// The device's projection alone: one byte per voxel of `job.volume`
+    /// into `bits` ([`edtmap_core::PROJ_MISS`], [`edtmap_core::PROJ_NOT_MISS`]
+    /// or [`edtmap_core::PROJ_UNCERTAIN`]), before the host decides the
+    /// uncertain ones; `Ok(false)` where the kernel does not apply. For
+    /// measuring how much the host has to decide.
+    pub fn project_bits(&mut self, job: &ProjectJob<'_>, bits: &mut Vec<u8>) -> Result<bool, BackendError> {
+        self.project.run(job, bits)
+    }
+}
+
+impl BatchEdt for GpuEdt {
+    fn batch_edt(&mut self, mask: &Grid3<bool>, out: &mut EdtField) -> Result<(), BackendError> {
+        self.run(mask, out)
     }
 }
 
@@ -65,19 +91,42 @@ impl Backend for GpuBackend {
         format!("gpu: {}", self.ctx.name())
     }
 
-    fn integrate_wavefront(&mut self, job: WavefrontJob<'_>) -> Result<Option<IntegrateReport>, BackendError> {
-        self.integrator.run(job).map(Some)
+    fn cast_rays(&mut self, rays: &[FixedRay], q: u32, obs: &Observations) -> Result<(), BackendError> {
+        if self.raycast.run(rays, q, obs.volume().dims, &mut self.bits)? {
+            obs.load_bits(&self.bits);
+        } else {
+            cast_fixed(obs, rays, q);
+        }
+        Ok(())
     }
 
-    fn map_changed(&mut self) {
-        self.integrator.map_changed();
+    fn project_volume(&mut self, job: &ProjectJob<'_>, obs: &Observations) -> Result<(), BackendError> {
+        if self.project.run(job, &mut self.bits)? {
+            decide_uncertain(job, &mut self.bits);
+            obs.load_bits(&self.bits);
+        } else {
+            mark_misses(obs, job);
+        }
+        Ok(())
     }
 
-    fn cast_rays(&mut self, rays: &[FixedRay], q: u32, dims: [usize; 3], bits: &mut Vec<u8>) -> Result<bool, BackendError> {
-        self.raycast.run(rays, q, dims, bits)
-    }
-
-    fn project_volume(&mut self, job: ProjectJob<'_>, bits: &mut Vec<u8>) -> Result<bool, BackendError> {
-        self.project.run(&job, bits)
+    fn integrate(&mut self, job: IntegrateJob<'_>) -> Result<IntegrateReport, BackendError> {
+        let IntegrateJob { map, obstacles, cutoff, work } = job;
+        match work {
+            Integration::Wavefront { window, batch, offsets } => self.integrator.run(map, window, batch, cutoff, offsets),
+            Integration::Recompute { region } => {
+                // The batch EDT of the source box on the device, the rest
+                // on the host, as on the CPU.
+                let packing = Packing::new(region, cutoff)?;
+                let written = recompute_exact(&mut self.edt, map, &obstacles, &packing, &mut self.exact)?;
+                Ok(IntegrateReport {
+                    voxels_changed: written.voxels_changed,
+                    change_sum_vox: written.change_sum_vox,
+                    changed_blocks: written.changed_blocks,
+                    region_voxels: Region::len(&region),
+                    waves: WaveCounts::default(),
+                })
+            }
+        }
     }
 }

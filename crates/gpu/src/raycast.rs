@@ -1,5 +1,5 @@
 //! Ray casting on the GPU (`raycast.wgsl`): the host sets the rays up
-//! (`edtmap_cpu::occupancy::prepare_rays`, shared with the CPU), the
+//! (`edtmap_core::fixed_ray::prepare_rays`, shared with the CPU), the
 //! device walks them, the observation bits come back, one byte per voxel.
 
 use crate::context::GpuContext;

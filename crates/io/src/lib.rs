@@ -44,7 +44,7 @@ pub mod plot;
 pub mod trajectory;
 
 pub use error::IoError;
-pub use mapfile::{read_map, write_map, MapContents};
+pub use mapfile::{check_map, read_map, write_map};
 pub use pcd::read_pcd;
 pub use plot::Chart;
 pub use trajectory::Trajectory;

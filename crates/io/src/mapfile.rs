@@ -30,23 +30,15 @@
 //!   memory first.
 //!
 //! ```
-//! use edtmap_core::{BlockKey, EdtMap, GlobalParams, OccupancyMap, OccupancyParams, StaticMap};
-//! use edtmap_io::mapfile::{read_map, write_map, MapContents};
+//! use edtmap_core::{BlockKey, GlobalMap, GlobalParams, OccupancyParams};
+//! use edtmap_io::mapfile::{read_map, write_map};
 //!
-//! let voxel_size_m = 0.1;
-//! let mut map = MapContents {
-//!     voxel_size_m,
-//!     occupancy_params: OccupancyParams::default(),
-//!     global_params: GlobalParams::default(),
-//!     occupancy: OccupancyMap::new(voxel_size_m)?,
-//!     edt: EdtMap::new(voxel_size_m)?,
-//!     fixed: StaticMap::new(voxel_size_m)?,
-//! };
-//! map.occupancy.get_or_insert(BlockKey([0, 0, 0])).log_odds[0] = 0.85;
+//! let mut map = GlobalMap::new(0.1, OccupancyParams::default(), GlobalParams::default())?;
+//! map.occupancy_mut().get_or_insert(BlockKey([0, 0, 0])).log_odds[0] = 0.85;
 //! let path = std::env::temp_dir().join(format!("edtmap_doc_{}.edtmap", std::process::id()));
 //! write_map(&path, &map)?;
 //! let back = read_map(&path)?;
-//! assert_eq!(back.occupancy.get(BlockKey([0, 0, 0])), map.occupancy.get(BlockKey([0, 0, 0])));
+//! assert_eq!(back.occupancy().get(BlockKey([0, 0, 0])), map.occupancy().get(BlockKey([0, 0, 0])));
 //! # std::fs::remove_file(&path).ok();
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
@@ -58,7 +50,7 @@ mod layout;
 
 use std::path::Path;
 
-use edtmap_core::{EdtMap, GlobalMap, GlobalParams, OccupancyMap, OccupancyParams, StaticMap};
+use edtmap_core::GlobalMap;
 use thiserror::Error;
 
 use crate::IoError;
@@ -70,60 +62,12 @@ pub const MAP_FORMAT_VERSION: u32 = 1;
 /// went through a text-mode line-ending conversion fail the magic check.
 pub const MAP_MAGIC: [u8; 8] = *b"EDTMAP\r\n";
 
-/// Everything a saved map holds.
-#[derive(Debug, Clone)]
-pub struct MapContents {
-    /// Voxel edge length in metres; the three maps must use it too.
-    pub voxel_size_m: f64,
-    /// The probabilities behind the log-odds.
-    pub occupancy_params: OccupancyParams,
-    /// Parameters of the global EDT (cutoff, connectivity, mode, zones).
-    pub global_params: GlobalParams,
-    /// Log-odds occupancy.
-    pub occupancy: OccupancyMap,
-    /// The global EDT.
-    pub edt: EdtMap,
-    /// Fixed obstacles (forbidden zones already laid down, a prior map).
-    pub fixed: StaticMap,
-}
-
-impl From<GlobalMap> for MapContents {
-    fn from(map: GlobalMap) -> Self {
-        MapContents {
-            voxel_size_m: map.voxel_size_m(),
-            occupancy_params: map.occupancy_params,
-            global_params: map.params,
-            occupancy: map.occupancy,
-            edt: map.edt,
-            fixed: map.fixed,
-        }
-    }
-}
-
-impl MapContents {
-    /// Checks the contents as [`encode_map`] and [`decode_map`] do: valid
-    /// parameters, one voxel size, block keys in the index range, log-odds
-    /// that are finite or unobserved, EDT entries within the cutoff that
-    /// agree with their nearest obstacle.
-    pub fn check(&self) -> Result<(), MapFileError> {
-        check::check_contents(self)
-    }
-
-    /// The global map these contents describe (fixed obstacles as saved:
-    /// forbidden zones are not laid down again).
-    pub fn into_global(self) -> Result<GlobalMap, MapFileError> {
-        self.check()?;
-        let invalid = |e: edtmap_core::CoreError| MapFileError::InvalidParams(e.to_string());
-        Ok(GlobalMap {
-            log_odds: self.occupancy_params.log_odds().map_err(invalid)?,
-            cutoff: self.global_params.cutoff(self.voxel_size_m).map_err(invalid)?,
-            occupancy: self.occupancy,
-            edt: self.edt,
-            fixed: self.fixed,
-            occupancy_params: self.occupancy_params,
-            params: self.global_params,
-        })
-    }
+/// Checks `map` as [`encode_map`] and [`decode_map`] do: block keys in the
+/// index range, log-odds that are finite or unobserved, EDT entries within
+/// the cutoff that agree with their nearest obstacle (the parameters and
+/// the one voxel size are checked when a [`GlobalMap`] is made).
+pub fn check_map(map: &GlobalMap) -> Result<(), MapFileError> {
+    check::check_contents(map)
 }
 
 /// What is wrong with a map file's bytes, or with a map about to be saved.
@@ -184,8 +128,8 @@ impl MapFileError {
 }
 
 /// The bytes of `map` in the `.edtmap` format. Fails, writing nothing, when
-/// the contents do not pass [`MapContents::check`].
-pub fn encode_map(map: &MapContents) -> Result<Vec<u8>, MapFileError> {
+/// the contents do not pass [`check_map`].
+pub fn encode_map(map: &GlobalMap) -> Result<Vec<u8>, MapFileError> {
     let prepared = encode::Prepared::new(map)?;
     let mut out = Vec::with_capacity(usize::try_from(prepared.total_len()).unwrap_or(0));
     // Writing into a Vec cannot fail: it grows or aborts.
@@ -194,20 +138,20 @@ pub fn encode_map(map: &MapContents) -> Result<Vec<u8>, MapFileError> {
 }
 
 /// The map held by `bytes`, a whole `.edtmap` file.
-pub fn decode_map(bytes: &[u8]) -> Result<MapContents, MapFileError> {
+pub fn decode_map(bytes: &[u8]) -> Result<GlobalMap, MapFileError> {
     decode::decode(bytes)
 }
 
 /// Saves `map` at `path`, replacing any file there only once the new one is
 /// complete and synced. Fails, leaving `path` untouched, when the contents
-/// do not pass [`MapContents::check`] or the file cannot be written.
-pub fn write_map(path: &Path, map: &MapContents) -> Result<(), IoError> {
+/// do not pass [`check_map`] or the file cannot be written.
+pub fn write_map(path: &Path, map: &GlobalMap) -> Result<(), IoError> {
     let prepared = encode::Prepared::new(map).map_err(|e| e.at(path))?;
     crate::files::write_atomic_with(path, |w| prepared.write(w))
 }
 
 /// Loads the map saved at `path`.
-pub fn read_map(path: &Path) -> Result<MapContents, IoError> {
+pub fn read_map(path: &Path) -> Result<GlobalMap, IoError> {
     let bytes = crate::files::read_input(path, u64::MAX)?;
     decode_map(&bytes).map_err(|e| e.at(path))
 }
@@ -215,9 +159,9 @@ pub fn read_map(path: &Path) -> Result<MapContents, IoError> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use edtmap_core::{BlockKey, Connectivity, ForbiddenZone, IntegrationMode};
+    use edtmap_core::{BlockKey, Connectivity, EdtMap, ForbiddenZone, GlobalParams, IntegrationMode, OccupancyMap, OccupancyParams, StaticMap};
 
-    fn small_map() -> MapContents {
+    fn small_params() -> (f64, OccupancyParams, GlobalParams) {
         let vs = 0.1 + 0.2; // not exactly 0.3: the binary f64 must come back as is
         let global_params = GlobalParams {
             max_distance_m: 1.0 / 3.0,
@@ -226,16 +170,14 @@ mod tests {
             forbidden: vec![ForbiddenZone { min_m: [-1.0, 0.1, 0.2], max_m: [0.7, 0.2 + 1e-7, 3.0e5] }],
         };
         let occupancy_params = OccupancyParams { prob_hit: 0.7000000000000001, ..Default::default() };
-        let mut map = MapContents {
-            voxel_size_m: vs,
-            occupancy_params,
-            global_params,
-            occupancy: OccupancyMap::new(vs).expect("valid"),
-            edt: EdtMap::new(vs).expect("valid"),
-            fixed: StaticMap::new(vs).expect("valid"),
-        };
-        map.occupancy.get_or_insert(BlockKey([-1, 2, 3])).log_odds[7] = -0.25;
-        map.fixed.get_or_insert(BlockKey([0, 0, 0])).bits[3] = 1 << 40;
+        (vs, occupancy_params, global_params)
+    }
+
+    fn small_map() -> GlobalMap {
+        let (vs, occupancy_params, global_params) = small_params();
+        let mut map = GlobalMap::from_layers(vs, occupancy_params, global_params, OccupancyMap::new(), EdtMap::new(), StaticMap::new()).expect("valid");
+        map.occupancy_mut().get_or_insert(BlockKey([-1, 2, 3])).log_odds[7] = -0.25;
+        map.fixed_obstacles_mut().get_or_insert(BlockKey([0, 0, 0])).bits[3] = 1 << 40;
         map
     }
 
@@ -244,9 +186,9 @@ mod tests {
         let map = small_map();
         let bytes = encode_map(&map).expect("valid");
         let back = decode_map(&bytes).expect("round trip");
-        assert_eq!(back.voxel_size_m.to_bits(), map.voxel_size_m.to_bits());
-        assert_eq!(back.occupancy_params, map.occupancy_params);
-        assert_eq!(back.global_params, map.global_params);
+        assert_eq!(back.voxel_size_m().to_bits(), map.voxel_size_m().to_bits());
+        assert_eq!(back.occupancy_params(), map.occupancy_params());
+        assert_eq!(back.params(), map.params());
     }
 
     #[test]
@@ -260,9 +202,10 @@ mod tests {
 
     #[test]
     fn invalid_zone_is_refused_before_writing() {
-        let mut map = small_map();
-        map.global_params.forbidden[0].max_m[1] = 0.0;
-        let err = encode_map(&map).expect_err("bad zone");
-        assert!(matches!(&err, MapFileError::InvalidParams(m) if m.contains("forbidden")), "{err}");
+        // A map with a bad zone cannot be made, so it can never be written.
+        let (vs, occupancy_params, mut global_params) = small_params();
+        global_params.forbidden[0].max_m[1] = 0.0;
+        let err = GlobalMap::from_layers(vs, occupancy_params, global_params, OccupancyMap::new(), EdtMap::new(), StaticMap::new()).expect_err("bad zone");
+        assert!(err.to_string().contains("forbidden"), "{err}");
     }
 }

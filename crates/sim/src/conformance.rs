@@ -1,15 +1,18 @@
 //! The backend conformance suite, written once and run against every
-//! backend (`crates/cpu/tests/conformance.rs`, `crates/gpu/tests/`): each
-//! check compares a backend's integer results with an independent oracle,
-//! bit for bit, so backends that pass agree with each other exactly.
+//! backend through the [`Backend`] trait ([`conformance_tests!`](crate::conformance_tests)
+//! instantiates it in `crates/cpu/tests/conformance.rs` and
+//! `crates/gpu/tests/conformance.rs`): each check compares a backend's
+//! integer results with an independent oracle, bit for bit, so backends
+//! that pass agree with each other exactly.
 
 mod projection;
 
-pub use projection::{check_projection, projection_cases, ProjectionCase, ProjectionTally};
+pub use projection::{check_projection, check_projection_bits, projection_cases, ProjectionCase, ProjectionTally};
 
 use crate::random_grid;
 use edtmap_core::fixed_ray::{fixed_scale, setup_ray, walk, FixedRay, NO_HIT};
-use edtmap_core::{Backend, OBS_HIT, OBS_MISS};
+use edtmap_core::stages::IntegrationStage;
+use edtmap_core::{Backend, Connectivity, IntegrationMode, Observations, OBS_HIT, OBS_MISS};
 use edtmap_core::{
     BatchEdt, EdtField, EdtMap, GlobalParams, Grid3, LocalVolume, LogOdds, OccupancyMap, OccupancyParams, Obstacles, StaticMap,
     VoxelIndex, FAR_DIST_SQ, NO_SITE, UNREACHABLE_DIST_SQ,
@@ -153,22 +156,95 @@ pub fn raycast_reference(rays: &[FixedRay], q: u32, dims: [usize; 3]) -> Vec<u8>
     bits
 }
 
-/// Runs the ray-casting suite on `backend`: `Ok(None)` when it leaves ray
-/// casting to the CPU, else the voxels checked or the first difference.
-pub fn check_raycast(backend: &mut dyn Backend) -> Result<Option<usize>, String> {
-    let mut bits = Vec::new();
+/// Runs the ray-casting suite on `backend` through
+/// [`Backend::cast_rays`]: the voxels checked, or the first difference
+/// from the walk's definition (a hit wins over a miss).
+pub fn check_raycast(backend: &mut dyn Backend) -> Result<usize, String> {
     let mut checked = 0;
     for (rays, q, dims) in raycast_cases() {
-        if !backend.cast_rays(&rays, q, dims, &mut bits).map_err(|e| format!("volume {dims:?}: {e}"))? {
-            return Ok(None);
-        }
+        let volume = LocalVolume { origin: VoxelIndex([0, 0, 0]), dims, voxel_size_m: 0.1 };
+        let obs = Observations::new(volume);
+        backend.cast_rays(&rays, q, &obs).map_err(|e| format!("volume {dims:?}: {e}"))?;
         let want = raycast_reference(&rays, q, dims);
-        if let Some(i) = (0..want.len()).find(|&i| bits.get(i) != Some(&want[i])) {
-            return Err(format!("volume {dims:?} voxel {i}: bits {:?}, want {}", bits.get(i), want[i]));
+        for (i, &w) in want.iter().enumerate() {
+            let resolved = if w & OBS_HIT != 0 { OBS_HIT } else { w & OBS_MISS };
+            if obs.get(i) != resolved {
+                return Err(format!("volume {dims:?} voxel {i}: observed {}, want {resolved}", obs.get(i)));
+            }
         }
         checked += want.len();
     }
-    Ok(Some(checked))
+    Ok(checked)
+}
+
+/// Runs the integration suite on `backend` through
+/// [`edtmap_core::stages::IntegrationStage`], in both modes, every
+/// connectivity and cutoffs of 2 to 7 voxels: after every step the global
+/// EDT must pass [`IntegrationWorld::check`] (every stored obstacle real,
+/// at the stored distance, none nearer missed), and in exact mode equal
+/// the truth everywhere. Returns the steps checked.
+pub fn check_integration(backend: &mut dyn Backend) -> Result<usize, String> {
+    let conns = [Connectivity::Six, Connectivity::Eighteen, Connectivity::TwentySix];
+    let mut steps = 0;
+    for mode in [IntegrationMode::Wavefront, IntegrationMode::Exact] {
+        for seed in 0..12u64 {
+            let connectivity = conns[seed as usize % 3];
+            let cutoff_vox = 2 + seed % 6;
+            let params = GlobalParams { mode, connectivity, max_distance_m: cutoff_vox as f64 * IntegrationWorld::VOXEL_M, ..Default::default() };
+            let stage = IntegrationStage::new(&params, IntegrationWorld::VOXEL_M).map_err(|e| e.to_string())?;
+            let mut world = IntegrationWorld::new(seed);
+            let mut map = EdtMap::new();
+            let mut batch = EdtField::empty();
+            for step in 0..10 {
+                let at = format!("{mode:?}, seed {seed}, {} neighbours, cutoff {cutoff_vox}, step {step}", u8::from(connectivity));
+                let (window, mask) = world.step();
+                backend.batch_edt(&mask, &mut batch).map_err(|e| format!("{at}: {e}"))?;
+                stage.integrate(backend, &mut map, world.obstacles(), &window, &batch).map_err(|e| format!("{at}: {e}"))?;
+                let worst = world.check(&map, &params).map_err(|e| format!("{at}: {e}"))?;
+                if mode == IntegrationMode::Exact && worst != 0.0 {
+                    return Err(format!("{at}: a distance {worst} voxels above the truth in exact mode"));
+                }
+                steps += 1;
+            }
+        }
+    }
+    Ok(steps)
+}
+
+/// The conformance suite as `#[test]` functions, one per check, for the
+/// backend that `$make` (an expression giving `Option<B>`; `None` skips
+/// the tests, for a machine without the device) makes afresh for each.
+#[macro_export]
+macro_rules! conformance_tests {
+    ($make:expr) => {
+        #[test]
+        fn batch_edt_matches_the_separable_oracle() {
+            let Some(mut backend) = $make else { return };
+            let checked = $crate::conformance::check_batch_edt(&mut backend).unwrap_or_else(|e| panic!("{e}"));
+            assert!(checked > 100_000);
+        }
+
+        #[test]
+        fn ray_casting_matches_the_walk_definition() {
+            let Some(mut backend) = $make else { return };
+            let checked = $crate::conformance::check_raycast(&mut backend).unwrap_or_else(|e| panic!("{e}"));
+            assert!(checked > 9_000);
+        }
+
+        #[test]
+        fn projection_matches_the_definition() {
+            let Some(mut backend) = $make else { return };
+            let checked = $crate::conformance::check_projection(&mut backend).unwrap_or_else(|e| panic!("{e}"));
+            assert!(checked > 100_000);
+        }
+
+        #[test]
+        fn integration_matches_brute_force() {
+            let Some(mut backend) = $make else { return };
+            let steps = $crate::conformance::check_integration(&mut backend).unwrap_or_else(|e| panic!("{e}"));
+            assert_eq!(steps, 240);
+        }
+    };
 }
 
 /// The world of the integration suite: a box of voxels whose occupancy
@@ -200,8 +276,8 @@ impl IntegrationWorld {
         let lo = OccupancyParams::default().log_odds().expect("default parameters are valid");
         IntegrationWorld {
             lo,
-            map: OccupancyMap::new(Self::VOXEL_M).expect("valid voxel size"),
-            fixed: StaticMap::new(Self::VOXEL_M).expect("valid voxel size"),
+            map: OccupancyMap::new(),
+            fixed: StaticMap::new(),
             obstacles: Vec::new(),
             rng: SplitMix(seed),
         }

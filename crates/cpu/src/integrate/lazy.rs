@@ -8,7 +8,7 @@
 //! state tagged with the frame's epoch, so nothing is reset or read in
 //! full each frame and the cost follows the change.
 
-use super::region::{Packing, Region, FAR};
+use edtmap_core::region::{Packing, Region, FAR};
 use edtmap_core::{BlockKey, EdtMap, VoxelIndex, BLOCK_SIDE, BLOCK_VOXELS, FAR_DIST_SQ};
 use rayon::prelude::*;
 use std::collections::HashMap;
@@ -171,6 +171,11 @@ impl LazyRegion {
         let computed = block_bounds(map, key)?;
         self.bounds.insert(key, computed);
         Some(computed)
+    }
+
+    /// Forgets every cached bound (the map was changed by other means).
+    pub fn forget_all(&mut self) {
+        self.bounds.clear();
     }
 
     /// Forgets the cached bounds of `keys` (their blocks were rewritten).

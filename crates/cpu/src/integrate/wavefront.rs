@@ -21,7 +21,7 @@
 //!    thread count. Nothing beyond the cutoff is written.
 
 use super::lazy::{Cover, LazyRegion, SrcBounds};
-use super::region::{Packing, Region, WriteBack, FAR};
+use edtmap_core::region::{Packing, WriteBack, FAR};
 use edtmap_core::backend::WaveCounts;
 use edtmap_core::{BlockKey, EdtField, EdtMap, LocalVolume, VoxelIndex, BLOCK_SIDE, BLOCK_VOXELS, NO_SITE};
 use rayon::prelude::*;
@@ -54,7 +54,7 @@ pub fn integrate_wavefront(
 ) -> (WriteBack, WaveCounts) {
     let cover = Cover::of(packing.region);
     buf.begin(&cover);
-    let w = Region { origin: window.origin.0, dims: window.dims };
+    let w = window.region();
     let touches_window = |b: usize| {
         let first = cover.key(b).first_voxel().0;
         (0..3).all(|a| first[a] + BLOCK_SIDE > w.origin[a] && first[a] < w.origin[a] + w.dims[a] as i32)
@@ -94,7 +94,7 @@ pub fn integrate_wavefront(
 /// vanished and, with `merge`, merges the window's voxels.
 #[allow(clippy::too_many_arguments)]
 fn scan_blocks(map: &EdtMap, window: &LocalVolume, batch: &EdtField, p: &Packing, cover: &Cover, buf: &LazyRegion, blocks: &[usize], merge: bool) -> Changes {
-    let w = Region { origin: window.origin.0, dims: window.dims };
+    let w = window.region();
     let (dist, near) = (batch.dist_sq_vox(), batch.nearest());
     blocks
         .par_iter()

@@ -100,11 +100,11 @@ fn for_shell(v: VoxelIndex, r: i32, mut f: impl FnMut(VoxelIndex)) {
 /// the `i32` index range (see [`super::MAX_QUERY_INDEX`]).
 pub(super) fn signed_at(map: &GlobalMap, p: [f64; 3], v: VoxelIndex, state: PointState, observed: bool) -> Distance {
     let vs = map.voxel_size_m();
-    let max = map.params.max_distance_m;
+    let max = map.params().max_distance_m;
     let u = p.map(|c| c / vs);
     let obstacles = map.obstacles();
     let inside = obstacles.contains(v);
-    let found = if inside { nearest_free(&obstacles, u, v, map.cutoff.reach) } else { nearest_obstacle(map, u, v) };
+    let found = if inside { nearest_free(&obstacles, u, v, map.cutoff().reach) } else { nearest_obstacle(map, u, v) };
     let Some((d2, w)) = found else {
         let distance_m = if inside { -max } else { max };
         return Distance { distance_m, gradient: [0.0; 3], state, observed, saturated: true };
@@ -127,7 +127,8 @@ pub(super) fn signed_at(map: &GlobalMap, p: [f64; 3], v: VoxelIndex, state: Poin
 mod tests {
     use super::*;
     use crate::edt::{edt_with, ScanLayout};
-    use crate::integrate::Integrator;
+    use crate::CpuBackend;
+    use edtmap_core::stages::IntegrationStage;
     use edtmap_core::{GlobalParams, Grid3, IntegrationMode, LocalVolume, OccupancyParams};
 
     const VS: f64 = 0.1;
@@ -150,15 +151,15 @@ mod tests {
         let params = GlobalParams { max_distance_m: 1.2, mode: IntegrationMode::Exact, ..Default::default() };
         let mut map = GlobalMap::new(VS, OccupancyParams::default(), params).expect("valid");
         let window = LocalVolume { origin: VoxelIndex([0; 3]), dims: mask.dims(), voxel_size_m: VS };
-        let (min, max) = (map.log_odds.min, map.log_odds.max);
+        let (min, max) = (map.log_odds().min, map.log_odds().max);
         for (i, &o) in mask.as_slice().iter().enumerate() {
             let v = window.world(mask.coords(i));
-            map.occupancy.get_or_insert(v.block()).log_odds[v.offset_in_block()] = if o { max } else { min };
+            map.occupancy_mut().get_or_insert(v.block()).log_odds[v.offset_in_block()] = if o { max } else { min };
         }
         let batch = edt_with(mask, |&o| o, ScanLayout::default()).expect("batch");
-        let mut integrator = Integrator::new(&map.params, VS).expect("valid");
+        let stage = IntegrationStage::new(map.params(), VS).expect("valid");
         let (edt, obstacles) = map.edt_and_obstacles();
-        integrator.integrate(edt, &obstacles, &window, &batch).expect("integrate");
+        stage.integrate(&mut CpuBackend::default(), edt, obstacles, &window, &batch).expect("integrate");
         map
     }
 

@@ -1,6 +1,6 @@
 //! What `export` and `compare` share: file names, the box, statistics.
 
-use edtmap::cpu::integrate::region::Region;
+use edtmap::region::Region;
 use serde_json::{json, Value};
 use std::path::Path;
 

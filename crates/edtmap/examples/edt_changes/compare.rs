@@ -2,8 +2,8 @@
 //! ours, a table row and Fig. 4.
 
 use crate::common::{column, mean, median, read_csv, read_json, region_from_json, time_stats, write_json, Error, MAP_FILE, SUMMARY_FILE, TIMES_FILE};
-use edtmap::cpu::integrate::exact::exact_region;
-use edtmap::cpu::integrate::region::Region;
+use edtmap::stages::exact::exact_region;
+use edtmap::region::Region;
 use edtmap::eval::{edt_errors, EdtErrors};
 use edtmap::{GlobalMap, FAR_DIST_SQ};
 use edtmap_io::plot::{Chart, Series, SeriesStyle};
@@ -39,9 +39,9 @@ pub(crate) fn run(args: &CompareArgs) -> Result<(), Error> {
     let comparison = json!({
         "scene": summary["scene"],
         "voxel_size_m": map.voxel_size_m(),
-        "max_distance_m": map.params.max_distance_m,
-        "integration": map.params.mode,
-        "connectivity": map.params.connectivity,
+        "max_distance_m": map.params().max_distance_m,
+        "integration": map.params().mode,
+        "connectivity": map.params().connectivity,
         "threads": summary["threads"],
         "frames": times.ours_ms.len(),
         "box": summary["box"],
@@ -72,9 +72,9 @@ fn read_field(path: &Path, voxels: usize) -> Result<Vec<f32>, Error> {
 /// [`edt_errors`] defines them: voxels with an obstacle within the cutoff
 /// on either side, distances beyond the cutoff counting as the cutoff.
 fn field_errors(map: &GlobalMap, region: &Region, field: &[f32]) -> Result<EdtErrors, Error> {
-    let exact = exact_region(&map.obstacles(), region, map.cutoff)?;
+    let exact = exact_region(&mut edtmap::cpu::CpuBackend::default(), &map.obstacles(), region, map.cutoff())?;
     let vs = map.voxel_size_m();
-    let cap_sq = f64::from(map.cutoff.max_dist_sq);
+    let cap_sq = f64::from(map.cutoff().max_dist_sq);
     let (mut sum_sq, mut max, mut wrong, mut voxels) = (0.0, 0.0f64, 0usize, 0usize);
     for (&truth, &got) in exact.iter().zip(field) {
         let (truth_far, got_far) = (truth == FAR_DIST_SQ, !got.is_finite());

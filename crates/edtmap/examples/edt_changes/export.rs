@@ -3,7 +3,7 @@
 
 use crate::common::{median, region_json, time_stats, write_json, Error, CHANGES_FILE, MAP_FILE, SUMMARY_FILE, TIMES_FILE};
 use edtmap::config::Config;
-use edtmap::cpu::integrate::region::Region;
+use edtmap::region::Region;
 use edtmap::eval::edt_errors;
 use edtmap::sensor::{Frame, Sensor};
 use edtmap::{BlockKey, Cutoff, GlobalMap, IntegrationMode, Mapper, MapperParams, VoxelIndex, BLOCK_VOXELS};
@@ -73,7 +73,7 @@ pub(crate) fn run(args: &ExportArgs) -> Result<(), Error> {
         keep_fastest(&mut best.frames, replay(&setup, &frames)?.frames, run)?;
     }
     let map = best.mapper.map();
-    let region = change_box(&best.frames, map.cutoff.reach)?;
+    let region = change_box(&best.frames, map.cutoff().reach)?;
     check_tracking(map, &region, &best.obstacles)?;
     write_changes(&args.out.join(CHANGES_FILE), &setup, map, &region, &best.frames)?;
     write_times(&args.out.join(TIMES_FILE), &best.frames)?;
@@ -87,10 +87,10 @@ pub(crate) fn run(args: &ExportArgs) -> Result<(), Error> {
         "repeat": args.repeat,
         "threads": rayon::current_num_threads(),
         "voxel_size_m": map.voxel_size_m(),
-        "max_distance_m": map.params.max_distance_m,
-        "max_dist_sq_vox": map.cutoff.max_dist_sq,
-        "integration": map.params.mode,
-        "connectivity": map.params.connectivity,
+        "max_distance_m": map.params().max_distance_m,
+        "max_dist_sq_vox": map.cutoff().max_dist_sq,
+        "integration": map.params().mode,
+        "connectivity": map.params().connectivity,
         "local_volume_m": setup.params.volume.size_m,
         "box": region_json(&region),
         "sets": best.frames.iter().map(|f| f.set.len()).sum::<usize>(),
@@ -180,9 +180,9 @@ fn replay(setup: &Setup, frames: &[Frame]) -> Result<Replay, Error> {
 
 /// The fixed obstacles of `map`.
 fn fixed_obstacles(map: &GlobalMap) -> Vec<VoxelIndex> {
-    let mut keys: Vec<BlockKey> = map.fixed.iter().map(|(k, _)| k).collect();
+    let mut keys: Vec<BlockKey> = map.fixed_obstacles().iter().map(|(k, _)| k).collect();
     keys.sort();
-    keys.iter().flat_map(|k| (0..BLOCK_VOXELS).map(|o| k.voxel(o))).filter(|&v| map.fixed.contains(v)).collect()
+    keys.iter().flat_map(|k| (0..BLOCK_VOXELS).map(|o| k.voxel(o))).filter(|&v| map.fixed_obstacles().contains(v)).collect()
 }
 
 /// Voxels of `blocks` that became obstacles and that stopped being
@@ -262,9 +262,9 @@ fn write_changes(path: &Path, setup: &Setup, map: &GlobalMap, region: &Region, f
     let mut w = BufWriter::new(file);
     writeln!(w, "edtmap-changes 1")?;
     writeln!(w, "# edt_changes export: scene {}, {}, {} frames", setup.scene_name, setup.config_origin, frames.len())?;
-    writeln!(w, "# edtmap cutoff: max_distance_m {} = squared distance <= {} voxels^2", map.params.max_distance_m, map.cutoff.max_dist_sq)?;
+    writeln!(w, "# edtmap cutoff: max_distance_m {} = squared distance <= {} voxels^2", map.params().max_distance_m, map.cutoff().max_dist_sq)?;
     writeln!(w, "voxel_size_m {}", map.voxel_size_m())?;
-    writeln!(w, "max_distance_vox {}", cutoff_vox_text(map.cutoff))?;
+    writeln!(w, "max_distance_vox {}", cutoff_vox_text(map.cutoff()))?;
     let [ox, oy, oz] = region.origin;
     let [nx, ny, nz] = region.dims;
     writeln!(w, "box {ox} {oy} {oz} {nx} {ny} {nz}")?;

@@ -2,35 +2,26 @@
 //! file this crate writes is always one it reads back.
 
 use edtmap_core::{
-    check_voxel_size, BlockKey, BlockMap, CoreError, Cutoff, EdtMap, GlobalParams, OccupancyMap, OccupancyParams,
+    check_voxel_size, BlockKey, BlockMap, CoreError, Cutoff, EdtMap, GlobalMap, GlobalParams, OccupancyMap, OccupancyParams,
     BLOCK_SIDE, BLOCK_VOXELS, FAR_DIST_SQ, NO_OBSTACLE,
 };
 
 use super::layout::Payload;
-use super::{MapContents, MapFileError};
+use super::MapFileError;
 
 /// Lowest block key on each axis whose voxels have `i32` indices.
 const MIN_KEY: i32 = i32::MIN / BLOCK_SIDE;
 /// Highest such block key.
 const MAX_KEY: i32 = i32::MAX.div_euclid(BLOCK_SIDE);
 
-/// Checks the parameters, voxel sizes, keys, log-odds and EDT entries.
-pub(super) fn check_contents(map: &MapContents) -> Result<(), MapFileError> {
-    let cutoff = check_params(map.voxel_size_m, &map.occupancy_params, &map.global_params)?;
-    let sizes = [("occupancy", map.occupancy.voxel_size_m()), ("EDT", map.edt.voxel_size_m()), ("fixed", map.fixed.voxel_size_m())];
-    for (name, size) in sizes {
-        if size.to_bits() != map.voxel_size_m.to_bits() {
-            return Err(MapFileError::InvalidParams(format!(
-                "the {name} map has voxel_size_m = {size}, the map {}",
-                map.voxel_size_m
-            )));
-        }
-    }
-    check_keys(&map.occupancy)?;
-    check_keys(&map.edt)?;
-    check_keys(&map.fixed)?;
-    check_log_odds(&map.occupancy)?;
-    check_edt(&map.edt, cutoff)
+/// Checks the keys, log-odds and EDT entries (a [`GlobalMap`] has valid
+/// parameters and one voxel size by construction).
+pub(super) fn check_contents(map: &GlobalMap) -> Result<(), MapFileError> {
+    check_keys(map.occupancy())?;
+    check_keys(map.edt())?;
+    check_keys(map.fixed_obstacles())?;
+    check_log_odds(map.occupancy())?;
+    check_edt(map.edt(), map.cutoff())
 }
 
 /// Validates the parameters as the mapper does; returns the EDT cutoff.

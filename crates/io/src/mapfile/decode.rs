@@ -2,13 +2,13 @@
 //! then the parameters and the sections, every count checked against the
 //! bytes that remain before anything is allocated.
 
-use edtmap_core::{BlockKey, BlockMap, EdtBlock, OccupancyBlock, StaticBlock};
+use edtmap_core::{BlockKey, BlockMap, EdtBlock, GlobalMap, OccupancyBlock, StaticBlock};
 
 use super::layout::{get_key, le_u32, ParamsText, Payload, CHECKSUM_LEN, KEY_LEN, LENGTH_END, MIN_FILE_LEN};
-use super::{check, MapContents, MapFileError, MAP_FORMAT_VERSION, MAP_MAGIC};
+use super::{check, MapFileError, MAP_FORMAT_VERSION, MAP_MAGIC};
 
 /// The map held by `bytes`.
-pub(super) fn decode(bytes: &[u8]) -> Result<MapContents, MapFileError> {
+pub(super) fn decode(bytes: &[u8]) -> Result<GlobalMap, MapFileError> {
     let body = framing(bytes)?;
     let mut cur = Cursor { bytes: body, pos: 12 };
     let flags = cur.u32("the flags")?;
@@ -22,13 +22,14 @@ pub(super) fn decode(bytes: &[u8]) -> Result<MapContents, MapFileError> {
     let text = std::str::from_utf8(text).map_err(|e| MapFileError::InvalidParams(format!("the text is not UTF-8 ({e})")))?;
     let params: ParamsText = toml::from_str(text).map_err(|e| MapFileError::InvalidParams(e.message().to_string()))?;
     check::check_params(voxel_size_m, &params.occupancy, &params.global)?;
-    let occupancy = read_section::<OccupancyBlock>(&mut cur, voxel_size_m)?;
-    let edt = read_section::<EdtBlock>(&mut cur, voxel_size_m)?;
-    let fixed = read_section::<StaticBlock>(&mut cur, voxel_size_m)?;
+    let occupancy = read_section::<OccupancyBlock>(&mut cur)?;
+    let edt = read_section::<EdtBlock>(&mut cur)?;
+    let fixed = read_section::<StaticBlock>(&mut cur)?;
     if cur.remaining() != 0 {
         return Err(MapFileError::Corrupt(format!("{} unused bytes between the last section and the checksum", cur.remaining())));
     }
-    let map = MapContents { voxel_size_m, occupancy_params: params.occupancy, global_params: params.global, occupancy, edt, fixed };
+    let map = GlobalMap::from_layers(voxel_size_m, params.occupancy, params.global, occupancy, edt, fixed)
+        .map_err(|e| MapFileError::InvalidParams(e.to_string()))?;
     check::check_contents(&map)?;
     Ok(map)
 }
@@ -72,7 +73,7 @@ fn framing(bytes: &[u8]) -> Result<&[u8], MapFileError> {
 }
 
 /// The block count, then the blocks; keys must ascend strictly.
-fn read_section<B: Payload>(cur: &mut Cursor<'_>, voxel_size_m: f64) -> Result<BlockMap<B>, MapFileError> {
+fn read_section<B: Payload>(cur: &mut Cursor<'_>) -> Result<BlockMap<B>, MapFileError> {
     let count = cur.u64("a block count")?;
     let record = (KEY_LEN + B::LEN) as u64;
     let remaining = cur.remaining() as u64;
@@ -82,7 +83,7 @@ fn read_section<B: Payload>(cur: &mut Cursor<'_>, voxel_size_m: f64) -> Result<B
             B::SECTION
         )));
     }
-    let mut map: BlockMap<B> = BlockMap::new(voxel_size_m).map_err(|e| MapFileError::InvalidParams(e.to_string()))?;
+    let mut map: BlockMap<B> = BlockMap::new();
     let mut previous: Option<BlockKey> = None;
     for _ in 0..count {
         let key = get_key(cur.take(KEY_LEN, "a block key")?);

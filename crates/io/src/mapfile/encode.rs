@@ -3,22 +3,22 @@
 
 use std::io::{self, Write};
 
-use edtmap_core::BlockMap;
+use edtmap_core::{BlockMap, GlobalMap};
 
 use super::layout::{put_key, ParamsText, Payload, CHECKSUM_LEN, COUNT_LEN, HEADER_LEN, KEY_LEN};
-use super::{check, MapContents, MapFileError, MAP_FORMAT_VERSION, MAP_MAGIC};
+use super::{check, MapFileError, MAP_FORMAT_VERSION, MAP_MAGIC};
 
 /// A checked map with its parameter text, ready to be written.
 pub(super) struct Prepared<'a> {
-    map: &'a MapContents,
+    map: &'a GlobalMap,
     params: String,
 }
 
 impl<'a> Prepared<'a> {
     /// Checks `map` and renders its parameters.
-    pub(super) fn new(map: &'a MapContents) -> Result<Self, MapFileError> {
+    pub(super) fn new(map: &'a GlobalMap) -> Result<Self, MapFileError> {
         check::check_contents(map)?;
-        let text = ParamsText { occupancy: map.occupancy_params.clone(), global: map.global_params.clone() };
+        let text = ParamsText { occupancy: map.occupancy_params().clone(), global: map.params().clone() };
         let params = toml::to_string(&text).map_err(|e| MapFileError::InvalidParams(format!("cannot write them as TOML: {e}")))?;
         if u32::try_from(params.len()).is_err() {
             return Err(MapFileError::InvalidParams("their text exceeds 4 GiB".into()));
@@ -29,7 +29,7 @@ impl<'a> Prepared<'a> {
     /// Length of the file in bytes, as stated in its header.
     pub(super) fn total_len(&self) -> u64 {
         let fixed = (HEADER_LEN + self.params.len() + 3 * COUNT_LEN + CHECKSUM_LEN) as u64;
-        fixed + blocks_len(&self.map.occupancy) + blocks_len(&self.map.edt) + blocks_len(&self.map.fixed)
+        fixed + blocks_len(&self.map.occupancy()) + blocks_len(&self.map.edt()) + blocks_len(&self.map.fixed_obstacles())
     }
 
     /// Writes the whole file to `out`.
@@ -39,13 +39,13 @@ impl<'a> Prepared<'a> {
         out.write_all(&MAP_FORMAT_VERSION.to_le_bytes())?;
         out.write_all(&0u32.to_le_bytes())?;
         out.write_all(&self.total_len().to_le_bytes())?;
-        out.write_all(&self.map.voxel_size_m.to_le_bytes())?;
+        out.write_all(&self.map.voxel_size_m().to_le_bytes())?;
         // Checked to fit in `new`.
         out.write_all(&(self.params.len() as u32).to_le_bytes())?;
         out.write_all(self.params.as_bytes())?;
-        write_section(&mut out, &self.map.occupancy)?;
-        write_section(&mut out, &self.map.edt)?;
-        write_section(&mut out, &self.map.fixed)?;
+        write_section(&mut out, &self.map.occupancy())?;
+        write_section(&mut out, &self.map.edt())?;
+        write_section(&mut out, &self.map.fixed_obstacles())?;
         let crc = out.crc.finalize();
         out.inner.write_all(&crc.to_le_bytes())?;
         out.inner.flush()

@@ -5,7 +5,7 @@
 
 use super::SplitMix;
 use edtmap_core::sensor::{DepthData, DepthImage, Frame, LaserScan, Measurement, PinholeCamera, RangeLimits, Sensor};
-use edtmap_core::{Backend, LocalVolume, ProjectJob, VoxelIndex, PROJ_MISS, PROJ_NOT_MISS, PROJ_UNCERTAIN};
+use edtmap_core::{Backend, LocalVolume, Observations, ProjectJob, VoxelIndex, OBS_MISS, OBS_NONE, PROJ_MISS, PROJ_NOT_MISS, PROJ_UNCERTAIN};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use std::f64::consts::{PI, TAU};
 
@@ -203,15 +203,41 @@ pub fn projection_cases(depth: usize, planar: usize) -> Vec<ProjectionCase> {
     cases
 }
 
-/// Runs the projection suite on `backend`: `Ok(None)` when it leaves
-/// projection to the CPU, else the tally of uncertain voxels, or the first
-/// voxel it decided differently from `ProjectJob::is_miss`.
-pub fn check_projection(backend: &mut dyn Backend) -> Result<Option<ProjectionTally>, String> {
+/// Runs the projection suite on `backend` through
+/// [`Backend::project_volume`]: every voxel must be a miss exactly where
+/// `ProjectJob::is_miss` says so. Returns the voxels checked.
+pub fn check_projection(backend: &mut dyn Backend) -> Result<usize, String> {
+    let mut checked = 0;
+    for (n, case) in projection_cases(12, 12).iter().enumerate() {
+        let job = case.job();
+        let obs = Observations::new(case.volume);
+        backend.project_volume(&job, &obs).map_err(|e| format!("case {n}: {e}"))?;
+        let geom = job.voxel_to_sensor();
+        let [nx, ny, _] = case.volume.dims;
+        for i in 0..case.volume.len() {
+            let c = [i % nx, (i / nx) % ny, i / (nx * ny)];
+            let want = if job.is_miss(&geom, c) { OBS_MISS } else { OBS_NONE };
+            if obs.get(i) != want {
+                return Err(format!("case {n} ({}): voxel {c:?} is {}, the definition says {want}; point {:?}", case.sensor.kind(), obs.get(i), geom.point(c)));
+            }
+        }
+        checked += case.volume.len();
+    }
+    Ok(checked)
+}
+
+/// The projection suite on a device's own bytes, before the host decides
+/// the voxels it left uncertain: `project(job, bits)` fills one byte per
+/// voxel ([`PROJ_MISS`], [`PROJ_NOT_MISS`], [`PROJ_UNCERTAIN`]) or returns
+/// `false` where the device does not project. `Ok(None)` when it never
+/// does, else the tally of uncertain voxels, or the first voxel it decided
+/// differently from `ProjectJob::is_miss`.
+pub fn check_projection_bits(mut project: impl FnMut(&ProjectJob<'_>, &mut Vec<u8>) -> Result<bool, String>) -> Result<Option<ProjectionTally>, String> {
     let mut tally = ProjectionTally::default();
     let mut bits = Vec::new();
     for (n, case) in projection_cases(12, 12).iter().enumerate() {
         let job = case.job();
-        if !backend.project_volume(job, &mut bits).map_err(|e| e.to_string())? {
+        if !project(&job, &mut bits)? {
             return Ok(None);
         }
         if bits.len() != case.volume.len() {

@@ -9,7 +9,7 @@
 //! values orders by distance first, then by obstacle, so an atomic minimum
 //! is deterministic. The 32-bit index limits the region, never the map.
 
-use edtmap_core::{BlockKey, CoreError, Cutoff, EdtMap, LocalVolume, VoxelIndex, BLOCK_SIDE, FAR_DIST_SQ, NO_OBSTACLE};
+use crate::{BlockKey, CoreError, Cutoff, EdtMap, Grid3, LocalVolume, Obstacles, VoxelIndex, BLOCK_SIDE, FAR_DIST_SQ, NO_OBSTACLE};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 
@@ -28,7 +28,7 @@ pub struct Region {
 impl Region {
     /// The local volume `w` grown by `pad` voxels on every side.
     pub fn around(w: &LocalVolume, pad: i32) -> Region {
-        Region { origin: w.origin.0, dims: w.dims }.grown(pad)
+        w.region().grown(pad)
     }
 
     /// This box grown by `pad` voxels on every side.
@@ -201,6 +201,19 @@ pub fn read_region_except(map: &EdtMap, p: &Packing, keep: Option<&Region>, old:
     });
 }
 
+/// Fills `mask` (resized to `region`) with the obstacles of `region`.
+pub fn fill_mask(obstacles: &Obstacles<'_>, region: &Region, mask: &mut Grid3<bool>) -> Result<(), CoreError> {
+    if mask.dims() != region.dims {
+        *mask = Grid3::from_vec(region.dims, vec![false; Grid3::<bool>::voxel_count(region.dims)?])?;
+    }
+    let nx = region.dims[0];
+    mask.as_mut_slice().par_chunks_mut(nx).enumerate().for_each(|(row, out)| {
+        let (y, z) = (row % region.dims[1], row / region.dims[1]);
+        obstacles.fill_row(region.world([0, y, z]), out);
+    });
+    Ok(())
+}
+
 /// What writing a region back changed.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct WriteBack {
@@ -301,7 +314,7 @@ mod tests {
     fn write_back_then_copy_in_round_trips() {
         let cutoff = Cutoff { max_dist_sq: 100, reach: 10 };
         let p = Packing::new(Region { origin: [-5, -9, 2], dims: [13, 6, 9] }, cutoff).expect("small");
-        let mut map = EdtMap::new(0.1).expect("voxel size");
+        let mut map = EdtMap::new();
         let (mut old, mut cur) = (Vec::new(), Vec::new());
         copy_in(&map, &p, &mut old, &mut cur);
         assert!(old.iter().all(|&v| v == FAR));

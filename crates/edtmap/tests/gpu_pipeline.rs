@@ -3,12 +3,13 @@
 //! the local batch EDT (squared distances and nearest obstacles), the
 //! global occupancy map and the global EDT must all be identical.
 
-mod common;
+mod gpu_common;
+use gpu_common as common;
 
 use edtmap::config::Config;
-use edtmap::cpu::occupancy::Construction;
+use edtmap::stages::Construction;
 use edtmap::sensor::Sensor;
-use edtmap::{Backend, GlobalMap, Mapper, MapperParams};
+use edtmap::{Backend, GlobalMap, IntegrationMode, Mapper, MapperParams};
 use edtmap_gpu::GpuBackend;
 use edtmap_sim::{Scene, SceneName, SceneOptions};
 use std::path::PathBuf;
@@ -22,16 +23,17 @@ fn setup(scene: &str) -> (Scene, Sensor, MapperParams) {
 
 /// Sorted blocks of both hashes of `map`, for exact comparison.
 fn snapshot(map: &GlobalMap) -> (Vec<String>, Vec<String>) {
-    let mut occ: Vec<String> = map.occupancy.iter().map(|(k, b)| format!("{k:?} {:?}", b.log_odds.map(f32::to_bits))).collect();
-    let mut edt: Vec<String> = map.edt.iter().map(|(k, b)| format!("{k:?} {:?} {:?}", b.dist_sq, b.nearest)).collect();
+    let mut occ: Vec<String> = map.occupancy().iter().map(|(k, b)| format!("{k:?} {:?}", b.log_odds.map(f32::to_bits))).collect();
+    let mut edt: Vec<String> = map.edt().iter().map(|(k, b)| format!("{k:?} {:?} {:?}", b.dist_sq, b.nearest)).collect();
     occ.sort();
     edt.sort();
     (occ, edt)
 }
 
-fn compare(scene_name: &str, construction: Construction, frames: usize, backend: GpuBackend) -> GpuBackend {
+fn compare(scene_name: &str, construction: Construction, mode: IntegrationMode, frames: usize, backend: GpuBackend) -> GpuBackend {
     let (scene, sensor, mut params) = setup(scene_name);
     params.ogm.construction = construction;
+    params.global.mode = mode;
     let mut cpu = Mapper::new(sensor.clone(), params.clone()).expect("cpu mapper");
     let mut gpu = Mapper::new_on(backend, sensor.clone(), params).expect("gpu mapper");
     let step = (scene.default_frames() / frames).max(1);
@@ -39,7 +41,7 @@ fn compare(scene_name: &str, construction: Construction, frames: usize, backend:
         let frame = scene.frame(&sensor, i).expect("frame");
         let a = cpu.integrate_frame(&frame).expect("cpu frame");
         let b = gpu.integrate_frame(&frame).expect("gpu frame");
-        let at = format!("{scene_name} {construction:?} frame {i}");
+        let at = format!("{scene_name} {construction:?} {mode:?} frame {i}");
         assert_eq!(a.changed_blocks, b.changed_blocks, "{at}: changed blocks");
         assert_eq!(a.edt_voxels_changed, b.edt_voxels_changed, "{at}: EDT voxels changed");
         assert!(cpu.local_states() == gpu.local_states(), "{at}: local states differ");
@@ -56,7 +58,9 @@ fn every_scene_is_bit_identical_on_both_backends() {
     eprintln!("device: {}", backend.name());
     for scene in ["uav_pillars", "ugv_corridor", "room", "planar"] {
         for construction in [Construction::RayCasting, Construction::Auto] {
-            backend = compare(scene, construction, 4, backend);
+            backend = compare(scene, construction, IntegrationMode::Wavefront, 4, backend);
         }
+        // The exact mode: the device's batch EDT inside the shared host code.
+        backend = compare(scene, Construction::Auto, IntegrationMode::Exact, 4, backend);
     }
 }

@@ -1,24 +1,15 @@
-//! Occupancy mapping (paper §IV-A): a frame's observations of the local
-//! volume, by ray casting or volumetric projection, fused into the global
-//! log-odds map.
+//! The occupancy stage (paper §IV-A): a frame's observations of the local
+//! volume, by ray casting or volumetric projection on the backend, with
+//! the host's share (ray set-up, the returns' hits) around it.
 //!
 //! Both constructions write one observation per voxel per frame (a hit wins
 //! over a miss), so the fused map does not depend on thread scheduling.
 
-mod fuse;
-mod observe;
-mod project;
-mod raycast;
-
-pub use fuse::{fuse, read_states, FuseReport};
-pub use observe::Observations;
-pub use project::{decide_uncertain, project_job, project_volume, scatter_returns};
-pub use raycast::{cast_fixed, cast_rays, prepare_rays};
-
-use crate::CpuError;
-use edtmap_core::fixed_ray::FixedRay;
-use edtmap_core::sensor::{Frame, Measurement, Sensor, SensorRay};
-use edtmap_core::LocalVolume;
+use crate::fixed_ray::{prepare_rays, FixedRay};
+use crate::sensor::{Frame, Measurement, Sensor, SensorRay};
+use crate::{Backend, BackendError, CoreError, LocalVolume, Observations, ProjectJob, VoxelIndex, OBS_HIT};
+use nalgebra::Vector3;
+use rayon::prelude::*;
 
 /// How a frame's occupancy is built.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -71,26 +62,19 @@ pub struct OccupancyStage {
     obs: Option<Observations>,
     rays: Vec<SensorRay>,
     fixed_rays: Vec<FixedRay>,
-    /// Observation bits a backend cast the rays into.
-    bits: Vec<u8>,
 }
 
 impl OccupancyStage {
-    /// Observes `frame` (already checked against `sensor`) over `volume`.
-    pub fn observe(&mut self, sensor: &Sensor, frame: &Frame, volume: LocalVolume, opts: &OgmOptions) -> Result<&Observations, CpuError> {
-        self.observe_on(&mut crate::CpuBackend::default(), sensor, frame, volume, opts)
-    }
-
-    /// [`Self::observe`], with the rays cast or the volume projected by
-    /// `backend` when it can.
-    pub fn observe_on<B: edtmap_core::Backend + ?Sized>(
+    /// Observes `frame` (already checked against `sensor`) over `volume`,
+    /// casting the rays or projecting the volume on `backend`.
+    pub fn observe<B: Backend + ?Sized>(
         &mut self,
         backend: &mut B,
         sensor: &Sensor,
         frame: &Frame,
         volume: LocalVolume,
         opts: &OgmOptions,
-    ) -> Result<&Observations, CpuError> {
+    ) -> Result<&Observations, BackendError> {
         if let Some(o) = &mut self.obs {
             o.reset(volume);
         }
@@ -100,26 +84,50 @@ impl OccupancyStage {
             Construction::Auto => projectable,
             Construction::RayCasting => false,
             Construction::Projection if projectable => true,
-            Construction::Projection => return Err(CpuError::Unsupported(format!("volumetric projection of a {} from a {}", frame.measurement.kind(), sensor.kind()))),
+            Construction::Projection => {
+                let what = format!("volumetric projection of a {} from a {}", frame.measurement.kind(), sensor.kind());
+                return Err(CoreError::Unsupported(what).into());
+            }
         };
         if project {
-            let job = project_job(sensor, frame, volume, opts);
-            if backend.project_volume(job, &mut self.bits)? {
-                decide_uncertain(&job, &mut self.bits);
-                obs.load_bits(&self.bits);
-                scatter_returns(obs, sensor, frame, &mut self.rays);
-            } else {
-                project_volume(obs, sensor, frame, opts, &mut self.rays);
-            }
+            backend.project_volume(&project_job(sensor, frame, volume, opts), obs)?;
+            scatter_returns(obs, sensor, frame, &mut self.rays);
         } else {
             sensor.rays(&frame.measurement, opts.clear_no_return, &mut self.rays);
             let q = prepare_rays(obs.volume(), &frame.t_world_sensor, &self.rays, opts.free_margin_m, &mut self.fixed_rays)?;
-            if backend.cast_rays(&self.fixed_rays, q, volume.dims, &mut self.bits)? {
-                obs.load_bits(&self.bits);
-            } else {
-                cast_fixed(obs, &self.fixed_rays, q);
-            }
+            backend.cast_rays(&self.fixed_rays, q, obs)?;
         }
         Ok(obs)
     }
+}
+
+/// The projection of `frame` over `volume` as a backend receives it.
+pub fn project_job<'a>(sensor: &'a Sensor, frame: &'a Frame, volume: LocalVolume, opts: &OgmOptions) -> ProjectJob<'a> {
+    ProjectJob {
+        sensor,
+        measurement: &frame.measurement,
+        t_world_sensor: &frame.t_world_sensor,
+        volume,
+        free_margin_m: opts.free_margin_m,
+        clear_no_return: opts.clear_no_return,
+        planar_half_thickness_m: opts.planar_half_thickness_m,
+    }
+}
+
+/// Marks the voxel of every return as a hit: volumetric projection's hits
+/// (voxels are usually larger than a beam's spacing, so testing only the
+/// beam nearest a voxel's centre would miss a surface crossing it
+/// off-centre; one pass over the returns finds them all).
+pub fn scatter_returns(obs: &Observations, sensor: &Sensor, frame: &Frame, rays: &mut Vec<SensorRay>) {
+    sensor.rays(&frame.measurement, false, rays);
+    let vol = *obs.volume();
+    let pose = frame.t_world_sensor;
+    rays.par_iter().with_min_len(1024).filter(|r| r.hit).for_each(|r| {
+        let local = Vector3::new(r.dir[0] as f64, r.dir[1] as f64, r.dir[2] as f64) * r.range_m as f64;
+        let p = pose.transform_point(&local.into());
+        let voxel = VoxelIndex::containing(p.coords.into(), vol.voxel_size_m);
+        if let Some(c) = voxel.and_then(|v| vol.local(v)) {
+            obs.mark(c, vol.linear(c), OBS_HIT);
+        }
+    });
 }

@@ -1,12 +1,15 @@
-//! The GPU's wavefront integration against the CPU's (the reference), on
+//! The GPU's wavefront integration against the CPU's (the reference),
+//! through the same stage, on
 //! the conformance suite's random worlds: after every step both global
 //! EDTs must hold the same blocks with the same squared distances and
 //! nearest obstacles, and the GPU's must pass the brute-force checks.
 
-mod common;
+mod gpu_common;
+use gpu_common as common;
 
-use edtmap_core::{Backend, BatchEdt, Connectivity, EdtField, EdtMap, GlobalParams, IntegrationMode, WavefrontJob};
-use edtmap_cpu::integrate::Integrator;
+use edtmap::cpu::CpuBackend;
+use edtmap::stages::IntegrationStage;
+use edtmap_core::{BatchEdt, Connectivity, EdtField, EdtMap, GlobalParams, IntegrationMode};
 use edtmap_sim::conformance::IntegrationWorld;
 
 /// Sorted (key, block) pairs of `map`, for an exact comparison.
@@ -31,15 +34,15 @@ fn wavefront_integration_is_bit_identical_to_the_cpu() {
             ..Default::default()
         };
         let mut world = IntegrationWorld::new(seed);
-        let mut cpu = Integrator::new(&params, IntegrationWorld::VOXEL_M).expect("valid");
-        let (mut cpu_map, mut gpu_map) = (EdtMap::new(IntegrationWorld::VOXEL_M).expect("size"), EdtMap::new(IntegrationWorld::VOXEL_M).expect("size"));
+        let stage = IntegrationStage::new(&params, IntegrationWorld::VOXEL_M).expect("valid");
+        let mut cpu = CpuBackend::default();
+        let (mut cpu_map, mut gpu_map) = (EdtMap::new(), EdtMap::new());
         let mut batch = EdtField::empty();
         for step in 0..10 {
             let (window, mask) = world.step();
             gpu.batch_edt(&mask, &mut batch).expect("batch EDT");
-            let cpu_report = cpu.integrate(&mut cpu_map, &world.obstacles(), &window, &batch).expect("cpu");
-            let job = WavefrontJob { map: &mut gpu_map, window: &window, batch: &batch, cutoff: cpu.cutoff(), offsets: cpu.offsets() };
-            let gpu_report = gpu.integrate_wavefront(job).expect("gpu").expect("the GPU integrates");
+            let cpu_report = stage.integrate(&mut cpu, &mut cpu_map, world.obstacles(), &window, &batch).expect("cpu");
+            let gpu_report = stage.integrate(&mut gpu, &mut gpu_map, world.obstacles(), &window, &batch).expect("gpu");
             let at = format!("seed {seed}, {} neighbours, cutoff {cutoff_vox}, step {step}", u8::from(connectivity));
             assert!(blocks(&cpu_map) == blocks(&gpu_map), "{at}: the maps differ");
             assert_eq!(cpu_report.changed_blocks, gpu_report.changed_blocks, "{at}");

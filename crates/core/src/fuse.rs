@@ -1,8 +1,8 @@
 //! Fusion of a frame's observations into the global occupancy map, and the
 //! read-back of the local volume's states for the batch EDT.
 
-use super::Observations;
-use edtmap_core::{BlockKey, CoreError, Grid3, LocalVolume, LogOdds, OccupancyMap, VoxelState, BLOCK_SIDE, OBS_NONE};
+use crate::Observations;
+use crate::{BlockKey, CoreError, Grid3, LocalVolume, LogOdds, OccupancyMap, VoxelState, BLOCK_SIDE, OBS_NONE};
 use rayon::prelude::*;
 
 /// What one fusion changed.

@@ -1,6 +1,6 @@
 //! Per-frame observations of the local volume.
 
-use edtmap_core::{BlockKey, LocalVolume, OBS_HIT, OBS_MISS, OBS_NONE};
+use crate::{BlockKey, LocalVolume, OBS_HIT, OBS_MISS, OBS_NONE};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, AtomicU8, Ordering::Relaxed};
 
@@ -80,7 +80,7 @@ impl Observations {
     /// Adds observation bit `obs` to the voxel at local coordinates `c`,
     /// linear index `i`.
     #[inline]
-    pub(super) fn mark(&self, c: [usize; 3], i: usize, obs: u8) {
+    pub fn mark(&self, c: [usize; 3], i: usize, obs: u8) {
         let v = &self.voxels[i];
         if v.load(Relaxed) & obs == 0 {
             v.fetch_or(obs, Relaxed);

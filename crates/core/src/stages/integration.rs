@@ -1,0 +1,91 @@
+//! The integration stage (paper §IV-C): each frame's batch EDT of the local
+//! window merged into the unbounded global EDT on the backend, so that
+//! obstacles which appeared or vanished, inside or outside the window, are
+//! reflected everywhere within the cutoff.
+//!
+//! Two modes ([`IntegrationMode`]): the paper's wavefronts and an exact
+//! recomputation of the region the frame can affect. Both work on a dense
+//! copy of that region ([`crate::region`]) and write back only the voxels
+//! that changed, returning the blocks they touched.
+
+use crate::region::Region;
+use crate::{Backend, BackendError, CoreError, Cutoff, EdtField, EdtMap, GlobalParams, IntegrateJob, IntegrateReport, Integration, IntegrationMode, LocalVolume, Obstacles};
+
+/// Side of the tiles [`IntegrationStage::recompute`] works in, voxels: the
+/// memory it needs stays bounded whatever the box.
+const TILE: usize = 128;
+
+/// The integration stage: what each frame's job is, from the parameters.
+#[derive(Debug, Clone)]
+pub struct IntegrationStage {
+    mode: IntegrationMode,
+    cutoff: Cutoff,
+    offsets: Vec<[i32; 3]>,
+}
+
+impl IntegrationStage {
+    /// A stage for voxels of `voxel_size_m`; fails on a bad cutoff.
+    pub fn new(params: &GlobalParams, voxel_size_m: f64) -> Result<Self, CoreError> {
+        Ok(IntegrationStage { mode: params.mode, cutoff: params.cutoff(voxel_size_m)?, offsets: params.connectivity.offsets() })
+    }
+
+    /// The cutoff in voxels.
+    pub fn cutoff(&self) -> Cutoff {
+        self.cutoff
+    }
+
+    /// The integration mode.
+    pub fn mode(&self) -> IntegrationMode {
+        self.mode
+    }
+
+    /// Merges the frame whose window is `window` into `map` on `backend`.
+    /// `batch` is the exact EDT of `window` with `obstacles` (unknown
+    /// voxels free), used by the wavefront mode; the exact mode reads
+    /// `obstacles` directly.
+    pub fn integrate<B: Backend + ?Sized>(
+        &self,
+        backend: &mut B,
+        map: &mut EdtMap,
+        obstacles: Obstacles<'_>,
+        window: &LocalVolume,
+        batch: &EdtField,
+    ) -> Result<IntegrateReport, BackendError> {
+        if batch.dims() != window.dims {
+            let what = format!("batch EDT of {:?} voxels for a window of {:?}", batch.dims(), window.dims);
+            return Err(CoreError::Unsupported(what).into());
+        }
+        let work = match self.mode {
+            IntegrationMode::Wavefront => Integration::Wavefront { window, batch, offsets: &self.offsets },
+            IntegrationMode::Exact => Integration::Recompute { region: Region::around(window, self.cutoff.reach) },
+        };
+        backend.integrate(IntegrateJob { map, obstacles, cutoff: self.cutoff, work })
+    }
+
+    /// Recomputes exactly every voxel within the cutoff of the box `bounds`
+    /// (forbidden zones, a prior map laid down), in tiles of at most
+    /// `TILE`³ voxels so memory stays bounded.
+    pub fn recompute<B: Backend + ?Sized>(&self, backend: &mut B, map: &mut EdtMap, obstacles: Obstacles<'_>, bounds: &Region) -> Result<IntegrateReport, BackendError> {
+        let mut total = IntegrateReport::default();
+        for z in (0..bounds.dims[2]).step_by(TILE) {
+            for y in (0..bounds.dims[1]).step_by(TILE) {
+                for x in (0..bounds.dims[0]).step_by(TILE) {
+                    let c = [x, y, z];
+                    let tile = Region {
+                        origin: [0, 1, 2].map(|a| bounds.origin[a] + c[a] as i32),
+                        dims: [0, 1, 2].map(|a| TILE.min(bounds.dims[a] - c[a])),
+                    };
+                    let work = Integration::Recompute { region: tile.grown(self.cutoff.reach) };
+                    let w = backend.integrate(IntegrateJob { map, obstacles, cutoff: self.cutoff, work })?;
+                    total.voxels_changed += w.voxels_changed;
+                    total.change_sum_vox += w.change_sum_vox;
+                    total.changed_blocks.extend(w.changed_blocks);
+                    total.region_voxels += w.region_voxels;
+                }
+            }
+        }
+        total.changed_blocks.sort_unstable();
+        total.changed_blocks.dedup();
+        Ok(total)
+    }
+}
