@@ -51,8 +51,8 @@ cases=(
     "planar|run --scene planar"
     "room_exact|run --scene room --integration exact"
     "planar_exact|run --scene planar --integration exact --connectivity 6"
-    "3dmatch|run --dataset $shared/3dmatch-seq01"
-    "velodyne|run --dataset $shared/velodyne-pair"
+    "3dmatch|run --config $root/configs/3dmatch.toml --dataset $shared/3dmatch-seq01"
+    "velodyne|run --config $root/configs/velodyne.toml --dataset $shared/velodyne-pair"
 )
 fail=0
 for c in "${cases[@]}"; do
@@ -68,7 +68,7 @@ for c in "${cases[@]}"; do
             mv "$out/edtmap-out/map.edtmap" "$out/map.edtmap"
         else
             # shellcheck disable=SC2086
-            (cd "$out" && "${!bin}" run $args --backend "$backend" --out "$out/run" --save "$out/map.edtmap" >/dev/null)
+            (cd "$out" && "${!bin}" $args --backend "$backend" --out "$out/run" --save "$out/map.edtmap" >/dev/null)
         fi
     done
     if cmp -s "$work/out/$name/old/map.edtmap" "$work/out/$name/new/map.edtmap"; then
