@@ -15,7 +15,7 @@
 
 use crate::context::GpuContext;
 use crate::dispatch::{groups_1d, storage_entry, uniform_entry, Kernel};
-use edtmap_core::region::{read_region_except, write_back_with, Packing, Region, FAR};
+use edtmap_core::region::{read_region_except, write_back_with, Packing, Region, WriteBack, FAR};
 use edtmap_core::{BackendError, BlockKey, Cutoff, EdtField, EdtMap, IntegrateReport, LocalVolume, MapStamp, WaveCounts};
 
 /// Levels encoded per submission before the host checks for the end.
@@ -59,6 +59,18 @@ struct Params {
     o8: [u32; 4],
     fresh: [u32; 4],
     offsets: [[i32; 4]; 26],
+}
+
+/// One frame's region and the kernels' parameters for it.
+struct FrameJob {
+    packing: Packing,
+    params: Params,
+    /// Whether the device already held the previous region.
+    resident: bool,
+    /// Blocks of the region per axis, the lowest block key, and all blocks.
+    nb3: [u32; 3],
+    key_lo: [i32; 3],
+    nb: usize,
 }
 
 /// The integration kernels and their buffers, reused across frames.
@@ -211,6 +223,33 @@ impl GpuIntegrator {
         if offsets.len() > 26 {
             return Err(BackendError::Device(format!("{} neighbour offsets, at most 26", offsets.len())));
         }
+        let job = self.prepare(map, window, cutoff, offsets)?;
+        self.merge_and_seed(&job, batch)?;
+        self.lower()?;
+        let counts = self.read_changes(&job)?;
+        let mut written = self.write_changes(map, &job, counts[C_DIRTY] as usize);
+        written.changed_blocks.sort_unstable();
+        self.resident = Some(job.packing.region);
+        self.seen = Some(map.stamp());
+        Ok(IntegrateReport {
+            voxels_changed: written.voxels_changed,
+            change_sum_vox: written.change_sum_vox,
+            changed_blocks: written.changed_blocks,
+            region_voxels: job.packing.region.len(),
+            waves: WaveCounts {
+                raised: counts[C_RAISED] as usize,
+                kept_outside: counts[C_KEPT] as usize,
+                seeds: counts[C_SEEDS] as usize,
+                levels: counts[C_LEVELS] as usize,
+                lowered: counts[C_LOWERED] as usize,
+            },
+        })
+    }
+
+    /// Sizes the buffers for the frame's region, reads the region's values
+    /// from `map` (only the newly covered voxels when it is resident) and
+    /// sets the kernels' parameters.
+    fn prepare(&mut self, map: &EdtMap, window: &LocalVolume, cutoff: Cutoff, offsets: &[[i32; 3]]) -> Result<FrameJob, BackendError> {
         let packing = Packing::new(Region::around(window, cutoff.reach + 1), cutoff)?;
         let region = packing.region;
         let (r, w) = (region.len(), window.len());
@@ -248,6 +287,13 @@ impl GpuIntegrator {
         for (slot, o) in params.offsets.iter_mut().zip(offsets) {
             *slot = [o[0], o[1], o[2], 0];
         }
+        Ok(FrameJob { packing, params, resident: resident.is_some(), nb3, key_lo, nb })
+    }
+
+    /// Uploads the frame and runs the merge and the seeding of the waves.
+    fn merge_and_seed(&self, job: &FrameJob, batch: &EdtField) -> Result<(), BackendError> {
+        let FrameJob { params, nb, .. } = job;
+        let (r, w, nb) = (job.packing.region.len(), batch.dims().iter().product::<usize>(), *nb);
         let mut ctrl = [0u32; CTRL_WORDS];
         ctrl[C_STAMP] = self.stamp;
         let bufs = self.bufs.as_ref().ok_or_else(|| BackendError::Device("buffers missing".into()))?;
@@ -256,9 +302,9 @@ impl GpuIntegrator {
         let with_args = [&bufs.group, &self.args_group];
         self.ctx.scoped(|| {
             let q = &self.ctx.queue;
-            q.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
+            q.write_buffer(&self.params, 0, bytemuck::bytes_of(params));
             q.write_buffer(&self.ctrl, 0, bytemuck::cast_slice(&ctrl));
-            if resident.is_some() {
+            if job.resident {
                 if !self.fresh.is_empty() {
                     q.write_buffer(&bufs.fresh, 0, bytemuck::cast_slice(&self.fresh));
                 }
@@ -271,7 +317,7 @@ impl GpuIntegrator {
             enc.clear_buffer(&bufs.blk, 0, Some(8 * nb as u64));
             {
                 let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("merge and seed"), timestamp_writes: None });
-                if resident.is_some() {
+                if job.resident {
                     k.shift.dispatch(&mut pass, &one, groups_1d(r as u64));
                     if !self.fresh.is_empty() {
                         k.scatter.dispatch(&mut pass, &one, groups_1d(self.fresh.len() as u64));
@@ -285,6 +331,15 @@ impl GpuIntegrator {
             }
             q.submit([enc.finish()]);
         })?;
+        Ok(())
+    }
+
+    /// Lowers level after level until the frontier is empty.
+    fn lower(&mut self) -> Result<(), BackendError> {
+        let bufs = self.bufs.as_ref().ok_or_else(|| BackendError::Device("buffers missing".into()))?;
+        let k = &self.k;
+        let one = [&bufs.group];
+        let with_args = [&bufs.group, &self.args_group];
         let mut counts = self.read_ctrl()?;
         while counts[C_FRONT] > 0 {
             self.ctx.scoped(|| {
@@ -313,7 +368,17 @@ impl GpuIntegrator {
             counts = self.read_ctrl()?;
         }
         self.stamp = counts[C_STAMP];
-        // The changed blocks' pairs, back to the CPU map.
+        Ok(())
+    }
+
+    /// Lists the blocks holding a changed voxel and reads their `(old,
+    /// new)` pairs back; returns the control words (counters).
+    fn read_changes(&mut self, job: &FrameJob) -> Result<[u32; CTRL_WORDS], BackendError> {
+        let bufs = self.bufs.as_ref().ok_or_else(|| BackendError::Device("buffers missing".into()))?;
+        let k = &self.k;
+        let one = [&bufs.group];
+        let with_args = [&bufs.group, &self.args_group];
+        let (r, nb) = (job.packing.region.len(), job.nb);
         self.ctx.scoped(|| {
             let mut enc = self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("changes") });
             {
@@ -344,8 +409,14 @@ impl GpuIntegrator {
                 crate::edt::copy_words(&b[pairs_at as usize..], pairs);
             })?;
         }
-        // Scatter the changed blocks' pairs into region order and write
-        // them back with the CPU's own code.
+        Ok(counts)
+    }
+
+    /// Scatters the changed blocks' pairs into region order and writes them
+    /// back into `map` with the shared write-back.
+    fn write_changes(&mut self, map: &mut EdtMap, job: &FrameJob, dirty: usize) -> WriteBack {
+        let FrameJob { packing, params, nb3, key_lo, .. } = job;
+        let (region, r) = (packing.region, packing.region.len());
         self.cur.resize(r, FAR);
         let mut keys = Vec::with_capacity(dirty);
         for (slot, &b) in self.changed_list.iter().enumerate() {
@@ -364,26 +435,9 @@ impl GpuIntegrator {
             }
         }
         let cur = &self.cur;
-        let mut written = write_back_with(map, &packing, &keys, &self.old, |i| cur[i]);
-        written.changed_blocks.sort_unstable();
-        self.resident = Some(region);
-        self.seen = Some(map.stamp());
-        Ok(IntegrateReport {
-            voxels_changed: written.voxels_changed,
-            change_sum_vox: written.change_sum_vox,
-            changed_blocks: written.changed_blocks,
-            region_voxels: r,
-            waves: WaveCounts {
-                raised: counts[C_RAISED] as usize,
-                kept_outside: counts[C_KEPT] as usize,
-                seeds: counts[C_SEEDS] as usize,
-                levels: counts[C_LEVELS] as usize,
-                lowered: counts[C_LOWERED] as usize,
-            },
-        })
+        write_back_with(map, packing, &keys, &self.old, |i| cur[i])
     }
 
-    /// Snapshot of the next frontier, then it becomes the current one.
     fn encode_advance(&self, pass: &mut wgpu::ComputePass<'_>, bufs: &Buffers, advance: &Kernel) {
         self.k.prep_next.dispatch(pass, &[&bufs.group, &self.args_group], [1, 1, 1]);
         self.k.snapshot.dispatch_indirect(pass, &[&bufs.group], &self.args, A_NEXT);

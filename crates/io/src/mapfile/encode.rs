@@ -29,7 +29,7 @@ impl<'a> Prepared<'a> {
     /// Length of the file in bytes, as stated in its header.
     pub(super) fn total_len(&self) -> u64 {
         let fixed = (HEADER_LEN + self.params.len() + 3 * COUNT_LEN + CHECKSUM_LEN) as u64;
-        fixed + blocks_len(&self.map.occupancy()) + blocks_len(&self.map.edt()) + blocks_len(&self.map.fixed_obstacles())
+        fixed + blocks_len(self.map.occupancy()) + blocks_len(self.map.edt()) + blocks_len(self.map.fixed_obstacles())
     }
 
     /// Writes the whole file to `out`.
@@ -43,9 +43,9 @@ impl<'a> Prepared<'a> {
         // Checked to fit in `new`.
         out.write_all(&(self.params.len() as u32).to_le_bytes())?;
         out.write_all(self.params.as_bytes())?;
-        write_section(&mut out, &self.map.occupancy())?;
-        write_section(&mut out, &self.map.edt())?;
-        write_section(&mut out, &self.map.fixed_obstacles())?;
+        write_section(&mut out, self.map.occupancy())?;
+        write_section(&mut out, self.map.edt())?;
+        write_section(&mut out, self.map.fixed_obstacles())?;
         let crc = out.crc.finalize();
         out.inner.write_all(&crc.to_le_bytes())?;
         out.inner.flush()
