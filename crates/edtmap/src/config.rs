@@ -22,7 +22,7 @@ mod dataset;
 mod limits;
 mod memory;
 
-pub use dataset::{DatasetSection, IntrinsicsSource, OnError, DEFAULT_MAX_POSE_GAP_S};
+pub use dataset::{DatasetSection, IntrinsicsSource, OnError, RECORDING_MAX_POSE_GAP_S};
 
 pub use memory::MemorySection;
 

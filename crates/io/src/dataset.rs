@@ -32,15 +32,11 @@ pub use crate::depth_folder::DepthFolder;
 pub use cloud_folder::{parse_kitti_bin, read_kitti_bin, CloudFolder, DEFAULT_CLOUD_RATE_HZ};
 pub use frames::{parse_kitti_poses, parse_matrix, parse_times, read_matrix_file, FrameFile, FramePose};
 
+use crate::trajectory::GROUND_TRUTH_MAX_POSE_GAP_S;
 use crate::IoError;
 use edtmap_core::sensor::{Frame, RangeLimits};
 use frames::{bad, list_dir};
 use std::path::{Path, PathBuf};
-
-/// Largest time between two trajectory samples that a frame's pose is
-/// interpolated across, seconds: a robot's pose is not guessed over a hole
-/// in its trajectory (TUM ground truth is 100 Hz, odometry 10 Hz or more).
-pub const DEFAULT_MAX_POSE_GAP_S: f64 = 0.1;
 
 /// How to read a recording.
 #[derive(Debug, Clone, PartialEq)]
@@ -68,9 +64,9 @@ pub struct DatasetOptions {
 
 impl DatasetOptions {
     /// Options with the folder's own poses and intrinsics and
-    /// [`DEFAULT_MAX_POSE_GAP_S`].
+    /// [`GROUND_TRUTH_MAX_POSE_GAP_S`].
     pub fn new(depth_scale_m: f32, range: RangeLimits) -> Self {
-        DatasetOptions { depth_scale_m, range, intrinsics: None, folder_intrinsics: true, trajectory: None, max_pose_gap_s: DEFAULT_MAX_POSE_GAP_S }
+        DatasetOptions { depth_scale_m, range, intrinsics: None, folder_intrinsics: true, trajectory: None, max_pose_gap_s: GROUND_TRUTH_MAX_POSE_GAP_S }
     }
 }
 
