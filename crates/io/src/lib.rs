@@ -33,6 +33,7 @@ pub mod dataset;
 pub mod depth_folder;
 mod error;
 pub mod files;
+mod folder;
 pub mod mapfile;
 pub mod npy;
 pub mod pcd;
