@@ -8,8 +8,8 @@ use serde_json::{json, Value};
 
 use crate::backend::CliMapper;
 use crate::report::FrameRecord;
-use edtmap_io::plot::{Chart, Series, SeriesStyle};
-use edtmap_io::picture::{viridis, write_slice_png, write_states_png, MapAxes, Slice, SliceStyle};
+use edtmap_viz::plot::{Chart, Series, SeriesStyle};
+use edtmap_viz::picture::{viridis, write_slice_png, write_states_png, MapAxes, Slice, SliceStyle};
 use edtmap_io::ply::{write_ply, ColouredPoint};
 
 /// The occupancy slice `edtmap run` writes in `--out`.

@@ -10,7 +10,7 @@ use edtmap::region::Region;
 use edtmap::eval::{edt_errors, edt_extent, EdtErrors, OccupancyScores};
 use edtmap::sensor::{Frame, Sensor};
 use edtmap::cpu::CpuBackend;
-use edtmap::{Connectivity, FrameStats, IntegrationMode, Mapper};
+use edtmap::{Connectivity, FrameStats, IntegrationMode, Mapper, MapperParams};
 use edtmap_sim::{Scene, SceneName};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::{json, Map};
@@ -163,31 +163,86 @@ pub(crate) fn run(args: &RunArgs) -> Result<()> {
 }
 
 /// Replays the scene; `progress` draws a progress bar on a terminal.
+///
+/// The steps, in order: set up (config, input, sensor, frame count), open
+/// the mapper, check the outputs, replay, write the report (first: it says
+/// why a run stopped even if a later output fails), then the map and
+/// pictures, and last fail if the run stopped early.
 pub(crate) fn execute(args: &RunArgs, progress: bool) -> Result<RunOutcome> {
-    let (mut config, origin) = load_config(args)?;
-    let (source, name, default_frames) = match &args.dataset {
+    let setup = Setup::new(args)?;
+    let mut mapper = open_mapper(args, &setup)?;
+    prepare_out(args)?;
+    let replayed = replay(args, &setup, &mut mapper, progress)?;
+    let slice = SliceHeight::choose(args.slice_height, setup.config.output.slice_height_m, &mapper);
+    let header = report_header(args, &setup, &mapper, &slice, &replayed);
+    let report_path = args.out.join(REPORT);
+    write_json(&report_path, &report(header, &replayed.records))?;
+    if replayed.records.is_empty() {
+        // Nothing to picture or save: an empty map must not replace a
+        // good one, and a run that mapped nothing has failed.
+        bail!("{}", nothing_integrated(&replayed.skipped, replayed.stopped.as_ref(), &report_path));
+    }
+    let pictures = write_outputs(args, &mapper, &slice, &replayed)?;
+    check_stopped(args, &setup.config, &replayed)?;
+    Ok(RunOutcome { frames: replayed.records, report_path, pictures, backend: mapper.backend().name() })
+}
+
+/// What a run maps and with what, settled before the mapper is built.
+struct Setup {
+    config: Config,
+    /// Where the config came from, for messages and the report.
+    origin: String,
+    source: Source,
+    /// The scene's name or the recording's path.
+    name: String,
+    sensor: Sensor,
+    params: MapperParams,
+    /// Frames to replay.
+    frames: usize,
+}
+
+impl Setup {
+    /// Loads the config, opens the scene or recording, and checks that the
+    /// sensor fits the recording and the frame count fits both.
+    fn new(args: &RunArgs) -> Result<Self> {
+        let (mut config, origin) = load_config(args)?;
+        let (source, name, default_frames) = open_source(args, &mut config, &origin)?;
+        if args.eval && !matches!(source, Source::Scene(_)) {
+            tracing::warn!("--eval: {name} is a recording: {RECORDING_EVAL}");
+        }
+        let (sensor, mut params) = config.mapper_params()?;
+        if let Some(bytes) = crate::memory::max_bytes() {
+            params.max_memory_bytes = Some(bytes);
+        }
+        if let Some(path) = &args.dataset {
+            check_kind(&source, &sensor, path, &origin)?;
+        }
+        let frames = frame_count(args, &name, default_frames)?;
+        Ok(Setup { config, origin, source, name, sensor, params, frames })
+    }
+}
+
+/// The recording of `--dataset`, or else the scene of `--scene` or of the
+/// config's `[scene]`; with its name and its number of frames.
+fn open_source(args: &RunArgs, config: &mut Config, origin: &str) -> Result<(Source, String, usize)> {
+    match &args.dataset {
         Some(path) => {
-            let source = Source::open_recording(path, &mut config, &origin)?;
+            let source = Source::open_recording(path, config, origin)?;
             let n = source.len().unwrap_or(0);
-            (source, path.display().to_string(), n)
+            Ok((source, path.display().to_string(), n))
         }
         None => {
             let name = args.scene.clone().or_else(|| config.scene.as_ref().map(|s| s.name.clone()));
             let name = name.with_context(|| format!("{origin} has no [scene] section: give --scene NAME or --dataset PATH"))?;
-            let (source, n) = Source::scene(&name, &config)?;
-            (source, name, n)
+            let (source, n) = Source::scene(&name, config)?;
+            Ok((source, name, n))
         }
-    };
-    if args.eval && !matches!(source, Source::Scene(_)) {
-        tracing::warn!("--eval: {name} is a recording: {RECORDING_EVAL}");
     }
-    let (sensor, mut params) = config.mapper_params()?;
-    if let Some(bytes) = crate::memory::max_bytes() {
-        params.max_memory_bytes = Some(bytes);
-    }
-    if let Some(path) = &args.dataset {
-        check_kind(&source, &sensor, path, &origin)?;
-    }
+}
+
+/// `--frames`, or the source's length; a recording has no more frames
+/// than it holds.
+fn frame_count(args: &RunArgs, name: &str, default_frames: usize) -> Result<usize> {
     let frames = args.frames.unwrap_or(default_frames);
     if frames == 0 {
         bail!("--frames must be at least 1");
@@ -195,77 +250,124 @@ pub(crate) fn execute(args: &RunArgs, progress: bool) -> Result<RunOutcome> {
     if args.dataset.is_some() && frames > default_frames {
         bail!("--frames {frames}: {name} has {default_frames} frames");
     }
+    Ok(frames)
+}
+
+/// The mapper on the chosen backend, with the `--prior` map added.
+fn open_mapper(args: &RunArgs, setup: &Setup) -> Result<CliMapper> {
     let backend = backend::open(args.backend, CpuBackend::default())?;
-    let mut mapper = Mapper::new_on(backend, sensor.clone(), params.clone())?;
+    let mut mapper = Mapper::new_on(backend, setup.sensor.clone(), setup.params.clone())?;
     if let Some(path) = &args.prior {
         let prior = edtmap::load_map(path)?;
         mapper.add_prior(&prior).with_context(|| format!("prior map {}", path.display()))?;
     }
+    Ok(mapper)
+}
+
+/// Creates `--out` and checks every output path before any frame.
+fn prepare_out(args: &RunArgs) -> Result<()> {
     std::fs::create_dir_all(&args.out).with_context(|| format!("cannot create {}", args.out.display()))?;
-    check_outputs(args)?;
-    let bar = progress_bar(frames, progress);
+    check_outputs(args)
+}
+
+/// What the replay gave: a record per integrated frame, the frames
+/// skipped, and the failure the run stopped at.
+struct Replayed {
+    records: Vec<FrameRecord>,
+    skipped: Vec<Failure>,
+    stopped: Option<Failure>,
+}
+
+/// Integrates the frames one by one, skipping or stopping at a frame that
+/// fails as `[dataset] on_error` says (a scene's failure always stops).
+fn replay(args: &RunArgs, setup: &Setup, mapper: &mut CliMapper, progress: bool) -> Result<Replayed> {
+    let bar = progress_bar(setup.frames, progress);
     // Grows with the frames that come: --frames may be far more than a
     // recording or a soak run delivers.
-    let mut records = Vec::new();
+    let mut out = Replayed { records: Vec::new(), skipped: Vec::new(), stopped: None };
     let mut truth = (Vec::new(), Vec::new());
-    let mut skipped = Vec::new();
-    let mut stopped: Option<Failure> = None;
-    for (i, item) in source.frames(&sensor, frames, &name).enumerate() {
-        let integrated = item.and_then(|frame| match mapper.integrate_frame(&frame) {
-            Ok(stats) => Ok((frame, stats)),
-            Err(e) => {
-                let kind = if e.is_backend_failure() { FailureKind::Fatal } else { FailureKind::Frame };
-                Err(Failure { index: i, message: format!("frame {i} (stamp {:.6} s) of {name}: {e:#}", frame.stamp_s), kind })
-            }
-        });
-        let (frame, stats) = match integrated {
+    for (i, item) in setup.source.frames(&setup.sensor, setup.frames, &setup.name).enumerate() {
+        let (frame, stats) = match item.and_then(|frame| integrate(mapper, frame, i, &setup.name)) {
             Ok(done) => done,
             Err(failure) => {
                 bar.inc(1);
-                if failure.kind != FailureKind::Frame || config.dataset.on_error == OnError::Stop || matches!(source, Source::Scene(_)) {
-                    stopped = Some(failure);
+                if stops_the_run(&failure, setup) {
+                    out.stopped = Some(failure);
                     break;
                 }
                 tracing::warn!("skipped: {}", failure.message);
-                skipped.push(failure);
+                out.skipped.push(failure);
                 continue;
             }
         };
         tracing::debug!("frame {i} at {:.3} s: {:.2} ms", frame.stamp_s, stats.total_ms);
-        let mut rec = FrameRecord {
-            index: i,
-            stamp_s: frame.stamp_s,
-            ogm_ms: stats.ogm_ms,
-            batch_edt_ms: stats.batch_edt_ms,
-            integrate_ms: stats.integrate_ms,
-            total_ms: stats.total_ms,
-            voxels_updated: stats.voxels_updated,
-            voxels_changed: stats.voxels_changed,
-            changed_blocks: stats.changed_blocks.len(),
-            global: global_fields(&stats),
-            ..Default::default()
-        };
+        let mut rec = frame_record(i, &frame, &stats);
         if args.eval {
-            // Recordings have no ground truth: only the EDT is checked.
-            if let Source::Scene(scene) = &source {
-                let scores = score(scene, &sensor, &frame, &mapper, &mut truth);
-                (rec.precision, rec.recall, rec.strict_recall) = (scores.precision(), scores.recall(), scores.strict_recall());
-            }
-            rec.edt_errors = edt_error_fields(&mapper)?;
+            evaluate(&mut rec, setup, &frame, mapper, &mut truth)?;
         }
-        records.push(rec);
+        out.records.push(rec);
         bar.inc(1);
     }
     bar.finish_and_clear();
-    let slice = SliceHeight::choose(args.slice_height, config.output.slice_height_m, &mapper);
+    Ok(out)
+}
+
+/// Integrates frame `i` of `name`; a failure says whether the backend
+/// failed (fatal) or the frame was refused.
+fn integrate(mapper: &mut CliMapper, frame: Frame, i: usize, name: &str) -> std::result::Result<(Frame, FrameStats), Failure> {
+    match mapper.integrate_frame(&frame) {
+        Ok(stats) => Ok((frame, stats)),
+        Err(e) => {
+            let kind = if e.is_backend_failure() { FailureKind::Fatal } else { FailureKind::Frame };
+            Err(Failure { index: i, message: format!("frame {i} (stamp {:.6} s) of {name}: {e:#}", frame.stamp_s), kind })
+        }
+    }
+}
+
+/// Whether `failure` ends the run rather than skipping its frame.
+fn stops_the_run(failure: &Failure, setup: &Setup) -> bool {
+    failure.kind != FailureKind::Frame || setup.config.dataset.on_error == OnError::Stop || matches!(setup.source, Source::Scene(_))
+}
+
+/// The report's record of frame `index`.
+fn frame_record(index: usize, frame: &Frame, stats: &FrameStats) -> FrameRecord {
+    FrameRecord {
+        index,
+        stamp_s: frame.stamp_s,
+        ogm_ms: stats.ogm_ms,
+        batch_edt_ms: stats.batch_edt_ms,
+        integrate_ms: stats.integrate_ms,
+        total_ms: stats.total_ms,
+        voxels_updated: stats.voxels_updated,
+        voxels_changed: stats.voxels_changed,
+        changed_blocks: stats.changed_blocks.len(),
+        global: global_fields(stats),
+        ..Default::default()
+    }
+}
+
+/// `--eval`: occupancy scores against a scene's ground truth, and the EDT
+/// errors. Recordings have no ground truth: only the EDT is checked.
+fn evaluate(rec: &mut FrameRecord, setup: &Setup, frame: &Frame, mapper: &CliMapper, truth: &mut (Vec<bool>, Vec<bool>)) -> Result<()> {
+    if let Source::Scene(scene) = &setup.source {
+        let scores = score(scene, &setup.sensor, frame, mapper, truth);
+        (rec.precision, rec.recall, rec.strict_recall) = (scores.precision(), scores.recall(), scores.strict_recall());
+    }
+    rec.edt_errors = edt_error_fields(mapper)?;
+    Ok(())
+}
+
+/// `report.json`'s header: what ran, on what, and how it ended.
+fn report_header(args: &RunArgs, setup: &Setup, mapper: &CliMapper, slice: &SliceHeight, replayed: &Replayed) -> Map<String, serde_json::Value> {
+    let (sensor, params) = (&setup.sensor, &setup.params);
     let mut header = Map::new();
     header.insert("edtmap_version".into(), json!(env!("CARGO_PKG_VERSION")));
-    header.insert("scene".into(), json!(name));
-    header.insert("config".into(), json!(origin));
+    header.insert("scene".into(), json!(setup.name));
+    header.insert("config".into(), json!(setup.origin));
     header.insert("backend".into(), json!(mapper.backend().name()));
     header.insert("threads".into(), json!(rayon::current_num_threads()));
     header.insert("sensor".into(), json!(sensor.kind()));
-    header.insert("construction".into(), json!(construction_name(&sensor, &config)));
+    header.insert("construction".into(), json!(construction_name(sensor, &setup.config)));
     header.insert("voxel_size_m".into(), json!(params.voxel_size_m));
     header.insert("local_dims".into(), json!(mapper.local_volume().map(|v| v.dims)));
     header.insert("map_blocks".into(), json!(mapper.map().occupancy().len()));
@@ -274,44 +376,48 @@ pub(crate) fn execute(args: &RunArgs, progress: bool) -> Result<RunOutcome> {
     header.insert("max_distance_m".into(), json!(params.global.max_distance_m));
     header.insert("slice".into(), slice.to_json());
     if args.eval {
-        header.insert("eval".into(), eval_note(&source));
+        header.insert("eval".into(), eval_note(&setup.source));
     }
-    header.insert("skipped".into(), json!(skipped.iter().map(|f| json!({"index": f.index, "reason": f.message})).collect::<Vec<_>>()));
-    header.insert("stopped".into(), json!(stopped.as_ref().map(|f| json!({"index": f.index, "reason": f.message}))));
-    // The report first: it says why a run stopped even if a later output fails.
-    let report_path = args.out.join(REPORT);
-    write_json(&report_path, &report(header, &records))?;
-    if records.is_empty() {
-        // Nothing to picture or save: an empty map must not replace a
-        // good one, and a run that mapped nothing has failed.
-        bail!("{}", nothing_integrated(&skipped, stopped.as_ref(), &report_path));
-    }
+    let failure = |f: &Failure| json!({"index": f.index, "reason": f.message});
+    header.insert("skipped".into(), json!(replayed.skipped.iter().map(failure).collect::<Vec<_>>()));
+    header.insert("stopped".into(), json!(replayed.stopped.as_ref().map(failure)));
+    header
+}
+
+/// The map (`--save`), the slices, the clouds (`--ply`) and the timing
+/// chart; a failure after an early stop says so.
+fn write_outputs(args: &RunArgs, mapper: &CliMapper, slice: &SliceHeight, replayed: &Replayed) -> Result<Vec<PathBuf>> {
     let outputs = (|| -> Result<Vec<PathBuf>> {
         if let Some(path) = &args.save {
             edtmap::save_map(mapper.map(), path)?;
         }
-        let mut pictures = write_slices(&mapper, slice.z_m, &args.out)?;
+        let mut pictures = write_slices(mapper, slice.z_m, &args.out)?;
         if args.ply {
-            pictures.extend(write_plys(&mapper, &args.out)?);
+            pictures.extend(write_plys(mapper, &args.out)?);
         }
-        pictures.push(write_timing_plot(&records, &mapper.backend().name(), &args.out)?);
+        pictures.push(write_timing_plot(&replayed.records, &mapper.backend().name(), &args.out)?);
         Ok(pictures)
     })();
-    let pictures = match (outputs, &stopped) {
-        (Ok(p), _) => p,
-        (Err(e), None) => return Err(e),
-        (Err(e), Some(failure)) => return Err(e.context(format!("after the run stopped early: {}", failure.message))),
-    };
-    if let Some(failure) = stopped {
-        let plural = if records.len() == 1 { "frame before it is" } else { "frames before it are" };
-        let kept = format!("the {} {plural} integrated and written to {}", records.len(), args.out.display());
-        if failure.kind == FailureKind::Damage && config.dataset.on_error == OnError::Skip {
-            tracing::warn!("stopped early: {}; {kept}", failure.message);
-        } else {
-            bail!("{}; {kept}", failure.message);
-        }
+    match (outputs, &replayed.stopped) {
+        (Ok(p), _) => Ok(p),
+        (Err(e), None) => Err(e),
+        (Err(e), Some(failure)) => Err(e.context(format!("after the run stopped early: {}", failure.message))),
     }
-    Ok(RunOutcome { frames: records, report_path, pictures, backend: mapper.backend().name() })
+}
+
+/// A run that stopped early fails, its outputs written; only damage that
+/// ends a recording under `on_error = "skip"` is a warning.
+fn check_stopped(args: &RunArgs, config: &Config, replayed: &Replayed) -> Result<()> {
+    let Some(failure) = &replayed.stopped else { return Ok(()) };
+    let n = replayed.records.len();
+    let plural = if n == 1 { "frame before it is" } else { "frames before it are" };
+    let kept = format!("the {n} {plural} integrated and written to {}", args.out.display());
+    if failure.kind == FailureKind::Damage && config.dataset.on_error == OnError::Skip {
+        tracing::warn!("stopped early: {}; {kept}", failure.message);
+        Ok(())
+    } else {
+        bail!("{}; {kept}", failure.message);
+    }
 }
 
 /// The run's report in `--out`.

@@ -71,7 +71,7 @@ impl Source {
         let opts = edtmap_io::dataset::DatasetOptions {
             depth_scale_m: config.dataset.depth_scale_m,
             range: sensor_range(&sensor),
-            intrinsics: config.sensor.fx.zip(config.sensor.fy).zip(config.sensor.cx.zip(config.sensor.cy)).map(|((fx, fy), (cx, cy))| [fx, fy, cx, cy]),
+            intrinsics: config.sensor.camera.intrinsics(),
             folder_intrinsics: config.dataset.intrinsics == IntrinsicsSource::Recording,
             trajectory: config.dataset.trajectory.as_ref().map(|t| path.join(t)),
             max_pose_gap_s: config.dataset.max_pose_gap_s,
@@ -172,7 +172,7 @@ fn describe(k: [Option<f64>; 4], width: Option<u32>, height: Option<u32>) -> Str
 /// they differ, a warning names both and the one used.
 fn use_calibration(config: &mut Config, cal: &Calibration, origin: &str) {
     let policy = config.dataset.intrinsics;
-    let s = &mut config.sensor;
+    let s = &mut config.sensor.camera;
     let theirs = describe(cal.k.map(Some), Some(cal.width), Some(cal.height));
     let ours = describe([s.fx, s.fy, s.cx, s.cy], s.width, s.height);
     let close = |a: f64, b: f64| (a - b).abs() <= 1e-6 * b.abs().max(1.0);

@@ -23,7 +23,7 @@ use std::collections::BTreeSet;
 use std::error::Error;
 use std::path::{Path, PathBuf};
 
-use edtmap_io::plot::{Chart, Series, SeriesStyle};
+use edtmap_viz::plot::{Chart, Series, SeriesStyle};
 use serde_json::Value;
 
 type Result<T> = std::result::Result<T, Box<dyn Error>>;

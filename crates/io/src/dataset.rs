@@ -26,53 +26,16 @@
 //! left out, each with a line in [`Dataset::warnings`].
 
 mod cloud_folder;
-pub(crate) mod frames;
 
 pub use crate::depth_folder::DepthFolder;
 pub use cloud_folder::{parse_kitti_bin, read_kitti_bin, CloudFolder, DEFAULT_CLOUD_RATE_HZ};
-pub use frames::{parse_kitti_poses, parse_matrix, parse_times, read_matrix_file, FrameFile, FramePose};
+pub use crate::folder::frames::{parse_kitti_poses, parse_matrix, parse_times, read_matrix_file, FrameFile, FramePose};
+pub use crate::folder::DatasetOptions;
 
 use crate::IoError;
+use crate::folder::frames::{bad, list_dir};
 use edtmap_core::sensor::{Frame, RangeLimits};
-use frames::{bad, list_dir};
-use std::path::{Path, PathBuf};
-
-/// Largest time between two trajectory samples that a frame's pose is
-/// interpolated across, seconds: a robot's pose is not guessed over a hole
-/// in its trajectory (TUM ground truth is 100 Hz, odometry 10 Hz or more).
-pub const DEFAULT_MAX_POSE_GAP_S: f64 = 0.1;
-
-/// How to read a recording.
-#[derive(Debug, Clone, PartialEq)]
-pub struct DatasetOptions {
-    /// Metres per unit of 16-bit depth images (0.001 for 3DMatch's
-    /// millimetres, 0.0002 for TUM's 5000 units per metre).
-    pub depth_scale_m: f32,
-    /// The depth camera's valid range.
-    pub range: RangeLimits,
-    /// The depth camera's `[fx, fy, cx, cy]`, pixels, for folders without
-    /// `camera-intrinsics.txt` (or all folders when `folder_intrinsics` is
-    /// false).
-    pub intrinsics: Option<[f64; 4]>,
-    /// Whether a folder's own `camera-intrinsics.txt` gives the camera
-    /// (the default). When false the file is not read and `intrinsics` is
-    /// used.
-    pub folder_intrinsics: bool,
-    /// A TUM trajectory file giving the poses, interpolated at each frame's
-    /// time; it overrides the folder's own poses.
-    pub trajectory: Option<PathBuf>,
-    /// Largest gap between trajectory samples to interpolate across,
-    /// seconds.
-    pub max_pose_gap_s: f64,
-}
-
-impl DatasetOptions {
-    /// Options with the folder's own poses and intrinsics and
-    /// [`DEFAULT_MAX_POSE_GAP_S`].
-    pub fn new(depth_scale_m: f32, range: RangeLimits) -> Self {
-        DatasetOptions { depth_scale_m, range, intrinsics: None, folder_intrinsics: true, trajectory: None, max_pose_gap_s: DEFAULT_MAX_POSE_GAP_S }
-    }
-}
+use std::path::Path;
 
 /// A recording opened for replay.
 #[derive(Debug, Clone)]
@@ -182,6 +145,7 @@ impl Dataset {
 mod tests {
     use super::*;
     use edtmap_core::sensor::Measurement;
+    use std::path::PathBuf;
 
     /// A folder of `../shared/data`, or `None` (with a note) where it is absent.
     fn data(name: &str) -> Option<PathBuf> {

@@ -27,8 +27,8 @@ mod depth_png;
 
 pub use depth_png::{read_depth_png, ExpectedSize, MAX_DEPTH_IMAGE_BYTES};
 
-use crate::dataset::frames::{bad, file_name, list_dir, read_text, FrameFile, FramePose, TrajectoryFile};
-use crate::dataset::DatasetOptions;
+use crate::folder::frames::{bad, file_name, list_dir, read_text, FrameFile, FramePose, TrajectoryFile};
+use crate::folder::DatasetOptions;
 use crate::IoError;
 use depth_png::DepthPng;
 use edtmap_core::sensor::{DepthData, DepthImage, Frame, Measurement, PinholeCamera, RangeLimits};

@@ -165,23 +165,6 @@ pub enum IoError {
         /// What is wrong, naming the field and the value.
         reason: String,
     },
-    /// A chart cannot be drawn: an axis range that is empty, not finite or
-    /// not positive on a log axis, or a picture size out of bounds.
-    #[error("{}: cannot draw the chart: {reason}", path.display())]
-    BadChart {
-        /// The file.
-        path: PathBuf,
-        /// What is wrong, naming the axis or the size.
-        reason: String,
-    },
-    /// PNG encoding failed.
-    #[error("{}: PNG encoding failed: {error}", path.display())]
-    Png {
-        /// The file.
-        path: PathBuf,
-        /// The encoder's message.
-        error: png::EncodingError,
-    },
     /// A `.edtmap` map file cannot be read (not a map file, a newer format
     /// version, truncated, corrupt, invalid parameters) or a map cannot be
     /// saved (its contents fail the same checks).

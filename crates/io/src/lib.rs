@@ -16,12 +16,11 @@
 //! * [`ply`]: PLY point clouds, read (ascii and binary) and written.
 //! * [`pcd`]: point clouds in PCL's PCD format ([`read_pcd`]), ascii or
 //!   binary data, float32 or float64 coordinates.
-//! * [`picture`]: PNG pictures of 2D slices with a colour bar.
 //! * [`mapfile`]: the versioned `.edtmap` map file ([`write_map`],
 //!   [`read_map`]): occupancy, global EDT, fixed obstacles and parameters,
 //!   saved bit for bit, checksummed, written atomically.
-//! * [`plot`]: PNG line and scatter charts of results ([`Chart`]), drawn
-//!   with the same canvas and bitmap font, without a plotting dependency.
+//! * Pictures and charts are drawn by the `edtmap-viz` crate, which writes
+//!   them through [`files`]; nothing here draws.
 //!
 //! * [`files`]: the one way inputs are opened (regular files only, with a
 //!   size cap) and outputs written (atomically, never through a link).
@@ -34,17 +33,14 @@ pub mod dataset;
 pub mod depth_folder;
 mod error;
 pub mod files;
-mod font;
+mod folder;
 pub mod mapfile;
 pub mod npy;
 pub mod pcd;
-pub mod picture;
 pub mod ply;
-pub mod plot;
 pub mod trajectory;
 
 pub use error::IoError;
 pub use mapfile::{check_map, read_map, write_map};
 pub use pcd::read_pcd;
-pub use plot::Chart;
 pub use trajectory::Trajectory;

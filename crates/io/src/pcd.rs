@@ -139,19 +139,52 @@ struct RawHeader<'a> {
     points: Option<Vec<&'a str>>,
 }
 
+/// The header's last line: `DATA <value>`.
+struct DataLine<'a> {
+    value: &'a str,
+    /// Offset of the first data byte.
+    start: usize,
+    /// Number of header lines, this one included.
+    lines: usize,
+}
+
+/// Parses the header: each step checks one part, in the order the errors
+/// are reported (keywords, DATA, VERSION, fields, x/y/z, point count,
+/// viewpoint).
 fn parse_header(path: &Path, bytes: &[u8]) -> Result<Header, IoError> {
+    let (raw, data) = read_keywords(path, bytes)?;
+    let encoding = Encoding::parse(path, data.value)?;
+    check_version(path, raw.version.as_deref())?;
+    let fields = parse_fields(path, &raw)?;
+    let layout = Layout::of(path, &fields)?;
+    let points = point_count(path, &raw)?;
+    let viewpoint = parse_viewpoint(path, raw.viewpoint.as_deref())?;
+    Ok(Header {
+        coords: layout.coords,
+        point_size: layout.point_size,
+        values_per_point: layout.values_per_point,
+        points,
+        viewpoint,
+        encoding,
+        data_start: data.start,
+        header_lines: data.lines,
+    })
+}
+
+/// Reads the header's lines up to DATA, each keyword's values unparsed;
+/// comments and blank lines are skipped.
+fn read_keywords<'a>(path: &Path, bytes: &'a [u8]) -> Result<(RawHeader<'a>, DataLine<'a>), IoError> {
     let mut raw = RawHeader::default();
     let mut pos = 0;
     let mut line_no = 0;
-    let (data_value, data_start) = loop {
+    loop {
         if pos >= bytes.len() {
             return Err(header_err(path, "no DATA line"));
         }
         let end = bytes[pos..].iter().position(|&b| b == b'\n').map_or(bytes.len(), |n| pos + n);
-        let line_bytes = &bytes[pos..end];
         let next = (end + 1).min(bytes.len());
         line_no += 1;
-        let line = std::str::from_utf8(line_bytes)
+        let line = std::str::from_utf8(&bytes[pos..end])
             .map_err(|_| header_err(path, format!("line {line_no} is not text (no DATA line before it)")))?;
         pos = next;
         let line = line.trim();
@@ -161,20 +194,30 @@ fn parse_header(path: &Path, bytes: &[u8]) -> Result<Header, IoError> {
         let mut tokens = line.split_ascii_whitespace();
         let keyword = tokens.next().unwrap_or_default();
         let values: Vec<&str> = tokens.collect();
+        if keyword == "DATA" {
+            return match values.as_slice() {
+                [v] => Ok((raw, DataLine { value: v, start: next, lines: line_no })),
+                _ => Err(header_err(path, format!("line {line_no}: DATA needs one value, got {values:?}"))),
+            };
+        }
+        raw.set(path, line_no, keyword, values)?;
+    }
+}
+
+impl<'a> RawHeader<'a> {
+    /// Keeps the values of one keyword line; unknown and repeated keywords
+    /// are refused.
+    fn set(&mut self, path: &Path, line_no: usize, keyword: &str, values: Vec<&'a str>) -> Result<(), IoError> {
         let slot = match keyword {
-            "VERSION" => &mut raw.version,
-            "FIELDS" | "COLUMNS" => &mut raw.fields,
-            "SIZE" => &mut raw.size,
-            "TYPE" => &mut raw.kind,
-            "COUNT" => &mut raw.count,
-            "WIDTH" => &mut raw.width,
-            "HEIGHT" => &mut raw.height,
-            "VIEWPOINT" => &mut raw.viewpoint,
-            "POINTS" => &mut raw.points,
-            "DATA" => match values.as_slice() {
-                [v] => break (*v, next),
-                _ => return Err(header_err(path, format!("line {line_no}: DATA needs one value, got {values:?}"))),
-            },
+            "VERSION" => &mut self.version,
+            "FIELDS" | "COLUMNS" => &mut self.fields,
+            "SIZE" => &mut self.size,
+            "TYPE" => &mut self.kind,
+            "COUNT" => &mut self.count,
+            "WIDTH" => &mut self.width,
+            "HEIGHT" => &mut self.height,
+            "VIEWPOINT" => &mut self.viewpoint,
+            "POINTS" => &mut self.points,
             _ => {
                 let shown: String = keyword.chars().take(40).collect();
                 return Err(header_err(path, format!("line {line_no}: unknown keyword {shown:?}")));
@@ -184,26 +227,41 @@ fn parse_header(path: &Path, bytes: &[u8]) -> Result<Header, IoError> {
             return Err(header_err(path, format!("line {line_no}: {keyword} given twice")));
         }
         *slot = Some(values);
-    };
-    let encoding = match data_value {
-        "ascii" => Encoding::Ascii,
-        "binary" => Encoding::Binary,
-        other => return Err(IoError::PcdUnsupportedData { path: path.into(), encoding: other.chars().take(40).collect() }),
-    };
-    if let Some(v) = &raw.version {
-        if v.len() != 1 {
-            return Err(header_err(path, format!("VERSION needs one value, got {v:?}")));
+        Ok(())
+    }
+}
+
+impl Encoding {
+    /// The encoding a DATA line names.
+    fn parse(path: &Path, value: &str) -> Result<Self, IoError> {
+        match value {
+            "ascii" => Ok(Encoding::Ascii),
+            "binary" => Ok(Encoding::Binary),
+            other => Err(IoError::PcdUnsupportedData { path: path.into(), encoding: other.chars().take(40).collect() }),
         }
     }
+}
 
-    let names = raw.fields.ok_or_else(|| header_err(path, "no FIELDS line"))?;
+/// VERSION is optional; its value is not interpreted.
+fn check_version(path: &Path, version: Option<&[&str]>) -> Result<(), IoError> {
+    match version {
+        Some(v) if v.len() != 1 => Err(header_err(path, format!("VERSION needs one value, got {v:?}"))),
+        _ => Ok(()),
+    }
+}
+
+/// The fields from FIELDS, SIZE, TYPE and COUNT (default: 1 each), which
+/// must list as many values.
+fn parse_fields<'a>(path: &Path, raw: &RawHeader<'a>) -> Result<Vec<Field<'a>>, IoError> {
+    let names = raw.fields.as_deref().ok_or_else(|| header_err(path, "no FIELDS line"))?;
     if names.is_empty() {
         return Err(header_err(path, "FIELDS lists no field"));
     }
-    let sizes = raw.size.ok_or_else(|| header_err(path, "no SIZE line"))?;
-    let kinds = raw.kind.ok_or_else(|| header_err(path, "no TYPE line"))?;
-    let counts = raw.count.unwrap_or_else(|| vec!["1"; names.len()]);
-    for (keyword, list) in [("SIZE", &sizes), ("TYPE", &kinds), ("COUNT", &counts)] {
+    let sizes = raw.size.as_deref().ok_or_else(|| header_err(path, "no SIZE line"))?;
+    let kinds = raw.kind.as_deref().ok_or_else(|| header_err(path, "no TYPE line"))?;
+    let ones = vec!["1"; names.len()];
+    let counts = raw.count.as_deref().unwrap_or(&ones);
+    for (keyword, list) in [("SIZE", sizes), ("TYPE", kinds), ("COUNT", counts)] {
         if list.len() != names.len() {
             return Err(header_err(
                 path,
@@ -211,8 +269,12 @@ fn parse_header(path: &Path, bytes: &[u8]) -> Result<Header, IoError> {
             ));
         }
     }
-    let mut fields = Vec::with_capacity(names.len());
-    for (((&name, &size), &kind), &count) in names.iter().zip(&sizes).zip(&kinds).zip(&counts) {
+    names.iter().zip(sizes).zip(kinds).zip(counts).map(|(((name, size), kind), count)| Field::parse(path, name, size, kind, count)).collect()
+}
+
+impl<'a> Field<'a> {
+    /// One field from its SIZE, TYPE and COUNT values.
+    fn parse(path: &Path, name: &'a str, size: &str, kind: &str, count: &str) -> Result<Self, IoError> {
         let size = positive(size).ok_or_else(|| header_err(path, format!("SIZE of field {name}: {size:?} is not a positive integer")))?;
         let count = positive(count).ok_or_else(|| header_err(path, format!("COUNT of field {name}: {count:?} is not a positive integer")))?;
         let kind = match kind {
@@ -221,61 +283,85 @@ fn parse_header(path: &Path, bytes: &[u8]) -> Result<Header, IoError> {
             "U" => 'U',
             _ => return Err(header_err(path, format!("TYPE of field {name}: {kind:?} is not F, I or U"))),
         };
-        fields.push(Field { name, size, kind, count });
+        Ok(Field { name, size, kind, count })
     }
 
-    let mut point_size = 0usize;
-    let mut values_per_point = 0usize;
-    let mut coords: [Option<Coord>; 3] = [None; 3];
-    for field in &fields {
-        if let Some(axis) = ["x", "y", "z"].iter().position(|&n| n == field.name) {
-            let name = field.name;
-            let field_err = |reason: String| IoError::PcdField { path: path.into(), field: name.into(), reason };
-            if coords[axis].is_some() {
-                return Err(field_err("listed twice in FIELDS".into()));
-            }
-            if field.kind != 'F' || !(field.size == 4 || field.size == 8) {
-                return Err(field_err(format!(
-                    "TYPE {} SIZE {} is not supported (expected F 4 or F 8)",
-                    field.kind, field.size
-                )));
-            }
-            if field.count != 1 {
-                return Err(field_err(format!("COUNT {} is not supported (expected 1)", field.count)));
-            }
-            coords[axis] = Some(Coord { offset: point_size, column: values_per_point, size: field.size });
+    /// Refuses a coordinate field stored other than as one float32 or
+    /// float64.
+    fn check_coordinate(&self, path: &Path) -> Result<(), IoError> {
+        let field_err = |reason: String| IoError::PcdField { path: path.into(), field: self.name.into(), reason };
+        if self.kind != 'F' || !(self.size == 4 || self.size == 8) {
+            return Err(field_err(format!("TYPE {} SIZE {} is not supported (expected F 4 or F 8)", self.kind, self.size)));
         }
-        point_size = field
-            .size
-            .checked_mul(field.count)
-            .and_then(|n| point_size.checked_add(n))
-            .ok_or_else(|| header_err(path, format!("point size overflows at field {}", field.name)))?;
-        values_per_point = values_per_point
-            .checked_add(field.count)
-            .ok_or_else(|| header_err(path, format!("values per point overflow at field {}", field.name)))?;
+        if self.count != 1 {
+            return Err(field_err(format!("COUNT {} is not supported (expected 1)", self.count)));
+        }
+        Ok(())
     }
-    let mut found = [Coord { offset: 0, column: 0, size: 4 }; 3];
-    for (axis, name) in ["x", "y", "z"].iter().enumerate() {
-        found[axis] = coords[axis].ok_or_else(|| IoError::PcdField {
-            path: path.into(),
-            field: (*name).into(),
-            reason: format!("missing (FIELDS: {})", names.join(" ")),
-        })?;
-    }
+}
 
-    let single = |keyword: &str, values: &Option<Vec<&str>>| -> Result<Option<usize>, IoError> {
-        match values.as_deref() {
-            None => Ok(None),
-            Some([v]) => v
-                .parse::<usize>()
-                .map(Some)
-                .map_err(|_| header_err(path, format!("{keyword}: {v:?} is not a non-negative integer"))),
-            Some(v) => Err(header_err(path, format!("{keyword} needs one value, got {v:?}"))),
+/// Where x, y and z lie in a point, and how big a point is.
+struct Layout {
+    coords: [Coord; 3],
+    /// Bytes per binary point.
+    point_size: usize,
+    /// Values per ascii line.
+    values_per_point: usize,
+}
+
+impl Layout {
+    /// The layout of `fields`, which must hold x, y and z once each.
+    fn of(path: &Path, fields: &[Field<'_>]) -> Result<Self, IoError> {
+        let mut point_size = 0usize;
+        let mut values_per_point = 0usize;
+        let mut coords: [Option<Coord>; 3] = [None; 3];
+        for field in fields {
+            if let Some(axis) = AXES.iter().position(|&n| n == field.name) {
+                if coords[axis].is_some() {
+                    return Err(IoError::PcdField { path: path.into(), field: field.name.into(), reason: "listed twice in FIELDS".into() });
+                }
+                field.check_coordinate(path)?;
+                coords[axis] = Some(Coord { offset: point_size, column: values_per_point, size: field.size });
+            }
+            point_size = field
+                .size
+                .checked_mul(field.count)
+                .and_then(|n| point_size.checked_add(n))
+                .ok_or_else(|| header_err(path, format!("point size overflows at field {}", field.name)))?;
+            values_per_point = values_per_point
+                .checked_add(field.count)
+                .ok_or_else(|| header_err(path, format!("values per point overflow at field {}", field.name)))?;
         }
-    };
-    let width = single("WIDTH", &raw.width)?;
-    let height = single("HEIGHT", &raw.height)?;
-    let declared = single("POINTS", &raw.points)?;
+        let names: Vec<&str> = fields.iter().map(|f| f.name).collect();
+        let found = |axis: usize| {
+            coords[axis].ok_or_else(|| IoError::PcdField {
+                path: path.into(),
+                field: AXES[axis].into(),
+                reason: format!("missing (FIELDS: {})", names.join(" ")),
+            })
+        };
+        Ok(Layout { coords: [found(0)?, found(1)?, found(2)?], point_size, values_per_point })
+    }
+}
+
+/// The coordinate fields, in order.
+const AXES: [&str; 3] = ["x", "y", "z"];
+
+/// The value of a keyword that takes one non-negative integer, if given.
+fn single_count(path: &Path, keyword: &str, values: Option<&[&str]>) -> Result<Option<usize>, IoError> {
+    match values {
+        None => Ok(None),
+        Some([v]) => v.parse::<usize>().map(Some).map_err(|_| header_err(path, format!("{keyword}: {v:?} is not a non-negative integer"))),
+        Some(v) => Err(header_err(path, format!("{keyword} needs one value, got {v:?}"))),
+    }
+}
+
+/// The number of points: POINTS, or WIDTH × HEIGHT (HEIGHT 1 by default),
+/// which must agree when both are given.
+fn point_count(path: &Path, raw: &RawHeader<'_>) -> Result<usize, IoError> {
+    let width = single_count(path, "WIDTH", raw.width.as_deref())?;
+    let height = single_count(path, "HEIGHT", raw.height.as_deref())?;
+    let declared = single_count(path, "POINTS", raw.points.as_deref())?;
     let grid = match width {
         Some(w) => Some(
             w.checked_mul(height.unwrap_or(1))
@@ -283,48 +369,38 @@ fn parse_header(path: &Path, bytes: &[u8]) -> Result<Header, IoError> {
         ),
         None => None,
     };
-    let points = match (declared, grid) {
-        (Some(p), Some(g)) if p != g => {
-            return Err(header_err(
-                path,
-                format!("POINTS {p} differs from WIDTH {} × HEIGHT {} = {g}", width.unwrap_or(0), height.unwrap_or(1)),
-            ))
-        }
-        (Some(p), _) => p,
-        (None, Some(g)) => g,
-        (None, None) => return Err(header_err(path, "neither POINTS nor WIDTH given")),
-    };
+    match (declared, grid) {
+        (Some(p), Some(g)) if p != g => Err(header_err(
+            path,
+            format!("POINTS {p} differs from WIDTH {} × HEIGHT {} = {g}", width.unwrap_or(0), height.unwrap_or(1)),
+        )),
+        (Some(p), _) => Ok(p),
+        (None, Some(g)) => Ok(g),
+        (None, None) => Err(header_err(path, "neither POINTS nor WIDTH given")),
+    }
+}
 
-    let viewpoint = match &raw.viewpoint {
-        None => IDENTITY_VIEWPOINT,
-        Some(v) if v.len() == 7 => {
-            let mut vp = [0.0; 7];
-            for (out, s) in vp.iter_mut().zip(v) {
-                *out = s
-                    .parse::<f64>()
-                    .ok()
-                    .filter(|x| x.is_finite())
-                    .ok_or_else(|| header_err(path, format!("VIEWPOINT: {s:?} is not a finite number")))?;
-            }
-            let qn = vp[3..].iter().map(|q| q * q).sum::<f64>().sqrt();
-            if !(qn > 1e-6 && qn.is_finite()) {
-                return Err(header_err(path, format!("VIEWPOINT: quaternion {:?} has no direction", &vp[3..])));
-            }
-            vp
-        }
+/// The sensor's pose `tx ty tz qw qx qy qz` (identity when not given): finite
+/// numbers, a quaternion with a direction.
+fn parse_viewpoint(path: &Path, values: Option<&[&str]>) -> Result<[f64; 7], IoError> {
+    let v = match values {
+        None => return Ok(IDENTITY_VIEWPOINT),
+        Some(v) if v.len() == 7 => v,
         Some(v) => return Err(header_err(path, format!("VIEWPOINT needs 7 values (tx ty tz qw qx qy qz), got {}", v.len()))),
     };
-
-    Ok(Header {
-        coords: found,
-        point_size,
-        values_per_point,
-        points,
-        viewpoint,
-        encoding,
-        data_start,
-        header_lines: line_no,
-    })
+    let mut vp = [0.0; 7];
+    for (out, s) in vp.iter_mut().zip(v) {
+        *out = s
+            .parse::<f64>()
+            .ok()
+            .filter(|x| x.is_finite())
+            .ok_or_else(|| header_err(path, format!("VIEWPOINT: {s:?} is not a finite number")))?;
+    }
+    let qn = vp[3..].iter().map(|q| q * q).sum::<f64>().sqrt();
+    if !(qn > 1e-6 && qn.is_finite()) {
+        return Err(header_err(path, format!("VIEWPOINT: quaternion {:?} has no direction", &vp[3..])));
+    }
+    Ok(vp)
 }
 
 fn positive(s: &str) -> Option<usize> {

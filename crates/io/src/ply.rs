@@ -11,7 +11,6 @@
 //! before anything is allocated, so no header can make it allocate much
 //! more than the file.
 
-use crate::picture::Rgb;
 use crate::IoError;
 use edtmap_core::sensor::PointCloud;
 use std::io::Write;
@@ -22,8 +21,8 @@ use std::path::Path;
 pub struct ColouredPoint {
     /// Position, metres.
     pub xyz: [f32; 3],
-    /// Colour.
-    pub rgb: Rgb,
+    /// Colour: 8-bit red, green, blue.
+    pub rgb: [u8; 3],
 }
 
 /// Writes `points` to `path` as a binary PLY; `comment` goes into the

@@ -12,6 +12,20 @@ use edtmap_core::sensor::check_pose;
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
 use std::path::Path;
 
+/// Largest time between two trajectory samples that a frame's pose is
+/// interpolated across by default when a folder is opened from code
+/// (`DatasetOptions::new`, `DepthFolder::open`), seconds. Such folders are
+/// posed by ground truth (TUM's 100 Hz motion capture, 3DMatch's per-frame
+/// poses), which has no longer gaps, and a pose is not guessed over a hole.
+pub const GROUND_TRUTH_MAX_POSE_GAP_S: f64 = 0.1;
+
+/// Default of `[dataset] max_pose_gap_s` in a config file, seconds: the
+/// gap `edtmap run` allows unless told otherwise. Its recordings include
+/// ROS bags posed by odometry or `/tf` at 10 Hz, whose samples are a
+/// jittered 0.1 s apart and may miss one; so the run is more lenient than
+/// [`GROUND_TRUTH_MAX_POSE_GAP_S`] (TUM configs set 0.1 themselves).
+pub const RECORDING_MAX_POSE_GAP_S: f64 = 0.25;
+
 /// Poses `T_world_body` at increasing times.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Trajectory {

@@ -28,7 +28,7 @@ mod grids;
 mod noise;
 mod pedestrian;
 mod scene;
-mod scenes;
+mod layouts;
 mod trajectory;
 
 pub use error::SimError;

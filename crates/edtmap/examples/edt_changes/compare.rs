@@ -6,7 +6,7 @@ use edtmap::stages::exact::exact_region;
 use edtmap::region::Region;
 use edtmap::eval::{edt_errors, EdtErrors};
 use edtmap::{GlobalMap, FAR_DIST_SQ};
-use edtmap_io::plot::{Chart, Series, SeriesStyle};
+use edtmap_viz::plot::{Chart, Series, SeriesStyle};
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
 

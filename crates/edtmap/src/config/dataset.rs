@@ -45,9 +45,10 @@ pub enum IntrinsicsSource {
     Config,
 }
 
-/// Default of `[dataset] max_pose_gap_s`: poses further apart than this
-/// are not interpolated across, seconds.
-pub const DEFAULT_MAX_POSE_GAP_S: f64 = 0.25;
+/// Default of `[dataset] max_pose_gap_s`, seconds: defined beside the
+/// interpolation, and more lenient than the library's default for folders
+/// opened from code (see both there).
+pub use edtmap_io::trajectory::RECORDING_MAX_POSE_GAP_S;
 
 /// `[dataset]`: how to read a recording (`edtmap run --dataset PATH`).
 #[derive(Debug, Clone, PartialEq, Deserialize)]
@@ -90,7 +91,7 @@ impl Default for DatasetSection {
             depth_scale_m: 0.001,
             on_error: OnError::Skip,
             intrinsics: IntrinsicsSource::Recording,
-            max_pose_gap_s: DEFAULT_MAX_POSE_GAP_S,
+            max_pose_gap_s: RECORDING_MAX_POSE_GAP_S,
             trajectory: None,
             sensor_topic: None,
             camera_info_topic: None,

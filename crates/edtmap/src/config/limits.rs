@@ -5,7 +5,7 @@
 //! overflow. The ranges are generous; the stages check the relations
 //! between fields (min below max, cutoff at least one voxel).
 
-use super::{Config, OccupancySection, OutputSection, SceneSection, SensorSection};
+use super::{CameraFields, Config, LidarFields, OccupancySection, OutputSection, SceneSection, SensorSection};
 use crate::MapError;
 use edtmap_core::{CoreError, GlobalParams};
 
@@ -147,11 +147,24 @@ impl SensorSection {
         for (field, v) in [("free_margin_m", self.free_margin_m), ("planar_half_thickness_m", self.planar_half_thickness_m)] {
             v.map_or(Ok(()), |v| MARGIN_M.f32(field, v))?;
         }
+        self.lidar.check_limits()?;
+        self.camera.check_limits()
+    }
+}
+
+impl LidarFields {
+    fn check_limits(&self) -> Result<(), CoreError> {
         ELEVATION_DEG.opt("elevation_min_deg", self.elevation_min_deg)?;
         ELEVATION_DEG.opt("elevation_max_deg", self.elevation_max_deg)?;
-        if let Some(table) = &self.ring_elevations_deg {
-            ELEVATION_DEG.all("ring_elevations_deg", table)?;
+        match &self.ring_elevations_deg {
+            Some(table) => ELEVATION_DEG.all("ring_elevations_deg", table),
+            None => Ok(()),
         }
+    }
+}
+
+impl CameraFields {
+    fn check_limits(&self) -> Result<(), CoreError> {
         FOCAL_PX.opt("fx", self.fx)?;
         FOCAL_PX.opt("fy", self.fy)?;
         principal_point(("cx", PRINCIPAL_X), self.cx, self.width, "width")?;

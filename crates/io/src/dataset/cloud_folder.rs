@@ -1,8 +1,8 @@
 //! Folders of point clouds, one file per frame: `*.pcd`, KITTI Velodyne
 //! `*.bin` or `*.ply`, one kind per folder.
 
-use super::frames::{bad, file_name, list_dir, parse_kitti_poses, parse_times, read_text, stem_time, FrameFile, FramePose, TrajectoryFile};
-use super::DatasetOptions;
+use crate::folder::frames::{bad, file_name, list_dir, parse_kitti_poses, parse_times, read_text, stem_time, FrameFile, FramePose, TrajectoryFile};
+use crate::folder::DatasetOptions;
 use crate::files::{self, MAX_CLOUD_BYTES};
 use crate::ply::read_ply;
 use crate::{read_pcd, IoError};

@@ -4,7 +4,7 @@
 //! image is decoded. A 5 MB file whose header claims 50000 × 50000 pixels
 //! is refused at once instead of allocating 5 GB.
 
-use crate::dataset::frames::bad;
+use crate::folder::frames::bad;
 use crate::{files, IoError};
 use std::fs::File;
 use std::io::BufReader;

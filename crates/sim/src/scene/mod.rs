@@ -1,5 +1,6 @@
-//! Built-in scenes: static solids, walking pedestrians and a sensor
-//! trajectory, with simulated measurements and exact ground truth.
+//! A scene built from one of the `layouts`: static solids, walking
+//! pedestrians and a sensor trajectory, with simulated measurements
+//! (`render`) and exact ground truth (`truth`, `seen`).
 
 mod name;
 mod render;
@@ -11,7 +12,7 @@ pub use render::{points_pattern, PLANAR_BEAMS, PLANAR_RANGE};
 
 use crate::geometry::{Aabb, Primitive};
 use crate::pedestrian::Pedestrian;
-use crate::scenes::{self, Layout};
+use crate::layouts::{self, Layout};
 use crate::trajectory::Trajectory;
 use crate::SimError;
 use edtmap_core::sensor::Sensor;
@@ -41,7 +42,7 @@ impl Scene {
     /// Fails naming the option when the noise or dropout is out of range.
     pub fn new(name: SceneName, options: &SceneOptions) -> Result<Scene, SimError> {
         options.validate()?;
-        let layout = scenes::build(name, options.seed);
+        let layout = layouts::build(name, options.seed);
         Ok(Scene::from_layout(name, options.clone(), layout.translated(WORLD_SHIFT_M)))
     }
 

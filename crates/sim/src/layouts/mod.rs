@@ -1,5 +1,7 @@
-//! Layouts of the built-in scenes, in nominal coordinates (floor at z = 0);
-//! [`crate::Scene::new`] moves them by [`crate::WORLD_SHIFT_M`].
+//! The catalogue of built-in scenes: what each one is made of (solids,
+//! walkers, the sensor's path and the sensor), in nominal coordinates
+//! (floor at z = 0), one file per scene. [`crate::Scene::new`] moves a
+//! layout by [`crate::WORLD_SHIFT_M`]; the `scene` module simulates it.
 
 mod planar;
 mod room;

@@ -11,14 +11,14 @@
 //! skipped, and a line breaks where one is skipped. A chart without any
 //! drawable point is not an error: it draws empty axes over 0..1 (1..10 on
 //! a log axis), or over the ranges given. Only an unusable explicit range
-//! or picture size is an error ([`IoError::BadChart`]).
+//! or picture size is an error ([`VizError::BadChart`]).
 //!
 //! The legend lists the series that have a name. It sits in the corner of
 //! the plot area where it hides the fewest drawn pixels, or beside the plot
 //! area when every corner would hide some.
 //!
 //! ```
-//! use edtmap_io::plot::{Chart, Series, SeriesStyle};
+//! use edtmap_viz::plot::{Chart, Series, SeriesStyle};
 //!
 //! let frames = (0..50).map(|i| (i as f64, 2.0 + (i as f64 / 7.0).sin()));
 //! let chart = Chart::new("Stage times")
@@ -28,7 +28,7 @@
 //! let path = std::env::temp_dir().join("edtmap_plot_doc.png");
 //! chart.write_png(&path)?;
 //! # std::fs::remove_file(&path).ok();
-//! # Ok::<(), edtmap_io::IoError>(())
+//! # Ok::<(), edtmap_viz::VizError>(())
 //! ```
 
 mod draw;
@@ -38,7 +38,7 @@ use std::path::Path;
 
 use crate::font;
 use crate::picture::{Canvas, Rgb};
-use crate::IoError;
+use crate::VizError;
 
 /// Default colours of the series, in order of addition (matplotlib's
 /// "tab10"); the eleventh series takes the first colour again.
@@ -187,13 +187,13 @@ impl Chart {
 
     /// Draws the chart and writes it as an 8-bit RGB PNG at `path`.
     ///
-    /// Fails with [`IoError::BadChart`] on an explicit range that is empty,
+    /// Fails with [`VizError::BadChart`] on an explicit range that is empty,
     /// not finite or not positive on a log axis, on a picture side over
     /// [`MAX_SIDE`], or on a picture too small for its labels; and with
-    /// [`IoError::Io`] or [`IoError::Png`] when writing fails.
-    pub fn write_png(&self, path: impl AsRef<Path>) -> Result<(), IoError> {
+    /// [`VizError::Io`] or [`VizError::Png`] when writing fails.
+    pub fn write_png(&self, path: impl AsRef<Path>) -> Result<(), VizError> {
         let path = path.as_ref();
-        let (canvas, _) = self.render().map_err(|reason| IoError::BadChart { path: path.into(), reason })?;
+        let (canvas, _) = self.render().map_err(|reason| VizError::BadChart { path: path.into(), reason })?;
         canvas.save_png(path)
     }
 

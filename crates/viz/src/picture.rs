@@ -4,7 +4,7 @@
 use std::path::Path;
 
 use crate::font::{self, glyph};
-use crate::IoError;
+use crate::VizError;
 use edtmap_core::VoxelState;
 
 /// An RGB colour.
@@ -99,16 +99,16 @@ impl Canvas {
     }
 
     /// Writes the canvas as an 8-bit RGB PNG.
-    pub fn save_png(&self, path: &Path) -> Result<(), IoError> {
-        let mut file = crate::files::AtomicFile::create(path)?;
-        let png_err = |error| IoError::Png { path: path.into(), error };
+    pub fn save_png(&self, path: &Path) -> Result<(), VizError> {
+        let mut file = edtmap_io::files::AtomicFile::create(path)?;
+        let png_err = |error| VizError::Png { path: path.into(), error };
         let mut enc = png::Encoder::new(&mut file, self.width as u32, self.height as u32);
         enc.set_color(png::ColorType::Rgb);
         enc.set_depth(png::BitDepth::Eight);
         let mut writer = enc.write_header().map_err(png_err)?;
         writer.write_image_data(&self.rgb).map_err(png_err)?;
         writer.finish().map_err(png_err)?;
-        file.commit()
+        Ok(file.commit()?)
     }
 }
 
@@ -311,9 +311,9 @@ pub fn render_slice(slice: Slice<'_>, style: &SliceStyle) -> Canvas {
 }
 
 /// Renders `slice` (see [`render_slice`]) and writes it as a PNG.
-pub fn write_slice_png(path: &Path, slice: Slice<'_>, style: &SliceStyle) -> Result<(), IoError> {
+pub fn write_slice_png(path: &Path, slice: Slice<'_>, style: &SliceStyle) -> Result<(), VizError> {
     if slice.values.len() != slice.width * slice.height || slice.values.is_empty() {
-        return Err(IoError::BadData {
+        return Err(VizError::BadData {
             path: path.into(),
             reason: format!(
                 "slice of {} x {} cells needs {} values, got {}",
@@ -364,9 +364,9 @@ pub fn render_states(width: usize, height: usize, states: &[VoxelState], title: 
 }
 
 /// Renders a slice of states (see [`render_states`]) and writes it as a PNG.
-pub fn write_states_png(path: &Path, width: usize, height: usize, states: &[VoxelState], title: &str, axes: Option<&MapAxes>) -> Result<(), IoError> {
+pub fn write_states_png(path: &Path, width: usize, height: usize, states: &[VoxelState], title: &str, axes: Option<&MapAxes>) -> Result<(), VizError> {
     if states.len() != width * height || states.is_empty() {
-        return Err(IoError::BadData {
+        return Err(VizError::BadData {
             path: path.into(),
             reason: format!("slice of {width} x {height} cells needs {} states, got {}", width * height, states.len()),
         });

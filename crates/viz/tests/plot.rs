@@ -3,8 +3,8 @@
 use std::fs::File;
 use std::path::Path;
 
-use edtmap_io::plot::{Chart, Series, SeriesStyle, DEFAULT_HEIGHT, DEFAULT_WIDTH};
-use edtmap_io::IoError;
+use edtmap_viz::plot::{Chart, Series, SeriesStyle, DEFAULT_HEIGHT, DEFAULT_WIDTH};
+use edtmap_viz::VizError;
 
 /// Width, height and colour type of the PNG at `path`, decoding all of it.
 fn decode(path: &Path) -> (u32, u32, png::ColorType) {
@@ -69,7 +69,7 @@ fn log_range_that_is_not_positive_is_refused_naming_the_file() {
     let dir = tempfile::tempdir().expect("temp dir");
     let path = dir.path().join("refused.png");
     let err = stage_times().log_y().y_range(0.0, 10.0).write_png(&path).expect_err("refused");
-    assert!(matches!(err, IoError::BadChart { .. }), "{err:?}");
+    assert!(matches!(err, VizError::BadChart { .. }), "{err:?}");
     let message = err.to_string();
     assert!(message.contains("refused.png") && message.contains("log"), "{message}");
     assert!(!path.exists());
@@ -79,5 +79,5 @@ fn log_range_that_is_not_positive_is_refused_naming_the_file() {
 fn picture_too_small_for_its_labels_is_refused() {
     let dir = tempfile::tempdir().expect("temp dir");
     let err = stage_times().size(60, 40).write_png(dir.path().join("tiny.png")).expect_err("refused");
-    assert!(matches!(err, IoError::BadChart { .. }), "{err:?}");
+    assert!(matches!(err, VizError::BadChart { .. }), "{err:?}");
 }
