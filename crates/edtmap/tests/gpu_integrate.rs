@@ -4,6 +4,7 @@
 //! EDTs must hold the same blocks with the same squared distances and
 //! nearest obstacles, and the GPU's must pass the brute-force checks.
 
+#[path = "../../gpu/tests/common/mod.rs"]
 mod gpu_common;
 use gpu_common as common;
 

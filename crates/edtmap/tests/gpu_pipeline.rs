@@ -3,6 +3,7 @@
 //! the local batch EDT (squared distances and nearest obstacles), the
 //! global occupancy map and the global EDT must all be identical.
 
+#[path = "../../gpu/tests/common/mod.rs"]
 mod gpu_common;
 use gpu_common as common;
 

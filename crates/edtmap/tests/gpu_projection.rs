@@ -3,6 +3,7 @@
 //! identical to the CPU's. Skipped without an adapter unless
 //! `EDTMAP_REQUIRE_GPU=1`.
 
+#[path = "../../gpu/tests/common/mod.rs"]
 mod gpu_common;
 use gpu_common as common;
 
