@@ -226,6 +226,20 @@ pub struct WriteBack {
     pub changed_blocks: Vec<BlockKey>,
 }
 
+impl WriteBack {
+    /// The integration's report: this write-back over `region_voxels`
+    /// voxels, with the wavefront's counters.
+    pub fn into_report(self, region_voxels: usize, waves: crate::WaveCounts) -> crate::IntegrateReport {
+        crate::IntegrateReport {
+            voxels_changed: self.voxels_changed,
+            change_sum_vox: self.change_sum_vox,
+            changed_blocks: self.changed_blocks,
+            region_voxels,
+            waves,
+        }
+    }
+}
+
 /// Writes the voxels of `p.region` in the blocks `candidates` whose value
 /// differs from `old` into `map`, allocating blocks as needed and dropping
 /// blocks left all far.

@@ -96,13 +96,7 @@ impl Backend for CpuBackend {
             }
         };
         self.seen = Some(map.stamp());
-        Ok(IntegrateReport {
-            voxels_changed: written.voxels_changed,
-            change_sum_vox: written.change_sum_vox,
-            changed_blocks: written.changed_blocks,
-            region_voxels: region.len(),
-            waves,
-        })
+        Ok(written.into_report(region.len(), waves))
     }
 }
 

@@ -231,19 +231,14 @@ impl GpuIntegrator {
         written.changed_blocks.sort_unstable();
         self.resident = Some(job.packing.region);
         self.seen = Some(map.stamp());
-        Ok(IntegrateReport {
-            voxels_changed: written.voxels_changed,
-            change_sum_vox: written.change_sum_vox,
-            changed_blocks: written.changed_blocks,
-            region_voxels: job.packing.region.len(),
-            waves: WaveCounts {
-                raised: counts[C_RAISED] as usize,
-                kept_outside: counts[C_KEPT] as usize,
-                seeds: counts[C_SEEDS] as usize,
-                levels: counts[C_LEVELS] as usize,
-                lowered: counts[C_LOWERED] as usize,
-            },
-        })
+        let waves = WaveCounts {
+            raised: counts[C_RAISED] as usize,
+            kept_outside: counts[C_KEPT] as usize,
+            seeds: counts[C_SEEDS] as usize,
+            levels: counts[C_LEVELS] as usize,
+            lowered: counts[C_LOWERED] as usize,
+        };
+        Ok(written.into_report(job.packing.region.len(), waves))
     }
 
     /// Sizes the buffers for the frame's region, reads the region's values

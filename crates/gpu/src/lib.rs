@@ -23,7 +23,7 @@ pub use project::GpuProject;
 pub use raycast::GpuRaycast;
 
 use edtmap_core::fixed_ray::{cast_fixed, FixedRay};
-use edtmap_core::region::{Packing, Region};
+use edtmap_core::region::Packing;
 use edtmap_core::stages::exact::{recompute_exact, ExactBuffers};
 use edtmap_core::{
     decide_uncertain, mark_misses, Backend, BackendError, BatchEdt, EdtField, Grid3, IntegrateJob, IntegrateReport, Integration, Observations, ProjectJob,
@@ -119,13 +119,7 @@ impl Backend for GpuBackend {
                 // on the host, as on the CPU.
                 let packing = Packing::new(region, cutoff)?;
                 let written = recompute_exact(&mut self.edt, map, &obstacles, &packing, &mut self.exact)?;
-                Ok(IntegrateReport {
-                    voxels_changed: written.voxels_changed,
-                    change_sum_vox: written.change_sum_vox,
-                    changed_blocks: written.changed_blocks,
-                    region_voxels: Region::len(&region),
-                    waves: WaveCounts::default(),
-                })
+                Ok(written.into_report(region.len(), WaveCounts::default()))
             }
         }
     }
