@@ -111,7 +111,7 @@ pub struct IntegrateJob<'a> {
     pub work: Integration<'a>,
 }
 
-/// The two kinds of integration ([`crate::IntegrationMode`]).
+/// The kinds of integration ([`crate::IntegrationMode`]).
 #[derive(Debug, Clone, Copy)]
 pub enum Integration<'a> {
     /// The paper's wavefronts (Algorithms 2 and 3): merges `batch`, the
@@ -124,6 +124,15 @@ pub enum Integration<'a> {
         batch: &'a EdtField,
         /// Neighbour offsets the waves move along (6, 18 or 26).
         offsets: &'a [[i32; 3]],
+    },
+    /// Exact update after the obstacles changed inside `blocks` (a frame's
+    /// fused blocks whose states changed): the map, the exact EDT of the
+    /// obstacles it was integrated with, becomes the exact EDT of
+    /// `obstacles`, nearest obstacles by the batch EDT's tie rule. The
+    /// exact mode's per-frame job.
+    Changes {
+        /// Blocks in which some voxel's obstacle state may have changed.
+        blocks: &'a [BlockKey],
     },
     /// Exact recomputation of every voxel of `region` from the obstacles
     /// (a frame in exact mode: its window grown by the reach; fixed

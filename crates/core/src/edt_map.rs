@@ -118,13 +118,17 @@ impl From<Connectivity> for u8 {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum IntegrationMode {
-    /// The paper's Algorithms 2 and 3: the batch EDT inside the window,
-    /// raise and lower wavefronts outside it. Fast; off by a fraction of a
-    /// voxel where a Voronoi cell is not connected through the neighbourhood.
-    #[default]
+    /// The paper's Algorithms 2 and 3: the batch EDT of the window every
+    /// frame, raise and lower wavefronts outside it. Approximate: off by a
+    /// fraction of a voxel where a Voronoi cell is not connected through
+    /// the neighbourhood. The GPU's design.
     Wavefront,
-    /// Recompute the exact EDT of every voxel the frame could affect (the
-    /// window padded by the cutoff) from the global occupancy. Exact.
+    /// The exact EDT of the map's obstacles after every frame, updated from
+    /// the obstacles the frame changed: on the CPU, the separable EDT's
+    /// passes kept between frames and redone only along the lines through
+    /// changes; on a GPU, an exact batch EDT of the changed blocks grown by
+    /// the cutoff. The default.
+    #[default]
     Exact,
 }
 

@@ -38,11 +38,13 @@ impl VoxelIndex {
     }
 
     /// The block holding this voxel.
+    #[inline]
     pub fn block(self) -> BlockKey {
         BlockKey(self.0.map(|i| i.div_euclid(BLOCK_SIDE)))
     }
 
     /// Position of this voxel inside its block, `x + 8 (y + 8 z)`.
+    #[inline]
     pub fn offset_in_block(self) -> usize {
         let [x, y, z] = self.0.map(|i| i.rem_euclid(BLOCK_SIDE) as usize);
         x + 8 * (y + 8 * z)
@@ -66,11 +68,13 @@ impl BlockKey {
     }
 
     /// The block's first voxel (lowest coordinates).
+    #[inline]
     pub fn first_voxel(self) -> VoxelIndex {
         VoxelIndex(self.0.map(|b| b * BLOCK_SIDE))
     }
 
     /// The voxel at `offset` (as from [`VoxelIndex::offset_in_block`]).
+    #[inline]
     pub fn voxel(self, offset: usize) -> VoxelIndex {
         let side = BLOCK_SIDE as usize;
         let local = [offset % side, (offset / side) % side, offset / (side * side)];

@@ -89,6 +89,23 @@ impl Obstacles<'_> {
         state.is_obstacle(self.unknown_as_occupied) || self.fixed.contains(v)
     }
 
+    /// Whether each voxel of block `key` is an obstacle, by offset in the
+    /// block: two hash lookups for the whole block.
+    pub fn block_mask(&self, key: crate::BlockKey) -> [bool; crate::BLOCK_VOXELS] {
+        let mut out = [VoxelState::Unknown.is_obstacle(self.unknown_as_occupied); crate::BLOCK_VOXELS];
+        if let Some(b) = self.occupancy.get(key) {
+            for (o, &l) in out.iter_mut().zip(&b.log_odds) {
+                *o = self.log_odds.state(l).is_obstacle(self.unknown_as_occupied);
+            }
+        }
+        if let Some(b) = self.fixed.get(key) {
+            for (i, o) in out.iter_mut().enumerate() {
+                *o |= b.bits[i / 64] >> (i % 64) & 1 == 1;
+            }
+        }
+        out
+    }
+
     /// Fills `out[i]` with whether voxel `start + (i, 0, 0)` is an obstacle,
     /// one hash lookup per block the row crosses.
     pub fn fill_row(&self, start: VoxelIndex, out: &mut [bool]) {

@@ -7,7 +7,7 @@
 
 use crate::{BlockKey, CoreError, VoxelIndex, VoxelState, BLOCK_VOXELS};
 use serde::{Deserialize, Serialize};
-use std::collections::HashMap;
+use rustc_hash::FxHashMap as HashMap;
 use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 
 /// Log-odds of a voxel never observed.
@@ -163,7 +163,7 @@ impl<B: Clone> Clone for BlockMap<B> {
 
 impl<B: Default> Default for BlockMap<B> {
     fn default() -> Self {
-        BlockMap { blocks: HashMap::new(), stamp: MapStamp::fresh() }
+        BlockMap { blocks: HashMap::default(), stamp: MapStamp::fresh() }
     }
 }
 

@@ -84,6 +84,13 @@ impl Region {
         Region { origin: lo.map(|b| b * BLOCK_SIDE), dims: [0, 1, 2].map(|a| ((hi[a] - lo[a] + 1) * BLOCK_SIDE) as usize) }
     }
 
+    /// The smallest box holding every block of `keys`, `None` for none.
+    pub fn bounding(keys: &[BlockKey]) -> Option<Region> {
+        let first = keys.first()?.0;
+        let (lo, hi) = keys.iter().fold((first, first), |(lo, hi), k| ([0, 1, 2].map(|a| lo[a].min(k.0[a])), [0, 1, 2].map(|a| hi[a].max(k.0[a]))));
+        Some(Region::of_blocks((lo, hi)))
+    }
+
     /// The blocks this box overlaps.
     pub fn blocks(&self) -> Vec<BlockKey> {
         BlockKey::span(VoxelIndex(self.origin), VoxelIndex([0, 1, 2].map(|a| self.origin[a] + self.dims[a] as i32 - 1)))

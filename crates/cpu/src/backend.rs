@@ -1,6 +1,7 @@
 //! [`CpuBackend`]: every device stage of the pipeline on the CPU's cores.
 
 use crate::edt::{edt_into, ScanLayout};
+use crate::integrate::separable::{update_exact, SeparableCache};
 use crate::integrate::wavefront::{integrate_wavefront, WaveBuffers};
 use crate::CpuError;
 use edtmap_core::fixed_ray::{cast_fixed, FixedRay};
@@ -22,6 +23,7 @@ pub struct CpuBackend {
     edt: CpuEdt,
     waves: WaveBuffers,
     exact: ExactBuffers,
+    separable: SeparableCache,
     seen: Option<MapStamp>,
 }
 
@@ -87,6 +89,12 @@ impl Backend for CpuBackend {
                 let packing = Packing::new(Region::around(window, cutoff.reach + 1), cutoff)?;
                 let (w, c) = integrate_wavefront(map, window, batch, &packing, offsets, &mut self.waves);
                 (w, c, packing.region)
+            }
+            Integration::Changes { blocks } => {
+                let report = update_exact(map, &obstacles, blocks, cutoff, &mut self.separable);
+                self.waves.forget(&report.changed_blocks);
+                self.seen = Some(map.stamp());
+                return Ok(report);
             }
             Integration::Recompute { region } => {
                 let packing = Packing::new(region, cutoff)?;

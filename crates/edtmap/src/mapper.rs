@@ -4,11 +4,12 @@ use crate::MapError;
 use edtmap_core::sensor::{Frame, Sensor};
 use edtmap_core::stages::{BatchEdtStage, IntegrationStage, OccupancyStage, OgmOptions};
 use edtmap_core::{
-    read_states, Backend, BlockKey, EdtField, EdtParams, GlobalMap, GlobalParams, Grid3, IntegrateReport, LocalVolume, OccupancyParams, Region, VolumeParams,
+    read_states, Backend, BlockKey, EdtField, EdtParams, GlobalMap, GlobalParams, Grid3, IntegrateReport, IntegrationMode, LocalVolume, OccupancyParams, Region, VolumeParams,
     VoxelIndex, VoxelState, WaveCounts,
 };
 use edtmap_cpu::query::{self, Distance, PointState};
 use edtmap_cpu::CpuBackend;
+use std::sync::OnceLock;
 use std::time::Instant;
 
 /// Everything a [`Mapper`] needs to know besides the sensor.
@@ -53,7 +54,8 @@ impl MapperParams {
 pub struct FrameStats {
     /// Occupancy: construction, fusion and the local read-back, ms.
     pub ogm_ms: f64,
-    /// Batch EDT of the local volume, ms.
+    /// Batch EDT of the local volume, ms (wavefront mode; the exact mode
+    /// computes it only when [`Mapper::local_edt`] asks).
     pub batch_edt_ms: f64,
     /// Integration into the global EDT, ms.
     pub integrate_ms: f64,
@@ -84,9 +86,13 @@ pub struct FrameStats {
 /// backend `B` (the CPU by default; `edtmap_gpu::GpuBackend` for a GPU).
 /// Every backend gives the same map, bit for bit.
 ///
-/// Each frame runs the three stages of `edtmap_core::stages` in turn:
-/// occupancy (fused into the map), the batch EDT of the local volume, its
-/// integration into the global EDT. **When the backend fails** at the EDT
+/// Each frame runs the stages of `edtmap_core::stages` in turn: occupancy
+/// (fused into the map), then the global EDT. In the exact mode (the
+/// default) the global EDT is brought up to date from the obstacles the
+/// frame changed, and the local volume's batch EDT is computed only when
+/// [`Mapper::local_edt`] asks for it; in the wavefront mode (the paper's)
+/// the batch EDT of the local volume runs every frame and is merged into
+/// the global EDT. **When the backend fails** at the EDT
 /// stages (a lost GPU) after the frame's occupancy was fused, the mapper
 /// finishes them on a CPU backend it keeps for the purpose, so the map is
 /// never half-updated, and returns the backend's error for the caller to
@@ -105,6 +111,8 @@ pub struct Mapper<B: Backend = CpuBackend> {
     integration: IntegrationStage,
     volume: Option<LocalVolume>,
     local_states: Grid3<VoxelState>,
+    /// Exact mode: the local volume's batch EDT, once asked for.
+    local: OnceLock<EdtField>,
 }
 
 impl Mapper<CpuBackend> {
@@ -150,6 +158,7 @@ impl<B: Backend> Mapper<B> {
             integration,
             volume: None,
             local_states: Grid3::default(),
+            local: OnceLock::new(),
             params,
         };
         mapper.lay_down_fixed()?;
@@ -176,17 +185,21 @@ impl<B: Backend> Mapper<B> {
         let fused = self.map.fuse(obs);
         read_states(self.map.occupancy(), &volume, self.map.log_odds(), &mut self.local_states)?;
         let ogm_ms = ms_since(start);
-        // §IV-B, Alg. 1: exact batch EDT of the local volume.
+        self.local = OnceLock::new();
+        // §IV-B, Alg. 1: exact batch EDT of the local volume (wavefront).
         let t = Instant::now();
-        if let Err(e) = self.batch.run(&mut self.backend, &self.map, &volume) {
-            return Err(self.recover(&volume, e.into()));
+        if self.wavefront() {
+            if let Err(e) = self.batch.run(&mut self.backend, &self.map, &volume) {
+                return Err(self.recover(&volume, &fused.changed_blocks, e.into()));
+            }
         }
         let batch_edt_ms = ms_since(t);
-        // §IV-C, Alg. 2 and 3: the batch EDT merged into the global EDT.
+        // §IV-C: the global EDT brought up to date (exact), or Alg. 2 and
+        // 3: the batch EDT merged into it (wavefront).
         let t = Instant::now();
-        let merged = match self.integrate(&volume) {
+        let merged = match self.integrate(None, &volume, &fused.changed_blocks) {
             Ok(merged) => merged,
-            Err(e) => return Err(self.recover(&volume, e)),
+            Err(e) => return Err(self.recover(&volume, &fused.changed_blocks, e)),
         };
         let integrate_ms = ms_since(t);
         self.volume = Some(volume);
@@ -212,15 +225,17 @@ impl<B: Backend> Mapper<B> {
     /// occupancy already fused: finishes the frame's EDT stages on the CPU
     /// fallback, so the map stays whole, and returns the backend's error
     /// for the caller to act on (switch backends, stop).
-    fn recover(&mut self, volume: &LocalVolume, failure: MapError) -> MapError {
+    fn recover(&mut self, volume: &LocalVolume, changed: &[BlockKey], failure: MapError) -> MapError {
         if !failure.is_backend_failure() {
             return failure;
         }
-        let cpu = self.fallback.get_or_insert_with(CpuBackend::default);
-        let finished = self.batch.run(cpu, &self.map, volume).map_err(MapError::from).and_then(|()| {
-            let (edt, obstacles) = self.map.edt_and_obstacles();
-            Ok(self.integration.integrate(cpu, edt, obstacles, volume, self.batch.for_global())?)
-        });
+        let mut cpu = self.fallback.take().unwrap_or_default();
+        let mut finished = Ok(());
+        if self.wavefront() {
+            finished = self.batch.run(&mut cpu, &self.map, volume).map_err(MapError::from);
+        }
+        let finished = finished.and_then(|()| self.integrate(Some(&mut cpu), volume, changed));
+        self.fallback = Some(cpu);
         match finished {
             Ok(_) => {
                 self.volume = Some(*volume);
@@ -230,9 +245,23 @@ impl<B: Backend> Mapper<B> {
         }
     }
 
-    fn integrate(&mut self, volume: &LocalVolume) -> Result<IntegrateReport, MapError> {
+    fn wavefront(&self) -> bool {
+        self.integration.mode() == IntegrationMode::Wavefront
+    }
+
+    /// The frame's integration on `cpu` when given, else on the backend.
+    fn integrate(&mut self, cpu: Option<&mut CpuBackend>, volume: &LocalVolume, changed: &[BlockKey]) -> Result<IntegrateReport, MapError> {
+        let wavefront = self.wavefront();
         let (edt, obstacles) = self.map.edt_and_obstacles();
-        Ok(self.integration.integrate(&mut self.backend, edt, obstacles, volume, self.batch.for_global())?)
+        let backend: &mut dyn Backend = match cpu {
+            Some(c) => c,
+            None => &mut self.backend,
+        };
+        Ok(if wavefront {
+            self.integration.integrate(backend, edt, obstacles, volume, self.batch.for_global())?
+        } else {
+            self.integration.update(backend, edt, obstacles, changed)?
+        })
     }
 
     /// The backend the stages run on.
@@ -335,8 +364,22 @@ impl<B: Backend> Mapper<B> {
 
     /// Exact EDT of the latest local volume, in its voxel units: the
     /// high-rate local distance field of the paper, for local planners.
+    /// The wavefront mode computes it every frame; the exact mode at the
+    /// first call after a frame, on the CPU (every backend gives the same
+    /// field), empty before the first frame.
     pub fn local_edt(&self) -> &EdtField {
-        self.batch.local()
+        if self.wavefront() {
+            return self.batch.local();
+        }
+        self.local.get_or_init(|| {
+            let Some(volume) = &self.volume else { return EdtField::empty() };
+            let mut stage = BatchEdtStage::new(self.params.edt.unknown_as_occupied);
+            match stage.run(&mut CpuBackend::default(), &self.map, volume) {
+                Ok(()) => stage.into_local(),
+                // The window was checked when the mapper was made.
+                Err(_) => EdtField::empty(),
+            }
+        })
     }
 }
 

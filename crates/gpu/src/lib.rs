@@ -23,7 +23,7 @@ pub use project::GpuProject;
 pub use raycast::GpuRaycast;
 
 use edtmap_core::fixed_ray::{cast_fixed, FixedRay};
-use edtmap_core::region::Packing;
+use edtmap_core::region::{Packing, Region};
 use edtmap_core::stages::exact::{recompute_exact, ExactBuffers};
 use edtmap_core::{
     decide_uncertain, mark_misses, Backend, BackendError, BatchEdt, EdtField, Grid3, IntegrateJob, IntegrateReport, Integration, Observations, ProjectJob,
@@ -114,6 +114,15 @@ impl Backend for GpuBackend {
         let IntegrateJob { map, obstacles, cutoff, work } = job;
         match work {
             Integration::Wavefront { window, batch, offsets } => self.integrator.run(map, window, batch, cutoff, offsets),
+            Integration::Changes { blocks } => {
+                // Exact over every voxel within the cutoff of the changed
+                // blocks: the same map as the CPU's line-by-line update.
+                let Some(region) = Region::bounding(blocks) else { return Ok(IntegrateReport::default()) };
+                let region = region.grown(cutoff.reach);
+                let packing = Packing::new(region, cutoff)?;
+                let written = recompute_exact(&mut self.edt, map, &obstacles, &packing, &mut self.exact)?;
+                Ok(written.into_report(region.len(), WaveCounts::default()))
+            }
             Integration::Recompute { region } => {
                 // The batch EDT of the source box on the device, the rest
                 // on the host, as on the CPU.

@@ -48,6 +48,11 @@ impl BatchEdtStage {
         &self.field
     }
 
+    /// Gives the local field up.
+    pub fn into_local(self) -> EdtField {
+        self.field
+    }
+
     /// The field the global integration merges (unknown voxels free).
     pub fn for_global(&self) -> &EdtField {
         self.global.as_ref().map_or(&self.field, |(_, f)| f)

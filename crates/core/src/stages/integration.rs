@@ -9,7 +9,7 @@
 //! that changed, returning the blocks they touched.
 
 use crate::region::Region;
-use crate::{Backend, BackendError, CoreError, Cutoff, EdtField, EdtMap, GlobalParams, IntegrateJob, IntegrateReport, Integration, IntegrationMode, LocalVolume, Obstacles};
+use crate::{Backend, BackendError, BlockKey, CoreError, Cutoff, EdtField, EdtMap, GlobalParams, IntegrateJob, IntegrateReport, Integration, IntegrationMode, LocalVolume, Obstacles};
 
 /// Side of the tiles [`IntegrationStage::recompute`] works in, voxels: the
 /// memory it needs stays bounded whatever the box.
@@ -42,7 +42,9 @@ impl IntegrationStage {
     /// Merges the frame whose window is `window` into `map` on `backend`.
     /// `batch` is the exact EDT of `window` with `obstacles` (unknown
     /// voxels free), used by the wavefront mode; the exact mode reads
-    /// `obstacles` directly.
+    /// `obstacles` directly and looks for changes in every block of the
+    /// window ([`Self::update`] with the blocks a frame changed is the
+    /// mapper's way).
     pub fn integrate<B: Backend + ?Sized>(
         &self,
         backend: &mut B,
@@ -57,9 +59,16 @@ impl IntegrationStage {
         }
         let work = match self.mode {
             IntegrationMode::Wavefront => Integration::Wavefront { window, batch, offsets: &self.offsets },
-            IntegrationMode::Exact => Integration::Recompute { region: Region::around(window, self.cutoff.reach) },
+            IntegrationMode::Exact => return self.update(backend, map, obstacles, &window.region().blocks()),
         };
         backend.integrate(IntegrateJob { map, obstacles, cutoff: self.cutoff, work })
+    }
+
+    /// Exact mode: brings `map` up to date with `obstacles`, which changed
+    /// only inside the blocks `changed` (a frame's `FuseReport`), on
+    /// `backend`. Needs no batch EDT of the window.
+    pub fn update<B: Backend + ?Sized>(&self, backend: &mut B, map: &mut EdtMap, obstacles: Obstacles<'_>, changed: &[BlockKey]) -> Result<IntegrateReport, BackendError> {
+        backend.integrate(IntegrateJob { map, obstacles, cutoff: self.cutoff, work: Integration::Changes { blocks: changed } })
     }
 
     /// Recomputes exactly every voxel within the cutoff of the box `bounds`

@@ -9,7 +9,7 @@ use edtmap_core::{NO_SITE, UNREACHABLE_DIST_SQ};
 /// 1D distance from each element to the nearest obstacle in its row.
 ///
 /// `row_base` is the linear index of the row's first voxel.
-pub(super) fn sweep_row(
+pub(crate) fn sweep_row(
     is_obstacle: impl Fn(usize) -> bool,
     row_base: u32,
     dist: &mut [u32],
@@ -57,7 +57,7 @@ pub(super) fn sweep_row(
 
 /// Working memory of [`envelope`], reused across lines.
 #[derive(Debug, Default)]
-pub(super) struct EnvelopeScratch {
+pub(crate) struct EnvelopeScratch {
     /// The parabolas of the lower envelope, left to right, plus a sentinel.
     stack: Vec<Parabola>,
 }
@@ -84,7 +84,7 @@ struct Parabola {
 ///
 /// Element `i` of the line is at index `i * stride` of every slice, so one
 /// lane of a tile can be scanned in place; `n` is the line's length.
-pub(super) fn envelope(
+pub(crate) fn envelope(
     line: Line<'_>,
     out_f: &mut [u32],
     out_site: &mut [u32],
@@ -117,11 +117,11 @@ pub(super) fn envelope(
 /// One line of squared distances `f` and nearest obstacles `site`, element
 /// `i` at index `i * stride`.
 #[derive(Debug, Clone, Copy)]
-pub(super) struct Line<'a> {
-    pub(super) f: &'a [u32],
-    pub(super) site: &'a [u32],
-    pub(super) stride: usize,
-    pub(super) n: usize,
+pub(crate) struct Line<'a> {
+    pub(crate) f: &'a [u32],
+    pub(crate) site: &'a [u32],
+    pub(crate) stride: usize,
+    pub(crate) n: usize,
 }
 
 /// Builds the lower envelope of the finite parabolas of `f` into `stack`;

@@ -1,6 +1,6 @@
 //! Exact batch Euclidean distance transform of dense grids.
 
-mod envelope;
+pub(crate) mod envelope;
 mod passes;
 mod shared;
 mod window;

@@ -3,4 +3,5 @@
 //! is `edtmap_core::stages::exact`, shared with every backend.
 
 pub mod lazy;
+pub mod separable;
 pub mod wavefront;

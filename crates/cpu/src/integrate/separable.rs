@@ -1,0 +1,543 @@
+//! Exact integration whose cost follows what changed: the separable EDT
+//! (x, then y, then z), kept up to date line by line.
+//!
+//! The batch EDT of §IV-B is three passes of one-dimensional scans: along
+//! x, the distance to the nearest obstacle of the row (`g1`); along y, the
+//! nearest of the slice (`g2 = min_y' g1 + (y - y')²`); along z, the
+//! nearest of the volume (`d = min_z' g2 + (z - z')²`). With the cutoff,
+//! every value beyond it is as good as none, so an entry depends only on
+//! the entries of the previous pass within the reach along its line. This
+//! backend keeps `g1` and `g2` of the whole map between frames, as offsets
+//! to the nearest obstacle, next to the global EDT (the last pass). When
+//! obstacles appear or vanish, only the rows through them are scanned
+//! again (over their changes grown by the reach); only the columns through
+//! the `g1` entries that changed, and only the lines through the `g2`
+//! entries that changed. The work is the changed entries of each pass
+//! times about five reaches, however large the window.
+//!
+//! **Exact, and the batch EDT's answer.** Each line is scanned by the batch
+//! EDT's own kernels (`sweep_row`, Meijster's `envelope`) over its
+//! changes grown by twice the reach, and written over them grown once:
+//! every entry that can have changed is recomputed from inputs that are
+//! all current. Ties go to the lowest position along each axis, as in the
+//! batch EDT, so the map equals an exact batch EDT of the obstacles, the
+//! nearest obstacles included (what the GPU's exact mode computes), bit for
+//! bit.
+//!
+//! **The cache.** `g1` and `g2` are functions of the obstacles the global
+//! EDT holds (its voxels at distance 0). They are kept for the map whose
+//! [`MapStamp`] this backend last wrote; for any other map (changed by
+//! something else, loaded from a file) they are rebuilt from its obstacles
+//! before the frame, in the same passes.
+
+use crate::edt::envelope::{envelope, sweep_row, EnvelopeScratch, Line};
+use edtmap_core::{
+    BlockKey, BlockMap, Cutoff, EdtBlock, EdtMap, IntegrateReport, MapStamp, Obstacles, VoxelIndex, WaveCounts, BLOCK_SIDE, BLOCK_VOXELS, FAR_DIST_SQ, NO_OBSTACLE,
+    NO_SITE, UNREACHABLE_DIST_SQ,
+};
+use rayon::prelude::*;
+use rustc_hash::FxHashMap;
+use std::ops::Range;
+
+/// No obstacle within the cutoff.
+const NONE: i16 = i16::MIN;
+/// No obstacle within the cutoff, for `g2`.
+const NONE2: [i16; 2] = [NONE, NONE];
+
+/// `g1` of one block: offset along x to the row's nearest obstacle.
+type G1Block = [i16; BLOCK_VOXELS];
+/// `g2` of one block: offsets along x and y to the slice's nearest obstacle.
+type G2Block = [[i16; 2]; BLOCK_VOXELS];
+
+/// The first two passes of the separable EDT of the global map, kept
+/// between frames.
+#[derive(Debug, Default)]
+pub struct SeparableCache {
+    g1: FxHashMap<BlockKey, Box<G1Block>>,
+    g2: FxHashMap<BlockKey, Box<G2Block>>,
+    /// The map and cutoff `g1` and `g2` belong to.
+    valid_for: Option<(MapStamp, Cutoff)>,
+}
+
+impl SeparableCache {
+    /// Bytes held.
+    pub fn bytes(&self) -> usize {
+        let per = |n: usize, b: usize| n * (b + std::mem::size_of::<BlockKey>() + 16);
+        per(self.g1.len(), std::mem::size_of::<G1Block>()) + per(self.g2.len(), std::mem::size_of::<G2Block>())
+    }
+
+    /// Forgets everything (the next update rebuilds from the map).
+    pub fn forget(&mut self) {
+        self.g1.clear();
+        self.g2.clear();
+        self.valid_for = None;
+    }
+}
+
+/// Brings `map`, the exact EDT of the obstacles it held, up to date with
+/// `obstacles`, whose changes lie in `blocks`; returns what changed.
+pub fn update_exact(map: &mut EdtMap, obstacles: &Obstacles<'_>, blocks: &[BlockKey], cutoff: Cutoff, cache: &mut SeparableCache) -> IntegrateReport {
+    let pass = Pass { reach: cutoff.reach, max: cutoff.max_dist_sq };
+    if cache.valid_for != Some((map.stamp(), cutoff)) {
+        rebuild(map, &pass, cache);
+    }
+    // Obstacles that appeared or vanished: the map's (its voxels at
+    // distance 0) against `obstacles`, one mask per block.
+    let edt: &EdtMap = map;
+    let flips: Dirty = blocks
+        .par_iter()
+        .filter_map(|&key| {
+            let now = obstacles.block_mask(key);
+            let old = edt.get(key);
+            let mut mask = [0u64; 8];
+            for (o, &n) in now.iter().enumerate() {
+                if old.is_some_and(|b| b.dist_sq[o] == 0) != n {
+                    mask[o / 64] |= 1 << (o % 64);
+                }
+            }
+            mask.iter().any(|&w| w != 0).then_some((key, mask))
+        })
+        .collect();
+    let report = run_passes(map, &pass, cache, &flips, &flips, true);
+    cache.valid_for = Some((map.stamp(), cutoff));
+    report
+}
+
+/// Rebuilds `g1` and `g2` from the map's obstacles (its voxels at distance 0).
+fn rebuild(map: &mut EdtMap, pass: &Pass, cache: &mut SeparableCache) {
+    cache.forget();
+    let obstacles: Dirty = map
+        .iter()
+        .collect::<Vec<_>>()
+        .par_iter()
+        .filter_map(|&(key, block)| {
+            let mut mask = [0u64; 8];
+            for (o, &d) in block.dist_sq.iter().enumerate() {
+                if d == 0 {
+                    mask[o / 64] |= 1 << (o % 64);
+                }
+            }
+            mask.iter().any(|&w| w != 0).then_some((key, mask))
+        })
+        .collect();
+    run_passes(map, pass, cache, &obstacles, &Dirty::default(), false);
+}
+
+/// One bit per voxel of a block, by offset.
+type Mask = [u64; 8];
+/// Voxels to look at, per block.
+type Dirty = FxHashMap<BlockKey, Mask>;
+
+fn bit(m: &Mask, o: usize) -> bool {
+    m[o / 64] >> (o % 64) & 1 == 1
+}
+
+/// The three passes from the rows through `dirty` (obstacles flipped where
+/// `flips` says); the last, into `map`, only when `last`.
+fn run_passes(map: &mut EdtMap, pass: &Pass, cache: &mut SeparableCache, dirty: &Dirty, flips: &Dirty, last: bool) -> IntegrateReport {
+    let SeparableCache { g1, g2, .. } = cache;
+    // Pass x: the rows through the obstacles that changed.
+    let edt: &EdtMap = map;
+    let (dirty1, _) = drive(&mut Cached { map: g1, none: NONE }, 0, dirty, pass.reach, |s, seg, out| pass.row(edt, flips, seg, s, out), |_, _| 0.0);
+    // Pass y: the columns through the g1 entries that changed.
+    let g1: &FxHashMap<_, _> = g1;
+    let (dirty2, _) = drive(&mut Cached { map: g2, none: NONE2 }, 1, &dirty1, pass.reach, |s, seg, out| pass.column(g1, seg, s, out), |_, _| 0.0);
+    if !last {
+        return IntegrateReport::default();
+    }
+    // Pass z: the lines through the g2 entries that changed, into the map.
+    let g2: &FxHashMap<_, _> = g2;
+    let reach = f64::from(pass.max).sqrt();
+    let truncated = |d: u32| if d == FAR_DIST_SQ { reach } else { f64::from(d).sqrt().min(reach) };
+    let (changed, stats) = drive(map, 2, &dirty2, pass.reach, |s, seg, out| pass.depth(g2, seg, s, out), |o: (u32, VoxelIndex), n: (u32, VoxelIndex)| {
+        (truncated(n.0) - truncated(o.0)).abs()
+    });
+    let mut changed_blocks: Vec<BlockKey> = changed.into_keys().collect();
+    changed_blocks.sort_unstable();
+    IntegrateReport {
+        voxels_changed: stats.changed,
+        change_sum_vox: stats.sum,
+        changed_blocks,
+        region_voxels: stats.visited,
+        waves: WaveCounts::default(),
+    }
+}
+
+/// A layer of per-voxel values in blocks, taken out to be written by one
+/// task and put back.
+trait Layer {
+    type Block: Send + Sync;
+    type Value: Copy + PartialEq + Send + Sync;
+    fn take(&mut self, keys: &[BlockKey]) -> Vec<Box<Self::Block>>;
+    /// Puts blocks back, dropping those left empty.
+    fn restore(&mut self, blocks: Vec<(BlockKey, Box<Self::Block>)>);
+    fn read(b: &Self::Block, o: usize) -> Self::Value;
+    fn write(b: &mut Self::Block, o: usize, v: Self::Value);
+}
+
+/// A cache layer, `none` where no obstacle is within the cutoff.
+struct Cached<'a, T> {
+    map: &'a mut FxHashMap<BlockKey, Box<[T; BLOCK_VOXELS]>>,
+    none: T,
+}
+
+impl<T: Copy + PartialEq + Send + Sync> Layer for Cached<'_, T> {
+    type Block = [T; BLOCK_VOXELS];
+    type Value = T;
+    fn take(&mut self, keys: &[BlockKey]) -> Vec<Box<Self::Block>> {
+        keys.iter().map(|k| self.map.remove(k).unwrap_or_else(|| Box::new([self.none; BLOCK_VOXELS]))).collect()
+    }
+    fn restore(&mut self, blocks: Vec<(BlockKey, Box<Self::Block>)>) {
+        let none = self.none;
+        self.map.extend(blocks.into_iter().filter(|(_, b)| b.iter().any(|&t| t != none)));
+    }
+    fn read(b: &Self::Block, o: usize) -> T {
+        b[o]
+    }
+    fn write(b: &mut Self::Block, o: usize, v: T) {
+        b[o] = v;
+    }
+}
+
+impl Layer for EdtMap {
+    type Block = EdtBlock;
+    type Value = (u32, VoxelIndex);
+    fn take(&mut self, keys: &[BlockKey]) -> Vec<Box<EdtBlock>> {
+        BlockMap::take(self, keys).into_iter().map(|(_, b)| b).collect()
+    }
+    fn restore(&mut self, mut blocks: Vec<(BlockKey, Box<EdtBlock>)>) {
+        blocks.retain(|(_, b)| !b.is_far());
+        BlockMap::restore(self, blocks);
+    }
+    fn read(b: &EdtBlock, o: usize) -> (u32, VoxelIndex) {
+        (b.dist_sq[o], b.nearest[o])
+    }
+    fn write(b: &mut EdtBlock, o: usize, v: (u32, VoxelIndex)) {
+        b.dist_sq[o] = v.0;
+        b.nearest[o] = v.1;
+    }
+}
+
+/// What one pass changed.
+#[derive(Debug, Default, Clone, Copy)]
+struct Stats {
+    changed: usize,
+    sum: f64,
+    visited: usize,
+}
+
+/// The two axes other than `axis`, in order.
+fn others(axis: usize) -> [usize; 2] {
+    match axis {
+        0 => [1, 2],
+        1 => [0, 2],
+        _ => [0, 1],
+    }
+}
+
+/// Offset in a block of the voxel at `t` along `axis` on line `(u, v)`.
+fn local(axis: usize, u: usize, v: usize, t: usize) -> usize {
+    let mut c = [0; 3];
+    let [b, d] = others(axis);
+    (c[axis], c[b], c[d]) = (t, u, v);
+    c[0] + 8 * (c[1] + 8 * c[2])
+}
+
+/// A task's blocks: coordinate along the axis, block, voxels changed.
+type Owned<B> = Vec<(i32, Box<B>, Mask)>;
+
+/// One segment of a line: its first voxel's coordinates (the `axis`
+/// coordinate unused) and the changes it covers, `lo..=hi` along `axis`.
+#[derive(Debug, Clone, Copy)]
+struct Segment {
+    line: [i32; 3],
+    lo: i32,
+    hi: i32,
+}
+
+/// Runs one pass along `axis`: every line with a voxel in `dirty` is
+/// rescanned over its dirty voxels grown by the reach (segments of one
+/// line further apart than twice the reach apart), by `scan(scratch,
+/// segment, out)`, which fills `out` with the new values from
+/// `lo - reach` to `hi + reach`. Each task owns one line of blocks of
+/// `layer` along `axis`, so it writes them directly. Returns the voxels
+/// whose value changed, as masks, and what changed (`amount` of each).
+fn drive<L: Layer>(
+    layer: &mut L,
+    axis: usize,
+    dirty: &Dirty,
+    reach: i32,
+    scan: impl Fn(&mut Scratch, Segment, &mut Vec<L::Value>) + Sync,
+    amount: impl Fn(L::Value, L::Value) -> f64 + Sync,
+) -> (Dirty, Stats)
+where
+    L::Block: Send,
+{
+    // Tasks: lines of blocks along `axis`, each with its dirty blocks in order.
+    let mut keys: Vec<BlockKey> = dirty.keys().copied().collect();
+    let [b, d] = others(axis);
+    keys.par_sort_unstable_by_key(|k| (k.0[b], k.0[d], k.0[axis]));
+    let mut tasks: Vec<Range<usize>> = Vec::new();
+    let mut start = 0;
+    for i in 1..=keys.len() {
+        if i == keys.len() || keys[i].0[b] != keys[i - 1].0[b] || keys[i].0[d] != keys[i - 1].0[d] {
+            tasks.push(start..i);
+            start = i;
+        }
+    }
+    // Segments of each task's 64 lines, and the blocks they write.
+    let side = BLOCK_SIDE;
+    let planned: Vec<(Vec<Segment>, Vec<i32>)> = tasks
+        .par_iter()
+        .map(|r| {
+            let ks = &keys[r.clone()];
+            let mut segments = Vec::new();
+            let mut owned = Vec::new();
+            for v in 0..8 {
+                for u in 0..8 {
+                    let mut line = [0; 3];
+                    (line[b], line[d]) = (ks[0].0[b] * side + u as i32, ks[0].0[d] * side + v as i32);
+                    let mut cur: Option<(i32, i32)> = None;
+                    for k in ks {
+                        let m = &dirty[k];
+                        for t in 0..8 {
+                            if bit(m, local(axis, u, v, t)) {
+                                let p = k.0[axis] * side + t as i32;
+                                cur = match cur {
+                                    Some((lo, hi)) if p - hi <= 2 * reach + 1 => Some((lo, p)),
+                                    Some((lo, hi)) => {
+                                        segments.push(Segment { line, lo, hi });
+                                        Some((p, p))
+                                    }
+                                    None => Some((p, p)),
+                                };
+                            }
+                        }
+                    }
+                    if let Some((lo, hi)) = cur {
+                        segments.push(Segment { line, lo, hi });
+                    }
+                }
+            }
+            for s in &segments {
+                owned.extend((s.lo - reach).div_euclid(side)..=(s.hi + reach).div_euclid(side));
+            }
+            owned.sort_unstable();
+            owned.dedup();
+            (segments, owned)
+        })
+        .collect();
+    // Take every task's blocks out of the layer.
+    let key_of = |r: &Range<usize>, c: i32| {
+        let mut k = keys[r.start].0;
+        k[axis] = c;
+        BlockKey(k)
+    };
+    let all: Vec<BlockKey> = tasks.iter().zip(&planned).flat_map(|(r, (_, owned))| owned.iter().map(move |&c| key_of(r, c))).collect();
+    let mut taken = layer.take(&all).into_iter();
+    let mut work: Vec<(Vec<Segment>, Owned<L::Block>)> = planned
+        .into_iter()
+        .map(|(segments, owned)| {
+            let blocks = owned.into_iter().map(|c| (c, taken.next().expect("one block per key"), [0u64; 8])).collect();
+            (segments, blocks)
+        })
+        .collect();
+    // Scan, compare, write.
+    let stats: Vec<Stats> = work
+        .par_iter_mut()
+        .map_init(
+            || (Scratch::default(), Vec::new()),
+            |(s, out), (segments, blocks)| {
+                let mut st = Stats::default();
+                for seg in segments.iter() {
+                    out.clear();
+                    scan(s, *seg, out);
+                    let first = seg.lo - reach;
+                    st.visited += out.len();
+                    let (u, v) = ((seg.line[b].rem_euclid(side)) as usize, (seg.line[d].rem_euclid(side)) as usize);
+                    let mut j = blocks.partition_point(|x| x.0 < first.div_euclid(side));
+                    for (i, &new) in out.iter().enumerate() {
+                        let p = first + i as i32;
+                        let c = p.div_euclid(side);
+                        while blocks[j].0 != c {
+                            j += 1;
+                        }
+                        let o = local(axis, u, v, p.rem_euclid(side) as usize);
+                        let (_, block, mask) = &mut blocks[j];
+                        let old = L::read(block, o);
+                        if old != new {
+                            L::write(block, o, new);
+                            mask[o / 64] |= 1 << (o % 64);
+                            st.changed += 1;
+                            st.sum += amount(old, new);
+                        }
+                    }
+                }
+                st
+            },
+        )
+        .collect();
+    // Put the blocks back; the changed voxels are the next pass's dirty ones.
+    let mut next = Dirty::default();
+    let mut back = Vec::with_capacity(all.len());
+    for (r, (_, blocks)) in tasks.iter().zip(work) {
+        for (c, block, mask) in blocks {
+            let key = key_of(r, c);
+            if mask.iter().any(|&w| w != 0) {
+                next.insert(key, mask);
+            }
+            back.push((key, block));
+        }
+    }
+    layer.restore(back);
+    let total = stats.iter().fold(Stats::default(), |a, s| Stats { changed: a.changed + s.changed, sum: a.sum + s.sum, visited: a.visited + s.visited });
+    (next, total)
+}
+
+/// Working memory of one thread.
+#[derive(Debug, Default)]
+struct Scratch {
+    f: Vec<u32>,
+    site: Vec<u32>,
+    out_f: Vec<u32>,
+    out_site: Vec<u32>,
+    flags: Vec<bool>,
+    off: Vec<[i16; 2]>,
+    envelope: EnvelopeScratch,
+}
+
+impl Scratch {
+    fn reset(&mut self, n: usize) {
+        for v in [&mut self.f, &mut self.site, &mut self.out_f, &mut self.out_site] {
+            v.clear();
+            v.resize(n, 0);
+        }
+    }
+
+    /// Meijster's envelope of `self.f` into `out_f` / `out_site` (local
+    /// positions, ties to the lowest).
+    fn scan(&mut self) {
+        let n = self.f.len();
+        for (i, s) in self.site.iter_mut().enumerate() {
+            *s = i as u32;
+        }
+        let line = Line { f: &self.f, site: &self.site, stride: 1, n };
+        envelope(line, &mut self.out_f, &mut self.out_site, &mut self.envelope);
+    }
+}
+
+/// Reads one layer along a line, one hash lookup per block.
+struct Reader<'a, T> {
+    map: &'a FxHashMap<BlockKey, Box<[T; BLOCK_VOXELS]>>,
+    key: Option<BlockKey>,
+    block: Option<&'a [T; BLOCK_VOXELS]>,
+    none: T,
+}
+
+impl<'a, T: Copy> Reader<'a, T> {
+    fn new(map: &'a FxHashMap<BlockKey, Box<[T; BLOCK_VOXELS]>>, none: T) -> Self {
+        Reader { map, key: None, block: None, none }
+    }
+
+    fn get(&mut self, v: VoxelIndex) -> T {
+        let k = v.block();
+        if self.key != Some(k) {
+            self.key = Some(k);
+            self.block = self.map.get(&k).map(|b| &**b);
+        }
+        self.block.map_or(self.none, |b| b[v.offset_in_block()])
+    }
+}
+
+/// The cutoff, as the passes use it.
+struct Pass {
+    reach: i32,
+    max: u32,
+}
+
+fn at_axis(mut c: [i32; 3], axis: usize, t: i32) -> VoxelIndex {
+    c[axis] = t;
+    VoxelIndex(c)
+}
+
+impl Pass {
+    /// Pass x on row `line` from `lo - reach` to `hi + reach`: the offset
+    /// to the nearest obstacle, the map's obstacles flipped where `flips`
+    /// says.
+    fn row(&self, edt: &EdtMap, flips: &Dirty, Segment { line, lo, hi }: Segment, s: &mut Scratch, out: &mut Vec<i16>) {
+        let r = self.reach;
+        let base = lo - 2 * r;
+        let n = (hi + 2 * r - base + 1) as usize;
+        s.flags.clear();
+        let (mut key, mut block, mut flip): (Option<BlockKey>, Option<&EdtBlock>, Option<&Mask>) = (None, None, None);
+        for i in 0..n {
+            let v = at_axis(line, 0, base + i as i32);
+            if key != Some(v.block()) {
+                key = Some(v.block());
+                block = edt.get(v.block());
+                flip = flips.get(&v.block());
+            }
+            let o = v.offset_in_block();
+            let was = block.is_some_and(|b| b.dist_sq[o] == 0);
+            s.flags.push(was != flip.is_some_and(|m| bit(m, o)));
+        }
+        s.reset(n);
+        let flags = &s.flags;
+        sweep_row(|i| flags[i], 0, &mut s.out_f, &mut s.out_site);
+        for i in r as usize..n - r as usize {
+            out.push(if s.out_site[i] == NO_SITE || s.out_f[i] > self.max { NONE } else { (s.out_site[i] as i32 - i as i32) as i16 });
+        }
+    }
+
+    /// Pass y on column `line` from `lo - reach` to `hi + reach`: offsets
+    /// to the slice's nearest obstacle, from `g1`.
+    fn column(&self, g1: &FxHashMap<BlockKey, Box<G1Block>>, Segment { line, lo, hi }: Segment, s: &mut Scratch, out: &mut Vec<[i16; 2]>) {
+        let r = self.reach;
+        let base = lo - 2 * r;
+        let n = (hi + 2 * r - base + 1) as usize;
+        s.reset(n);
+        let mut input = Reader::new(g1, NONE);
+        s.off.clear();
+        for (i, f) in s.f.iter_mut().enumerate() {
+            let o = input.get(at_axis(line, 1, base + i as i32));
+            s.off.push([o, 0]);
+            *f = if o == NONE { UNREACHABLE_DIST_SQ } else { (i32::from(o) * i32::from(o)) as u32 };
+        }
+        s.scan();
+        for i in r as usize..n - r as usize {
+            out.push(if s.out_f[i] == UNREACHABLE_DIST_SQ || s.out_f[i] > self.max {
+                NONE2
+            } else {
+                let p = s.out_site[i] as usize;
+                [s.off[p][0], (p as i32 - i as i32) as i16]
+            });
+        }
+    }
+
+    /// Pass z on line `line` from `lo - reach` to `hi + reach`: distances
+    /// and nearest obstacles, from `g2`.
+    fn depth(&self, g2: &FxHashMap<BlockKey, Box<G2Block>>, Segment { line, lo, hi }: Segment, s: &mut Scratch, out: &mut Vec<(u32, VoxelIndex)>) {
+        let r = self.reach;
+        let base = lo - 2 * r;
+        let n = (hi + 2 * r - base + 1) as usize;
+        s.reset(n);
+        let mut input = Reader::new(g2, NONE2);
+        s.off.clear();
+        for (i, f) in s.f.iter_mut().enumerate() {
+            let o = input.get(at_axis(line, 2, base + i as i32));
+            s.off.push(o);
+            *f = if o[0] == NONE { UNREACHABLE_DIST_SQ } else { (i32::from(o[0]).pow(2) + i32::from(o[1]).pow(2)) as u32 };
+        }
+        s.scan();
+        for i in r as usize..n - r as usize {
+            out.push(if s.out_f[i] == UNREACHABLE_DIST_SQ || s.out_f[i] > self.max {
+                (FAR_DIST_SQ, NO_OBSTACLE)
+            } else {
+                let p = s.out_site[i] as usize;
+                (s.out_f[i], VoxelIndex([line[0] + i32::from(s.off[p][0]), line[1] + i32::from(s.off[p][1]), base + p as i32]))
+            });
+        }
+    }
+}
+
+const _: () = assert!(BLOCK_SIDE == 8);
