@@ -4,21 +4,24 @@
 
 use edtmap::config::Config;
 use edtmap::cpu::CpuBackend;
-use edtmap::{Backend, BackendError, BatchEdt, EdtField, FixedRay, Grid3, IntegrateJob, IntegrateReport, MapError, Mapper, Observations, ProjectJob};
+use edtmap::{Backend, BackendError, BatchEdt, EdtField, FixedRay, Grid3, IntegrateJob, IntegrateReport, IntegrationMode, MapError, Mapper, Observations, ProjectJob};
 use edtmap_sim::{Scene, SceneName, SceneOptions};
 use std::path::PathBuf;
 
-/// The CPU, but its `fail_at`-th batch EDT fails as a lost device would.
+/// The CPU, but its `fail_batch_at`-th batch EDT or its
+/// `fail_integrate_at`-th integration fails as a lost device would.
 struct Flaky {
     cpu: CpuBackend,
-    calls: usize,
-    fail_at: usize,
+    batches: usize,
+    integrations: usize,
+    fail_batch_at: usize,
+    fail_integrate_at: usize,
 }
 
 impl BatchEdt for Flaky {
     fn batch_edt(&mut self, mask: &Grid3<bool>, out: &mut EdtField) -> Result<(), BackendError> {
-        self.calls += 1;
-        if self.calls == self.fail_at {
+        self.batches += 1;
+        if self.batches == self.fail_batch_at {
             // What a lost device leaves: garbage, then an error.
             out.prepare(mask.dims())?.0.fill(7);
             return Err(BackendError::DeviceLost("simulated".into()));
@@ -38,23 +41,37 @@ impl Backend for Flaky {
         self.cpu.project_volume(job, obs)
     }
     fn integrate(&mut self, job: IntegrateJob<'_>) -> Result<IntegrateReport, BackendError> {
+        self.integrations += 1;
+        if self.integrations == self.fail_integrate_at {
+            // The map is written only once the device is done: untouched.
+            return Err(BackendError::DeviceLost("simulated".into()));
+        }
         self.cpu.integrate(job)
     }
 }
 
 #[test]
 fn a_backend_failure_returns_the_error_and_keeps_the_map_whole() {
+    // The wavefront mode's batch EDT fails at frame 2; the exact mode's
+    // integration does.
+    for mode in [IntegrationMode::Wavefront, IntegrationMode::Exact] {
+        let (batch, integrate) = if mode == IntegrationMode::Wavefront { (3, 0) } else { (0, 3) };
+        failure_keeps_the_map_whole(mode, Flaky { cpu: CpuBackend::default(), batches: 0, integrations: 0, fail_batch_at: batch, fail_integrate_at: integrate });
+    }
+}
+
+fn failure_keeps_the_map_whole(mode: IntegrationMode, flaky: Flaky) {
     let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../configs/uav_pillars.toml");
-    let (sensor, params) = Config::load(&path).expect("config").mapper_params().expect("valid");
+    let (sensor, mut params) = Config::load(&path).expect("config").mapper_params().expect("valid");
+    params.global.mode = mode;
     let scene = Scene::new(SceneName::UavPillars, &SceneOptions::default()).expect("scene");
     let mut reference = Mapper::new(sensor.clone(), params.clone()).expect("cpu mapper");
-    let flaky = Flaky { cpu: CpuBackend::default(), calls: 0, fail_at: 3 };
     let mut mapper = Mapper::new_on(flaky, sensor.clone(), params).expect("flaky mapper");
     for i in 0..5 {
         let frame = scene.frame(&sensor, i * 3).expect("frame");
         reference.integrate_frame(&frame).expect("reference frame");
         match mapper.integrate_frame(&frame) {
-            Ok(_) => assert_ne!(i, 2, "frame 2 must report the failure"),
+            Ok(_) => assert_ne!(i, 2, "{mode:?}: frame 2 must report the failure"),
             Err(MapError::Backend(BackendError::DeviceLost(why))) => {
                 assert_eq!(i, 2);
                 assert_eq!(why, "simulated");
