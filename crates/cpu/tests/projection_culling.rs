@@ -4,7 +4,7 @@
 //! and grid-aligned poses, inside and outside the volume, with maximum
 //! ranges that end inside it, against the definition voxel by voxel.
 
-use edtmap_core::sensor::{DepthData, DepthImage, Frame, LaserScan, LidarScan, Measurement, PinholeCamera, RangeLimits, Sensor, SpinningLidar};
+use edtmap_core::sensor::{DepthData, DepthImage, LaserScan, LidarScan, Measurement, PinholeCamera, RangeLimits, Sensor, SpinningLidar};
 use edtmap_core::{mark_misses, LocalVolume, Observations, ProjectJob, VoxelIndex, OBS_MISS, OBS_NONE};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use std::f64::consts::{PI, TAU};

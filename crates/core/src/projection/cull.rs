@@ -67,8 +67,10 @@ impl TileCull {
     /// measurement).
     pub(super) fn new(job: &ProjectJob<'_>, geom: &VoxelToSensor) -> Option<Self> {
         let free_below_m = free_below_sup(job) as f64;
-        // Every range the definition compares is ≥ 0 (depth > 0).
-        if !(free_below_m > 0.0) {
+        // Every range the definition compares is ≥ 0 (depth > 0); the
+        // supremum is never NaN (`f32::max` drops NaN thresholds, which free
+        // nothing).
+        if free_below_m <= 0.0 {
             return None;
         }
         let shape = match job.sensor {

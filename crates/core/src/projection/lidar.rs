@@ -52,12 +52,13 @@ impl<'a> LidarMiss<'a> {
     /// the fan, near a ring.
     #[inline]
     pub(super) fn is_miss_at(&self, p: [f32; 3]) -> bool {
+        // A NaN range passes these bounds and fails the beam's `<` below.
         let point_m = norm(p);
-        if !(point_m < self.free_below_m) {
+        if point_m >= self.free_below_m {
             return false;
         }
         let bin = self.lidar.azimuth_bin(p);
-        if !(point_m < self.bin_free_below_m[bin]) {
+        if point_m >= self.bin_free_below_m[bin] {
             return false;
         }
         let (horiz, el) = SpinningLidar::elevation(p);
