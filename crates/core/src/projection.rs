@@ -16,8 +16,13 @@
 //! threshold and marks the others [`PROJ_UNCERTAIN`]; the host decides
 //! those with this function, so the result is this function's, bit for bit.
 
+mod cull;
+mod lidar;
+
 use crate::sensor::{Measurement, Projection, RangeLimits, Sensor};
 use crate::{LocalVolume, Observations, OBS_MISS};
+use cull::{TileCull, TILE};
+use lidar::LidarMiss;
 use nalgebra::Isometry3;
 use rayon::prelude::*;
 
@@ -157,18 +162,46 @@ impl ProjectJob<'_> {
 /// Marks every voxel of `obs`'s volume that `job` shows as free a miss, on
 /// the host's cores: the CPU backend's projection, and the reference a
 /// device falls back on where its kernel does not apply (a LiDAR's rings).
+///
+/// The volume is visited in 8³ tiles; a tile that provably holds no miss
+/// ([`cull`]) is skipped, the others decided voxel by voxel with
+/// [`ProjectJob::is_miss_at`] (a LiDAR's with the same conditions in a
+/// cheaper order, [`lidar`]). The misses are exactly the definition's.
 pub fn mark_misses(obs: &Observations, job: &ProjectJob<'_>) {
     let geom = job.voxel_to_sensor();
-    let [nx, ny, nz] = job.volume.dims;
-    (0..ny * nz).into_par_iter().with_min_len(8).for_each(|row| {
-        let (y, z) = (row % ny, row / ny);
-        let shared = geom.row(y, z);
-        for x in 0..nx {
-            if job.is_miss_at(geom.point_in_row(&shared, x)) {
-                obs.mark([x, y, z], x + nx * row, OBS_MISS);
-            }
+    let Some(cull) = TileCull::new(job, &geom) else {
+        return;
+    };
+    let lidar = LidarMiss::new(job);
+    let tiles = job.volume.dims.map(|n| n.div_ceil(TILE));
+    (0..tiles[0] * tiles[1] * tiles[2]).into_par_iter().for_each(|t| {
+        let at = [t % tiles[0], (t / tiles[0]) % tiles[1], t / (tiles[0] * tiles[1])];
+        let lo = at.map(|a| a * TILE);
+        let hi = [0, 1, 2].map(|k| (lo[k] + TILE).min(job.volume.dims[k]));
+        if cull.may_miss(lo, hi) {
+            mark_tile(obs, job, &geom, lidar.as_ref(), lo, hi);
         }
     });
+}
+
+/// [`mark_misses`] over the voxels `lo..hi` of one tile.
+fn mark_tile(obs: &Observations, job: &ProjectJob<'_>, geom: &VoxelToSensor, lidar: Option<&LidarMiss<'_>>, lo: [usize; 3], hi: [usize; 3]) {
+    let [nx, ny, _] = job.volume.dims;
+    for z in lo[2]..hi[2] {
+        for y in lo[1]..hi[1] {
+            let shared = geom.row(y, z);
+            for x in lo[0]..hi[0] {
+                let p = geom.point_in_row(&shared, x);
+                let miss = match lidar {
+                    Some(l) => l.is_miss_at(p),
+                    None => job.is_miss_at(p),
+                };
+                if miss {
+                    obs.mark([x, y, z], x + nx * (y + ny * z), OBS_MISS);
+                }
+            }
+        }
+    }
 }
 
 /// Decides every voxel a backend left [`PROJ_UNCERTAIN`] in `bits` (one

@@ -84,15 +84,43 @@ impl SpinningLidar {
     /// outermost rings reach half a spacing beyond themselves).
     #[inline]
     pub fn project(&self, p: [f32; 3]) -> Option<(usize, usize)> {
-        let horiz = (p[0] * p[0] + p[1] * p[1]).sqrt();
-        let el = (p[2] as f64).atan2(horiz as f64);
-        let ring = self.nearest_ring(el)?;
-        let az = (p[1] as f64).atan2(p[0] as f64);
-        let bin = ((az + PI) / (2.0 * PI) * self.azimuth_bins as f64).floor() as usize;
-        Some((ring, bin.min(self.azimuth_bins - 1)))
+        let ring = self.nearest_ring(Self::elevation(p).1)?;
+        Some((ring, self.azimuth_bin(p)))
     }
 
-    fn nearest_ring(&self, el: f64) -> Option<usize> {
+    /// The horizontal distance of `p` (rounded to `f32`, then widened) and
+    /// its elevation in radians: the one computation of both that every
+    /// decision about `p` shares.
+    #[inline]
+    pub fn elevation(p: [f32; 3]) -> (f64, f64) {
+        let horiz = (p[0] * p[0] + p[1] * p[1]).sqrt() as f64;
+        (horiz, (p[2] as f64).atan2(horiz))
+    }
+
+    /// The azimuth bin of the direction of `p`.
+    #[inline]
+    pub fn azimuth_bin(&self, p: [f32; 3]) -> usize {
+        let az = (p[1] as f64).atan2(p[0] as f64);
+        let bin = ((az + PI) / (2.0 * PI) * self.azimuth_bins as f64).floor() as usize;
+        bin.min(self.azimuth_bins - 1)
+    }
+
+    /// The lowest and highest elevation, radians, for which
+    /// [`Self::nearest_ring`] finds a ring.
+    pub fn fan_rad(&self) -> (f64, f64) {
+        let rings = &self.ring_elevations_rad;
+        let n = rings.len();
+        let (below, above) = match n {
+            1 => (PI / self.azimuth_bins as f64, PI / self.azimuth_bins as f64),
+            _ => ((rings[1] - rings[0]).abs() / 2.0, (rings[n - 1] - rings[n - 2]).abs() / 2.0),
+        };
+        (rings[0] - below, rings[n - 1] + above)
+    }
+
+    /// The ring nearest to elevation `el` (radians, as [`Self::elevation`] gives
+    /// it), if `el` is within the fan (see [`Self::project`]).
+    #[inline]
+    pub fn nearest_ring(&self, el: f64) -> Option<usize> {
         let rings = &self.ring_elevations_rad;
         let i = rings.partition_point(|&e| e < el);
         let spacing = |a: usize, b: usize| (rings[b] - rings[a]).abs();
@@ -115,12 +143,18 @@ impl SpinningLidar {
 
     /// See [`super::Sensor::beam_passes_within`].
     pub(super) fn ring_passes_within(&self, p: [f32; 3], radius_m: f32) -> bool {
-        let horiz = (p[0] * p[0] + p[1] * p[1]).sqrt() as f64;
+        let (horiz, el) = Self::elevation(p);
+        self.ring_passes_at(p, horiz, el, radius_m)
+    }
+
+    /// [`super::Sensor::beam_passes_within`] of `p`, whose horizontal
+    /// distance and elevation [`Self::elevation`] gave.
+    #[inline]
+    pub fn ring_passes_at(&self, p: [f32; 3], horiz: f64, el: f64, radius_m: f32) -> bool {
         let r = (horiz * horiz + (p[2] as f64).powi(2)).sqrt();
         if r <= radius_m as f64 {
             return true;
         }
-        let el = (p[2] as f64).atan2(horiz);
         let reach = (radius_m as f64 / r).asin();
         let rings = &self.ring_elevations_rad;
         let i = rings.partition_point(|&e| e < el);

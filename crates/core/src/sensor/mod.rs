@@ -255,7 +255,7 @@ impl Measurement {
 }
 
 #[inline]
-fn norm(p: [f32; 3]) -> f32 {
+pub(crate) fn norm(p: [f32; 3]) -> f32 {
     (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt()
 }
 
