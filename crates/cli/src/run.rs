@@ -301,7 +301,7 @@ fn replay(args: &RunArgs, setup: &Setup, mapper: &mut CliMapper, progress: bool)
             }
         };
         tracing::debug!("frame {i} at {:.3} s: {:.2} ms", frame.stamp_s, stats.total_ms);
-        let mut rec = frame_record(i, &frame, &stats);
+        let mut rec = frame_record(i, &frame, &stats, mapper.map().occupancy().len());
         if args.eval {
             evaluate(&mut rec, setup, &frame, mapper, &mut truth)?;
         }
@@ -329,8 +329,9 @@ fn stops_the_run(failure: &Failure, setup: &Setup) -> bool {
     failure.kind != FailureKind::Frame || setup.config.dataset.on_error == OnError::Stop || matches!(setup.source, Source::Scene(_))
 }
 
-/// The report's record of frame `index`.
-fn frame_record(index: usize, frame: &Frame, stats: &FrameStats) -> FrameRecord {
+/// The report's record of frame `index`, after which the map holds
+/// `occupancy_blocks` occupancy blocks.
+fn frame_record(index: usize, frame: &Frame, stats: &FrameStats, occupancy_blocks: usize) -> FrameRecord {
     FrameRecord {
         index,
         stamp_s: frame.stamp_s,
@@ -341,7 +342,7 @@ fn frame_record(index: usize, frame: &Frame, stats: &FrameStats) -> FrameRecord 
         voxels_updated: stats.voxels_updated,
         voxels_changed: stats.voxels_changed,
         changed_blocks: stats.changed_blocks.len(),
-        global: global_fields(stats),
+        global: global_fields(stats, occupancy_blocks),
         ..Default::default()
     }
 }
@@ -371,6 +372,10 @@ fn report_header(args: &RunArgs, setup: &Setup, mapper: &CliMapper, slice: &Slic
     header.insert("voxel_size_m".into(), json!(params.voxel_size_m));
     header.insert("local_dims".into(), json!(mapper.local_volume().map(|v| v.dims)));
     header.insert("map_blocks".into(), json!(mapper.map().occupancy().len()));
+    let peak = crate::memory::peak_rss_bytes();
+    let window_voxels = mapper.local_volume().map(|v| v.len()).filter(|&n| n > 0);
+    header.insert("peak_rss_bytes".into(), json!(peak));
+    header.insert("peak_bytes_per_window_voxel".into(), json!(peak.zip(window_voxels).map(|(b, n)| b as f64 / n as f64)));
     header.insert("integration".into(), json!(params.global.mode));
     header.insert("connectivity".into(), json!(params.global.connectivity));
     header.insert("max_distance_m".into(), json!(params.global.max_distance_m));
@@ -472,13 +477,17 @@ fn construction_name(sensor: &Sensor, config: &Config) -> &'static str {
     }
 }
 
-/// The global EDT's per-frame fields of the report.
-fn global_fields(s: &FrameStats) -> Vec<(&'static str, f64)> {
+/// The global EDT's per-frame fields of the report; the map's bytes per
+/// mapped voxel count every layer's bytes over the voxels of the
+/// `occupancy_blocks` (what `bench/pipeline.sh` reports).
+fn global_fields(s: &FrameStats, occupancy_blocks: usize) -> Vec<(&'static str, f64)> {
+    let mapped_voxels = (occupancy_blocks * edtmap::BLOCK_VOXELS).max(1);
     vec![
         ("edt_voxels_changed", s.edt_voxels_changed as f64),
         ("change_score_m", s.change_score_m),
         ("map_blocks", s.map_blocks as f64),
         ("map_bytes", s.map_bytes as f64),
+        ("map_bytes_per_mapped_voxel", s.map_bytes as f64 / mapped_voxels as f64),
         ("raised", s.waves.raised as f64),
         ("kept_outside", s.waves.kept_outside as f64),
         ("wave_seeds", s.waves.seeds as f64),

@@ -42,6 +42,29 @@ fn run_every_scene_briefly() {
 }
 
 #[test]
+fn report_states_map_bytes_per_voxel_and_peak_memory() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (ok, stdout, stderr) = edtmap(&["run", "--scene", "uav_pillars", "--frames", "2"], dir.path());
+    assert!(ok, "{stdout}\n{stderr}");
+    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.path().join("report.json")).expect("report")).expect("json");
+    for frame in report["frames"].as_array().expect("frames") {
+        let per_voxel = frame["map_bytes_per_mapped_voxel"].as_f64().expect("map_bytes_per_mapped_voxel");
+        assert!((1.0..10_000.0).contains(&per_voxel), "{frame}");
+    }
+    assert!(report["summary"]["map_bytes_per_mapped_voxel"]["median"].is_number());
+    if cfg!(target_os = "linux") {
+        let peak = report["peak_rss_bytes"].as_u64().expect("peak_rss_bytes on Linux");
+        let per_window_voxel = report["peak_bytes_per_window_voxel"].as_f64().expect("peak_bytes_per_window_voxel");
+        let dims: Vec<u64> = report["local_dims"].as_array().expect("local_dims").iter().filter_map(|d| d.as_u64()).collect();
+        let window: u64 = dims.iter().product();
+        assert!(peak > 0 && per_window_voxel > 0.0, "{report}");
+        assert!((per_window_voxel - peak as f64 / window as f64).abs() < 1e-6 * per_window_voxel, "{report}");
+    } else {
+        assert!(report["peak_rss_bytes"].is_u64() || report["peak_rss_bytes"].is_null());
+    }
+}
+
+#[test]
 fn run_refuses_bad_arguments() {
     let dir = tempfile::tempdir().expect("tempdir");
     let (ok, _, stderr) = edtmap(&["run", "--scene", "moon"], dir.path());

@@ -7,10 +7,14 @@
 //! cargo run --release -p edtmap --example edt_changes -- export --scene uav_pillars --out DIR
 //!     [--config FILE] [--frames N] [--voxel-size M] [--max-distance M]
 //!     [--integration wavefront|exact] [--repeat N]
+//! cargo run --release -p edtmap --example edt_changes -- export --dataset DIR --config FILE --out DIR
+//!     [same options]
 //! cargo run --release -p edtmap --example edt_changes -- compare --dir DIR --dynamicedt PREFIX
 //! ```
 //!
-//! `export` replays a built-in scene through the [`edtmap::Mapper`] and,
+//! `export` replays a built-in scene, or a folder recording (as `edtmap run
+//! --dataset` opens it: 3DMatch or TUM depth images, PCD/PLY/KITTI clouds),
+//! through the [`edtmap::Mapper`] and,
 //! after each frame, finds the voxels that became obstacles and those that
 //! stopped being obstacles (only the occupancy blocks the frame changed are
 //! looked at). It writes, in DIR:
@@ -40,14 +44,17 @@ mod common;
 mod compare;
 #[path = "edt_changes/export.rs"]
 mod export;
+#[path = "edt_changes/source.rs"]
+mod source;
 
 use common::Error;
 use edtmap::IntegrationMode;
 use std::path::PathBuf;
 
 const USAGE: &str = "usage:
-  edt_changes export --scene NAME --out DIR [--config FILE] [--frames N] [--voxel-size M]
-                     [--max-distance M] [--integration wavefront|exact] [--repeat N]
+  edt_changes export (--scene NAME [--config FILE] | --dataset DIR --config FILE) --out DIR
+                     [--frames N] [--voxel-size M] [--max-distance M]
+                     [--integration wavefront|exact] [--repeat N]
   edt_changes compare --dir DIR --dynamicedt PREFIX";
 
 fn main() {
@@ -76,6 +83,7 @@ fn parse_export(mut it: impl Iterator<Item = String>) -> Result<export::ExportAr
         let value = it.next().ok_or_else(|| format!("{flag} needs a value\n{USAGE}"))?;
         match flag.as_str() {
             "--scene" => a.scene = Some(value),
+            "--dataset" => a.dataset = Some(PathBuf::from(value)),
             "--config" => a.config = Some(PathBuf::from(value)),
             "--out" => a.out = PathBuf::from(value),
             "--frames" => a.frames = Some(number(&flag, &value)?),

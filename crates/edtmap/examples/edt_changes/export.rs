@@ -1,5 +1,5 @@
-//! `edt_changes export`: a scene through the mapper, its obstacle changes
-//! frame by frame, our EDT times, and the final map.
+//! `edt_changes export`: a scene or a recording through the mapper, its
+//! obstacle changes frame by frame, our EDT times, and the final map.
 
 use crate::common::{median, region_json, time_stats, write_json, Error, CHANGES_FILE, MAP_FILE, SUMMARY_FILE, TIMES_FILE};
 use edtmap::config::Config;
@@ -7,7 +7,8 @@ use edtmap::region::Region;
 use edtmap::eval::edt_errors;
 use edtmap::sensor::{Frame, Sensor};
 use edtmap::{BlockKey, Cutoff, GlobalMap, IntegrationMode, Mapper, MapperParams, VoxelIndex, BLOCK_VOXELS};
-use edtmap_sim::{Scene, SceneName, SceneOptions};
+use crate::source;
+use edtmap_sim::SceneName;
 use serde_json::json;
 use std::collections::HashSet;
 use std::io::{BufWriter, Write};
@@ -17,6 +18,7 @@ use std::path::{Path, PathBuf};
 #[derive(Debug, Default)]
 pub(crate) struct ExportArgs {
     pub(crate) scene: Option<String>,
+    pub(crate) dataset: Option<PathBuf>,
     pub(crate) config: Option<PathBuf>,
     pub(crate) frames: Option<usize>,
     pub(crate) voxel_size_m: Option<f64>,
@@ -26,14 +28,14 @@ pub(crate) struct ExportArgs {
     pub(crate) out: PathBuf,
 }
 
-/// The scene, sensor and parameters of a run.
+/// The frames, sensor and parameters of a run.
 struct Setup {
-    scene_name: String,
+    /// The scene's or the recording's name.
+    name: String,
     config_origin: String,
-    scene: Scene,
+    frames: Vec<Frame>,
     sensor: Sensor,
     params: MapperParams,
-    frames: usize,
 }
 
 /// One frame's obstacle changes and EDT costs.
@@ -67,10 +69,9 @@ struct Replay {
 pub(crate) fn run(args: &ExportArgs) -> Result<(), Error> {
     let setup = setup(args)?;
     std::fs::create_dir_all(&args.out).map_err(|e| format!("cannot create {}: {e}", args.out.display()))?;
-    let frames = (0..setup.frames).map(|i| setup.scene.frame(&setup.sensor, i).map_err(|e| format!("simulating frame {i}: {e}"))).collect::<Result<Vec<_>, _>>()?;
-    let mut best = replay(&setup, &frames)?;
+    let mut best = replay(&setup)?;
     for run in 1..args.repeat {
-        keep_fastest(&mut best.frames, replay(&setup, &frames)?.frames, run)?;
+        keep_fastest(&mut best.frames, replay(&setup)?.frames, run)?;
     }
     let map = best.mapper.map();
     let region = change_box(&best.frames, map.cutoff().reach)?;
@@ -81,7 +82,8 @@ pub(crate) fn run(args: &ExportArgs) -> Result<(), Error> {
     let errors = edt_errors(map, &region)?;
     let ms = |f: fn(&FrameChanges) -> f64| best.frames.iter().map(f).collect::<Vec<f64>>();
     let summary = json!({
-        "scene": setup.scene_name,
+        "scene": setup.name,
+        "dataset": args.dataset.as_ref().map(|d| d.display().to_string()),
         "config": setup.config_origin,
         "frames": best.frames.len(),
         "repeat": args.repeat,
@@ -108,15 +110,19 @@ pub(crate) fn run(args: &ExportArgs) -> Result<(), Error> {
     Ok(())
 }
 
-/// The configuration, with the overrides of the arguments, and the scene.
+/// The configuration, with the overrides of the arguments, and the frames
+/// of the scene or the recording.
 fn setup(args: &ExportArgs) -> Result<Setup, Error> {
+    if args.dataset.is_some() && (args.scene.is_some() || args.config.is_none()) {
+        return Err("--dataset DIR goes with --config FILE, without --scene".into());
+    }
     let (mut config, config_origin) = match (&args.config, &args.scene) {
         (Some(path), _) => (Config::load(path)?, path.display().to_string()),
         (None, Some(scene)) => {
             let text = builtin_config(scene).ok_or_else(|| format!("unknown scene {scene:?}: {}", scene_names()))?;
             (Config::parse(text, &format!("configs/{scene}.toml"))?, format!("configs/{scene}.toml"))
         }
-        (None, None) => return Err(format!("give --scene NAME ({}) or --config FILE", scene_names()).into()),
+        (None, None) => return Err(format!("give --scene NAME ({}), --config FILE or --dataset DIR --config FILE", scene_names()).into()),
     };
     if let Some(v) = args.voxel_size_m {
         config.occupancy.voxel_size_m = v;
@@ -127,14 +133,16 @@ fn setup(args: &ExportArgs) -> Result<Setup, Error> {
     if let Some(m) = args.integration {
         config.global.mode = m;
     }
+    if let Some(dir) = &args.dataset {
+        let set = source::open_recording(dir, &mut config)?;
+        let (sensor, params) = config.mapper_params()?;
+        let read = source::recording(dir, &set, &sensor, args.frames)?;
+        return Ok(Setup { name: read.name, config_origin, frames: read.frames, sensor, params });
+    }
     let (sensor, params) = config.mapper_params()?;
-    let section = config.scene.clone();
-    let scene_name = args.scene.clone().or_else(|| section.as_ref().map(|s| s.name.clone())).ok_or_else(|| format!("{config_origin} has no [scene]: give --scene NAME"))?;
-    let name: SceneName = scene_name.parse().map_err(|e| format!("{e}"))?;
-    let options = section.as_ref().map_or_else(SceneOptions::default, |s| SceneOptions { seed: s.seed, range_noise_m: s.range_noise_m, dropout: s.dropout });
-    let scene = Scene::new(name, &options)?;
-    let frames = args.frames.or(section.and_then(|s| s.frames)).unwrap_or_else(|| scene.default_frames());
-    Ok(Setup { scene_name, config_origin, scene, sensor, params, frames })
+    let scene = args.scene.clone().or_else(|| config.scene.as_ref().map(|s| s.name.clone())).ok_or_else(|| format!("{config_origin} has no [scene]: give --scene NAME or --dataset DIR"))?;
+    let made = source::scene(&scene, &config, &sensor, args.frames)?;
+    Ok(Setup { name: made.name, config_origin, frames: made.frames, sensor, params })
 }
 
 /// The shipped configuration of a built-in scene.
@@ -155,12 +163,12 @@ fn scene_names() -> String {
 /// Runs every frame through a fresh mapper, recording each frame's
 /// obstacle changes. Fixed obstacles (forbidden zones) are obstacles from
 /// the start: they count as set in the first frame.
-fn replay(setup: &Setup, frames: &[Frame]) -> Result<Replay, Error> {
+fn replay(setup: &Setup) -> Result<Replay, Error> {
     let mut mapper = Mapper::new(setup.sensor.clone(), setup.params.clone())?;
     let mut initial = fixed_obstacles(mapper.map());
     let mut obstacles: HashSet<VoxelIndex> = initial.iter().copied().collect();
-    let mut out = Vec::with_capacity(frames.len());
-    for (i, frame) in frames.iter().enumerate() {
+    let mut out = Vec::with_capacity(setup.frames.len());
+    for (i, frame) in setup.frames.iter().enumerate() {
         let stats = mapper.integrate_frame(frame).map_err(|e| format!("frame {i}: {e}"))?;
         let (set, clear) = obstacle_changes(mapper.map(), &stats.changed_blocks, &mut obstacles);
         initial.extend(set);
@@ -261,7 +269,7 @@ fn write_changes(path: &Path, setup: &Setup, map: &GlobalMap, region: &Region, f
     let file = std::fs::File::create(path).map_err(|e| format!("cannot write {}: {e}", path.display()))?;
     let mut w = BufWriter::new(file);
     writeln!(w, "edtmap-changes 1")?;
-    writeln!(w, "# edt_changes export: scene {}, {}, {} frames", setup.scene_name, setup.config_origin, frames.len())?;
+    writeln!(w, "# edt_changes export: {}, {}, {} frames", setup.name, setup.config_origin, frames.len())?;
     writeln!(w, "# edtmap cutoff: max_distance_m {} = squared distance <= {} voxels^2", map.params().max_distance_m, map.cutoff().max_dist_sq)?;
     writeln!(w, "voxel_size_m {}", map.voxel_size_m())?;
     writeln!(w, "max_distance_vox {}", cutoff_vox_text(map.cutoff()))?;
