@@ -12,8 +12,10 @@
 //! obstacles appear or vanish, only the rows through them are scanned
 //! again (over their changes grown by the reach); only the columns through
 //! the `g1` entries that changed, and only the lines through the `g2`
-//! entries that changed. The work is the changed entries of each pass
-//! times about five reaches, however large the window.
+//! entries that changed. A changed entry of value `f` (the smaller of its
+//! old and new) can matter only `sqrt(max - f)` along the next pass, so
+//! each line is redone over its changes grown by that much. The work
+//! follows the changed entries of each pass, however large the window.
 //!
 //! **Exact, and the batch EDT's answer.** Each line is scanned by the batch
 //! EDT's own kernels (`sweep_row`, Meijster's `envelope`) over its
@@ -127,6 +129,9 @@ fn rebuild(map: &mut EdtMap, pass: &Pass, cache: &mut SeparableCache) {
 type Mask = [u64; 8];
 /// Voxels to look at, per block.
 type Dirty = FxHashMap<BlockKey, Mask>;
+/// How far along the next pass each changed entry can matter, voxels:
+/// `sqrt(max - f)` for the smaller of its old and new values `f`.
+type Radii = FxHashMap<BlockKey, Box<[u16; BLOCK_VOXELS]>>;
 
 fn bit(m: &Mask, o: usize) -> bool {
     m[o / 64] >> (o % 64) & 1 == 1
@@ -138,10 +143,12 @@ fn run_passes(map: &mut EdtMap, pass: &Pass, cache: &mut SeparableCache, dirty: 
     let SeparableCache { g1, g2, .. } = cache;
     // Pass x: the rows through the obstacles that changed.
     let edt: &EdtMap = map;
-    let (dirty1, _) = drive(&mut Cached { map: g1, none: NONE }, 0, dirty, pass.reach, |s, seg, out| pass.row(edt, flips, seg, s, out), |_, _| 0.0);
+    let value1 = |o: i16| if o == NONE { UNREACHABLE_DIST_SQ } else { (i32::from(o) * i32::from(o)) as u32 };
+    let value2 = |o: [i16; 2]| if o[0] == NONE { UNREACHABLE_DIST_SQ } else { (i32::from(o[0]).pow(2) + i32::from(o[1]).pow(2)) as u32 };
+    let (dirty1, radii1, _) = drive(&mut Cached { map: g1, none: NONE }, 0, dirty, None, pass, |s, seg, out| pass.row(edt, flips, seg, s, out), value1, |_, _| 0.0);
     // Pass y: the columns through the g1 entries that changed.
     let g1: &FxHashMap<_, _> = g1;
-    let (dirty2, _) = drive(&mut Cached { map: g2, none: NONE2 }, 1, &dirty1, pass.reach, |s, seg, out| pass.column(g1, seg, s, out), |_, _| 0.0);
+    let (dirty2, radii2, _) = drive(&mut Cached { map: g2, none: NONE2 }, 1, &dirty1, Some(&radii1), pass, |s, seg, out| pass.column(g1, seg, s, out), value2, |_, _| 0.0);
     if !last {
         return IntegrateReport::default();
     }
@@ -149,7 +156,7 @@ fn run_passes(map: &mut EdtMap, pass: &Pass, cache: &mut SeparableCache, dirty: 
     let g2: &FxHashMap<_, _> = g2;
     let reach = f64::from(pass.max).sqrt();
     let truncated = |d: u32| if d == FAR_DIST_SQ { reach } else { f64::from(d).sqrt().min(reach) };
-    let (changed, stats) = drive(map, 2, &dirty2, pass.reach, |s, seg, out| pass.depth(g2, seg, s, out), |o: (u32, VoxelIndex), n: (u32, VoxelIndex)| {
+    let (changed, _, stats) = drive(map, 2, &dirty2, Some(&radii2), pass, |s, seg, out| pass.depth(g2, seg, s, out), |v: (u32, VoxelIndex)| v.0, |o: (u32, VoxelIndex), n: (u32, VoxelIndex)| {
         (truncated(n.0) - truncated(o.0)).abs()
     });
     let mut changed_blocks: Vec<BlockKey> = changed.into_keys().collect();
@@ -244,7 +251,7 @@ fn local(axis: usize, u: usize, v: usize, t: usize) -> usize {
 }
 
 /// A task's blocks: coordinate along the axis, block, voxels changed.
-type Owned<B> = Vec<(i32, Box<B>, Mask)>;
+type Owned<B> = Vec<(i32, Box<B>, Mask, Option<Box<[u16; BLOCK_VOXELS]>>)>;
 
 /// One segment of a line: its first voxel's coordinates (the `axis`
 /// coordinate unused) and the changes it covers, `lo..=hi` along `axis`.
@@ -262,17 +269,21 @@ struct Segment {
 /// `lo - reach` to `hi + reach`. Each task owns one line of blocks of
 /// `layer` along `axis`, so it writes them directly. Returns the voxels
 /// whose value changed, as masks, and what changed (`amount` of each).
+#[allow(clippy::too_many_arguments)]
 fn drive<L: Layer>(
     layer: &mut L,
     axis: usize,
     dirty: &Dirty,
-    reach: i32,
+    radii: Option<&Radii>,
+    pass: &Pass,
     scan: impl Fn(&mut Scratch, Segment, &mut Vec<L::Value>) + Sync,
+    value: impl Fn(L::Value) -> u32 + Sync,
     amount: impl Fn(L::Value, L::Value) -> f64 + Sync,
-) -> (Dirty, Stats)
+) -> (Dirty, Radii, Stats)
 where
     L::Block: Send,
 {
+    let reach = pass.reach;
     // Tasks: lines of blocks along `axis`, each with its dirty blocks in order.
     let mut keys: Vec<BlockKey> = dirty.keys().copied().collect();
     let [b, d] = others(axis);
@@ -297,26 +308,30 @@ where
                 for u in 0..8 {
                     let mut line = [0; 3];
                     (line[b], line[d]) = (ks[0].0[b] * side + u as i32, ks[0].0[d] * side + v as i32);
-                    let mut cur: Option<(i32, i32)> = None;
+                    // (last dirty position, lowest and highest output).
+                    let mut cur: Option<(i32, i32, i32)> = None;
+                    // A segment's outputs as `lo - reach ..= hi + reach`.
+                    let segment = |(_, a, b): (i32, i32, i32)| Segment { line, lo: a + reach, hi: b - reach };
                     for k in ks {
                         let m = &dirty[k];
+                        let rk = radii.and_then(|r| r.get(k));
                         for t in 0..8 {
-                            if bit(m, local(axis, u, v, t)) {
+                            let o = local(axis, u, v, t);
+                            if bit(m, o) {
                                 let p = k.0[axis] * side + t as i32;
+                                let w = rk.map_or(reach, |r| i32::from(r[o]));
                                 cur = match cur {
-                                    Some((lo, hi)) if p - hi <= 2 * reach + 1 => Some((lo, p)),
-                                    Some((lo, hi)) => {
-                                        segments.push(Segment { line, lo, hi });
-                                        Some((p, p))
+                                    Some((last, a, b)) if p - last <= 2 * reach + 1 => Some((p, a.min(p - w), b.max(p + w))),
+                                    Some(c) => {
+                                        segments.push(segment(c));
+                                        Some((p, p - w, p + w))
                                     }
-                                    None => Some((p, p)),
+                                    None => Some((p, p - w, p + w)),
                                 };
                             }
                         }
                     }
-                    if let Some((lo, hi)) = cur {
-                        segments.push(Segment { line, lo, hi });
-                    }
+                    segments.extend(cur.map(segment));
                 }
             }
             for s in &segments {
@@ -338,7 +353,7 @@ where
     let mut work: Vec<(Vec<Segment>, Owned<L::Block>)> = planned
         .into_iter()
         .map(|(segments, owned)| {
-            let blocks = owned.into_iter().map(|c| (c, taken.next().expect("one block per key"), [0u64; 8])).collect();
+            let blocks = owned.into_iter().map(|c| (c, taken.next().expect("one block per key"), [0u64; 8], None)).collect();
             (segments, blocks)
         })
         .collect();
@@ -363,11 +378,14 @@ where
                             j += 1;
                         }
                         let o = local(axis, u, v, p.rem_euclid(side) as usize);
-                        let (_, block, mask) = &mut blocks[j];
+                        let (_, block, mask, radius) = &mut blocks[j];
                         let old = L::read(block, o);
                         if old != new {
                             L::write(block, o, new);
                             mask[o / 64] |= 1 << (o % 64);
+                            let f = value(old).min(value(new));
+                            let w = if f > pass.max { 0 } else { isqrt(pass.max - f) };
+                            radius.get_or_insert_with(|| Box::new([0; BLOCK_VOXELS]))[o] = w;
                             st.changed += 1;
                             st.sum += amount(old, new);
                         }
@@ -379,19 +397,33 @@ where
         .collect();
     // Put the blocks back; the changed voxels are the next pass's dirty ones.
     let mut next = Dirty::default();
+    let mut next_radii = Radii::default();
     let mut back = Vec::with_capacity(all.len());
     for (r, (_, blocks)) in tasks.iter().zip(work) {
-        for (c, block, mask) in blocks {
+        for (c, block, mask, radius) in blocks {
             let key = key_of(r, c);
-            if mask.iter().any(|&w| w != 0) {
+            if let Some(radius) = radius {
                 next.insert(key, mask);
+                next_radii.insert(key, radius);
             }
             back.push((key, block));
         }
     }
     layer.restore(back);
     let total = stats.iter().fold(Stats::default(), |a, s| Stats { changed: a.changed + s.changed, sum: a.sum + s.sum, visited: a.visited + s.visited });
-    (next, total)
+    (next, next_radii, total)
+}
+
+/// `floor(sqrt(v))`, at most `u16::MAX`.
+fn isqrt(v: u32) -> u16 {
+    let mut r = f64::from(v).sqrt() as u64;
+    while r * r > u64::from(v) {
+        r -= 1;
+    }
+    while (r + 1) * (r + 1) <= u64::from(v) {
+        r += 1;
+    }
+    r.min(u64::from(u16::MAX)) as u16
 }
 
 /// Working memory of one thread.
