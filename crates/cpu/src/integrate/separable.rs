@@ -88,6 +88,7 @@ pub fn update_exact(map: &mut EdtMap, obstacles: &Obstacles<'_>, blocks: &[Block
     let edt: &EdtMap = map;
     let flips: Dirty = blocks
         .par_iter()
+        .with_min_len(MIN_TASKS)
         .filter_map(|&key| {
             let now = obstacles.block_mask(key);
             let old = edt.get(key);
@@ -124,6 +125,10 @@ fn rebuild(map: &mut EdtMap, pass: &Pass, cache: &mut SeparableCache) {
         .collect();
     run_passes(map, pass, cache, &obstacles, &Dirty::default(), false);
 }
+
+/// Fewest blocks or block lines one thread takes: small frames stay on one
+/// thread rather than pay for waking the others.
+const MIN_TASKS: usize = 16;
 
 /// One bit per voxel of a block, by offset.
 type Mask = [u64; 8];
@@ -287,7 +292,7 @@ where
     // Tasks: lines of blocks along `axis`, each with its dirty blocks in order.
     let mut keys: Vec<BlockKey> = dirty.keys().copied().collect();
     let [b, d] = others(axis);
-    keys.par_sort_unstable_by_key(|k| (k.0[b], k.0[d], k.0[axis]));
+    keys.sort_unstable_by_key(|k| (k.0[b], k.0[d], k.0[axis]));
     let mut tasks: Vec<Range<usize>> = Vec::new();
     let mut start = 0;
     for i in 1..=keys.len() {
@@ -300,6 +305,7 @@ where
     let side = BLOCK_SIDE;
     let planned: Vec<(Vec<Segment>, Vec<i32>)> = tasks
         .par_iter()
+        .with_min_len(MIN_TASKS)
         .map(|r| {
             let ks = &keys[r.clone()];
             let mut segments = Vec::new();
@@ -360,6 +366,7 @@ where
     // Scan, compare, write.
     let stats: Vec<Stats> = work
         .par_iter_mut()
+        .with_min_len(MIN_TASKS)
         .map_init(
             || (Scratch::default(), Vec::new()),
             |(s, out), (segments, blocks)| {
