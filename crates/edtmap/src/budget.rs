@@ -2,9 +2,9 @@
 //! so that a window too large for the machine is refused with an error
 //! rather than an abort in the middle of a frame.
 //!
-//! The figures are per voxel of the local window and of the region the
-//! global integration works on (the window grown by the cutoff on every
-//! side), from the buffers the stages hold; they were checked against the
+//! The figures are per voxel of the local window and, in wavefront mode,
+//! of the region the global integration works on (the window grown by the
+//! cutoff on every side), from the buffers the stages hold; they were checked against the
 //! peak resident memory of `edtmap run` (see `bench/memory.sh`).
 
 use edtmap_core::{LocalVolume, MemoryBudget};
@@ -27,6 +27,10 @@ const MAP_BYTES_PER_VOXEL: u64 = 4 + 16 + 9;
 /// words (3 × 8), a dirty flag (1), and the wavefront queues and packing
 /// tables, which measured up to 15 bytes per voxel.
 const REGION_BYTES_PER_VOXEL: u64 = 3 * 8 + 1 + 15;
+/// Bytes per window voxel, once mapped, of the exact mode's kept passes
+/// (offsets along x, and along x and y, 2 + 4); its working lists follow
+/// the frame's changes, and it has no integration region.
+const SEPARABLE_BYTES_PER_VOXEL: u64 = 2 + 4;
 
 /// The peak bytes a mapper with `params` holds for one frame, and the
 /// sizes that make it, for messages.
@@ -40,7 +44,14 @@ pub(crate) fn peak_bytes(params: &MapperParams) -> Result<(u64, String), MapErro
     if params.edt.unknown_as_occupied {
         per_window += UNKNOWN_BATCH_BYTES_PER_VOXEL;
     }
-    let bytes = window.saturating_mul(per_window).saturating_add(region.saturating_mul(REGION_BYTES_PER_VOXEL));
+    let region_bytes = match params.global.mode {
+        edtmap_core::IntegrationMode::Wavefront => region.saturating_mul(REGION_BYTES_PER_VOXEL),
+        edtmap_core::IntegrationMode::Exact => {
+            per_window += SEPARABLE_BYTES_PER_VOXEL;
+            0
+        }
+    };
+    let bytes = window.saturating_mul(per_window).saturating_add(region_bytes);
     let [nx, ny, nz] = volume.dims;
     let what = format!(
         "a local window of {nx}×{ny}×{nz} voxels ({} m at {} m voxels) with a {} m cutoff",
