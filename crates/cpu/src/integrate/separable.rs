@@ -247,6 +247,23 @@ fn others(axis: usize) -> [usize; 2] {
     }
 }
 
+/// Calls `f(key, offset, stride, range)` for each block that the `n`
+/// positions of `line` along `axis` from `first` cross: the block's key,
+/// the offset in it of the first of them, the offset step along `axis`,
+/// and which of the `n` positions lie in it.
+fn by_block(line: [i32; 3], axis: usize, first: i32, n: usize, mut f: impl FnMut(BlockKey, usize, usize, Range<usize>)) {
+    let stride = [1, 8, 64][axis];
+    let mut i = 0;
+    while i < n {
+        let p = first + i as i32;
+        let t = p.rem_euclid(BLOCK_SIDE) as usize;
+        let len = (BLOCK_SIDE as usize - t).min(n - i);
+        let v = at_axis(line, axis, p);
+        f(v.block(), v.offset_in_block(), stride, i..i + len);
+        i += len;
+    }
+}
+
 /// Offset in a block of the voxel at `t` along `axis` on line `(u, v)`.
 fn local(axis: usize, u: usize, v: usize, t: usize) -> usize {
     let mut c = [0; 3];
@@ -376,27 +393,26 @@ where
                     scan(s, *seg, out);
                     let first = seg.lo - reach;
                     st.visited += out.len();
-                    let (u, v) = ((seg.line[b].rem_euclid(side)) as usize, (seg.line[d].rem_euclid(side)) as usize);
                     let mut j = blocks.partition_point(|x| x.0 < first.div_euclid(side));
-                    for (i, &new) in out.iter().enumerate() {
-                        let p = first + i as i32;
-                        let c = p.div_euclid(side);
-                        while blocks[j].0 != c {
+                    by_block(seg.line, axis, first, out.len(), |key, o0, stride, range| {
+                        while blocks[j].0 != key.0[axis] {
                             j += 1;
                         }
-                        let o = local(axis, u, v, p.rem_euclid(side) as usize);
                         let (_, block, mask, radius) = &mut blocks[j];
-                        let old = L::read(block, o);
-                        if old != new {
-                            L::write(block, o, new);
-                            mask[o / 64] |= 1 << (o % 64);
-                            let f = value(old).min(value(new));
-                            let w = if f > pass.max { 0 } else { isqrt(pass.max - f) };
-                            radius.get_or_insert_with(|| Box::new([0; BLOCK_VOXELS]))[o] = w;
-                            st.changed += 1;
-                            st.sum += amount(old, new);
+                        for (k, &new) in out[range].iter().enumerate() {
+                            let o = o0 + k * stride;
+                            let old = L::read(block, o);
+                            if old != new {
+                                L::write(block, o, new);
+                                mask[o / 64] |= 1 << (o % 64);
+                                let f = value(old).min(value(new));
+                                let w = if f > pass.max { 0 } else { isqrt(pass.max - f) };
+                                radius.get_or_insert_with(|| Box::new([0; BLOCK_VOXELS]))[o] = w;
+                                st.changed += 1;
+                                st.sum += amount(old, new);
+                            }
                         }
-                    }
+                    });
                 }
                 st
             },
@@ -465,29 +481,6 @@ impl Scratch {
     }
 }
 
-/// Reads one layer along a line, one hash lookup per block.
-struct Reader<'a, T> {
-    map: &'a FxHashMap<BlockKey, Box<[T; BLOCK_VOXELS]>>,
-    key: Option<BlockKey>,
-    block: Option<&'a [T; BLOCK_VOXELS]>,
-    none: T,
-}
-
-impl<'a, T: Copy> Reader<'a, T> {
-    fn new(map: &'a FxHashMap<BlockKey, Box<[T; BLOCK_VOXELS]>>, none: T) -> Self {
-        Reader { map, key: None, block: None, none }
-    }
-
-    fn get(&mut self, v: VoxelIndex) -> T {
-        let k = v.block();
-        if self.key != Some(k) {
-            self.key = Some(k);
-            self.block = self.map.get(&k).map(|b| &**b);
-        }
-        self.block.map_or(self.none, |b| b[v.offset_in_block()])
-    }
-}
-
 /// The cutoff, as the passes use it.
 struct Pass {
     reach: i32,
@@ -508,18 +501,15 @@ impl Pass {
         let base = lo - 2 * r;
         let n = (hi + 2 * r - base + 1) as usize;
         s.flags.clear();
-        let (mut key, mut block, mut flip): (Option<BlockKey>, Option<&EdtBlock>, Option<&Mask>) = (None, None, None);
-        for i in 0..n {
-            let v = at_axis(line, 0, base + i as i32);
-            if key != Some(v.block()) {
-                key = Some(v.block());
-                block = edt.get(v.block());
-                flip = flips.get(&v.block());
+        s.flags.resize(n, false);
+        let flags = &mut s.flags;
+        by_block(line, 0, base, n, |key, o0, _, range| {
+            let (block, flip) = (edt.get(key), flips.get(&key));
+            for (k, i) in range.enumerate() {
+                let was = block.is_some_and(|b| b.dist_sq[o0 + k] == 0);
+                flags[i] = was != flip.is_some_and(|m| bit(m, o0 + k));
             }
-            let o = v.offset_in_block();
-            let was = block.is_some_and(|b| b.dist_sq[o] == 0);
-            s.flags.push(was != flip.is_some_and(|m| bit(m, o)));
-        }
+        });
         s.reset(n);
         let flags = &s.flags;
         sweep_row(|i| flags[i], 0, &mut s.out_f, &mut s.out_site);
@@ -535,13 +525,20 @@ impl Pass {
         let base = lo - 2 * r;
         let n = (hi + 2 * r - base + 1) as usize;
         s.reset(n);
-        let mut input = Reader::new(g1, NONE);
         s.off.clear();
-        for (i, f) in s.f.iter_mut().enumerate() {
-            let o = input.get(at_axis(line, 1, base + i as i32));
-            s.off.push([o, 0]);
-            *f = if o == NONE { UNREACHABLE_DIST_SQ } else { (i32::from(o) * i32::from(o)) as u32 };
-        }
+        s.off.resize(n, NONE2);
+        let (f, off) = (&mut s.f, &mut s.off);
+        by_block(line, 1, base, n, |key, o0, stride, range| {
+            let Some(block) = g1.get(&key) else {
+                f[range].fill(UNREACHABLE_DIST_SQ);
+                return;
+            };
+            for (k, i) in range.enumerate() {
+                let o = block[o0 + k * stride];
+                off[i] = [o, 0];
+                f[i] = if o == NONE { UNREACHABLE_DIST_SQ } else { (i32::from(o) * i32::from(o)) as u32 };
+            }
+        });
         s.scan();
         for i in r as usize..n - r as usize {
             out.push(if s.out_f[i] == UNREACHABLE_DIST_SQ || s.out_f[i] > self.max {
@@ -560,13 +557,20 @@ impl Pass {
         let base = lo - 2 * r;
         let n = (hi + 2 * r - base + 1) as usize;
         s.reset(n);
-        let mut input = Reader::new(g2, NONE2);
         s.off.clear();
-        for (i, f) in s.f.iter_mut().enumerate() {
-            let o = input.get(at_axis(line, 2, base + i as i32));
-            s.off.push(o);
-            *f = if o[0] == NONE { UNREACHABLE_DIST_SQ } else { (i32::from(o[0]).pow(2) + i32::from(o[1]).pow(2)) as u32 };
-        }
+        s.off.resize(n, NONE2);
+        let (f, off) = (&mut s.f, &mut s.off);
+        by_block(line, 2, base, n, |key, o0, stride, range| {
+            let Some(block) = g2.get(&key) else {
+                f[range].fill(UNREACHABLE_DIST_SQ);
+                return;
+            };
+            for (k, i) in range.enumerate() {
+                let o = block[o0 + k * stride];
+                off[i] = o;
+                f[i] = if o[0] == NONE { UNREACHABLE_DIST_SQ } else { (i32::from(o[0]).pow(2) + i32::from(o[1]).pow(2)) as u32 };
+            }
+        });
         s.scan();
         for i in r as usize..n - r as usize {
             out.push(if s.out_f[i] == UNREACHABLE_DIST_SQ || s.out_f[i] > self.max {
