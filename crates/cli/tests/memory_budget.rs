@@ -11,7 +11,8 @@ use std::time::{Duration, Instant};
 fn a_tiny_voxel_size_is_refused_at_once() {
     let dir = tempfile::tempdir().expect("tempdir");
     let start = Instant::now();
-    let run = run_in(dir.path(), &["run", "--scene", "uav_pillars", "--frames", "2", "--voxel-size", "0.01"], SHORT);
+    // 3·10⁸ voxels: some 14 GB in exact mode, more than the budget given.
+    let run = run_in(dir.path(), &["run", "--scene", "uav_pillars", "--frames", "2", "--voxel-size", "0.01", "--max-memory", "8G"], SHORT);
     assert_refused(&run, &["1000×1000×300", "--voxel-size", "--max-memory"]);
     assert!(start.elapsed() < Duration::from_secs(60), "refused before allocating");
     let run = run_in(dir.path(), &["run", "--scene", "uav_pillars", "--frames", "2", "--voxel-size", "0.001"], SHORT);
