@@ -6,19 +6,16 @@
 
 use edtmap_core::sensor::{DepthData, DepthImage, LaserScan, LidarScan, Measurement, PinholeCamera, RangeLimits, Sensor, SpinningLidar};
 use edtmap_core::{mark_misses, LocalVolume, Observations, ProjectJob, VoxelIndex, OBS_MISS, OBS_NONE};
+use edtmap_sim::conformance::SplitMix;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use std::f64::consts::{PI, TAU};
 
-/// SplitMix64: small, seeded, good enough for test cases.
-struct Rng(u64);
+/// The suite's SplitMix64, with the draws these cases need.
+struct Rng(SplitMix);
 
 impl Rng {
     fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
+        self.0.next_u64()
     }
 
     fn uniform(&mut self, lo: f64, hi: f64) -> f64 {
@@ -179,7 +176,7 @@ fn check(n: usize, case: &Case) -> usize {
 }
 
 fn check_cases(seed: u64, count: usize, make: fn(&mut Rng) -> Case) {
-    let mut rng = Rng(seed);
+    let mut rng = Rng(SplitMix(seed));
     let with_misses = (0..count).filter(|&n| check(n, &make(&mut rng)) > 0).count();
     // The cases must exercise the misses, not only empty volumes.
     assert!(with_misses * 3 > count, "{with_misses} of {count} cases had misses");

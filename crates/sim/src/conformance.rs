@@ -371,12 +371,14 @@ fn dist_sq(a: VoxelIndex, b: VoxelIndex) -> u64 {
     (0..3).map(|i| (i64::from(a.0[i]) - i64::from(b.0[i])).pow(2) as u64).sum()
 }
 
-/// SplitMix64: a small seeded generator, the same on every platform.
+/// SplitMix64: a small seeded generator, the same on every platform (for
+/// the suite and the tests that draw cases as it does).
 #[derive(Debug)]
-struct SplitMix(u64);
+pub struct SplitMix(pub u64);
 
 impl SplitMix {
-    fn next(&mut self) -> u64 {
+    /// The next 64 random bits.
+    pub fn next_u64(&mut self) -> u64 {
         self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
         let mut z = self.0;
         z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
@@ -385,7 +387,7 @@ impl SplitMix {
     }
 
     fn below(&mut self, n: i32) -> i32 {
-        (self.next() % n as u64) as i32
+        (self.next_u64() % n as u64) as i32
     }
 }
 

@@ -469,6 +469,27 @@ impl Scratch {
         }
     }
 
+    /// Reads `self.f.len()` entries of `layer` along `axis` from `base` on
+    /// `line` into `off` (as offsets along x and y) and `f` (their
+    /// squared distances, none for none).
+    fn gather<T: Copy>(&mut self, layer: &FxHashMap<BlockKey, Box<[T; BLOCK_VOXELS]>>, line: [i32; 3], axis: usize, base: i32, offsets: impl Fn(T) -> [i16; 2]) {
+        let n = self.f.len();
+        self.off.clear();
+        self.off.resize(n, NONE2);
+        let (f, off) = (&mut self.f, &mut self.off);
+        by_block(line, axis, base, n, |key, o0, stride, range| {
+            let Some(block) = layer.get(&key) else {
+                f[range].fill(UNREACHABLE_DIST_SQ);
+                return;
+            };
+            for (k, i) in range.enumerate() {
+                let o = offsets(block[o0 + k * stride]);
+                off[i] = o;
+                f[i] = if o[0] == NONE { UNREACHABLE_DIST_SQ } else { (i32::from(o[0]).pow(2) + i32::from(o[1]).pow(2)) as u32 };
+            }
+        });
+    }
+
     /// Meijster's envelope of `self.f` into `out_f` / `out_site` (local
     /// positions, ties to the lowest).
     fn scan(&mut self) {
@@ -525,20 +546,7 @@ impl Pass {
         let base = lo - 2 * r;
         let n = (hi + 2 * r - base + 1) as usize;
         s.reset(n);
-        s.off.clear();
-        s.off.resize(n, NONE2);
-        let (f, off) = (&mut s.f, &mut s.off);
-        by_block(line, 1, base, n, |key, o0, stride, range| {
-            let Some(block) = g1.get(&key) else {
-                f[range].fill(UNREACHABLE_DIST_SQ);
-                return;
-            };
-            for (k, i) in range.enumerate() {
-                let o = block[o0 + k * stride];
-                off[i] = [o, 0];
-                f[i] = if o == NONE { UNREACHABLE_DIST_SQ } else { (i32::from(o) * i32::from(o)) as u32 };
-            }
-        });
+        s.gather(g1, line, 1, base, |o| [o, 0]);
         s.scan();
         for i in r as usize..n - r as usize {
             out.push(if s.out_f[i] == UNREACHABLE_DIST_SQ || s.out_f[i] > self.max {
@@ -557,20 +565,7 @@ impl Pass {
         let base = lo - 2 * r;
         let n = (hi + 2 * r - base + 1) as usize;
         s.reset(n);
-        s.off.clear();
-        s.off.resize(n, NONE2);
-        let (f, off) = (&mut s.f, &mut s.off);
-        by_block(line, 2, base, n, |key, o0, stride, range| {
-            let Some(block) = g2.get(&key) else {
-                f[range].fill(UNREACHABLE_DIST_SQ);
-                return;
-            };
-            for (k, i) in range.enumerate() {
-                let o = block[o0 + k * stride];
-                off[i] = o;
-                f[i] = if o[0] == NONE { UNREACHABLE_DIST_SQ } else { (i32::from(o[0]).pow(2) + i32::from(o[1]).pow(2)) as u32 };
-            }
-        });
+        s.gather(g2, line, 2, base, |o| o);
         s.scan();
         for i in r as usize..n - r as usize {
             out.push(if s.out_f[i] == UNREACHABLE_DIST_SQ || s.out_f[i] > self.max {

@@ -58,7 +58,7 @@ pub struct ProjectionTally {
 }
 
 fn uniform(rng: &mut SplitMix, lo: f64, hi: f64) -> f64 {
-    lo + (hi - lo) * (rng.next() >> 11) as f64 / (1u64 << 53) as f64
+    lo + (hi - lo) * (rng.next_u64() >> 11) as f64 / (1u64 << 53) as f64
 }
 
 /// A volume of `dims` voxels of `voxel_size_m` somewhere near the world's
