@@ -43,6 +43,12 @@ impl CpuBackend {
     pub fn layout(&self) -> ScanLayout {
         self.edt.layout
     }
+
+    /// Bytes of what the exact mode keeps between frames (the separable
+    /// EDT's first two passes): not part of the map's own bytes.
+    pub fn kept_bytes(&self) -> usize {
+        self.separable.bytes()
+    }
 }
 
 /// A fresh backend with the same layout (caches are not cloned).
