@@ -67,15 +67,7 @@ impl Source {
             return Ok(Source::Ros(Box::new(replay)));
         }
         config.dataset.validate().map_err(in_dataset)?;
-        let (sensor, _) = config.mapper_params()?;
-        let opts = edtmap_io::dataset::DatasetOptions {
-            depth_scale_m: config.dataset.depth_scale_m,
-            range: sensor_range(&sensor),
-            intrinsics: config.sensor.camera.intrinsics(),
-            folder_intrinsics: config.dataset.intrinsics == IntrinsicsSource::Recording,
-            trajectory: config.dataset.trajectory.as_ref().map(|t| path.join(t)),
-            max_pose_gap_s: config.dataset.max_pose_gap_s,
-        };
+        let opts = config.dataset_options(path)?;
         let set = Dataset::open_with(path, &opts)?;
         for w in set.warnings() {
             tracing::warn!("{w}");
@@ -203,16 +195,6 @@ fn use_calibration(config: &mut Config, cal: &Calibration, origin: &str) {
     }
     let used = describe([s.fx, s.fy, s.cx, s.cy], s.width, s.height);
     tracing::info!("depth camera: {used} ({} {theirs})", cal.from);
-}
-
-/// The depth range a sensor accepts (for a depth folder's camera).
-fn sensor_range(sensor: &Sensor) -> edtmap::sensor::RangeLimits {
-    match sensor {
-        Sensor::Depth(c) => c.range,
-        Sensor::Lidar(l) => l.range,
-        Sensor::Points(r) => *r,
-        Sensor::Planar => edtmap::sensor::RangeLimits { min_m: 0.0, max_m: f32::MAX },
-    }
 }
 
 /// Refuses a recording whose sensor is not the config's.

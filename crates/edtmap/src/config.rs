@@ -150,4 +150,25 @@ impl Config {
         let params = MapperParams { voxel_size_m: occ.voxel_size_m, volume, occupancy: occ.probabilities.clone(), ogm, edt: self.edt, global, max_memory_bytes: self.memory.max_bytes()? };
         Ok((sensor, params))
     }
+
+    /// How to open the folder recording `dir` (depth scale, the sensor's
+    /// range, the camera and whose intrinsics win, the trajectory relative
+    /// to `dir`, the pose gap), from `[dataset]` and `[sensor]`.
+    pub fn dataset_options(&self, dir: &Path) -> Result<edtmap_io::dataset::DatasetOptions, MapError> {
+        let (sensor, _) = self.mapper_params()?;
+        let range = match sensor {
+            Sensor::Depth(c) => c.range,
+            Sensor::Lidar(l) => l.range,
+            Sensor::Points(r) => r,
+            Sensor::Planar => edtmap_core::sensor::RangeLimits { min_m: 0.0, max_m: f32::MAX },
+        };
+        Ok(edtmap_io::dataset::DatasetOptions {
+            depth_scale_m: self.dataset.depth_scale_m,
+            range,
+            intrinsics: self.sensor.camera.intrinsics(),
+            folder_intrinsics: self.dataset.intrinsics == IntrinsicsSource::Recording,
+            trajectory: self.dataset.trajectory.as_ref().map(|t| dir.join(t)),
+            max_pose_gap_s: self.dataset.max_pose_gap_s,
+        })
+    }
 }

@@ -4,8 +4,8 @@
 
 use crate::common::Error;
 use edtmap::config::{Config, IntrinsicsSource, SensorKind};
-use edtmap::sensor::{Frame, RangeLimits, Sensor};
-use edtmap_io::dataset::{Dataset, DatasetOptions};
+use edtmap::sensor::{Frame, Sensor};
+use edtmap_io::dataset::Dataset;
 use edtmap_sim::{Scene, SceneName, SceneOptions};
 use std::path::Path;
 
@@ -37,15 +37,7 @@ pub(crate) fn scene(name: &str, config: &Config, sensor: &Sensor, limit: Option<
 /// `edtmap run`; `config` is updated so that the mapper sees that camera.
 pub(crate) fn open_recording(dir: &Path, config: &mut Config) -> Result<Dataset, Error> {
     config.dataset.validate().map_err(|e| format!("[dataset]: {e}"))?;
-    let (sensor, _) = config.mapper_params()?;
-    let opts = DatasetOptions {
-        depth_scale_m: config.dataset.depth_scale_m,
-        range: sensor_range(&sensor),
-        intrinsics: config.sensor.camera.intrinsics(),
-        folder_intrinsics: config.dataset.intrinsics == IntrinsicsSource::Recording,
-        trajectory: config.dataset.trajectory.as_ref().map(|t| dir.join(t)),
-        max_pose_gap_s: config.dataset.max_pose_gap_s,
-    };
+    let opts = config.dataset_options(dir)?;
     let set = Dataset::open_with(dir, &opts)?;
     for w in set.warnings() {
         eprintln!("edt_changes: {}: {w}", dir.display());
@@ -70,14 +62,4 @@ pub(crate) fn recording(dir: &Path, set: &Dataset, sensor: &Sensor, limit: Optio
     let frames = (0..n).map(|i| set.frame(i).map_err(|e| format!("frame {i} of {}: {e}", dir.display()))).collect::<Result<Vec<_>, _>>()?;
     let name = dir.file_name().map_or_else(|| dir.display().to_string(), |n| n.to_string_lossy().into_owned());
     Ok(Frames { name, frames })
-}
-
-/// The depth range a sensor accepts (for a depth folder's camera).
-fn sensor_range(sensor: &Sensor) -> RangeLimits {
-    match sensor {
-        Sensor::Depth(c) => c.range,
-        Sensor::Lidar(l) => l.range,
-        Sensor::Points(r) => *r,
-        Sensor::Planar => RangeLimits { min_m: 0.0, max_m: f32::MAX },
-    }
 }
