@@ -2,7 +2,7 @@
 
 use crate::MapError;
 use edtmap_core::sensor::{Frame, Sensor};
-use edtmap_core::stages::{BatchEdtStage, IntegrationStage, OccupancyStage, OgmOptions};
+use edtmap_core::stages::{local_field, BatchEdtStage, IntegrationStage, OccupancyStage, OgmOptions};
 use edtmap_core::{
     read_states, Backend, BlockKey, EdtField, EdtParams, GlobalMap, GlobalParams, Grid3, IntegrateReport, IntegrationMode, LocalVolume, OccupancyParams, Region, VolumeParams,
     VoxelIndex, VoxelState, WaveCounts,
@@ -373,12 +373,8 @@ impl<B: Backend> Mapper<B> {
         }
         self.local.get_or_init(|| {
             let Some(volume) = &self.volume else { return EdtField::empty() };
-            let mut stage = BatchEdtStage::new(self.params.edt.unknown_as_occupied);
-            match stage.run(&mut CpuBackend::default(), &self.map, volume) {
-                Ok(()) => stage.into_local(),
-                // The window was checked when the mapper was made.
-                Err(_) => EdtField::empty(),
-            }
+            // The window was checked when the mapper was made.
+            local_field(&mut CpuBackend::default(), &self.map, volume, self.params.edt.unknown_as_occupied).unwrap_or_else(|_| EdtField::empty())
         })
     }
 }

@@ -31,14 +31,9 @@ impl BatchEdtStage {
 
     /// The exact EDT of `volume`'s obstacles in `map`, on `backend`.
     pub fn run<B: BatchEdt + ?Sized>(&mut self, backend: &mut B, map: &GlobalMap, volume: &LocalVolume) -> Result<(), BackendError> {
-        let region = volume.region();
-        let mut obstacles = map.obstacles();
-        obstacles.unknown_as_occupied = self.unknown_as_occupied;
-        fill_mask(&obstacles, &region, &mut self.mask)?;
-        backend.batch_edt(&self.mask, &mut self.field)?;
+        local_into(backend, map, volume, self.unknown_as_occupied, &mut self.mask, &mut self.field)?;
         if let Some((mask, field)) = &mut self.global {
-            fill_mask(&map.obstacles(), &region, mask)?;
-            backend.batch_edt(mask, field)?;
+            local_into(backend, map, volume, false, mask, field)?;
         }
         Ok(())
     }
@@ -48,13 +43,25 @@ impl BatchEdtStage {
         &self.field
     }
 
-    /// Gives the local field up.
-    pub fn into_local(self) -> EdtField {
-        self.field
-    }
-
     /// The field the global integration merges (unknown voxels free).
     pub fn for_global(&self) -> &EdtField {
         self.global.as_ref().map_or(&self.field, |(_, f)| f)
     }
+}
+
+/// The local field alone (what [`BatchEdtStage::local`] holds after a
+/// run), in fresh buffers: for a caller that needs it only sometimes.
+pub fn local_field<B: BatchEdt + ?Sized>(backend: &mut B, map: &GlobalMap, volume: &LocalVolume, unknown_as_occupied: bool) -> Result<EdtField, BackendError> {
+    let (mut mask, mut field) = (Grid3::default(), EdtField::empty());
+    local_into(backend, map, volume, unknown_as_occupied, &mut mask, &mut field)?;
+    Ok(field)
+}
+
+/// The batch EDT of `volume`'s obstacles, unknown voxels obstacles when
+/// `unknown_as_occupied`, into `field` through `mask`.
+fn local_into<B: BatchEdt + ?Sized>(backend: &mut B, map: &GlobalMap, volume: &LocalVolume, unknown_as_occupied: bool, mask: &mut Grid3<bool>, field: &mut EdtField) -> Result<(), BackendError> {
+    let mut obstacles = map.obstacles();
+    obstacles.unknown_as_occupied = unknown_as_occupied;
+    fill_mask(&obstacles, &volume.region(), mask)?;
+    backend.batch_edt(mask, field)
 }

@@ -9,6 +9,6 @@ pub mod exact;
 mod integration;
 mod occupancy;
 
-pub use batch::BatchEdtStage;
+pub use batch::{local_field, BatchEdtStage};
 pub use integration::IntegrationStage;
 pub use occupancy::{project_job, scatter_returns, Construction, OccupancyStage, OgmOptions};

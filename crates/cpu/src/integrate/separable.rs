@@ -90,15 +90,8 @@ pub fn update_exact(map: &mut EdtMap, obstacles: &Obstacles<'_>, blocks: &[Block
         .par_iter()
         .with_min_len(MIN_TASKS)
         .filter_map(|&key| {
-            let now = obstacles.block_mask(key);
-            let old = edt.get(key);
-            let mut mask = [0u64; 8];
-            for (o, &n) in now.iter().enumerate() {
-                if old.is_some_and(|b| b.dist_sq[o] == 0) != n {
-                    mask[o / 64] |= 1 << (o % 64);
-                }
-            }
-            mask.iter().any(|&w| w != 0).then_some((key, mask))
+            let (now, old) = (obstacles.block_mask(key), edt.get(key));
+            mask_where(|o| old.is_some_and(|b| b.dist_sq[o] == 0) != now[o]).map(|m| (key, m))
         })
         .collect();
     let report = run_passes(map, &pass, cache, &flips, &flips, true);
@@ -113,15 +106,7 @@ fn rebuild(map: &mut EdtMap, pass: &Pass, cache: &mut SeparableCache) {
         .iter()
         .collect::<Vec<_>>()
         .par_iter()
-        .filter_map(|&(key, block)| {
-            let mut mask = [0u64; 8];
-            for (o, &d) in block.dist_sq.iter().enumerate() {
-                if d == 0 {
-                    mask[o / 64] |= 1 << (o % 64);
-                }
-            }
-            mask.iter().any(|&w| w != 0).then_some((key, mask))
-        })
+        .filter_map(|&(key, block)| mask_where(|o| block.dist_sq[o] == 0).map(|m| (key, m)))
         .collect();
     run_passes(map, pass, cache, &obstacles, &Dirty::default(), false);
 }
@@ -137,6 +122,15 @@ type Dirty = FxHashMap<BlockKey, Mask>;
 /// How far along the next pass each changed entry can matter, voxels:
 /// `sqrt(max - f)` for the smaller of its old and new values `f`.
 type Radii = FxHashMap<BlockKey, Box<[u16; BLOCK_VOXELS]>>;
+
+/// The voxels of a block for which `f(offset)` holds, `None` for none.
+fn mask_where(f: impl Fn(usize) -> bool) -> Option<Mask> {
+    let mut mask = [0u64; 8];
+    for o in (0..BLOCK_VOXELS).filter(|&o| f(o)) {
+        mask[o / 64] |= 1 << (o % 64);
+    }
+    mask.iter().any(|&w| w != 0).then_some(mask)
+}
 
 fn bit(m: &Mask, o: usize) -> bool {
     m[o / 64] >> (o % 64) & 1 == 1
