@@ -319,6 +319,8 @@ where
         .with_min_len(MIN_TASKS)
         .map(|r| {
             let ks = &keys[r.clone()];
+            // Each block's masks, looked up once for its 64 lines.
+            let masks: Vec<(&Mask, Option<&[u16; BLOCK_VOXELS]>)> = ks.iter().map(|k| (&dirty[k], radii.and_then(|r| r.get(k)).map(|b| &**b))).collect();
             let mut segments = Vec::new();
             let mut owned = Vec::new();
             for v in 0..8 {
@@ -329,9 +331,7 @@ where
                     let mut cur: Option<(i32, i32, i32)> = None;
                     // A segment's outputs as `lo - reach ..= hi + reach`.
                     let segment = |(_, a, b): (i32, i32, i32)| Segment { line, lo: a + reach, hi: b - reach };
-                    for k in ks {
-                        let m = &dirty[k];
-                        let rk = radii.and_then(|r| r.get(k));
+                    for (k, &(m, rk)) in ks.iter().zip(&masks) {
                         for t in 0..8 {
                             let o = local(axis, u, v, t);
                             if bit(m, o) {
