@@ -9,6 +9,7 @@ use crate::{BlockKey, CoreError, VoxelIndex, VoxelState, BLOCK_VOXELS};
 use serde::{Deserialize, Serialize};
 use rustc_hash::FxHashMap as HashMap;
 use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
+use std::sync::Arc;
 
 /// Log-odds of a voxel never observed.
 pub const UNOBSERVED: f32 = f32::NEG_INFINITY;
@@ -132,9 +133,18 @@ impl Default for OccupancyBlock {
 ///
 /// Every change moves its [`Self::stamp`] on, so whatever a backend keeps
 /// of the map can tell whether it is still current.
+///
+/// Blocks are shared copy-on-write: a clone copies one pointer per block,
+/// and a block is copied only when one of the maps sharing it writes to it.
+/// A live node hands a clone to its queries after every frame (a
+/// consistent snapshot for the price of the block table) while the next
+/// frame goes on writing; a map nobody shares writes in place, as before.
+/// The box inside the `Arc` lets [`Self::take`] hand an unshared block out
+/// without copying it.
 #[derive(Debug)]
 pub struct BlockMap<B> {
-    blocks: HashMap<BlockKey, Box<B>>,
+    #[allow(clippy::redundant_allocation)]
+    blocks: HashMap<BlockKey, Arc<Box<B>>>,
     stamp: MapStamp,
 }
 
@@ -170,6 +180,30 @@ impl<B: Default> Default for BlockMap<B> {
 /// The global occupancy map.
 pub type OccupancyMap = BlockMap<OccupancyBlock>;
 
+impl<B: Default + Clone> BlockMap<B> {
+    /// The block at `key`, allocated if missing (copied first when a clone
+    /// of the map shares it).
+    pub fn get_or_insert(&mut self, key: BlockKey) -> &mut B {
+        self.stamp.revision += 1;
+        let block: &mut Box<B> = Arc::make_mut(self.blocks.entry(key).or_default());
+        block
+    }
+
+    /// Takes the blocks at `keys` out of the map (allocating missing ones,
+    /// copying shared ones) so they can be updated in parallel; give them
+    /// back with [`Self::restore`].
+    pub fn take(&mut self, keys: &[BlockKey]) -> Vec<(BlockKey, Box<B>)> {
+        self.stamp.revision += 1;
+        keys.iter().map(|&k| (k, self.blocks.remove(&k).map(|b| Arc::try_unwrap(b).unwrap_or_else(|shared| (*shared).clone())).unwrap_or_default())).collect()
+    }
+
+    /// Puts back blocks taken with [`Self::take`].
+    pub fn restore(&mut self, blocks: Vec<(BlockKey, Box<B>)>) {
+        self.stamp.revision += 1;
+        self.blocks.extend(blocks.into_iter().map(|(k, b)| (k, Arc::new(b))));
+    }
+}
+
 impl<B: Default> BlockMap<B> {
     /// An empty map.
     pub fn new() -> Self {
@@ -193,31 +227,12 @@ impl<B: Default> BlockMap<B> {
 
     /// The block at `key`, if allocated.
     pub fn get(&self, key: BlockKey) -> Option<&B> {
-        self.blocks.get(&key).map(|b| &**b)
-    }
-
-    /// The block at `key`, allocated if missing.
-    pub fn get_or_insert(&mut self, key: BlockKey) -> &mut B {
-        self.stamp.revision += 1;
-        self.blocks.entry(key).or_default()
-    }
-
-    /// Takes the blocks at `keys` out of the map (allocating missing ones)
-    /// so they can be updated in parallel; give them back with [`Self::restore`].
-    pub fn take(&mut self, keys: &[BlockKey]) -> Vec<(BlockKey, Box<B>)> {
-        self.stamp.revision += 1;
-        keys.iter().map(|&k| (k, self.blocks.remove(&k).unwrap_or_default())).collect()
-    }
-
-    /// Puts back blocks taken with [`Self::take`].
-    pub fn restore(&mut self, blocks: Vec<(BlockKey, Box<B>)>) {
-        self.stamp.revision += 1;
-        self.blocks.extend(blocks);
+        self.blocks.get(&key).map(|b| &***b)
     }
 
     /// Every allocated block, in no particular order.
     pub fn iter(&self) -> impl Iterator<Item = (BlockKey, &B)> {
-        self.blocks.iter().map(|(k, b)| (*k, &**b))
+        self.blocks.iter().map(|(k, b)| (*k, &***b))
     }
 
     /// The lowest and highest block key on each axis, if any block is
@@ -273,5 +288,26 @@ mod tests {
         m.restore(taken);
         assert_eq!(m.len(), 2);
         assert_eq!(m.log_odds(BlockKey([0, 0, 0]).voxel(3)), 1.0);
+    }
+
+    #[test]
+    fn a_clone_is_a_snapshot_that_later_writes_leave_alone() {
+        let (a, b) = (BlockKey([0, 0, 0]), BlockKey([2, -1, 5]));
+        let mut m = OccupancyMap::new();
+        m.get_or_insert(a).log_odds[3] = 1.0;
+        m.get_or_insert(b).log_odds[7] = -2.0;
+        let snapshot = m.clone();
+        // Written through both paths a frame uses: in place and taken out.
+        m.get_or_insert(a).log_odds[3] = 5.0;
+        let mut taken = m.take(&[b]);
+        taken[0].1.log_odds[7] = 9.0;
+        m.restore(taken);
+        assert_eq!((m.log_odds(a.voxel(3)), m.log_odds(b.voxel(7))), (5.0, 9.0));
+        assert_eq!((snapshot.log_odds(a.voxel(3)), snapshot.log_odds(b.voxel(7))), (1.0, -2.0));
+        assert_ne!(snapshot.stamp().map, m.stamp().map);
+        // Once the snapshot is gone the blocks are unshared again: writes go in place.
+        drop(snapshot);
+        let before: *const OccupancyBlock = m.get(a).expect("allocated");
+        assert!(std::ptr::eq(before, m.get_or_insert(a)));
     }
 }

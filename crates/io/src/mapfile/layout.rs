@@ -28,7 +28,7 @@ pub(super) struct ParamsText {
 }
 
 /// A block type stored in a section: its name and raw little-endian payload.
-pub(super) trait Payload: Default {
+pub(super) trait Payload: Default + Clone {
     /// Name of the section, for messages.
     const SECTION: &'static str;
     /// Bytes of one block's payload (the key not included).
