@@ -21,11 +21,13 @@
 mod dataset;
 mod limits;
 mod memory;
+mod ros;
 mod sensor;
 
 pub use dataset::{DatasetSection, IntrinsicsSource, OnError, RECORDING_MAX_POSE_GAP_S};
 
 pub use memory::MemorySection;
+pub use ros::{OccupiedScope, PoseType, RosSection, ServiceMapping};
 pub use sensor::{CameraFields, ConstructionName, LidarFields, SensorKind, SensorSection};
 
 use crate::{MapError, MapperParams};
@@ -60,6 +62,9 @@ pub struct Config {
     /// The memory budget.
     #[serde(default)]
     pub memory: MemorySection,
+    /// The live ROS 2 node (`edtmap node`).
+    #[serde(default)]
+    pub ros: RosSection,
 }
 
 /// `[scene]`: which built-in scene and how to simulate it.

@@ -92,6 +92,30 @@ impl Trajectory {
         Trajectory { stamps, poses }
     }
 
+    /// Adds one sample, as a live stream does: appended when newest (the
+    /// usual case), put in its place otherwise; a sample at an existing
+    /// time replaces it. A non-finite time is ignored.
+    pub fn push(&mut self, t: f64, pose: Isometry3<f64>) {
+        if !t.is_finite() {
+            return;
+        }
+        let at = self.stamps.partition_point(|&s| s < t);
+        if self.stamps.get(at) == Some(&t) {
+            self.poses[at] = pose;
+        } else {
+            self.stamps.insert(at, t);
+            self.poses.insert(at, pose);
+        }
+    }
+
+    /// Drops the samples before `t` but the last of them, so a pose at `t`
+    /// or later can still be interpolated: bounds a live stream's history.
+    pub fn forget_before(&mut self, t: f64) {
+        let keep_from = self.stamps.partition_point(|&s| s < t).saturating_sub(1);
+        self.stamps.drain(..keep_from);
+        self.poses.drain(..keep_from);
+    }
+
     /// Number of samples.
     pub fn len(&self) -> usize {
         self.stamps.len()

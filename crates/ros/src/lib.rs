@@ -9,7 +9,9 @@
 pub mod bag;
 mod convert;
 pub mod mcap;
+mod poses;
 pub mod msg;
+pub mod node;
 #[cfg(test)]
 mod msg_tests;
 pub mod record;

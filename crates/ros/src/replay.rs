@@ -12,11 +12,10 @@
 use super::bag::BagReader;
 use super::mcap::McapReader;
 use super::msg::{CameraInfo, Message, StampedTransform};
-use super::tf::TfBuffer;
+use super::poses::{measurement, Poses};
 use super::{RawMessage, TopicInfo};
-use edtmap_io::trajectory::Trajectory;
 use edtmap_io::IoError;
-use edtmap_core::sensor::{Frame, Measurement};
+use edtmap_core::sensor::Frame;
 use nalgebra::Isometry3;
 use std::io::Read;
 use std::path::{Path, PathBuf};
@@ -117,14 +116,6 @@ impl Container {
     }
 }
 
-/// Where the robot's pose comes from.
-enum Poses {
-    /// `T_world_body` samples of one topic.
-    Topic(Trajectory),
-    /// The transform tree, with the fixed frame.
-    Tf(TfBuffer, Option<String>),
-}
-
 const SENSOR_TYPES: [&str; 3] = ["sensor_msgs/PointCloud2", "sensor_msgs/Image", "sensor_msgs/LaserScan"];
 const POSE_TYPES: [&str; 5] = ["nav_msgs/Odometry", "geometry_msgs/PoseStamped", "geometry_msgs/TransformStamped", "tf2_msgs/TFMessage", "tf/tfMessage"];
 
@@ -189,7 +180,7 @@ impl RosReplay {
             sensor_type: sensor.msg_type.clone(),
             sensor_messages: sensor.messages,
             opts: opts.clone(),
-            poses: Poses::Topic(Trajectory::default()),
+            poses: Poses::new(is_tf, opts),
             camera: None,
             warnings: Vec::new(),
             container,
@@ -200,8 +191,8 @@ impl RosReplay {
 
     /// One pass over the pose, static-tf and camera-info topics.
     fn read_poses(&mut self, topics: &[String], is_tf: bool) -> Result<(), IoError> {
-        let mut transforms: Vec<(StampedTransform, bool)> = Vec::new();
         let mut undecodable = 0usize;
+        let mut poses = Poses::new(is_tf, &self.opts);
         for item in self.container.messages(topics) {
             let raw = match item {
                 Ok(raw) => raw,
@@ -212,13 +203,12 @@ impl RosReplay {
                 }
             };
             match Message::decode(&raw.msg_type, &raw.data, raw.encoding).map(|m| with_log_time(m, raw.log_time_ns)) {
-                Ok(Message::Tf(ts)) => {
-                    let is_static = raw.topic == self.opts.static_tf_topic && raw.topic != self.opts.pose_topic;
-                    transforms.extend(ts.into_iter().map(|t| (t, is_static)));
-                }
-                Ok(Message::Odometry(t) | Message::PoseStamped(t) | Message::TransformStamped(t)) => transforms.push((t, false)),
                 Ok(Message::CameraInfo(info)) => {
                     self.camera.get_or_insert(info);
+                }
+                Ok(msg @ (Message::Tf(_) | Message::Odometry(_) | Message::PoseStamped(_) | Message::TransformStamped(_))) => {
+                    let is_static = raw.topic == self.opts.static_tf_topic && raw.topic != self.opts.pose_topic;
+                    poses.add(&msg, is_static, &self.opts).map_err(|e| bad(&self.path, e))?;
                 }
                 Ok(_) => {}
                 Err(e) => {
@@ -230,24 +220,10 @@ impl RosReplay {
                 }
             }
         }
-        self.poses = if is_tf {
-            Poses::Tf(TfBuffer::new(transforms.iter().map(|(t, s)| (t, *s))), self.opts.world_frame.clone())
-        } else {
-            if let Some(world) = &self.opts.world_frame {
-                let world = world.trim_start_matches('/');
-                if let Some((t, _)) = transforms.iter().find(|(t, _)| t.header.frame_id.trim_start_matches('/') != world) {
-                    return Err(bad(&self.path, format!("pose topic {} gives poses in frame {}, the config's world_frame is {world}", self.opts.pose_topic, t.header.frame_id)));
-                }
-            }
-            Poses::Topic(Trajectory::new(transforms.into_iter().map(|(t, _)| (t.header.stamp_s(), t.transform)).collect()))
-        };
-        let empty = match &self.poses {
-            Poses::Topic(t) => t.is_empty(),
-            Poses::Tf(tf, _) => tf.edges() == 0,
-        };
-        if empty {
+        if poses.is_empty() {
             return Err(bad(&self.path, format!("pose topic {} holds no readable pose", self.opts.pose_topic)));
         }
+        self.poses = poses;
         Ok(())
     }
 
@@ -285,40 +261,13 @@ impl RosReplay {
         &self.warnings
     }
 
-    /// `T_world_sensor` at `stamp_s` for a message in `frame_id`.
-    fn sensor_pose(&self, stamp_s: f64, frame_id: &str) -> Result<Isometry3<f64>, String> {
-        let gap = self.opts.max_pose_gap_s;
-        let t_world_body = match &self.poses {
-            Poses::Topic(traj) => traj.pose_at(stamp_s, gap).map_err(|e| format!("pose topic {}: {e}", self.opts.pose_topic))?,
-            Poses::Tf(tf, world) => {
-                let body = self.opts.body_frame.as_deref().unwrap_or(frame_id);
-                let world = match world {
-                    Some(w) => w.clone(),
-                    None => tf.root_of(body).ok_or_else(|| format!("frame {body:?} is not in the transform tree (frames known: {})", tf.frames().join(", ")))?,
-                };
-                tf.lookup(&world, body, stamp_s, gap)?
-            }
-        };
-        Ok(t_world_body * self.opts.t_body_sensor)
-    }
-
-    /// The measurement of a decoded sensor message, with its stamp and frame.
-    fn measurement(&self, msg: Message) -> Result<(Measurement, i64, String), String> {
-        match msg {
-            Message::PointCloud2(m) => Ok((Measurement::Points(m.xyz()?), m.header.stamp_ns, m.header.frame_id)),
-            Message::Image(m) => Ok((Measurement::Depth(m.depth(self.opts.depth_scale_m)?), m.header.stamp_ns, m.header.frame_id)),
-            Message::LaserScan(m) => Ok((Measurement::Scan(m.scan()?), m.header.stamp_ns, m.header.frame_id)),
-            other => Err(format!("{} is not a sensor message", other.type_name())),
-        }
-    }
-
     fn frame(&self, raw: &RawMessage, index: usize) -> Result<Frame, FrameError> {
         let fail = |stamp_s: Option<f64>, reason: String| FrameError { file: self.path.clone(), topic: raw.topic.clone(), index, stamp_s, reason, fatal: false };
         let msg = Message::decode(&raw.msg_type, &raw.data, raw.encoding).map_err(|e| fail(None, e))?;
-        let (measurement, stamp_ns, frame_id) = self.measurement(msg).map_err(|e| fail(None, e))?;
+        let (measurement, stamp_ns, frame_id) = measurement(msg, self.opts.depth_scale_m).map_err(|e| fail(None, e))?;
         // Recorders that leave stamps empty: the time the message was logged.
         let stamp_s = if stamp_ns == 0 { raw.log_time_ns as f64 * 1e-9 } else { stamp_ns as f64 * 1e-9 };
-        let t_world_sensor = self.sensor_pose(stamp_s, &frame_id).map_err(|e| fail(Some(stamp_s), e))?;
+        let t_world_sensor = self.poses.sensor_pose(stamp_s, &frame_id, &self.opts).map_err(|e| fail(Some(stamp_s), e))?;
         Ok(Frame { stamp_s, t_world_sensor, measurement })
     }
 

@@ -44,6 +44,36 @@ impl TfBuffer {
         TfBuffer { moving, fixed }
     }
 
+    /// Adds one transform as it arrives (`is_static` for `/tf_static`).
+    pub fn insert(&mut self, t: &StampedTransform, is_static: bool) {
+        let key = (frame_name(&t.header.frame_id), frame_name(&t.child_frame));
+        if is_static {
+            self.fixed.insert(key, t.transform);
+        } else {
+            self.moving.entry(key).or_default().push(t.header.stamp_s(), t.transform);
+        }
+    }
+
+    /// Drops moving samples older than `t` (keeping one before it on every
+    /// edge), to bound a live buffer's history.
+    pub fn forget_before(&mut self, t: f64) {
+        for traj in self.moving.values_mut() {
+            traj.forget_before(t);
+        }
+    }
+
+    /// The latest time every moving edge of the chain from `target` to
+    /// `source` has a sample at; `None` when there is no chain. Static
+    /// chains hold at every time (`f64::INFINITY`).
+    pub fn latest_common(&self, target: &str, source: &str) -> Option<f64> {
+        let (target, source) = (frame_name(target), frame_name(source));
+        if target == source {
+            return Some(f64::INFINITY);
+        }
+        let chain = self.path(&target, &source)?;
+        Some(chain.iter().filter_map(|(p, c, _)| self.moving.get(&(p.clone(), c.clone()))).filter_map(|t| t.span().map(|s| s.1)).fold(f64::INFINITY, f64::min))
+    }
+
     /// The root of the tree `frame` is in: the ancestor with no parent;
     /// `None` when no edge names `frame`.
     pub fn root_of(&self, frame: &str) -> Option<String> {
@@ -63,6 +93,11 @@ impl TfBuffer {
     /// Whether an edge names `frame` (without a leading `/`).
     fn knows(&self, frame: &str) -> bool {
         self.moving.keys().chain(self.fixed.keys()).any(|(p, c)| p == frame || c == frame)
+    }
+
+    /// Number of moving samples held, all edges together.
+    pub fn samples(&self) -> usize {
+        self.moving.values().map(Trajectory::len).sum()
     }
 
     /// Number of edges.

@@ -122,14 +122,21 @@ impl DatasetSection {
 
     /// `T_body_sensor` from `sensor_in_body`.
     pub fn t_body_sensor(&self) -> Result<Isometry3<f64>, CoreError> {
-        let Some([x, y, z, qx, qy, qz, qw]) = self.sensor_in_body else {
-            return Ok(Isometry3::identity());
-        };
-        let q = Quaternion::new(qw, qx, qy, qz);
-        let finite = [x, y, z, qx, qy, qz, qw].iter().all(|v| v.is_finite());
-        if !finite || (q.norm() - 1.0).abs() > 1e-3 {
-            return Err(invalid("sensor_in_body", format!("{:?}", [x, y, z, qx, qy, qz, qw]), "must be [x, y, z, qx, qy, qz, qw] with a unit quaternion"));
-        }
-        Ok(Isometry3::from_parts(Translation3::new(x, y, z), UnitQuaternion::from_quaternion(q)))
+        sensor_in_body("sensor_in_body", self.sensor_in_body)
     }
+}
+
+/// `T_body_sensor` from `[x, y, z, qx, qy, qz, qw]` (identity when absent),
+/// the quaternion checked for unit length; `field` names it in errors.
+pub(super) fn sensor_in_body(field: &'static str, pose: Option<[f64; 7]>) -> Result<Isometry3<f64>, CoreError> {
+    let Some([x, y, z, qx, qy, qz, qw]) = pose else {
+        return Ok(Isometry3::identity());
+    };
+    let q = Quaternion::new(qw, qx, qy, qz);
+    let finite = [x, y, z, qx, qy, qz, qw].iter().all(|v| v.is_finite());
+    if !finite || (q.norm() - 1.0).abs() > 1e-3 {
+        return Err(invalid(field, format!("{:?}", [x, y, z, qx, qy, qz, qw]), "must be [x, y, z, qx, qy, qz, qw] with a unit quaternion"));
+    }
+    Ok(Isometry3::from_parts(Translation3::new(x, y, z), UnitQuaternion::from_quaternion(q)))
+
 }

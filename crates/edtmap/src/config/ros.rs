@@ -1,0 +1,224 @@
+//! `[ros]`: what `edtmap node` subscribes to and publishes, in the
+//! vocabulary of `[dataset]` (the replay of a recording).
+
+use super::limits::{Limit, DEPTH_SCALE_M, OFFSET_M, POSE_GAP_S, WORLD_M};
+use edtmap_core::CoreError;
+use nalgebra::Isometry3;
+use serde::Deserialize;
+use std::path::PathBuf;
+
+/// How long a sensor message may wait for its pose, seconds.
+const POSE_WAIT_S: Limit = Limit { lo: 0.0, lo_open: false, hi: 60.0, hi_open: false, accepted: "must be finite, in [0, 60] seconds" };
+/// Output rates, hertz (0: never).
+const RATE_HZ: Limit = Limit { lo: 0.0, lo_open: false, hi: 1000.0, hi_open: false, accepted: "must be finite, in [0, 1000] Hz (0: never)" };
+/// How much transform history a node keeps, seconds.
+const TF_HISTORY_S: Limit = Limit { lo: 0.1, lo_open: false, hi: 3600.0, hi_open: false, accepted: "must be finite, in [0.1, 3600] seconds" };
+
+/// Which message type carries the poses when `pose_topic` is not `/tf`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PoseType {
+    /// `nav_msgs/Odometry`.
+    #[default]
+    Odometry,
+    /// `geometry_msgs/PoseStamped`.
+    PoseStamped,
+    /// `geometry_msgs/TransformStamped`.
+    TransformStamped,
+    /// `tf2_msgs/TFMessage`: the transform tree (with `static_tf_topic`).
+    Tf,
+}
+
+/// Which request/reply layout services use: the two RMW implementations
+/// of ROS 2 Humble and Jazzy put the request id in different places.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ServiceMapping {
+    /// `rmw_cyclonedds_cpp`: the id is a 16-byte header of the sample.
+    #[default]
+    Cyclone,
+    /// `rmw_fastrtps_cpp` (ROS 2's default RMW): the id is in the RTPS
+    /// inline QoS.
+    Enhanced,
+}
+
+/// What `/edtmap/occupied_pointcloud` covers.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum OccupiedScope {
+    /// The current local volume.
+    #[default]
+    Window,
+    /// The whole map.
+    Map,
+}
+
+/// `[ros]`: the live node's topics, frames and outputs.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RosSection {
+    /// Node namespace (`/` or `/robot1`); outputs go to
+    /// `NAMESPACE/edtmap/...`.
+    pub namespace: String,
+    /// The sensor topic: `PointCloud2` for `[sensor] kind = "points"` or
+    /// `"lidar"`, `Image` (`16UC1` or `32FC1`) for `"depth"`, `LaserScan`
+    /// for `"planar"`.
+    pub sensor_topic: String,
+    /// Depth cameras: the intrinsics (default: the image topic's sibling
+    /// `camera_info`).
+    pub camera_info_topic: Option<String>,
+    /// Where poses come from: `/tf` (the default), or a topic of
+    /// `pose_type`.
+    pub pose_topic: String,
+    /// The message type on `pose_topic` when it is not `/tf`.
+    pub pose_type: Option<PoseType>,
+    /// With `/tf`: the static transforms' topic.
+    pub static_tf_topic: String,
+    /// The fixed frame; outputs are published in it. With `/tf` the
+    /// default is the root of the tree, with a pose topic the poses' frame.
+    pub world_frame: Option<String>,
+    /// With `/tf`: the robot frame the extrinsics are from (default: the
+    /// sensor message's own frame, so the tree supplies the extrinsics).
+    pub body_frame: Option<String>,
+    /// The sensor's pose on the robot, `T_body_sensor`, as `[x, y, z, qx,
+    /// qy, qz, qw]`; identity by default.
+    pub sensor_in_body: Option<[f64; 7]>,
+    /// Largest time between two poses a frame is interpolated across, seconds.
+    pub max_pose_gap_s: f64,
+    /// How long a sensor message waits for a pose at its stamp, seconds;
+    /// then it is dropped and counted (`missing transform`).
+    pub pose_wait_s: f64,
+    /// Transform history kept, seconds.
+    pub tf_history_s: f64,
+    /// Metres per unit of 16-bit depth images.
+    pub depth_scale_m: f32,
+    /// `/edtmap/esdf_pointcloud` rate, Hz (0: never).
+    pub esdf_pointcloud_hz: f64,
+    /// `/edtmap/occupied_pointcloud` rate, Hz (0: never).
+    pub occupied_pointcloud_hz: f64,
+    /// What the occupied cloud covers: `window` or `map`.
+    pub occupied_scope: OccupiedScope,
+    /// `/edtmap/distance_slice` and `/edtmap/occupancy_grid` rate, Hz (0: never).
+    pub slice_hz: f64,
+    /// Height of the slice, metres, world frame.
+    pub slice_height_m: f64,
+    /// Service request layout: `cyclone` (rmw_cyclonedds) or `enhanced`
+    /// (rmw_fastrtps).
+    pub service_mapping: ServiceMapping,
+    /// Where to save the map when the node stops (SIGINT); nothing by default.
+    pub save_on_exit: Option<PathBuf>,
+    /// Only talk over loopback (127.0.0.1), with unicast discovery: for
+    /// tests and machines without multicast.
+    pub localhost_only: bool,
+}
+
+impl Default for RosSection {
+    fn default() -> Self {
+        RosSection {
+            namespace: "/".into(),
+            sensor_topic: "/points".into(),
+            camera_info_topic: None,
+            pose_topic: "/tf".into(),
+            pose_type: None,
+            static_tf_topic: "/tf_static".into(),
+            world_frame: None,
+            body_frame: None,
+            sensor_in_body: None,
+            max_pose_gap_s: super::RECORDING_MAX_POSE_GAP_S,
+            pose_wait_s: 0.5,
+            tf_history_s: 10.0,
+            depth_scale_m: 0.001,
+            esdf_pointcloud_hz: 2.0,
+            occupied_pointcloud_hz: 1.0,
+            occupied_scope: OccupiedScope::Window,
+            slice_hz: 2.0,
+            slice_height_m: 1.0,
+            service_mapping: ServiceMapping::Cyclone,
+            save_on_exit: None,
+            localhost_only: false,
+        }
+    }
+}
+
+fn invalid(field: &'static str, value: String, reason: &'static str) -> CoreError {
+    CoreError::InvalidParam { field, value, reason }
+}
+
+/// A ROS name: `/` or `/a/b` style, letters, digits and underscores.
+fn check_name(field: &'static str, name: &str, absolute: bool) -> Result<(), CoreError> {
+    let body = name.strip_prefix('/').unwrap_or(name);
+    let word = |p: &str| !p.is_empty() && !p.starts_with(|c: char| c.is_ascii_digit()) && p.chars().all(|c| c.is_ascii_alphanumeric() || c == '_');
+    let ok = (absolute && name == "/") || ((!absolute || name.starts_with('/')) && body.split('/').all(word));
+    if ok {
+        Ok(())
+    } else {
+        Err(invalid(field, format!("{name:?}"), "must be a ROS name: '/'-separated words of letters, digits and underscores, not starting with a digit"))
+    }
+}
+
+impl RosSection {
+    /// Checks every value.
+    pub fn validate(&self) -> Result<(), CoreError> {
+        check_name("namespace", &self.namespace, true)?;
+        check_name("sensor_topic", &self.sensor_topic, false)?;
+        check_name("pose_topic", &self.pose_topic, false)?;
+        check_name("static_tf_topic", &self.static_tf_topic, false)?;
+        if let Some(t) = &self.camera_info_topic {
+            check_name("camera_info_topic", t, false)?;
+        }
+        POSE_GAP_S.f64("max_pose_gap_s", self.max_pose_gap_s)?;
+        POSE_WAIT_S.f64("pose_wait_s", self.pose_wait_s)?;
+        TF_HISTORY_S.f64("tf_history_s", self.tf_history_s)?;
+        DEPTH_SCALE_M.f32("depth_scale_m", self.depth_scale_m)?;
+        RATE_HZ.f64("esdf_pointcloud_hz", self.esdf_pointcloud_hz)?;
+        RATE_HZ.f64("occupied_pointcloud_hz", self.occupied_pointcloud_hz)?;
+        RATE_HZ.f64("slice_hz", self.slice_hz)?;
+        WORLD_M.f64("slice_height_m", self.slice_height_m)?;
+        if let Some(pose) = &self.sensor_in_body {
+            OFFSET_M.all("sensor_in_body", &pose[..3])?;
+        }
+        if self.pose_type.is_some_and(|t| t != PoseType::Tf) && self.pose_topic.trim_start_matches('/') == "tf" {
+            return Err(invalid("pose_type", format!("{:?}", self.pose_type), "must be \"tf\" (or left out) when pose_topic is /tf"));
+        }
+        self.t_body_sensor()?;
+        Ok(())
+    }
+
+    /// The message type on `pose_topic`.
+    pub fn pose_type(&self) -> PoseType {
+        match self.pose_type {
+            Some(t) => t,
+            None if self.pose_topic.trim_start_matches('/') == "tf" => PoseType::Tf,
+            None => PoseType::Odometry,
+        }
+    }
+
+    /// `T_body_sensor` from `sensor_in_body`.
+    pub fn t_body_sensor(&self) -> Result<Isometry3<f64>, CoreError> {
+        super::dataset::sensor_in_body("sensor_in_body", self.sensor_in_body)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_and_numbers_are_checked_by_field() {
+        assert!(RosSection::default().validate().is_ok());
+        let ns = |n: &str| RosSection { namespace: n.into(), ..Default::default() }.validate();
+        assert!(ns("/robot_1").is_ok() && ns("/a/b").is_ok());
+        for bad in ["robot", "/a//b", "/a/", "/1a", "/a-b"] {
+            assert!(ns(bad).expect_err(bad).to_string().contains("namespace"), "{bad}");
+        }
+        let topic = RosSection { sensor_topic: "/points 2".into(), ..Default::default() }.validate();
+        assert!(topic.expect_err("space").to_string().contains("sensor_topic"));
+        let wait = RosSection { pose_wait_s: -1.0, ..Default::default() }.validate();
+        assert!(wait.expect_err("negative").to_string().contains("pose_wait_s"));
+        let odom_on_tf = RosSection { pose_type: Some(PoseType::Odometry), ..Default::default() }.validate();
+        assert!(odom_on_tf.expect_err("odometry on /tf").to_string().contains("pose_type"));
+        let odom = RosSection { pose_topic: "/odom".into(), ..Default::default() };
+        assert_eq!(odom.pose_type(), PoseType::Odometry);
+        assert_eq!(RosSection::default().pose_type(), PoseType::Tf);
+    }
+}

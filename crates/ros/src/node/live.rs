@@ -1,0 +1,205 @@
+//! Sensor messages become frames as their poses arrive: each waits (in
+//! arrival order) until the pose source has passed its stamp, then takes
+//! its pose exactly as a recording's replay would; one that waits longer
+//! than `pose_wait_s` is given up with the lookup's reason.
+
+use crate::msg::{CameraInfo, Message};
+use crate::poses::{measurement, Poses};
+use crate::RosOptions;
+use edtmap_core::sensor::{Frame, Measurement};
+use std::collections::VecDeque;
+use std::time::{Duration, Instant};
+
+/// Most sensor messages waiting for a pose; more drop the oldest.
+pub(crate) const MAX_PENDING: usize = 64;
+
+/// What happened to a sensor message that did not become a frame.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Skipped {
+    /// A short kind for counting (`missing transform`, `bad message`,
+    /// `pose queue full`).
+    pub(crate) kind: &'static str,
+    /// The whole reason.
+    pub(crate) reason: String,
+}
+
+struct Pending {
+    measurement: Measurement,
+    stamp_s: f64,
+    frame_id: String,
+    arrived: Instant,
+}
+
+/// Poses and the sensor messages waiting for them.
+pub(crate) struct LiveFrames {
+    opts: RosOptions,
+    poses: Poses,
+    pending: VecDeque<Pending>,
+    wait: Duration,
+    history_s: f64,
+    newest_pose_s: f64,
+    camera: Option<CameraInfo>,
+}
+
+impl LiveFrames {
+    /// Frames placed by `opts`; `is_tf` when poses come from `/tf`.
+    pub(crate) fn new(opts: RosOptions, is_tf: bool, wait_s: f64, history_s: f64) -> Self {
+        let poses = Poses::new(is_tf, &opts);
+        LiveFrames { opts, poses, pending: VecDeque::new(), wait: Duration::from_secs_f64(wait_s), history_s, newest_pose_s: f64::NEG_INFINITY, camera: None }
+    }
+
+    /// Adds a pose message (`is_static` for `/tf_static`).
+    pub(crate) fn add_pose(&mut self, msg: &Message, is_static: bool) -> Result<(), Skipped> {
+        self.poses.add(msg, is_static, &self.opts).map_err(|reason| Skipped { kind: "bad pose", reason })?;
+        let newest = match msg {
+            Message::Tf(ts) if !is_static => ts.iter().map(|t| t.header.stamp_s()).fold(f64::NEG_INFINITY, f64::max),
+            Message::Odometry(t) | Message::PoseStamped(t) | Message::TransformStamped(t) => t.header.stamp_s(),
+            _ => f64::NEG_INFINITY,
+        };
+        if newest > self.newest_pose_s {
+            self.newest_pose_s = newest;
+            self.poses.forget_before(newest - self.history_s);
+        }
+        Ok(())
+    }
+
+    /// Keeps a camera's intrinsics (the latest).
+    pub(crate) fn set_camera(&mut self, info: CameraInfo) {
+        self.camera = Some(info);
+    }
+
+    /// The latest camera info.
+    pub(crate) fn camera(&self) -> Option<&CameraInfo> {
+        self.camera.as_ref()
+    }
+
+    /// Queues a sensor message until its pose is known; a message that
+    /// does not decode is skipped at once. `received_ns` stands in for an
+    /// empty stamp.
+    pub(crate) fn add_sensor(&mut self, msg: Message, received_ns: i64, now: Instant) -> Result<(), Skipped> {
+        let (measurement, stamp_ns, frame_id) = measurement(msg, self.opts.depth_scale_m).map_err(|reason| Skipped { kind: "bad message", reason })?;
+        let stamp_s = if stamp_ns == 0 { received_ns as f64 * 1e-9 } else { stamp_ns as f64 * 1e-9 };
+        self.pending.push_back(Pending { measurement, stamp_s, frame_id, arrived: now });
+        if self.pending.len() > MAX_PENDING {
+            if let Some(old) = self.pending.pop_front() {
+                return Err(Skipped { kind: "pose queue full", reason: format!("{MAX_PENDING} messages were waiting for poses; the oldest (stamp {:.6} s) was dropped", old.stamp_s) });
+            }
+        }
+        Ok(())
+    }
+
+    /// Messages waiting for a pose.
+    #[cfg(test)]
+    pub(crate) fn pending(&self) -> usize {
+        self.pending.len()
+    }
+
+    /// The frames whose pose has come, in arrival order, and the messages
+    /// given up on: those that waited past `pose_wait_s`, and those whose
+    /// pose cannot be had although the poses have passed their stamp (a
+    /// gap, an unknown frame).
+    pub(crate) fn ready(&mut self, now: Instant) -> Vec<Result<Frame, Skipped>> {
+        let mut out = Vec::new();
+        while let Some(p) = self.pending.front() {
+            let passed = self.poses.latest(&p.frame_id, &self.opts).is_some_and(|latest| latest >= p.stamp_s);
+            let expired = now.saturating_duration_since(p.arrived) >= self.wait;
+            if !passed && !expired {
+                break;
+            }
+            let Some(p) = self.pending.pop_front() else { break };
+            out.push(match self.poses.sensor_pose(p.stamp_s, &p.frame_id, &self.opts) {
+                Ok(t_world_sensor) => Ok(Frame { stamp_s: p.stamp_s, t_world_sensor, measurement: p.measurement }),
+                Err(e) => Err(Skipped {
+                    kind: "missing transform",
+                    reason: format!("no pose for the message at stamp {:.6} s in frame {:?} after waiting {:.3} s: {e}", p.stamp_s, p.frame_id, self.wait.as_secs_f64()),
+                }),
+            });
+        }
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::msg::{Header, PointCloud2, StampedTransform};
+    use nalgebra::{Isometry3, Vector3};
+
+    fn opts() -> RosOptions {
+        RosOptions {
+            sensor_topic: "/points".into(),
+            camera_info_topic: None,
+            pose_topic: "/tf".into(),
+            static_tf_topic: "/tf_static".into(),
+            world_frame: Some("map".into()),
+            body_frame: None,
+            t_body_sensor: Isometry3::identity(),
+            max_pose_gap_s: 1.0,
+            depth_scale_m: 0.001,
+        }
+    }
+
+    fn tf(parent: &str, child: &str, t: f64, x: f64) -> Message {
+        let header = Header { stamp_ns: (t * 1e9) as i64, frame_id: parent.into() };
+        Message::Tf(vec![StampedTransform { header, child_frame: child.into(), transform: Isometry3::translation(x, 0.0, 0.0) }])
+    }
+
+    fn cloud(t: f64) -> Message {
+        Message::PointCloud2(PointCloud2::from_points(Header { stamp_ns: (t * 1e9) as i64, frame_id: "lidar".into() }, &[[1.0, 0.0, 0.0]]))
+    }
+
+    #[test]
+    fn a_message_waits_for_poses_past_its_stamp_then_interpolates() {
+        let mut live = LiveFrames::new(opts(), true, 0.5, 10.0);
+        let t0 = Instant::now();
+        live.add_pose(&tf("base_link", "lidar", 0.0, 0.25), true).expect("static");
+        live.add_pose(&tf("map", "base_link", 1.0, 1.0), false).expect("pose");
+        live.add_sensor(cloud(1.5), 0, t0).expect("decodes");
+        // The tree ends at 1.0 s: the message at 1.5 s waits.
+        assert!(live.ready(t0).is_empty());
+        live.add_pose(&tf("map", "base_link", 2.0, 3.0), false).expect("pose");
+        let frames = live.ready(t0);
+        let frame = frames[0].as_ref().expect("pose found");
+        // Halfway from x 1 to x 3, plus the static 0.25 m of the sensor.
+        assert!((frame.t_world_sensor.translation.vector - Vector3::new(2.25, 0.0, 0.0)).norm() < 1e-12);
+        assert_eq!(live.pending(), 0);
+    }
+
+    #[test]
+    fn a_message_whose_pose_never_comes_is_given_up_after_the_wait() {
+        let mut live = LiveFrames::new(opts(), true, 0.5, 10.0);
+        let t0 = Instant::now();
+        live.add_pose(&tf("map", "base_link", 1.0, 1.0), false).expect("pose");
+        live.add_sensor(cloud(3.0), 0, t0).expect("decodes");
+        assert!(live.ready(t0 + Duration::from_millis(100)).is_empty());
+        let out = live.ready(t0 + Duration::from_millis(600));
+        let skipped = out[0].as_ref().expect_err("no pose");
+        assert_eq!(skipped.kind, "missing transform");
+        assert!(skipped.reason.contains("lidar"), "{}", skipped.reason);
+    }
+
+    #[test]
+    fn a_bad_message_and_a_full_queue_are_skipped_with_their_kind() {
+        let mut live = LiveFrames::new(opts(), true, 10.0, 10.0);
+        let t0 = Instant::now();
+        let mut bad = PointCloud2::from_points(Header::default(), &[[1.0, 0.0, 0.0]]);
+        bad.point_step = 7;
+        assert_eq!(live.add_sensor(Message::PointCloud2(bad), 0, t0).expect_err("bad step").kind, "bad message");
+        for i in 0..MAX_PENDING {
+            live.add_sensor(cloud(i as f64), 0, t0).expect("queued");
+        }
+        assert_eq!(live.add_sensor(cloud(99.0), 0, t0).expect_err("full").kind, "pose queue full");
+        assert_eq!(live.pending(), MAX_PENDING);
+    }
+
+    #[test]
+    fn history_is_bounded() {
+        let mut live = LiveFrames::new(opts(), true, 0.5, 2.0);
+        for i in 0..100 {
+            live.add_pose(&tf("map", "base_link", f64::from(i) * 0.1, 0.0), false).expect("pose");
+        }
+        let Poses::Tf(tree, _) = &live.poses else { panic!("tf") };
+        // 2 s of samples at 10 Hz, plus the one before.
+        assert!(tree.samples() <= 22, "{}", tree.samples());
+    }
+}

@@ -1,0 +1,574 @@
+//! `edtmap node`: the mapper live on ROS 2, over DDS in pure Rust
+//! (`ros2-client` and RustDDS; no ROS installation).
+//!
+//! Three threads share the work:
+//! - **input** takes the sensor, pose and camera-info messages as they
+//!   arrive, waits for each sensor message's pose ([`live`]), and leaves
+//!   the frame in a one-place slot: when frames come faster than they are
+//!   mapped, the newest wins and the one it replaces is counted as dropped;
+//! - **mapping** integrates the slot's frame, then hands the queries a new
+//!   snapshot of the map (a copy-on-write clone: one pointer per block) and
+//!   publishes the outputs due at their rates;
+//! - **services** answer `get_distances`, `get_esdf_box` and `save_map`
+//!   from the latest snapshot, so a query never waits for a frame.
+//!
+//! A message that cannot be used (bad layout, unknown encoding, no pose in
+//! time) is skipped and counted by kind, with a warning the first time of
+//! each kind; nothing mapped is lost.
+
+mod live;
+mod outputs;
+mod services;
+pub mod types;
+
+use crate::msg::Message;
+use crate::RosOptions;
+use edtmap::config::{Config, OccupiedScope, PoseType, SensorKind};
+use edtmap::sensor::Frame;
+use edtmap::{GlobalMap, LocalVolume, MapError, Mapper};
+use live::{LiveFrames, Skipped};
+use ros2_client::dds::rustdds::mio1::{Events, Interest, Poll, Token};
+use ros2_client::dds::rustdds::DomainParticipantBuilder;
+use ros2_client::qos::{Durability, History, WhenFull};
+use ros2_client::{Context, MessageTypeName, Name, Node, NodeName, NodeOptions, Publisher, QosProfile, Subscription};
+use std::collections::BTreeMap;
+use std::net::{IpAddr, Ipv4Addr};
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
+use std::sync::{Arc, Condvar, Mutex, PoisonError, RwLock};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+use types::Time;
+
+/// Why the node could not start or stopped with an error.
+#[derive(Debug, thiserror::Error)]
+pub enum NodeError {
+    /// The config does not fit a live node.
+    #[error("[ros] {0}")]
+    Config(String),
+    /// The mapper refused the config, or failed.
+    #[error(transparent)]
+    Map(#[from] MapError),
+    /// DDS could not create an entity (a port in use, a bad name).
+    #[error("ROS 2 (DDS): {0}")]
+    Dds(String),
+}
+
+/// The map as the queries see it: the state after a whole frame.
+#[derive(Debug, Clone)]
+pub struct Snapshot {
+    /// The map.
+    pub map: GlobalMap,
+    /// The latest frame's local volume, once a frame was mapped.
+    pub volume: Option<LocalVolume>,
+    /// Stamp of the latest frame integrated, nanoseconds (0 before any).
+    pub stamp_ns: i64,
+    /// Frames integrated.
+    pub frames: u64,
+}
+
+/// Counters of a running node.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct NodeStats {
+    /// Sensor messages received.
+    pub received: u64,
+    /// Frames integrated.
+    pub integrated: u64,
+    /// Frames replaced in the slot by a newer one before they were mapped.
+    pub dropped: u64,
+    /// Messages skipped, by kind (`bad message`, `missing transform`,
+    /// `bad pose`, `pose queue full`, `mapper refused`).
+    pub skipped: BTreeMap<String, u64>,
+    /// Service requests answered.
+    pub requests: u64,
+}
+
+/// What the threads share.
+struct Shared {
+    stop: AtomicBool,
+    slot: Mutex<Option<Frame>>,
+    wake: Condvar,
+    snapshot: RwLock<Arc<Snapshot>>,
+    received: AtomicU64,
+    integrated: AtomicU64,
+    dropped: AtomicU64,
+    requests: AtomicU64,
+    skipped: Mutex<BTreeMap<String, u64>>,
+    /// The world frame outputs are published in.
+    world_frame: Mutex<String>,
+}
+
+impl Shared {
+    fn skip(&self, s: &Skipped) {
+        let mut counts = self.skipped.lock().unwrap_or_else(PoisonError::into_inner);
+        let n = counts.entry(s.kind.to_string()).or_insert(0);
+        *n += 1;
+        if *n == 1 {
+            tracing::warn!("skipping a message ({}; later ones of this kind are counted, not logged): {}", s.kind, s.reason);
+        } else {
+            tracing::debug!("skipping a message ({}): {}", s.kind, s.reason);
+        }
+    }
+
+    fn snapshot(&self) -> Arc<Snapshot> {
+        self.snapshot.read().unwrap_or_else(PoisonError::into_inner).clone()
+    }
+
+    fn stats(&self) -> NodeStats {
+        NodeStats {
+            received: self.received.load(Relaxed),
+            integrated: self.integrated.load(Relaxed),
+            dropped: self.dropped.load(Relaxed),
+            skipped: self.skipped.lock().unwrap_or_else(PoisonError::into_inner).clone(),
+            requests: self.requests.load(Relaxed),
+        }
+    }
+
+    fn world_frame(&self) -> String {
+        self.world_frame.lock().unwrap_or_else(PoisonError::into_inner).clone()
+    }
+}
+
+/// A running node; [`NodeHandle::stop`] ends it.
+pub struct NodeHandle {
+    shared: Arc<Shared>,
+    threads: Vec<JoinHandle<()>>,
+    mapping: Option<JoinHandle<Result<(), NodeError>>>,
+    save_on_exit: Option<PathBuf>,
+    // Dropped last: the DDS entities live in the threads.
+    _node: Arc<Mutex<Node>>,
+}
+
+impl std::fmt::Debug for NodeHandle {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("NodeHandle").field("stats", &self.shared.stats()).finish_non_exhaustive()
+    }
+}
+
+/// QoS of sensor subscriptions: best effort, so they match best-effort and
+/// reliable drivers alike.
+fn sensor_qos() -> QosProfile {
+    QosProfile::subscription_default().history(History::KeepLast { depth: 5 })
+}
+
+/// QoS of outputs and pose topics: reliable, volatile.
+fn reliable_qos(depth: usize) -> QosProfile {
+    QosProfile::publisher_default().reliability_reliable(WhenFull::Wait(Duration::from_millis(100))).durability(Durability::Volatile).history(History::KeepLast { depth })
+}
+
+/// `/tf_static`: reliable, transient local (late joiners get the tree).
+fn static_qos() -> QosProfile {
+    QosProfile::publisher_default().reliability_reliable(WhenFull::Wait(Duration::from_millis(100))).durability(Durability::TransientLocal).history(History::KeepLast { depth: 100 })
+}
+
+fn name(topic: &str) -> Result<Name, NodeError> {
+    Name::parse(topic).map_err(|e| NodeError::Config(format!("topic {topic:?} is not a ROS name: {e:?}")))
+}
+
+/// The recording vocabulary of `[ros]`, for the pose logic both share.
+fn ros_options(config: &Config) -> Result<RosOptions, NodeError> {
+    let r = &config.ros;
+    r.validate().map_err(|e| NodeError::Config(e.to_string()))?;
+    Ok(RosOptions {
+        sensor_topic: r.sensor_topic.clone(),
+        camera_info_topic: r.camera_info_topic.clone(),
+        pose_topic: r.pose_topic.clone(),
+        static_tf_topic: r.static_tf_topic.clone(),
+        world_frame: r.world_frame.clone(),
+        body_frame: r.body_frame.clone(),
+        t_body_sensor: r.t_body_sensor().map_err(|e| NodeError::Config(e.to_string()))?,
+        max_pose_gap_s: r.max_pose_gap_s,
+        depth_scale_m: r.depth_scale_m,
+    })
+}
+
+/// The sensor subscription, by the message type `[sensor] kind` takes.
+enum SensorSub {
+    Cloud(Subscription<types::PointCloud2>),
+    Image(Subscription<types::Image>, Option<Subscription<types::CameraInfo>>),
+    Scan(Subscription<types::LaserScan>),
+}
+
+/// The pose subscription(s).
+enum PoseSub {
+    Tf(Subscription<types::TfMessage>, Subscription<types::TfMessage>),
+    Odometry(Subscription<types::Odometry>),
+    PoseStamped(Subscription<types::PoseStamped>),
+    TransformStamped(Subscription<types::TransformStamped>),
+}
+
+/// The output publishers.
+struct Outputs {
+    esdf: Publisher<types::PointCloud2>,
+    occupied: Publisher<types::PointCloud2>,
+    slice: Publisher<types::PointCloud2>,
+    grid: Publisher<types::OccupancyGrid>,
+    stats: Publisher<types::DiagnosticArray>,
+}
+
+/// Starts the node of `config` (its `[ros]` section; the mapper from the
+/// rest), with `map` to go on from when given.
+pub fn start(config: &Config, map: Option<GlobalMap>) -> Result<NodeHandle, NodeError> {
+    let opts = ros_options(config)?;
+    let (sensor, params) = config.mapper_params()?;
+    if config.sensor.kind == SensorKind::Lidar {
+        return Err(NodeError::Config("[sensor] kind = \"lidar\" takes range images; a live sensor_msgs/PointCloud2 needs kind = \"points\" (with construction = \"raycast\" or \"projection\")".into()));
+    }
+    let mapper = match map {
+        Some(map) => Mapper::with_map(sensor, params, map)?,
+        None => Mapper::new(sensor, params)?,
+    };
+    let r = &config.ros;
+    let domain: u16 = match std::env::var("ROS_DOMAIN_ID") {
+        Ok(v) if !v.trim().is_empty() => v.trim().parse().ok().filter(|&d| d <= 232).ok_or_else(|| NodeError::Config(format!("ROS_DOMAIN_ID={v:?} is not a domain id (0 to 232)")))?,
+        _ => 0,
+    };
+    let mut builder = DomainParticipantBuilder::new(domain);
+    if r.localhost_only {
+        builder = builder.with_only_networks([IpAddr::V4(Ipv4Addr::LOCALHOST)]);
+    }
+    let participant = builder.build().map_err(|e| NodeError::Dds(format!("joining DDS domain {domain}: {e:?}")))?;
+    let context = Context::from_domain_participant(participant).map_err(|e| NodeError::Dds(format!("ROS 2 context: {e:?}")))?;
+    let node_name = NodeName::new(&r.namespace, "edtmap").map_err(|e| NodeError::Config(format!("namespace {:?}: {e:?}", r.namespace)))?;
+    let mut node = context.new_node(node_name, NodeOptions::new().enable_rosout(false)).map_err(|e| NodeError::Dds(format!("node: {e:?}")))?;
+
+    let topic = |node: &mut Node, t: &str, package: &str, ty: &str, qos: &QosProfile| node.create_topic(&name(t)?, MessageTypeName::new(package, ty), qos).map_err(|e| NodeError::Dds(format!("topic {t}: {e:?}")));
+    let out_topic = |node: &mut Node, base: &str, package: &str, ty: &str| {
+        let n = Name::new("edtmap", base).map_err(|e| NodeError::Dds(format!("{base}: {e:?}")))?;
+        node.create_topic(&n, MessageTypeName::new(package, ty), &reliable_qos(2)).map_err(|e| NodeError::Dds(format!("topic edtmap/{base}: {e:?}")))
+    };
+    macro_rules! sub {
+        ($node:expr, $topic:expr, $qos:expr) => {
+            {
+                let topic = $topic;
+                $node.create_subscription(&topic, Some($qos)).map_err(|e| NodeError::Dds(format!("subscribing: {e:?}")))?
+            }
+        };
+    }
+    macro_rules! publ {
+        ($node:expr, $topic:expr) => {
+            {
+                let topic = $topic;
+                $node.create_publisher(&topic, Some(reliable_qos(2))).map_err(|e| NodeError::Dds(format!("publishing: {e:?}")))?
+            }
+        };
+    }
+    let sensor_sub = match config.sensor.kind {
+        SensorKind::Depth => {
+            let t = topic(&mut node, &r.sensor_topic, "sensor_msgs", "Image", &sensor_qos())?;
+            let info_topic = r.camera_info_topic.clone().unwrap_or_else(|| match r.sensor_topic.rsplit_once('/') {
+                Some((parent, _)) => format!("{parent}/camera_info"),
+                None => "camera_info".into(),
+            });
+            let it = topic(&mut node, &info_topic, "sensor_msgs", "CameraInfo", &sensor_qos())?;
+            SensorSub::Image(sub!(node, t, sensor_qos()), Some(sub!(node, it, sensor_qos())))
+        }
+        SensorKind::Planar => SensorSub::Scan(sub!(node, topic(&mut node, &r.sensor_topic, "sensor_msgs", "LaserScan", &sensor_qos())?, sensor_qos())),
+        _ => SensorSub::Cloud(sub!(node, topic(&mut node, &r.sensor_topic, "sensor_msgs", "PointCloud2", &sensor_qos())?, sensor_qos())),
+    };
+    let pose_type = r.pose_type();
+    let pose_sub = match pose_type {
+        PoseType::Tf => {
+            let t = topic(&mut node, &r.pose_topic, "tf2_msgs", "TFMessage", &reliable_qos(100))?;
+            let s = topic(&mut node, &r.static_tf_topic, "tf2_msgs", "TFMessage", &static_qos())?;
+            PoseSub::Tf(sub!(node, t, reliable_qos(100)), sub!(node, s, static_qos()))
+        }
+        PoseType::Odometry => PoseSub::Odometry(sub!(node, topic(&mut node, &r.pose_topic, "nav_msgs", "Odometry", &reliable_qos(100))?, reliable_qos(100))),
+        PoseType::PoseStamped => PoseSub::PoseStamped(sub!(node, topic(&mut node, &r.pose_topic, "geometry_msgs", "PoseStamped", &reliable_qos(100))?, reliable_qos(100))),
+        PoseType::TransformStamped => PoseSub::TransformStamped(sub!(node, topic(&mut node, &r.pose_topic, "geometry_msgs", "TransformStamped", &reliable_qos(100))?, reliable_qos(100))),
+    };
+    let outputs = Outputs {
+        esdf: publ!(node, out_topic(&mut node, "esdf_pointcloud", "sensor_msgs", "PointCloud2")?),
+        occupied: publ!(node, out_topic(&mut node, "occupied_pointcloud", "sensor_msgs", "PointCloud2")?),
+        slice: publ!(node, out_topic(&mut node, "distance_slice", "sensor_msgs", "PointCloud2")?),
+        grid: publ!(node, out_topic(&mut node, "occupancy_grid", "nav_msgs", "OccupancyGrid")?),
+        stats: publ!(node, out_topic(&mut node, "frame_stats", "diagnostic_msgs", "DiagnosticArray")?),
+    };
+    let servers = services::Servers::create(&mut node, r.service_mapping)?;
+
+    let snapshot = Snapshot { map: mapper.map().clone(), volume: None, stamp_ns: 0, frames: 0 };
+    let shared = Arc::new(Shared {
+        stop: AtomicBool::new(false),
+        slot: Mutex::new(None),
+        wake: Condvar::new(),
+        snapshot: RwLock::new(Arc::new(snapshot)),
+        received: AtomicU64::new(0),
+        integrated: AtomicU64::new(0),
+        dropped: AtomicU64::new(0),
+        requests: AtomicU64::new(0),
+        skipped: Mutex::new(BTreeMap::new()),
+        world_frame: Mutex::new(r.world_frame.clone().unwrap_or_else(|| "map".into())),
+    });
+    let camera = match mapper.sensor() {
+        edtmap::sensor::Sensor::Depth(c) => Some(([c.fx, c.fy, c.cx, c.cy], c.width, c.height)),
+        _ => None,
+    };
+    let live = LiveFrames::new(opts, pose_type == PoseType::Tf, r.pose_wait_s, r.tf_history_s);
+    let mut threads = Vec::new();
+    let s = shared.clone();
+    threads.push(std::thread::Builder::new().name("edtmap-input".into()).spawn(move || input_loop(&s, sensor_sub, pose_sub, live, camera)).map_err(|e| NodeError::Dds(format!("input thread: {e}")))?);
+    let s = shared.clone();
+    threads.push(std::thread::Builder::new().name("edtmap-services".into()).spawn(move || servers.serve(&s)).map_err(|e| NodeError::Dds(format!("service thread: {e}")))?);
+    let s = shared.clone();
+    let rates = Rates::of(config);
+    let mapping = std::thread::Builder::new().name("edtmap-mapping".into()).spawn(move || mapping_loop(&s, mapper, outputs, rates)).map_err(|e| NodeError::Dds(format!("mapping thread: {e}")))?;
+    tracing::info!("node {}edtmap on ROS 2 domain {domain}: {} on {}, poses from {}", if r.namespace == "/" { "/".to_string() } else { format!("{}/", r.namespace) }, format!("{:?}", config.sensor.kind).to_lowercase(), r.sensor_topic, r.pose_topic);
+    Ok(NodeHandle { shared, threads, mapping: Some(mapping), save_on_exit: r.save_on_exit.clone(), _node: Arc::new(Mutex::new(node)) })
+}
+
+impl NodeHandle {
+    /// The counters so far.
+    pub fn stats(&self) -> NodeStats {
+        self.shared.stats()
+    }
+
+    /// The map after the latest whole frame.
+    pub fn snapshot(&self) -> Arc<Snapshot> {
+        self.shared.snapshot()
+    }
+
+    /// Whether the mapping thread has ended (on an error).
+    pub fn is_finished(&self) -> bool {
+        self.mapping.as_ref().is_none_or(JoinHandle::is_finished)
+    }
+
+    /// Stops the threads, saves the map when `[ros] save_on_exit` says so,
+    /// and returns the counters.
+    pub fn stop(mut self) -> Result<NodeStats, NodeError> {
+        self.shared.stop.store(true, Relaxed);
+        self.shared.wake.notify_all();
+        let mapped = match self.mapping.take().map(JoinHandle::join) {
+            Some(Ok(r)) => r,
+            Some(Err(_)) => Err(NodeError::Dds("the mapping thread panicked".into())),
+            None => Ok(()),
+        };
+        for t in self.threads.drain(..) {
+            let _ = t.join();
+        }
+        if let Some(path) = &self.save_on_exit {
+            let snap = self.shared.snapshot();
+            edtmap::save_map(&snap.map, path)?;
+            tracing::info!("saved the map ({} frames) to {}", snap.frames, path.display());
+        }
+        mapped.map(|()| self.shared.stats())
+    }
+}
+
+/// Takes every message waiting on one subscription.
+fn drain<M: 'static + serde::de::DeserializeOwned>(sub: &Subscription<M>, shared: &Shared, mut f: impl FnMut(M, i64)) {
+    loop {
+        match sub.take() {
+            Ok(Some((m, info))) => {
+                let received = info.received_timestamp().map_or(0, |t| t.to_nanos());
+                f(m, received);
+            }
+            Ok(None) => break,
+            Err(e) => shared.skip(&Skipped { kind: "bad message", reason: format!("undecodable sample: {e:?}") }),
+        }
+    }
+}
+
+/// The intrinsics `[fx, fy, cx, cy]`, width and height a depth camera's
+/// info is checked against.
+type Camera = ([f64; 4], u32, u32);
+
+fn input_loop(shared: &Shared, mut sensor: SensorSub, mut pose: PoseSub, mut live: LiveFrames, camera: Option<Camera>) {
+    let Ok(mut poll) = Poll::new() else {
+        tracing::error!("input thread: cannot create a poll");
+        return;
+    };
+    let reg = poll.registry();
+    let mut ok = true;
+    let mut register = |s: &mut dyn ros2_client::dds::rustdds::mio1::event::Source, t: usize| ok &= reg.register(s, Token(t), Interest::READABLE).is_ok();
+    match &mut sensor {
+        SensorSub::Cloud(s) => register(s, 0),
+        SensorSub::Scan(s) => register(s, 0),
+        SensorSub::Image(s, info) => {
+            register(s, 0);
+            if let Some(i) = info {
+                register(i, 1);
+            }
+        }
+    }
+    match &mut pose {
+        PoseSub::Tf(t, st) => {
+            register(t, 2);
+            register(st, 3);
+        }
+        PoseSub::Odometry(s) => register(s, 2),
+        PoseSub::PoseStamped(s) => register(s, 2),
+        PoseSub::TransformStamped(s) => register(s, 2),
+    }
+    if !ok {
+        tracing::warn!("input thread: could not register a subscription with the poll; polling every 5 ms instead");
+    }
+    let mut events = Events::with_capacity(16);
+    while !shared.stop.load(Relaxed) {
+        let _ = poll.poll(&mut events, Some(Duration::from_millis(if ok { 20 } else { 5 })));
+        let now = Instant::now();
+        // Poses first, so a sensor message arriving with its pose is placed at once.
+        let pose_msg = |m: Result<Message, String>, is_static: bool, live: &mut LiveFrames| match m {
+            Ok(m) => {
+                if let Err(s) = live.add_pose(&m, is_static) {
+                    shared.skip(&s);
+                }
+            }
+            Err(reason) => shared.skip(&Skipped { kind: "bad pose", reason }),
+        };
+        match &pose {
+            PoseSub::Tf(t, st) => {
+                drain(st, shared, |m, _| pose_msg(types::tf_message(m), true, &mut live));
+                drain(t, shared, |m, _| pose_msg(types::tf_message(m), false, &mut live));
+            }
+            PoseSub::Odometry(s) => drain(s, shared, |m, _| pose_msg(types::odometry(m), false, &mut live)),
+            PoseSub::PoseStamped(s) => drain(s, shared, |m, _| pose_msg(types::pose_stamped(m), false, &mut live)),
+            PoseSub::TransformStamped(s) => drain(s, shared, |m, _| pose_msg(types::transform_stamped(m), false, &mut live)),
+        }
+        let sensor_msg = |m: Message, received: i64, live: &mut LiveFrames| {
+            shared.received.fetch_add(1, Relaxed);
+            if let Err(s) = live.add_sensor(m, received, now) {
+                shared.skip(&s);
+            }
+        };
+        match &sensor {
+            SensorSub::Cloud(s) => drain(s, shared, |m, r| sensor_msg(Message::PointCloud2(m.into()), r, &mut live)),
+            SensorSub::Scan(s) => drain(s, shared, |m, r| sensor_msg(Message::LaserScan(m.into()), r, &mut live)),
+            SensorSub::Image(s, info) => {
+                if let Some(i) = info {
+                    drain(i, shared, |m, _| {
+                        let info: crate::msg::CameraInfo = m.into();
+                        if let (Some(want), None) = (&camera, live.camera()) {
+                            let got = ([info.k[0], info.k[4], info.k[2], info.k[5]], info.width, info.height);
+                            if got.1 != want.1 || got.2 != want.2 || (0..4).any(|i| (got.0[i] - want.0[i]).abs() > 1e-6 * want.0[i].abs().max(1.0)) {
+                                tracing::warn!("the camera info says fx fy cx cy {:?} at {}x{}, [sensor] says {:?} at {}x{}: the node maps with [sensor]'s; make them agree", got.0, got.1, got.2, want.0, want.1, want.2);
+                            }
+                        }
+                        live.set_camera(info);
+                    });
+                }
+                drain(s, shared, |m, r| sensor_msg(Message::Image(m.into()), r, &mut live));
+            }
+        }
+        for ready in live.ready(now) {
+            match ready {
+                Ok(frame) => {
+                    let mut slot = shared.slot.lock().unwrap_or_else(PoisonError::into_inner);
+                    if slot.replace(frame).is_some() {
+                        shared.dropped.fetch_add(1, Relaxed);
+                    }
+                    shared.wake.notify_one();
+                }
+                Err(s) => shared.skip(&s),
+            }
+        }
+    }
+}
+
+/// When each output is due.
+struct Rates {
+    esdf: Option<Duration>,
+    occupied: Option<Duration>,
+    slice: Option<Duration>,
+    scope: OccupiedScope,
+    slice_height_m: f64,
+}
+
+impl Rates {
+    fn of(config: &Config) -> Self {
+        let period = |hz: f64| (hz > 0.0).then(|| Duration::from_secs_f64(1.0 / hz));
+        let r = &config.ros;
+        Rates { esdf: period(r.esdf_pointcloud_hz), occupied: period(r.occupied_pointcloud_hz), slice: period(r.slice_hz), scope: r.occupied_scope, slice_height_m: r.slice_height_m }
+    }
+}
+
+/// Whether an output of `period` last sent at `last` is due at `now`.
+fn due(period: Option<Duration>, last: &mut Option<Instant>, now: Instant) -> bool {
+    match period {
+        Some(p) if last.is_none_or(|l| now.duration_since(l) >= p) => {
+            *last = Some(now);
+            true
+        }
+        _ => false,
+    }
+}
+
+fn mapping_loop(shared: &Shared, mut mapper: Mapper, out: Outputs, rates: Rates) -> Result<(), NodeError> {
+    let (mut last_esdf, mut last_occ, mut last_slice) = (None, None, None);
+    loop {
+        let frame = {
+            let mut slot = shared.slot.lock().unwrap_or_else(PoisonError::into_inner);
+            loop {
+                if shared.stop.load(Relaxed) {
+                    return Ok(());
+                }
+                if let Some(f) = slot.take() {
+                    break f;
+                }
+                slot = shared.wake.wait_timeout(slot, Duration::from_millis(100)).unwrap_or_else(PoisonError::into_inner).0;
+            }
+        };
+        let stamp_ns = (frame.stamp_s * 1e9).round() as i64;
+        let stats = match mapper.integrate_frame(&frame) {
+            Ok(stats) => stats,
+            Err(e) if e.is_backend_failure() => return Err(e.into()),
+            Err(e) => {
+                shared.skip(&Skipped { kind: "mapper refused", reason: format!("frame at stamp {:.6} s: {e}", frame.stamp_s) });
+                continue;
+            }
+        };
+        let frames = shared.integrated.fetch_add(1, Relaxed) + 1;
+        let volume = mapper.local_volume().copied();
+        let snapshot = Arc::new(Snapshot { map: mapper.map().clone(), volume, stamp_ns, frames });
+        *shared.snapshot.write().unwrap_or_else(PoisonError::into_inner) = snapshot.clone();
+        let world = shared.world_frame();
+        let header = types::Header { stamp: Time::from_ns(stamp_ns), frame_id: world.clone() };
+        let now = Instant::now();
+        let publish_failed = |what: &str, e: String| tracing::debug!("publishing {what}: {e}");
+        if let Some(volume) = &volume {
+            if due(rates.esdf, &mut last_esdf, now) {
+                if let Err(e) = out.esdf.publish(outputs::esdf_cloud(&snapshot.map, volume, header.clone())) {
+                    publish_failed("esdf_pointcloud", format!("{e:?}"));
+                }
+            }
+            if due(rates.occupied, &mut last_occ, now) {
+                let scope = (rates.scope == OccupiedScope::Window).then_some(volume);
+                if let Err(e) = out.occupied.publish(outputs::occupied_cloud(&snapshot.map, scope, header.clone())) {
+                    publish_failed("occupied_pointcloud", format!("{e:?}"));
+                }
+            }
+            if due(rates.slice, &mut last_slice, now) {
+                let (cloud, grid) = outputs::slice(&snapshot.map, volume, rates.slice_height_m, header.clone());
+                if let Err(e) = out.slice.publish(cloud) {
+                    publish_failed("distance_slice", format!("{e:?}"));
+                }
+                if let Err(e) = out.grid.publish(grid) {
+                    publish_failed("occupancy_grid", format!("{e:?}"));
+                }
+            }
+        }
+        let st = shared.stats();
+        let skipped: u64 = st.skipped.values().sum();
+        let mut values = vec![
+            ("frames", frames.to_string()),
+            ("received", st.received.to_string()),
+            ("dropped", st.dropped.to_string()),
+            ("skipped", skipped.to_string()),
+            ("ogm_ms", format!("{:.3}", stats.ogm_ms)),
+            ("integrate_ms", format!("{:.3}", stats.integrate_ms)),
+            ("total_ms", format!("{:.3}", stats.total_ms)),
+            ("voxels_updated", stats.voxels_updated.to_string()),
+            ("edt_voxels_changed", stats.edt_voxels_changed.to_string()),
+            ("map_blocks", stats.map_blocks.to_string()),
+            ("map_bytes", stats.map_bytes.to_string()),
+        ];
+        values.extend(st.skipped.iter().map(|(k, v)| ("skipped_kind", format!("{k}: {v}"))));
+        let level = u8::from(st.dropped + skipped > 0);
+        let message = format!("frame {frames} in {:.1} ms", stats.total_ms);
+        if let Err(e) = out.stats.publish(outputs::frame_stats(header.stamp, &world, level, message, values)) {
+            publish_failed("frame_stats", format!("{e:?}"));
+        }
+    }
+}
+
+/// The message types the node reads, for documentation and checks.
+pub const INPUT_TYPES: [&str; 7] = ["sensor_msgs/PointCloud2", "sensor_msgs/Image", "sensor_msgs/CameraInfo", "sensor_msgs/LaserScan", "tf2_msgs/TFMessage", "nav_msgs/Odometry", "geometry_msgs/PoseStamped"];

@@ -1,0 +1,554 @@
+//! ROS 2 message and service types as DDS carries them: one struct per
+//! IDL type, fields in IDL order (CDR is positional), serialized by
+//! `ros2-client`'s CDR serde. Sensor and pose messages convert into the
+//! crate's [`crate::msg`] types, so a live message meets the same decoding
+//! (`PointCloud2::xyz`, `Image::depth`, `LaserScanMsg::scan`) and the same
+//! errors as a recorded one.
+
+use crate::msg;
+use nalgebra::{Isometry3, Quaternion as NaQuaternion, Translation3, UnitQuaternion};
+use serde::{Deserialize, Serialize};
+
+/// Marks a type `ros2-client` may publish, take and serve.
+macro_rules! messages {
+    ($($t:ty),*) => { $(impl ros2_client::Message for $t {})* };
+}
+
+/// `builtin_interfaces/Time`.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct Time {
+    /// Seconds.
+    pub sec: i32,
+    /// Nanoseconds within the second.
+    pub nanosec: u32,
+}
+
+impl Time {
+    /// From nanoseconds since the epoch.
+    pub fn from_ns(ns: i64) -> Self {
+        Time { sec: ns.div_euclid(1_000_000_000) as i32, nanosec: ns.rem_euclid(1_000_000_000) as u32 }
+    }
+
+    /// Nanoseconds since the epoch.
+    pub fn ns(&self) -> i64 {
+        i64::from(self.sec) * 1_000_000_000 + i64::from(self.nanosec)
+    }
+}
+
+/// `std_msgs/Header`.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Header {
+    /// Stamp.
+    pub stamp: Time,
+    /// Frame.
+    pub frame_id: String,
+}
+
+impl From<Header> for msg::Header {
+    fn from(h: Header) -> Self {
+        msg::Header { stamp_ns: h.stamp.ns(), frame_id: h.frame_id }
+    }
+}
+
+impl From<msg::Header> for Header {
+    fn from(h: msg::Header) -> Self {
+        Header { stamp: Time::from_ns(h.stamp_ns), frame_id: h.frame_id }
+    }
+}
+
+/// `sensor_msgs/PointField`.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct PointField {
+    /// Name.
+    pub name: String,
+    /// Byte offset in a point.
+    pub offset: u32,
+    /// Type code (7: float32).
+    pub datatype: u8,
+    /// Elements.
+    pub count: u32,
+}
+
+/// `sensor_msgs/PointCloud2`.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct PointCloud2 {
+    /// Stamp and frame.
+    pub header: Header,
+    /// Rows.
+    pub height: u32,
+    /// Points per row.
+    pub width: u32,
+    /// Fields of a point.
+    pub fields: Vec<PointField>,
+    /// Byte order of `data`.
+    pub is_bigendian: bool,
+    /// Bytes per point.
+    pub point_step: u32,
+    /// Bytes per row.
+    pub row_step: u32,
+    /// The points.
+    #[serde(with = "serde_bytes")]
+    pub data: Vec<u8>,
+    /// Whether every point is finite.
+    pub is_dense: bool,
+}
+
+impl From<PointCloud2> for msg::PointCloud2 {
+    fn from(m: PointCloud2) -> Self {
+        let fields = m.fields.into_iter().map(|f| msg::PointField { name: f.name, offset: f.offset, datatype: f.datatype, count: f.count }).collect();
+        msg::PointCloud2 { header: m.header.into(), height: m.height, width: m.width, fields, is_bigendian: m.is_bigendian, point_step: m.point_step, row_step: m.row_step, data: m.data, is_dense: m.is_dense }
+    }
+}
+
+impl From<msg::PointCloud2> for PointCloud2 {
+    fn from(m: msg::PointCloud2) -> Self {
+        let fields = m.fields.into_iter().map(|f| PointField { name: f.name, offset: f.offset, datatype: f.datatype, count: f.count }).collect();
+        PointCloud2 { header: m.header.into(), height: m.height, width: m.width, fields, is_bigendian: m.is_bigendian, point_step: m.point_step, row_step: m.row_step, data: m.data, is_dense: m.is_dense }
+    }
+}
+
+/// `sensor_msgs/Image`.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Image {
+    /// Stamp and frame.
+    pub header: Header,
+    /// Rows.
+    pub height: u32,
+    /// Columns.
+    pub width: u32,
+    /// Pixel encoding (`16UC1`, `32FC1`, ...).
+    pub encoding: String,
+    /// Byte order of multi-byte pixels.
+    pub is_bigendian: u8,
+    /// Bytes per row.
+    pub step: u32,
+    /// Pixels.
+    #[serde(with = "serde_bytes")]
+    pub data: Vec<u8>,
+}
+
+impl From<Image> for msg::Image {
+    fn from(m: Image) -> Self {
+        msg::Image { header: m.header.into(), height: m.height, width: m.width, encoding: m.encoding, is_bigendian: m.is_bigendian != 0, step: m.step, data: m.data }
+    }
+}
+
+impl From<msg::Image> for Image {
+    fn from(m: msg::Image) -> Self {
+        Image { header: m.header.into(), height: m.height, width: m.width, encoding: m.encoding, is_bigendian: u8::from(m.is_bigendian), step: m.step, data: m.data }
+    }
+}
+
+/// `sensor_msgs/RegionOfInterest`.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct RegionOfInterest {
+    /// Left column.
+    pub x_offset: u32,
+    /// Top row.
+    pub y_offset: u32,
+    /// Rows.
+    pub height: u32,
+    /// Columns.
+    pub width: u32,
+    /// Whether to rectify.
+    pub do_rectify: bool,
+}
+
+/// `sensor_msgs/CameraInfo`.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct CameraInfo {
+    /// Stamp and frame.
+    pub header: Header,
+    /// Image rows.
+    pub height: u32,
+    /// Image columns.
+    pub width: u32,
+    /// Distortion model.
+    pub distortion_model: String,
+    /// Distortion coefficients.
+    pub d: Vec<f64>,
+    /// Intrinsics, row-major 3 × 3.
+    pub k: [f64; 9],
+    /// Rectification, row-major 3 × 3.
+    pub r: [f64; 9],
+    /// Projection, row-major 3 × 4.
+    pub p: [f64; 12],
+    /// Horizontal binning.
+    pub binning_x: u32,
+    /// Vertical binning.
+    pub binning_y: u32,
+    /// Region of interest.
+    pub roi: RegionOfInterest,
+}
+
+impl From<CameraInfo> for msg::CameraInfo {
+    fn from(m: CameraInfo) -> Self {
+        msg::CameraInfo { header: m.header.into(), height: m.height, width: m.width, distortion_model: m.distortion_model, d: m.d, k: m.k }
+    }
+}
+
+/// `sensor_msgs/LaserScan`.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct LaserScan {
+    /// Stamp and frame.
+    pub header: Header,
+    /// First beam's angle, radians.
+    pub angle_min: f32,
+    /// Last beam's angle, radians.
+    pub angle_max: f32,
+    /// Between beams, radians.
+    pub angle_increment: f32,
+    /// Between beams, seconds.
+    pub time_increment: f32,
+    /// Between scans, seconds.
+    pub scan_time: f32,
+    /// Shortest valid range, metres.
+    pub range_min: f32,
+    /// Longest valid range, metres.
+    pub range_max: f32,
+    /// Ranges, metres.
+    pub ranges: Vec<f32>,
+    /// Intensities.
+    pub intensities: Vec<f32>,
+}
+
+impl From<LaserScan> for msg::LaserScanMsg {
+    fn from(m: LaserScan) -> Self {
+        msg::LaserScanMsg {
+            header: m.header.into(),
+            angle_min: m.angle_min,
+            angle_max: m.angle_max,
+            angle_increment: m.angle_increment,
+            time_increment: m.time_increment,
+            scan_time: m.scan_time,
+            range_min: m.range_min,
+            range_max: m.range_max,
+            ranges: m.ranges,
+            intensities: m.intensities,
+        }
+    }
+}
+
+impl From<msg::LaserScanMsg> for LaserScan {
+    fn from(m: msg::LaserScanMsg) -> Self {
+        LaserScan {
+            header: m.header.into(),
+            angle_min: m.angle_min,
+            angle_max: m.angle_max,
+            angle_increment: m.angle_increment,
+            time_increment: m.time_increment,
+            scan_time: m.scan_time,
+            range_min: m.range_min,
+            range_max: m.range_max,
+            ranges: m.ranges,
+            intensities: m.intensities,
+        }
+    }
+}
+
+/// `geometry_msgs/Vector3` (and `Point`: the same layout).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct Vector3 {
+    /// x.
+    pub x: f64,
+    /// y.
+    pub y: f64,
+    /// z.
+    pub z: f64,
+}
+
+/// `geometry_msgs/Point`.
+pub type Point = Vector3;
+
+/// `geometry_msgs/Quaternion`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Quaternion {
+    /// x.
+    pub x: f64,
+    /// y.
+    pub y: f64,
+    /// z.
+    pub z: f64,
+    /// w.
+    pub w: f64,
+}
+
+impl Default for Quaternion {
+    fn default() -> Self {
+        Quaternion { x: 0.0, y: 0.0, z: 0.0, w: 1.0 }
+    }
+}
+
+/// `geometry_msgs/Transform` (and `Pose`: the same layout).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct Transform {
+    /// Translation (a pose's position).
+    pub translation: Vector3,
+    /// Rotation (a pose's orientation).
+    pub rotation: Quaternion,
+}
+
+/// `geometry_msgs/Pose`.
+pub type Pose = Transform;
+
+impl Transform {
+    /// The isometry; a quaternion far from unit length is an error.
+    pub fn isometry(&self) -> Result<Isometry3<f64>, String> {
+        let q = NaQuaternion::new(self.rotation.w, self.rotation.x, self.rotation.y, self.rotation.z);
+        let t = [self.translation.x, self.translation.y, self.translation.z];
+        if !t.iter().chain(q.coords.iter()).all(|v| v.is_finite()) || (q.norm() - 1.0).abs() > 1e-3 {
+            return Err(format!("pose {t:?} with quaternion (x y z w) {:?} is not finite with a unit quaternion", [q.i, q.j, q.k, q.w]));
+        }
+        Ok(Isometry3::from_parts(Translation3::new(t[0], t[1], t[2]), UnitQuaternion::from_quaternion(q)))
+    }
+
+    /// From an isometry.
+    pub fn from_isometry(p: &Isometry3<f64>) -> Self {
+        let (t, q) = (p.translation.vector, p.rotation.quaternion());
+        Transform { translation: Vector3 { x: t.x, y: t.y, z: t.z }, rotation: Quaternion { x: q.i, y: q.j, z: q.k, w: q.w } }
+    }
+}
+
+/// `geometry_msgs/TransformStamped`.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct TransformStamped {
+    /// Stamp and parent frame.
+    pub header: Header,
+    /// Child frame.
+    pub child_frame_id: String,
+    /// `T_parent_child`.
+    pub transform: Transform,
+}
+
+impl TransformStamped {
+    fn stamped(self) -> Result<msg::StampedTransform, String> {
+        let transform = self.transform.isometry()?;
+        Ok(msg::StampedTransform { header: self.header.into(), child_frame: self.child_frame_id, transform })
+    }
+}
+
+/// `tf2_msgs/TFMessage`.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct TfMessage {
+    /// The transforms.
+    pub transforms: Vec<TransformStamped>,
+}
+
+/// `geometry_msgs/PoseStamped`.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct PoseStamped {
+    /// Stamp and frame.
+    pub header: Header,
+    /// The pose.
+    pub pose: Pose,
+}
+
+/// `geometry_msgs/PoseWithCovariance` (`TwistWithCovariance` has the same
+/// size: two vectors instead of a point and a quaternion less one double,
+/// so it gets its own type).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct PoseWithCovariance {
+    /// The pose.
+    pub pose: Pose,
+    /// Row-major 6 × 6.
+    pub covariance: [[f64; 6]; 6],
+}
+
+/// `geometry_msgs/TwistWithCovariance`.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct TwistWithCovariance {
+    /// Linear then angular velocity.
+    pub twist: [Vector3; 2],
+    /// Row-major 6 × 6.
+    pub covariance: [[f64; 6]; 6],
+}
+
+/// `nav_msgs/Odometry`.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Odometry {
+    /// Stamp and frame of the pose.
+    pub header: Header,
+    /// The robot's frame.
+    pub child_frame_id: String,
+    /// `T_frame_child`.
+    pub pose: PoseWithCovariance,
+    /// Velocity in the child frame.
+    pub twist: TwistWithCovariance,
+}
+
+/// `nav_msgs/MapMetaData`.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct MapMetaData {
+    /// When the map was loaded.
+    pub map_load_time: Time,
+    /// Metres per cell.
+    pub resolution: f32,
+    /// Cells along x.
+    pub width: u32,
+    /// Cells along y.
+    pub height: u32,
+    /// Pose of cell (0, 0)'s corner.
+    pub origin: Pose,
+}
+
+/// `nav_msgs/OccupancyGrid`.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct OccupancyGrid {
+    /// Stamp and frame.
+    pub header: Header,
+    /// Size and placement.
+    pub info: MapMetaData,
+    /// Row-major cells: -1 unknown, 0 free, 100 occupied.
+    pub data: Vec<i8>,
+}
+
+/// `diagnostic_msgs/KeyValue`.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct KeyValue {
+    /// Key.
+    pub key: String,
+    /// Value.
+    pub value: String,
+}
+
+/// `diagnostic_msgs/DiagnosticStatus`.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct DiagnosticStatus {
+    /// 0 OK, 1 WARN, 2 ERROR, 3 STALE.
+    pub level: u8,
+    /// Name.
+    pub name: String,
+    /// Summary.
+    pub message: String,
+    /// Source.
+    pub hardware_id: String,
+    /// Values.
+    pub values: Vec<KeyValue>,
+}
+
+/// `diagnostic_msgs/DiagnosticArray`.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct DiagnosticArray {
+    /// Stamp.
+    pub header: Header,
+    /// Statuses.
+    pub status: Vec<DiagnosticStatus>,
+}
+
+/// `edtmap_msgs/GetDistances` request.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct GetDistancesRequest {
+    /// Points in the world frame, metres.
+    pub points: Vec<Point>,
+    /// Signed distance (negative inside obstacles) instead of the distance
+    /// to the nearest obstacle.
+    pub signed: bool,
+}
+
+/// `edtmap_msgs/GetDistances` response.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct GetDistancesResponse {
+    /// Stamp of the latest frame the answers include.
+    pub map_stamp: Time,
+    /// Distance per point, metres; NaN outside the mapped range.
+    pub distances: Vec<f64>,
+    /// Gradient of the distance per point.
+    pub gradients: Vec<Vector3>,
+    /// State per point: 0 outside the map, 1 unknown, 2 free, 3 occupied.
+    pub states: Vec<u8>,
+    /// Per point: whether a voxel used had no obstacle within the cutoff
+    /// (the distance is then a lower bound).
+    pub saturated: Vec<bool>,
+}
+
+/// `edtmap_msgs/GetEsdfBox` request.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct GetEsdfBoxRequest {
+    /// Lowest corner, metres, world frame.
+    pub min_corner: Point,
+    /// Highest corner (excluded), metres.
+    pub max_corner: Point,
+    /// Signed distances.
+    pub signed: bool,
+}
+
+/// `edtmap_msgs/GetEsdfBox` response.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct GetEsdfBoxResponse {
+    /// Whether the box was exported.
+    pub success: bool,
+    /// Why not, when it was not.
+    pub message: String,
+    /// Stamp of the latest frame the box includes.
+    pub map_stamp: Time,
+    /// Centre of the first voxel (lowest x, y, z), metres.
+    pub origin: Point,
+    /// Voxel edge, metres.
+    pub voxel_size: f64,
+    /// Voxels along x, y, z.
+    pub size: [u32; 3],
+    /// Distance per voxel, metres, x fastest; saturated voxels hold the cutoff.
+    pub distances: Vec<f32>,
+    /// Central-difference gradient per voxel (x, y, z interleaved), zero on
+    /// the box's faces along the axis that leaves it.
+    pub gradients: Vec<f32>,
+    /// State per voxel: 0 outside the map, 1 unknown, 2 free, 3 occupied.
+    pub states: Vec<u8>,
+}
+
+/// `edtmap_msgs/SaveMap` request.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct SaveMapRequest {
+    /// Where to write the map (replaced atomically).
+    pub path: String,
+}
+
+/// `edtmap_msgs/SaveMap` response.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct SaveMapResponse {
+    /// Whether the map was written.
+    pub success: bool,
+    /// What was written, or why not.
+    pub message: String,
+}
+
+messages!(
+    PointCloud2,
+    Image,
+    CameraInfo,
+    LaserScan,
+    TfMessage,
+    PoseStamped,
+    TransformStamped,
+    Odometry,
+    OccupancyGrid,
+    DiagnosticArray,
+    GetDistancesRequest,
+    GetDistancesResponse,
+    GetEsdfBoxRequest,
+    GetEsdfBoxResponse,
+    SaveMapRequest,
+    SaveMapResponse
+);
+
+/// A pose or sensor message, converted to the crate's types.
+pub(crate) fn tf_message(m: TfMessage) -> Result<msg::Message, String> {
+    Ok(msg::Message::Tf(m.transforms.into_iter().map(TransformStamped::stamped).collect::<Result<_, _>>()?))
+}
+
+/// `nav_msgs/Odometry` → the pose of its child frame.
+pub(crate) fn odometry(m: Odometry) -> Result<msg::Message, String> {
+    let transform = m.pose.pose.isometry()?;
+    Ok(msg::Message::Odometry(msg::StampedTransform { header: m.header.into(), child_frame: m.child_frame_id, transform }))
+}
+
+/// `geometry_msgs/PoseStamped` → its pose.
+pub(crate) fn pose_stamped(m: PoseStamped) -> Result<msg::Message, String> {
+    let transform = m.pose.isometry()?;
+    Ok(msg::Message::PoseStamped(msg::StampedTransform { header: m.header.into(), child_frame: String::new(), transform }))
+}
+
+/// `geometry_msgs/TransformStamped` → its transform.
+pub(crate) fn transform_stamped(m: TransformStamped) -> Result<msg::Message, String> {
+    Ok(msg::Message::TransformStamped(m.stamped()?))
+}
