@@ -6,6 +6,7 @@ mod backend;
 mod demo;
 mod edt;
 mod memory;
+mod node;
 mod pictures;
 mod query;
 mod record;
@@ -46,6 +47,8 @@ enum Command {
     Run(run::RunArgs),
     /// Write a built-in scene as a ROS 1 bag or ROS 2 MCAP file, with the config that replays it.
     Record(record::RecordArgs),
+    /// Map live on ROS 2: sensor and pose topics in; ESDF clouds, slices and distance services out.
+    Node(node::NodeArgs),
     /// Distance, gradient and state at points (CSV) from a saved map.
     Query(query::QueryArgs),
     /// A dense box of distances from a saved map, as .npy.
@@ -77,6 +80,7 @@ fn main() -> ExitCode {
         Command::Edt(args) => edt::run(&args),
         Command::Run(args) => run::run(&args),
         Command::Record(args) => record::record(&args),
+        Command::Node(args) => node::run(&args),
         Command::Query(args) => query::query(&args),
         Command::Export(args) => query::export(&args),
         Command::Info(args) => query::info(&args),

@@ -356,7 +356,13 @@ fn write_scan(w: &mut WireWriter, m: &LaserScanMsg) {
 /// A `geometry_msgs/Pose` or `Transform`: translation then quaternion.
 fn read_rigid(r: &mut WireReader<'_>, what: &str) -> WireResult<Isometry3<f64>> {
     let t = r.f64_array::<3>(what)?;
-    let [x, y, z, w] = r.f64_array::<4>(what)?;
+    let q = r.f64_array::<4>(what)?;
+    rigid(t, q, what)
+}
+
+/// The rigid transform of a translation and a quaternion `[x, y, z, w]`,
+/// as every pose message gives them; `what` names it in the error.
+pub(crate) fn rigid(t: [f64; 3], [x, y, z, w]: [f64; 4], what: &str) -> WireResult<Isometry3<f64>> {
     let q = Quaternion::new(w, x, y, z);
     let norm = q.norm();
     if !norm.is_finite() || (norm - 1.0).abs() > 1e-2 || t.iter().any(|v| !v.is_finite()) {

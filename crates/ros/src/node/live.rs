@@ -74,11 +74,11 @@ impl LiveFrames {
     }
 
     /// Queues a sensor message until its pose is known; a message that
-    /// does not decode is skipped at once. `received_ns` stands in for an
-    /// empty stamp.
-    pub(crate) fn add_sensor(&mut self, msg: Message, received_ns: i64, now: Instant) -> Result<(), Skipped> {
+    /// does not decode is skipped at once. The stamp is taken as it is
+    /// (0 included: simulated time starts there), in the poses' clock.
+    pub(crate) fn add_sensor(&mut self, msg: Message, now: Instant) -> Result<(), Skipped> {
         let (measurement, stamp_ns, frame_id) = measurement(msg, self.opts.depth_scale_m).map_err(|reason| Skipped { kind: "bad message", reason })?;
-        let stamp_s = if stamp_ns == 0 { received_ns as f64 * 1e-9 } else { stamp_ns as f64 * 1e-9 };
+        let stamp_s = stamp_ns as f64 * 1e-9;
         self.pending.push_back(Pending { measurement, stamp_s, frame_id, arrived: now });
         if self.pending.len() > MAX_PENDING {
             if let Some(old) = self.pending.pop_front() {
@@ -154,7 +154,7 @@ mod tests {
         let t0 = Instant::now();
         live.add_pose(&tf("base_link", "lidar", 0.0, 0.25), true).expect("static");
         live.add_pose(&tf("map", "base_link", 1.0, 1.0), false).expect("pose");
-        live.add_sensor(cloud(1.5), 0, t0).expect("decodes");
+        live.add_sensor(cloud(1.5), t0).expect("decodes");
         // The tree ends at 1.0 s: the message at 1.5 s waits.
         assert!(live.ready(t0).is_empty());
         live.add_pose(&tf("map", "base_link", 2.0, 3.0), false).expect("pose");
@@ -170,7 +170,7 @@ mod tests {
         let mut live = LiveFrames::new(opts(), true, 0.5, 10.0);
         let t0 = Instant::now();
         live.add_pose(&tf("map", "base_link", 1.0, 1.0), false).expect("pose");
-        live.add_sensor(cloud(3.0), 0, t0).expect("decodes");
+        live.add_sensor(cloud(3.0), t0).expect("decodes");
         assert!(live.ready(t0 + Duration::from_millis(100)).is_empty());
         let out = live.ready(t0 + Duration::from_millis(600));
         let skipped = out[0].as_ref().expect_err("no pose");
@@ -184,11 +184,11 @@ mod tests {
         let t0 = Instant::now();
         let mut bad = PointCloud2::from_points(Header::default(), &[[1.0, 0.0, 0.0]]);
         bad.point_step = 7;
-        assert_eq!(live.add_sensor(Message::PointCloud2(bad), 0, t0).expect_err("bad step").kind, "bad message");
+        assert_eq!(live.add_sensor(Message::PointCloud2(bad), t0).expect_err("bad step").kind, "bad message");
         for i in 0..MAX_PENDING {
-            live.add_sensor(cloud(i as f64), 0, t0).expect("queued");
+            live.add_sensor(cloud(i as f64), t0).expect("queued");
         }
-        assert_eq!(live.add_sensor(cloud(99.0), 0, t0).expect_err("full").kind, "pose queue full");
+        assert_eq!(live.add_sensor(cloud(99.0), t0).expect_err("full").kind, "pose queue full");
         assert_eq!(live.pending(), MAX_PENDING);
     }
 

@@ -161,8 +161,16 @@ fn static_qos() -> QosProfile {
     QosProfile::publisher_default().reliability_reliable(WhenFull::Wait(Duration::from_millis(100))).durability(Durability::TransientLocal).history(History::KeepLast { depth: 100 })
 }
 
-fn name(topic: &str) -> Result<Name, NodeError> {
-    Name::parse(topic).map_err(|e| NodeError::Config(format!("topic {topic:?} is not a ROS name: {e:?}")))
+/// `topic` resolved in `namespace`, as an absolute name (`ros2-client`
+/// would put a double slash in a relative name under the root namespace).
+fn name(namespace: &str, topic: &str) -> Result<Name, NodeError> {
+    let full = if topic.starts_with('/') { topic.to_string() } else { format!("{}/{topic}", namespace.trim_end_matches('/')) };
+    Name::parse(&full).map_err(|e| NodeError::Config(format!("topic {full:?} is not a ROS name: {e:?}")))
+}
+
+/// `NAMESPACE/edtmap/BASE`: the node's outputs and services.
+pub(crate) fn own_name(namespace: &str, base: &str) -> Result<Name, NodeError> {
+    name(namespace, &format!("edtmap/{base}"))
 }
 
 /// The recording vocabulary of `[ros]`, for the pose logic both share.
@@ -182,7 +190,9 @@ fn ros_options(config: &Config) -> Result<RosOptions, NodeError> {
     })
 }
 
-/// The sensor subscription, by the message type `[sensor] kind` takes.
+/// The sensor subscription, by the message type `[sensor] kind` takes
+/// (one per node: the size of the variants does not matter).
+#[allow(clippy::large_enum_variant)]
 enum SensorSub {
     Cloud(Subscription<types::PointCloud2>),
     Image(Subscription<types::Image>, Option<Subscription<types::CameraInfo>>),
@@ -190,6 +200,7 @@ enum SensorSub {
 }
 
 /// The pose subscription(s).
+#[allow(clippy::large_enum_variant)]
 enum PoseSub {
     Tf(Subscription<types::TfMessage>, Subscription<types::TfMessage>),
     Odometry(Subscription<types::Odometry>),
@@ -206,18 +217,26 @@ struct Outputs {
     stats: Publisher<types::DiagnosticArray>,
 }
 
-/// Starts the node of `config` (its `[ros]` section; the mapper from the
-/// rest), with `map` to go on from when given.
-pub fn start(config: &Config, map: Option<GlobalMap>) -> Result<NodeHandle, NodeError> {
-    let opts = ros_options(config)?;
-    let (sensor, params) = config.mapper_params()?;
+/// The mapper of `config` (all but its `[ros]` section), going on from
+/// `map` when given; `max_memory_bytes` replaces `[memory]`'s budget.
+pub fn mapper(config: &Config, map: Option<GlobalMap>, max_memory_bytes: Option<u64>) -> Result<Mapper, NodeError> {
     if config.sensor.kind == SensorKind::Lidar {
         return Err(NodeError::Config("[sensor] kind = \"lidar\" takes range images; a live sensor_msgs/PointCloud2 needs kind = \"points\" (with construction = \"raycast\" or \"projection\")".into()));
     }
-    let mapper = match map {
+    let (sensor, mut params) = config.mapper_params()?;
+    if max_memory_bytes.is_some() {
+        params.max_memory_bytes = max_memory_bytes;
+    }
+    Ok(match map {
         Some(map) => Mapper::with_map(sensor, params, map)?,
         None => Mapper::new(sensor, params)?,
-    };
+    })
+}
+
+/// Starts the node of `config`'s `[ros]` section, mapping with `mapper`
+/// (see [`mapper`]).
+pub fn start(config: &Config, mapper: Mapper) -> Result<NodeHandle, NodeError> {
+    let opts = ros_options(config)?;
     let r = &config.ros;
     let domain: u16 = match std::env::var("ROS_DOMAIN_ID") {
         Ok(v) if !v.trim().is_empty() => v.trim().parse().ok().filter(|&d| d <= 232).ok_or_else(|| NodeError::Config(format!("ROS_DOMAIN_ID={v:?} is not a domain id (0 to 232)")))?,
@@ -232,9 +251,10 @@ pub fn start(config: &Config, map: Option<GlobalMap>) -> Result<NodeHandle, Node
     let node_name = NodeName::new(&r.namespace, "edtmap").map_err(|e| NodeError::Config(format!("namespace {:?}: {e:?}", r.namespace)))?;
     let mut node = context.new_node(node_name, NodeOptions::new().enable_rosout(false)).map_err(|e| NodeError::Dds(format!("node: {e:?}")))?;
 
-    let topic = |node: &mut Node, t: &str, package: &str, ty: &str, qos: &QosProfile| node.create_topic(&name(t)?, MessageTypeName::new(package, ty), qos).map_err(|e| NodeError::Dds(format!("topic {t}: {e:?}")));
+    let ns = r.namespace.as_str();
+    let topic = |node: &mut Node, t: &str, package: &str, ty: &str, qos: &QosProfile| node.create_topic(&name(ns, t)?, MessageTypeName::new(package, ty), qos).map_err(|e| NodeError::Dds(format!("topic {t}: {e:?}")));
     let out_topic = |node: &mut Node, base: &str, package: &str, ty: &str| {
-        let n = Name::new("edtmap", base).map_err(|e| NodeError::Dds(format!("{base}: {e:?}")))?;
+        let n = own_name(ns, base)?;
         node.create_topic(&n, MessageTypeName::new(package, ty), &reliable_qos(2)).map_err(|e| NodeError::Dds(format!("topic edtmap/{base}: {e:?}")))
     };
     macro_rules! sub {
@@ -284,7 +304,7 @@ pub fn start(config: &Config, map: Option<GlobalMap>) -> Result<NodeHandle, Node
         grid: publ!(node, out_topic(&mut node, "occupancy_grid", "nav_msgs", "OccupancyGrid")?),
         stats: publ!(node, out_topic(&mut node, "frame_stats", "diagnostic_msgs", "DiagnosticArray")?),
     };
-    let servers = services::Servers::create(&mut node, r.service_mapping)?;
+    let servers = services::Servers::create(&mut node, ns, r.service_mapping)?;
 
     let snapshot = Snapshot { map: mapper.map().clone(), volume: None, stamp_ns: 0, frames: 0 };
     let shared = Arc::new(Shared {
@@ -355,13 +375,10 @@ impl NodeHandle {
 }
 
 /// Takes every message waiting on one subscription.
-fn drain<M: 'static + serde::de::DeserializeOwned>(sub: &Subscription<M>, shared: &Shared, mut f: impl FnMut(M, i64)) {
+fn drain<M: 'static + serde::de::DeserializeOwned>(sub: &Subscription<M>, shared: &Shared, mut f: impl FnMut(M)) {
     loop {
         match sub.take() {
-            Ok(Some((m, info))) => {
-                let received = info.received_timestamp().map_or(0, |t| t.to_nanos());
-                f(m, received);
-            }
+            Ok(Some((m, _))) => f(m),
             Ok(None) => break,
             Err(e) => shared.skip(&Skipped { kind: "bad message", reason: format!("undecodable sample: {e:?}") }),
         }
@@ -417,25 +434,25 @@ fn input_loop(shared: &Shared, mut sensor: SensorSub, mut pose: PoseSub, mut liv
         };
         match &pose {
             PoseSub::Tf(t, st) => {
-                drain(st, shared, |m, _| pose_msg(types::tf_message(m), true, &mut live));
-                drain(t, shared, |m, _| pose_msg(types::tf_message(m), false, &mut live));
+                drain(st, shared, |m| pose_msg(types::tf_message(m), true, &mut live));
+                drain(t, shared, |m| pose_msg(types::tf_message(m), false, &mut live));
             }
-            PoseSub::Odometry(s) => drain(s, shared, |m, _| pose_msg(types::odometry(m), false, &mut live)),
-            PoseSub::PoseStamped(s) => drain(s, shared, |m, _| pose_msg(types::pose_stamped(m), false, &mut live)),
-            PoseSub::TransformStamped(s) => drain(s, shared, |m, _| pose_msg(types::transform_stamped(m), false, &mut live)),
+            PoseSub::Odometry(s) => drain(s, shared, |m| pose_msg(types::odometry(m), false, &mut live)),
+            PoseSub::PoseStamped(s) => drain(s, shared, |m| pose_msg(types::pose_stamped(m), false, &mut live)),
+            PoseSub::TransformStamped(s) => drain(s, shared, |m| pose_msg(types::transform_stamped(m), false, &mut live)),
         }
-        let sensor_msg = |m: Message, received: i64, live: &mut LiveFrames| {
+        let sensor_msg = |m: Message, live: &mut LiveFrames| {
             shared.received.fetch_add(1, Relaxed);
-            if let Err(s) = live.add_sensor(m, received, now) {
+            if let Err(s) = live.add_sensor(m, now) {
                 shared.skip(&s);
             }
         };
         match &sensor {
-            SensorSub::Cloud(s) => drain(s, shared, |m, r| sensor_msg(Message::PointCloud2(m.into()), r, &mut live)),
-            SensorSub::Scan(s) => drain(s, shared, |m, r| sensor_msg(Message::LaserScan(m.into()), r, &mut live)),
+            SensorSub::Cloud(s) => drain(s, shared, |m| sensor_msg(Message::PointCloud2(m.into()), &mut live)),
+            SensorSub::Scan(s) => drain(s, shared, |m| sensor_msg(Message::LaserScan(m.into()), &mut live)),
             SensorSub::Image(s, info) => {
                 if let Some(i) = info {
-                    drain(i, shared, |m, _| {
+                    drain(i, shared, |m| {
                         let info: crate::msg::CameraInfo = m.into();
                         if let (Some(want), None) = (&camera, live.camera()) {
                             let got = ([info.k[0], info.k[4], info.k[2], info.k[5]], info.width, info.height);
@@ -446,7 +463,7 @@ fn input_loop(shared: &Shared, mut sensor: SensorSub, mut pose: PoseSub, mut liv
                         live.set_camera(info);
                     });
                 }
-                drain(s, shared, |m, r| sensor_msg(Message::Image(m.into()), r, &mut live));
+                drain(s, shared, |m| sensor_msg(Message::Image(m.into()), &mut live));
             }
         }
         for ready in live.ready(now) {

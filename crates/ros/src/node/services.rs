@@ -7,7 +7,7 @@ use edtmap::config::ServiceMapping;
 use edtmap::cpu::query;
 use ros2_client::dds::rustdds::mio1::{Events, Interest, Poll, Token};
 use ros2_client::qos::{Durability, History, WhenFull};
-use ros2_client::{Name, Node, QosProfile, Server, ServiceTypeName};
+use ros2_client::{Node, QosProfile, Server, ServiceTypeName};
 use std::sync::atomic::Ordering::Relaxed;
 use std::time::Duration;
 
@@ -27,14 +27,14 @@ fn qos() -> QosProfile {
 
 impl Servers {
     /// Creates the servers under `NAMESPACE/edtmap/`.
-    pub(super) fn create(node: &mut Node, mapping: ServiceMapping) -> Result<Self, NodeError> {
+    pub(super) fn create(node: &mut Node, namespace: &str, mapping: ServiceMapping) -> Result<Self, NodeError> {
         let mapping = match mapping {
             ServiceMapping::Cyclone => ros2_client::ServiceMapping::Cyclone,
             ServiceMapping::Enhanced => ros2_client::ServiceMapping::Enhanced,
         };
         macro_rules! server {
             ($base:expr, $ty:expr) => {{
-                let name = Name::new("edtmap", $base).map_err(|e| NodeError::Dds(format!("{}: {e:?}", $base)))?;
+                let name = super::own_name(namespace, $base)?;
                 node.create_server(mapping, &name, &ServiceTypeName::new("edtmap_msgs", $ty), qos(), qos()).map_err(|e| NodeError::Dds(format!("service edtmap/{}: {e:?}", $base)))?
             }};
         }

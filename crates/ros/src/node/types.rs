@@ -6,7 +6,7 @@
 //! errors as a recorded one.
 
 use crate::msg;
-use nalgebra::{Isometry3, Quaternion as NaQuaternion, Translation3, UnitQuaternion};
+use nalgebra::Isometry3;
 use serde::{Deserialize, Serialize};
 
 /// Marks a type `ros2-client` may publish, take and serve.
@@ -292,14 +292,11 @@ pub struct Transform {
 pub type Pose = Transform;
 
 impl Transform {
-    /// The isometry; a quaternion far from unit length is an error.
+    /// The isometry, read as a recorded pose is; a quaternion far from
+    /// unit length is an error.
     pub fn isometry(&self) -> Result<Isometry3<f64>, String> {
-        let q = NaQuaternion::new(self.rotation.w, self.rotation.x, self.rotation.y, self.rotation.z);
-        let t = [self.translation.x, self.translation.y, self.translation.z];
-        if !t.iter().chain(q.coords.iter()).all(|v| v.is_finite()) || (q.norm() - 1.0).abs() > 1e-3 {
-            return Err(format!("pose {t:?} with quaternion (x y z w) {:?} is not finite with a unit quaternion", [q.i, q.j, q.k, q.w]));
-        }
-        Ok(Isometry3::from_parts(Translation3::new(t[0], t[1], t[2]), UnitQuaternion::from_quaternion(q)))
+        let (t, q) = (self.translation, self.rotation);
+        msg::rigid([t.x, t.y, t.z], [q.x, q.y, q.z, q.w], "pose")
     }
 
     /// From an isometry.
@@ -318,6 +315,12 @@ pub struct TransformStamped {
     pub child_frame_id: String,
     /// `T_parent_child`.
     pub transform: Transform,
+}
+
+impl From<&msg::StampedTransform> for TransformStamped {
+    fn from(t: &msg::StampedTransform) -> Self {
+        TransformStamped { header: t.header.clone().into(), child_frame_id: t.child_frame.clone(), transform: Transform::from_isometry(&t.transform) }
+    }
 }
 
 impl TransformStamped {
@@ -343,9 +346,7 @@ pub struct PoseStamped {
     pub pose: Pose,
 }
 
-/// `geometry_msgs/PoseWithCovariance` (`TwistWithCovariance` has the same
-/// size: two vectors instead of a point and a quaternion less one double,
-/// so it gets its own type).
+/// `geometry_msgs/PoseWithCovariance`.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct PoseWithCovariance {
     /// The pose.

@@ -1,0 +1,179 @@
+//! `edtmap node` end to end over DDS on loopback: a recording that `edtmap
+//! record` wrote is published frame by frame by a second ROS 2 participant
+//! (`ros2-client`, in this test's process), the node maps it live, its
+//! services answer, and on SIGINT it saves a map byte-identical to the one
+//! `edtmap run` makes of the same recording.
+
+mod common;
+
+use common::{bin, finish, run_in};
+use edtmap_ros::msg::Message;
+use edtmap_ros::node::types::{DiagnosticArray, GetDistancesRequest, GetDistancesResponse, GetEsdfBoxRequest, GetEsdfBoxResponse, Point, PointCloud2, TfMessage, TransformStamped};
+use ros2_client::dds::rustdds::DomainParticipantBuilder;
+use ros2_client::qos::{Durability, History, WhenFull};
+use ros2_client::{Context, MessageTypeName, Name, NodeName, NodeOptions, QosProfile, ServiceMapping, ServiceTypeName};
+use std::net::{IpAddr, Ipv4Addr};
+use std::path::Path;
+use std::process::Stdio;
+use std::time::{Duration, Instant};
+
+const MIN: Duration = Duration::from_secs(60);
+
+fn qos() -> QosProfile {
+    QosProfile::publisher_default().reliability_reliable(WhenFull::Wait(Duration::from_millis(500))).durability(Durability::Volatile).history(History::KeepLast { depth: 20 })
+}
+
+/// Waits up to `limit` for `f` to give something.
+fn wait<T>(limit: Duration, mut f: impl FnMut() -> Option<T>) -> Option<T> {
+    let start = Instant::now();
+    while start.elapsed() < limit {
+        if let Some(t) = f() {
+            return Some(t);
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    None
+}
+
+fn frames_in(stats: &DiagnosticArray) -> u64 {
+    stats.status.iter().flat_map(|s| &s.values).find(|kv| kv.key == "frames").and_then(|kv| kv.value.parse().ok()).unwrap_or(0)
+}
+
+#[test]
+fn the_node_maps_a_published_recording_like_a_replay_and_answers_queries() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let d = dir.path();
+    let frames = 6;
+    let rec = run_in(d, &["record", "--scene", "uav_pillars", "--frames", &frames.to_string(), "rec.mcap"], MIN);
+    assert_eq!(rec.code(), Some(0), "{}", rec.stderr);
+    let replay = run_in(d, &["run", "--config", "rec.toml", "--dataset", "rec.mcap", "--out", "replay", "--save", "replay.edtmap"], MIN);
+    assert_eq!(replay.code(), Some(0), "{}", replay.stderr);
+
+    // The node's config: the recording's, with [ros] for the live topics.
+    let domain = 100 + std::process::id() % 100;
+    let mut config = std::fs::read_to_string(d.join("rec.toml")).expect("config");
+    config.push_str("\n[ros]\nsensor_topic = \"/points\"\npose_topic = \"/tf\"\nworld_frame = \"map\"\nlocalhost_only = true\nesdf_pointcloud_hz = 100.0\npose_wait_s = 5.0\n");
+    std::fs::write(d.join("node.toml"), config).expect("write config");
+    let mut cmd = bin();
+    cmd.args(["-v", "node", "--config", "node.toml", "--save", "node.edtmap"]).current_dir(d).env("ROS_DOMAIN_ID", domain.to_string());
+    let child = cmd.stdin(Stdio::null()).stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().expect("the node starts");
+    let pid = child.id();
+    let outcome = std::panic::catch_unwind(|| drive(d, domain as u16, frames));
+    // SIGINT: the node saves its map and exits.
+    // SAFETY: kill on our own child's pid.
+    unsafe { libc::kill(pid as libc::pid_t, libc::SIGINT) };
+    let run = finish(child, MIN);
+    if let Err(e) = outcome {
+        panic!("{:?}\nnode stdout:\n{}\nnode stderr:\n{}", e.downcast_ref::<String>(), run.stdout, run.stderr);
+    }
+    assert_eq!(run.code(), Some(0), "{}\n{}", run.stdout, run.stderr);
+    assert!(run.stdout.contains(&format!("{frames} frames integrated")), "{}", run.stdout);
+    let (live, replayed) = (std::fs::read(d.join("node.edtmap")).expect("node map"), std::fs::read(d.join("replay.edtmap")).expect("replay map"));
+    assert!(live == replayed, "the live map differs from the replay's ({} and {} bytes)", live.len(), replayed.len());
+}
+
+/// Publishes the recording to the node and checks what it answers.
+fn drive(d: &Path, domain: u16, frames: u64) {
+    let participant = DomainParticipantBuilder::new(domain).with_only_networks([IpAddr::V4(Ipv4Addr::LOCALHOST)]).build().expect("participant");
+    let context = Context::from_domain_participant(participant).expect("context");
+    let mut node = context.new_node(NodeName::new("/", "player").expect("name"), NodeOptions::new().enable_rosout(false)).expect("node");
+    let topic = |node: &mut ros2_client::Node, ns: &str, base: &str, pkg: &str, ty: &str| node.create_topic(&Name::new(ns, base).expect("name"), MessageTypeName::new(pkg, ty), &qos()).expect("topic");
+    let t = topic(&mut node, "/", "points", "sensor_msgs", "PointCloud2");
+    let points = node.create_publisher::<PointCloud2>(&t, Some(qos())).expect("publisher");
+    let t = topic(&mut node, "/", "tf", "tf2_msgs", "TFMessage");
+    let tf = node.create_publisher::<TfMessage>(&t, Some(qos())).expect("publisher");
+    let t = topic(&mut node, "/edtmap", "frame_stats", "diagnostic_msgs", "DiagnosticArray");
+    let stats = node.create_subscription::<DiagnosticArray>(&t, Some(qos())).expect("subscription");
+    let t = topic(&mut node, "/edtmap", "esdf_pointcloud", "sensor_msgs", "PointCloud2");
+    let esdf = node.create_subscription::<PointCloud2>(&t, Some(qos())).expect("subscription");
+    let srv = |base: &str| Name::new("/edtmap", base).expect("name");
+    let distances = node.create_client::<GetDistancesRequest, GetDistancesResponse>(ServiceMapping::Cyclone, &srv("get_distances"), &ServiceTypeName::new("edtmap_msgs", "GetDistances"), qos(), qos()).expect("client");
+    let boxes = node.create_client::<GetEsdfBoxRequest, GetEsdfBoxResponse>(ServiceMapping::Cyclone, &srv("get_esdf_box"), &ServiceTypeName::new("edtmap_msgs", "GetEsdfBox"), qos(), qos()).expect("client");
+
+    // The recording's poses (/tf) and clouds, in order.
+    let reader = edtmap_ros::mcap::McapReader::open(&d.join("rec.mcap")).expect("recording");
+    let topics = ["/tf".to_string(), "/points".to_string()];
+    let mut by_frame: Vec<(TfMessage, PointCloud2)> = Vec::new();
+    let mut pending_tf = None;
+    for raw in reader.messages(&topics) {
+        let raw = raw.expect("message");
+        match Message::decode(&raw.msg_type, &raw.data, raw.encoding).expect("decodes") {
+            Message::Tf(ts) => pending_tf = Some(TfMessage { transforms: ts.iter().map(TransformStamped::from).collect() }),
+            Message::PointCloud2(c) => by_frame.push((pending_tf.take().expect("a pose before each cloud"), c.into())),
+            other => panic!("unexpected {}", other.type_name()),
+        }
+    }
+    assert_eq!(by_frame.len() as u64, frames);
+
+    // Discovery on loopback: give both participants a moment, then send
+    // each frame once its predecessor is mapped (paced: nothing drops).
+    std::thread::sleep(Duration::from_secs(2));
+    let mut mapped = 0;
+    let mut last_esdf = None;
+    for (i, (pose, cloud)) in by_frame.into_iter().enumerate() {
+        let want = i as u64 + 1;
+        let mut tries = 0;
+        while mapped < want {
+            // A frame lost to discovery not yet done is sent again; one
+            // that arrived is never sent twice (the node counts it first).
+            assert!(tries < 5, "frame {i} was not mapped");
+            tf.publish(pose.clone()).expect("tf");
+            points.publish(cloud.clone()).expect("cloud");
+            tries += 1;
+            let got = wait(Duration::from_secs(10), || match stats.take() {
+                Ok(s) => s.map(|(s, _)| frames_in(&s)).filter(|&n| n >= want),
+                Err(e) => panic!("frame_stats: {e:?}"),
+            });
+            if let Some(n) = got {
+                mapped = n;
+            }
+        }
+        while let Ok(Some((c, _))) = esdf.take() {
+            last_esdf = Some(c);
+        }
+    }
+    assert_eq!(mapped, frames);
+
+    // The replay's map answers the same queries bit for bit.
+    let map = edtmap::load_map(&d.join("replay.edtmap")).expect("replay map");
+    let cloud = last_esdf.expect("an ESDF cloud came");
+    let values: Vec<f32> = cloud.data.chunks(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
+    // Points near the mapped voxels (off their centres, so gradients
+    // interpolate), and some far from anything.
+    let mut query: Vec<Point> = values.chunks(4).step_by(7).take(300).map(|p| Point { x: f64::from(p[0]) + 0.031, y: f64::from(p[1]) - 0.047, z: f64::from(p[2]) + 0.012 }).collect();
+    query.extend((0..50).map(|i| Point { x: 1e3 + f64::from(i), y: -7.0, z: f64::NAN.min(1.0) }));
+    let req = GetDistancesRequest { points: query.clone(), signed: false };
+    let id = distances.send_request(req).expect("request");
+    let resp = wait(Duration::from_secs(20), || distances.receive_response().ok().flatten().filter(|(rid, _)| *rid == id).map(|(_, r)| r)).expect("get_distances answers");
+    let want = edtmap::cpu::query::distances(&map, &query.iter().map(|p| [p.x, p.y, p.z]).collect::<Vec<_>>(), false);
+    assert_eq!(resp.distances.len(), want.len());
+    for (i, w) in want.iter().enumerate() {
+        let same = resp.distances[i].to_bits() == w.distance_m.to_bits() || (resp.distances[i].is_nan() && w.distance_m.is_nan());
+        assert!(same, "point {i}: {} vs {}", resp.distances[i], w.distance_m);
+        assert_eq!([resp.gradients[i].x, resp.gradients[i].y, resp.gradients[i].z], w.gradient, "point {i}");
+        assert_eq!(resp.states[i], w.state as u8, "point {i}");
+    }
+    assert!(want.iter().filter(|w| w.distance_m < 1.0).count() > 100, "the queries reach mapped space");
+    assert!(resp.states[300..].iter().all(|&s| s == edtmap::PointState::Outside as u8));
+
+    let (lo, hi) = ([-1.0, -1.0, 0.0], [1.0, 1.0, 1.0]);
+    let req = GetEsdfBoxRequest { min_corner: Point { x: lo[0], y: lo[1], z: lo[2] }, max_corner: Point { x: hi[0], y: hi[1], z: hi[2] }, signed: false };
+    let id = boxes.send_request(req).expect("request");
+    let resp = wait(Duration::from_secs(20), || boxes.receive_response().ok().flatten().filter(|(rid, _)| *rid == id).map(|(_, r)| r)).expect("get_esdf_box answers");
+    let want = edtmap::cpu::query::distance_box(&map, lo, hi, false).expect("box");
+    assert!(resp.success, "{}", resp.message);
+    assert_eq!(resp.size, want.dims.map(|d| d as u32));
+    assert_eq!(resp.distances, want.distance_m);
+    assert_eq!(resp.states, want.state);
+    assert_eq!(resp.gradients.len(), 3 * want.distance_m.len());
+
+    // The ESDF cloud: every point's distance is the map's at that voxel.
+    assert_eq!(cloud.point_step, 16);
+    assert!(cloud.width > 100, "{} points", cloud.width);
+    for p in values.chunks(4) {
+        let at = [f64::from(p[0]), f64::from(p[1]), f64::from(p[2])];
+        let v = edtmap::VoxelIndex::containing(at, map.voxel_size_m()).expect("finite");
+        let (dist, saturated) = edtmap::cpu::query::voxel_distance(&map, v, false);
+        assert!(!saturated && dist as f32 == p[3], "{p:?} vs {dist}");
+    }
+}
