@@ -183,3 +183,97 @@ fn drive(d: &Path, domain: u16, frames: u64) {
         assert!(!saturated && dist as f32 == p[3], "{p:?} vs {dist}");
     }
 }
+
+/// The numbers of the node's closing line: integrated, received, dropped,
+/// skipped.
+fn closing_numbers(stdout: &str) -> [u64; 4] {
+    let line = stdout.lines().find(|l| l.starts_with("edtmap node stopped")).expect("closing line");
+    let nums: Vec<u64> = line.split(|c: char| !c.is_ascii_digit()).filter(|s| !s.is_empty()).filter_map(|s| s.parse().ok()).collect();
+    [nums[0], nums[1], nums[2], nums[3]]
+}
+
+#[test]
+fn a_flood_drops_frames_and_bad_messages_are_skipped_by_kind_keeping_the_map() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let d = dir.path();
+    let rec = run_in(d, &["record", "--scene", "uav_pillars", "--frames", "20", "rec.mcap"], MIN);
+    assert_eq!(rec.code(), Some(0), "{}", rec.stderr);
+    let domain = 100 + (std::process::id() + 41) % 100;
+    let mut config = std::fs::read_to_string(d.join("rec.toml")).expect("config");
+    config.push_str("\n[ros]\nsensor_topic = \"/points\"\npose_topic = \"/tf\"\nworld_frame = \"map\"\nlocalhost_only = true\npose_wait_s = 0.3\n");
+    std::fs::write(d.join("node.toml"), config).expect("write config");
+    let mut cmd = bin();
+    cmd.args(["node", "--config", "node.toml", "--save", "node.edtmap"]).current_dir(d).env("ROS_DOMAIN_ID", domain.to_string());
+    let child = cmd.stdin(Stdio::null()).stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().expect("the node starts");
+    let pid = child.id();
+    let outcome = std::panic::catch_unwind(|| flood(d, domain as u16));
+    std::thread::sleep(Duration::from_secs(1));
+    // SAFETY: kill on our own child's pid.
+    unsafe { libc::kill(pid as libc::pid_t, libc::SIGINT) };
+    let run = finish(child, MIN);
+    if let Err(e) = outcome {
+        panic!("{:?}\nnode stderr:\n{}", e.downcast_ref::<String>(), run.stderr);
+    }
+    assert_eq!(run.code(), Some(0), "{}\n{}", run.stdout, run.stderr);
+    let [integrated, received, dropped, skipped] = closing_numbers(&run.stdout);
+    // 20 frames at once (a best-effort subscription may lose some to a full
+    // socket buffer), then 3 bad messages and one cloud whose frame has no
+    // transform: every message received is accounted for.
+    assert!((8..=24).contains(&received), "{}", run.stdout);
+    assert!(integrated >= 1 && dropped >= 1, "a flood drops frames: {}", run.stdout);
+    assert_eq!(skipped, 4, "{}\n{}", run.stdout, run.stderr);
+    assert_eq!(integrated + dropped + skipped, received, "{}", run.stdout);
+    assert!(run.stdout.contains("\"bad message\": 3") && run.stdout.contains("\"missing transform\": 1"), "{}", run.stdout);
+    // Each kind is logged once, however often it comes.
+    assert_eq!(run.stderr.matches("(bad message;").count(), 1, "{}", run.stderr);
+    // What was mapped is kept and saved.
+    let map = edtmap::load_map(&d.join("node.edtmap")).expect("saved map");
+    assert!(map.occupancy().len() > 10);
+}
+
+/// Publishes the whole recording at once, then bad messages.
+fn flood(d: &Path, domain: u16) {
+    let participant = DomainParticipantBuilder::new(domain).with_only_networks([IpAddr::V4(Ipv4Addr::LOCALHOST)]).build().expect("participant");
+    let context = Context::from_domain_participant(participant).expect("context");
+    let mut node = context.new_node(NodeName::new("/", "flood").expect("name"), NodeOptions::new().enable_rosout(false)).expect("node");
+    let t = node.create_topic(&Name::new("/", "points").expect("name"), MessageTypeName::new("sensor_msgs", "PointCloud2"), &qos()).expect("topic");
+    let points = node.create_publisher::<PointCloud2>(&t, Some(qos())).expect("publisher");
+    let t = node.create_topic(&Name::new("/", "tf").expect("name"), MessageTypeName::new("tf2_msgs", "TFMessage"), &qos()).expect("topic");
+    let tf = node.create_publisher::<TfMessage>(&t, Some(qos())).expect("publisher");
+    let t = node.create_topic(&Name::new("/edtmap", "frame_stats").expect("name"), MessageTypeName::new("diagnostic_msgs", "DiagnosticArray"), &qos()).expect("topic");
+    let stats = node.create_subscription::<DiagnosticArray>(&t, Some(qos())).expect("subscription");
+    let reader = edtmap_ros::mcap::McapReader::open(&d.join("rec.mcap")).expect("recording");
+    let topics = ["/tf".to_string(), "/points".to_string()];
+    let mut messages = Vec::new();
+    for raw in reader.messages(&topics) {
+        let raw = raw.expect("message");
+        messages.push(Message::decode(&raw.msg_type, &raw.data, raw.encoding).expect("decodes"));
+    }
+    std::thread::sleep(Duration::from_secs(2));
+    let mut last_cloud = None;
+    for m in messages {
+        match m {
+            Message::Tf(ts) => tf.publish(TfMessage { transforms: ts.iter().map(TransformStamped::from).collect() }).expect("tf"),
+            Message::PointCloud2(c) => {
+                let c: PointCloud2 = c.into();
+                last_cloud = Some(c.clone());
+                points.publish(c).expect("cloud");
+            }
+            _ => {}
+        }
+    }
+    wait(Duration::from_secs(20), || stats.take().ok().flatten()).expect("the node maps");
+    let good = last_cloud.expect("a cloud");
+    let mut bad_step = good.clone();
+    bad_step.point_step = 7;
+    let mut truncated = good.clone();
+    truncated.data.truncate(truncated.data.len() / 2);
+    let mut no_fields = good.clone();
+    no_fields.fields.clear();
+    let mut elsewhere = good;
+    elsewhere.header.frame_id = "no_such_frame".into();
+    for c in [bad_step, truncated, no_fields, elsewhere] {
+        points.publish(c).expect("cloud");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}

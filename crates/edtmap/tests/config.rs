@@ -26,8 +26,9 @@ fn every_shipped_config_parses() {
             assert_eq!(stem, scene.name.as_str());
             n += 1;
         } else {
-            assert!(matches!(stem, "3dmatch" | "velodyne" | "tum" | "ros_lidar" | "ros_depth"), "{stem}.toml names no scene");
+            assert!(matches!(stem, "3dmatch" | "velodyne" | "tum" | "ros_lidar" | "ros_depth" | "ros2_lidar" | "ros2_depth"), "{stem}.toml names no scene");
         }
+        config.ros.validate().unwrap_or_else(|e| panic!("{}: [ros] {e}", path.display()));
         if stem == "room" || stem == "3dmatch" {
             assert!(matches!(sensor, Sensor::Depth(_)));
         }
