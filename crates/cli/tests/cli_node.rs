@@ -8,7 +8,7 @@ mod common;
 
 use common::{bin, finish, run_in};
 use edtmap_ros::msg::Message;
-use edtmap_ros::node::types::{DiagnosticArray, GetDistancesRequest, GetDistancesResponse, GetEsdfBoxRequest, GetEsdfBoxResponse, Point, PointCloud2, TfMessage, TransformStamped};
+use edtmap_ros::node::types::{CameraInfo, DiagnosticArray, GetDistancesRequest, GetDistancesResponse, GetEsdfBoxRequest, GetEsdfBoxResponse, Image, LaserScan, Point, PointCloud2, TfMessage, TransformStamped};
 use ros2_client::dds::rustdds::DomainParticipantBuilder;
 use ros2_client::qos::{Durability, History, WhenFull};
 use ros2_client::{Context, MessageTypeName, Name, NodeName, NodeOptions, QosProfile, ServiceMapping, ServiceTypeName};
@@ -39,47 +39,73 @@ fn frames_in(stats: &DiagnosticArray) -> u64 {
     stats.status.iter().flat_map(|s| &s.values).find(|kv| kv.key == "frames").and_then(|kv| kv.value.parse().ok()).unwrap_or(0)
 }
 
-#[test]
-fn the_node_maps_a_published_recording_like_a_replay_and_answers_queries() {
+/// Records `scene`, replays it with `edtmap run`, publishes it to a node
+/// frame by frame, and checks the node against the replay.
+fn live_equals_replay(scene: &str, frames: u64, sensor_topic: &str) {
     let dir = tempfile::tempdir().expect("temp dir");
     let d = dir.path();
-    let frames = 6;
-    let rec = run_in(d, &["record", "--scene", "uav_pillars", "--frames", &frames.to_string(), "rec.mcap"], MIN);
+    let rec = run_in(d, &["record", "--scene", scene, "--frames", &frames.to_string(), "rec.mcap"], MIN);
     assert_eq!(rec.code(), Some(0), "{}", rec.stderr);
     let replay = run_in(d, &["run", "--config", "rec.toml", "--dataset", "rec.mcap", "--out", "replay", "--save", "replay.edtmap"], MIN);
     assert_eq!(replay.code(), Some(0), "{}", replay.stderr);
 
     // The node's config: the recording's, with [ros] for the live topics.
-    let domain = 100 + std::process::id() % 100;
+    let domain = 100 + (std::process::id() + scene.len() as u32 * 7) % 100;
     let mut config = std::fs::read_to_string(d.join("rec.toml")).expect("config");
-    config.push_str("\n[ros]\nsensor_topic = \"/points\"\npose_topic = \"/tf\"\nworld_frame = \"map\"\nlocalhost_only = true\nesdf_pointcloud_hz = 100.0\npose_wait_s = 5.0\n");
+    config.push_str(&format!("\n[ros]\nsensor_topic = \"{sensor_topic}\"\npose_topic = \"/tf\"\nworld_frame = \"map\"\nlocalhost_only = true\nesdf_pointcloud_hz = 100.0\npose_wait_s = 5.0\n"));
     std::fs::write(d.join("node.toml"), config).expect("write config");
     let mut cmd = bin();
     cmd.args(["-v", "node", "--config", "node.toml", "--save", "node.edtmap"]).current_dir(d).env("ROS_DOMAIN_ID", domain.to_string());
     let child = cmd.stdin(Stdio::null()).stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().expect("the node starts");
     let pid = child.id();
-    let outcome = std::panic::catch_unwind(|| drive(d, domain as u16, frames));
+    let outcome = std::panic::catch_unwind(|| drive(d, domain as u16, frames, sensor_topic));
     // SIGINT: the node saves its map and exits.
     // SAFETY: kill on our own child's pid.
     unsafe { libc::kill(pid as libc::pid_t, libc::SIGINT) };
     let run = finish(child, MIN);
     if let Err(e) = outcome {
-        panic!("{:?}\nnode stdout:\n{}\nnode stderr:\n{}", e.downcast_ref::<String>(), run.stdout, run.stderr);
+        panic!("{scene}: {:?}\nnode stdout:\n{}\nnode stderr:\n{}", e.downcast_ref::<String>(), run.stdout, run.stderr);
     }
     assert_eq!(run.code(), Some(0), "{}\n{}", run.stdout, run.stderr);
     assert!(run.stdout.contains(&format!("{frames} frames integrated")), "{}", run.stdout);
     let (live, replayed) = (std::fs::read(d.join("node.edtmap")).expect("node map"), std::fs::read(d.join("replay.edtmap")).expect("replay map"));
-    assert!(live == replayed, "the live map differs from the replay's ({} and {} bytes)", live.len(), replayed.len());
+    assert!(live == replayed, "{scene}: the live map differs from the replay's ({} and {} bytes)", live.len(), replayed.len());
+}
+
+#[test]
+fn a_published_point_cloud_recording_maps_like_its_replay_and_the_services_answer_as_its_map() {
+    live_equals_replay("uav_pillars", 6, "/points");
+}
+
+#[test]
+fn a_published_depth_image_recording_maps_like_its_replay() {
+    live_equals_replay("room", 4, "/camera/depth/image");
+}
+
+#[test]
+fn a_published_laser_scan_recording_maps_like_its_replay() {
+    live_equals_replay("planar", 6, "/scan");
 }
 
 /// Publishes the recording to the node and checks what it answers.
-fn drive(d: &Path, domain: u16, frames: u64) {
+fn drive(d: &Path, domain: u16, frames: u64, sensor_topic: &str) {
     let participant = DomainParticipantBuilder::new(domain).with_only_networks([IpAddr::V4(Ipv4Addr::LOCALHOST)]).build().expect("participant");
     let context = Context::from_domain_participant(participant).expect("context");
     let mut node = context.new_node(NodeName::new("/", "player").expect("name"), NodeOptions::new().enable_rosout(false)).expect("node");
     let topic = |node: &mut ros2_client::Node, ns: &str, base: &str, pkg: &str, ty: &str| node.create_topic(&Name::new(ns, base).expect("name"), MessageTypeName::new(pkg, ty), &qos()).expect("topic");
-    let t = topic(&mut node, "/", "points", "sensor_msgs", "PointCloud2");
-    let points = node.create_publisher::<PointCloud2>(&t, Some(qos())).expect("publisher");
+    let sensor_name = sensor_topic.trim_start_matches('/');
+    let (ns, base) = match sensor_name.rsplit_once('/') {
+        Some((ns, base)) => (format!("/{ns}"), base.to_string()),
+        None => ("/".to_string(), sensor_name.to_string()),
+    };
+    let t = topic(&mut node, &ns, &base, "sensor_msgs", "PointCloud2");
+    let clouds = node.create_publisher::<PointCloud2>(&t, Some(qos())).expect("publisher");
+    let t = topic(&mut node, &ns, &base, "sensor_msgs", "Image");
+    let images = node.create_publisher::<Image>(&t, Some(qos())).expect("publisher");
+    let t = topic(&mut node, &ns, "camera_info", "sensor_msgs", "CameraInfo");
+    let infos = node.create_publisher::<CameraInfo>(&t, Some(qos())).expect("publisher");
+    let t = topic(&mut node, &ns, &base, "sensor_msgs", "LaserScan");
+    let scans = node.create_publisher::<LaserScan>(&t, Some(qos())).expect("publisher");
     let t = topic(&mut node, "/", "tf", "tf2_msgs", "TFMessage");
     let tf = node.create_publisher::<TfMessage>(&t, Some(qos())).expect("publisher");
     let t = topic(&mut node, "/edtmap", "frame_stats", "diagnostic_msgs", "DiagnosticArray");
@@ -92,17 +118,28 @@ fn drive(d: &Path, domain: u16, frames: u64) {
 
     // The recording's poses (/tf) and clouds, in order.
     let reader = edtmap_ros::mcap::McapReader::open(&d.join("rec.mcap")).expect("recording");
-    let topics = ["/tf".to_string(), "/points".to_string()];
-    let mut by_frame: Vec<(TfMessage, PointCloud2)> = Vec::new();
+    let topics = ["/tf".to_string(), format!("/{ns}/camera_info").replace("//", "/"), sensor_topic.to_string()];
+    let mut by_frame: Vec<(TfMessage, Vec<Message>)> = Vec::new();
     let mut pending_tf = None;
+    let mut pending = Vec::new();
     for raw in reader.messages(&topics) {
         let raw = raw.expect("message");
         match Message::decode(&raw.msg_type, &raw.data, raw.encoding).expect("decodes") {
             Message::Tf(ts) => pending_tf = Some(TfMessage { transforms: ts.iter().map(TransformStamped::from).collect() }),
-            Message::PointCloud2(c) => by_frame.push((pending_tf.take().expect("a pose before each cloud"), c.into())),
-            other => panic!("unexpected {}", other.type_name()),
+            m @ Message::CameraInfo(_) => pending.push(m),
+            m => {
+                pending.push(m);
+                by_frame.push((pending_tf.take().expect("a pose before each frame"), std::mem::take(&mut pending)));
+            }
         }
     }
+    let publish = |m: &Message| match m.clone() {
+        Message::PointCloud2(c) => clouds.publish(c.into()).expect("cloud"),
+        Message::Image(i) => images.publish(i.into()).expect("image"),
+        Message::CameraInfo(i) => infos.publish(i.into()).expect("camera info"),
+        Message::LaserScan(s) => scans.publish(s.into()).expect("scan"),
+        other => panic!("unexpected {}", other.type_name()),
+    };
     assert_eq!(by_frame.len() as u64, frames);
 
     // Discovery on loopback: give both participants a moment, then send
@@ -110,7 +147,7 @@ fn drive(d: &Path, domain: u16, frames: u64) {
     std::thread::sleep(Duration::from_secs(2));
     let mut mapped = 0;
     let mut last_esdf = None;
-    for (i, (pose, cloud)) in by_frame.into_iter().enumerate() {
+    for (i, (pose, sensor)) in by_frame.into_iter().enumerate() {
         let want = i as u64 + 1;
         let mut tries = 0;
         while mapped < want {
@@ -118,7 +155,7 @@ fn drive(d: &Path, domain: u16, frames: u64) {
             // that arrived is never sent twice (the node counts it first).
             assert!(tries < 5, "frame {i} was not mapped");
             tf.publish(pose.clone()).expect("tf");
-            points.publish(cloud.clone()).expect("cloud");
+            sensor.iter().for_each(publish);
             tries += 1;
             let got = wait(Duration::from_secs(10), || match stats.take() {
                 Ok(s) => s.map(|(s, _)| frames_in(&s)).filter(|&n| n >= want),
@@ -158,7 +195,8 @@ fn drive(d: &Path, domain: u16, frames: u64) {
 
     // 14 x 14 x 5 voxels: the reply (17 kB) stays within one UDP datagram;
     // RustDDS loses replies over 64 kB on loopback (see the README).
-    let (lo, hi) = ([-1.4, -1.4, 0.0], [1.4, 1.4, 1.0]);
+    let vs = map.voxel_size_m();
+    let (lo, hi) = ([-7.0 * vs, -7.0 * vs, 0.0], [7.0 * vs, 7.0 * vs, 5.0 * vs]);
     let req = GetEsdfBoxRequest { min_corner: Point { x: lo[0], y: lo[1], z: lo[2] }, max_corner: Point { x: hi[0], y: hi[1], z: hi[2] }, signed: false };
     let id = boxes.send_request(req).expect("request");
     let resp = wait(Duration::from_secs(20), || match boxes.receive_response() {

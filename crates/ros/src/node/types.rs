@@ -187,6 +187,25 @@ impl From<CameraInfo> for msg::CameraInfo {
     }
 }
 
+impl From<msg::CameraInfo> for CameraInfo {
+    fn from(m: msg::CameraInfo) -> Self {
+        let k = m.k;
+        CameraInfo {
+            header: m.header.into(),
+            height: m.height,
+            width: m.width,
+            distortion_model: m.distortion_model,
+            d: m.d,
+            k,
+            r: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+            p: [k[0], k[1], k[2], 0.0, k[3], k[4], k[5], 0.0, k[6], k[7], k[8], 0.0],
+            binning_x: 0,
+            binning_y: 0,
+            roi: RegionOfInterest::default(),
+        }
+    }
+}
+
 /// `sensor_msgs/LaserScan`.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct LaserScan {
