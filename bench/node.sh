@@ -1,0 +1,77 @@
+#!/usr/bin/env bash
+# edtmap node, live over DDS on loopback: for one scene of each sensor kind
+# (uav_pillars: PointCloud2 from a LiDAR; room: depth Image + CameraInfo;
+# planar: LaserScan), `edtmap record` writes the scene, `edtmap node` maps
+# it live, and the player (crates/cli/examples/node_player.rs) publishes it
+# one frame as soon as the previous one is mapped (the node's full rate)
+# while a second participant asks get_distances continuously. Prints, per
+# scene, the mapping rate achieved, the latency from publishing a frame to
+# receiving its ESDF cloud, get_distances round trips for 1, 1,000 and
+# 100,000 points (the last as calls of 1,800 points: see the README's
+# known limits), and the node's peak memory; appends the table to
+# docs/results.md.
+#
+#   bash bench/node.sh [--frames N] [--no-append]
+#
+#   --frames N    frames recorded per scene (default 120)
+#   --no-append   print only
+# Builds with `cargo build --release` (CARGO_PROFILE_RELEASE_* apply).
+set -euo pipefail
+here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
+root="$(cd "$here/.." && pwd)"
+frames=120
+append=1
+while [ $# -gt 0 ]; do
+    case "$1" in
+        --frames) frames="$2"; shift 2 ;;
+        --no-append) append=0; shift ;;
+        -h|--help) sed -n '2,19p' "$0"; exit 0 ;;
+        *) echo "node.sh: unknown argument $1 (see --help)" >&2; exit 2 ;;
+    esac
+done
+cd "$root"
+cargo build --release --quiet --bin edtmap --example node_player
+target="${CARGO_TARGET_DIR:-$root/target}/release"
+edtmap="$target/edtmap"
+player="$target/examples/node_player"
+work="$(mktemp -d)"
+trap 'rm -rf "$work"' EXIT
+table="| scene | sensor | frames mapped | rate Hz | ESDF cloud latency median / p95 ms | get_distances 1 pt median ms | 1,000 pts | 100,000 pts | node peak RSS MiB |
+|---|---|---|---|---|---|---|---|---|"
+domain=$(( 160 + $$ % 60 ))
+for spec in "uav_pillars|/points|PointCloud2" "room|/camera/depth/image|Image" "planar|/scan|LaserScan"; do
+    IFS='|' read -r scene topic kind <<<"$spec"
+    dir="$work/$scene"
+    mkdir -p "$dir"
+    "$edtmap" record --scene "$scene" --frames "$frames" "$dir/rec.mcap" >/dev/null
+    cp "$dir/rec.toml" "$dir/node.toml"
+    printf '\n[ros]\nsensor_topic = "%s"\npose_topic = "/tf"\nworld_frame = "map"\nlocalhost_only = true\nesdf_pointcloud_hz = 1000.0\noccupied_pointcloud_hz = 0.0\nslice_hz = 0.0\npose_wait_s = 2.0\n' "$topic" >>"$dir/node.toml"
+    ROS_DOMAIN_ID=$domain "$edtmap" node --config "$dir/node.toml" >"$dir/node.out" 2>"$dir/node.err" &
+    pid=$!
+    result=$("$player" "$dir/rec.mcap" "$topic" "$domain")
+    rss_kib=$(awk '/VmHWM/ {print $2}' "/proc/$pid/status" 2>/dev/null || echo 0)
+    kill -INT "$pid"
+    wait "$pid" || { echo "node.sh: the node on $scene failed:" >&2; cat "$dir/node.err" >&2; exit 1; }
+    echo "$scene: $result" >&2
+    row=$(python3 - "$scene" "$kind" "$rss_kib" "$result" <<'PY'
+import json, sys
+scene, kind, rss, r = sys.argv[1], sys.argv[2], int(sys.argv[3]), json.loads(sys.argv[4])
+q = lambda k: f"{r[k]['median_ms']:.2f} ({r[k]['calls']} calls)"
+print(f"| {scene} | {kind} | {r['mapped']} of {r['frames']} | {r['rate_hz']:.1f} | {r['esdf_latency_median_ms']:.1f} / {r['esdf_latency_p95_ms']:.1f} | {q('get_distances_1')} | {q('get_distances_1000')} | {q('get_distances_100000')} | {rss / 1024:.0f} |")
+PY
+)
+    table="$table
+$row"
+    domain=$((domain + 1))
+done
+echo "$table"
+if [ "$append" = 1 ]; then
+    {
+        echo
+        echo "### edtmap node over DDS on loopback ($(date -u +%Y-%m-%d), commit $(git rev-parse --short HEAD), $(nproc) cores)"
+        echo
+        echo "\`bash bench/node.sh --frames $frames\`: each scene published one frame as soon as the previous was mapped, get_distances asked continuously from a second participant meanwhile."
+        echo
+        echo "$table"
+    } >>docs/results.md
+fi
