@@ -230,15 +230,16 @@ fn closing_numbers(stdout: &str) -> [u64; 4] {
     [nums[0], nums[1], nums[2], nums[3]]
 }
 
-#[test]
-fn a_flood_drops_frames_and_bad_messages_are_skipped_by_kind_keeping_the_map() {
-    let dir = tempfile::tempdir().expect("temp dir");
-    let d = dir.path();
-    let rec = run_in(d, &["record", "--scene", "uav_pillars", "--frames", "20", "rec.mcap"], MIN);
+/// Runs a node on a recording of `frames` frames of uav_pillars published
+/// all at once, then bad messages ([`flood`]); `extra` is added to its
+/// `[ros]`. Returns the node's run and its saved map.
+fn flooded_node(d: &Path, frames: usize, extra: &str, salt: u32) -> (common::Run, edtmap::GlobalMap) {
+    let rec = run_in(d, &["record", "--scene", "uav_pillars", "--frames", &frames.to_string(), "rec.mcap"], MIN);
     assert_eq!(rec.code(), Some(0), "{}", rec.stderr);
-    let domain = 100 + (std::process::id() + 41) % 100;
+    let domain = 100 + (std::process::id() + salt) % 100;
     let mut config = std::fs::read_to_string(d.join("rec.toml")).expect("config");
     config.push_str("\n[ros]\nsensor_topic = \"/points\"\npose_topic = \"/tf\"\nworld_frame = \"map\"\nlocalhost_only = true\npose_wait_s = 0.3\n");
+    config.push_str(extra);
     std::fs::write(d.join("node.toml"), config).expect("write config");
     let mut cmd = bin();
     cmd.args(["node", "--config", "node.toml", "--save", "node.edtmap"]).current_dir(d).env("ROS_DOMAIN_ID", domain.to_string());
@@ -253,6 +254,14 @@ fn a_flood_drops_frames_and_bad_messages_are_skipped_by_kind_keeping_the_map() {
         panic!("{:?}\nnode stderr:\n{}", e.downcast_ref::<String>(), run.stderr);
     }
     assert_eq!(run.code(), Some(0), "{}\n{}", run.stdout, run.stderr);
+    let map = edtmap::load_map(&d.join("node.edtmap")).expect("saved map");
+    (run, map)
+}
+
+#[test]
+fn a_flood_drops_frames_and_bad_messages_are_skipped_by_kind_keeping_the_map() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let (run, map) = flooded_node(dir.path(), 20, "", 41);
     let [integrated, received, dropped, skipped] = closing_numbers(&run.stdout);
     // 20 frames at once (a best-effort subscription may lose some to a full
     // socket buffer), then 3 bad messages and one cloud whose frame has no
@@ -265,8 +274,25 @@ fn a_flood_drops_frames_and_bad_messages_are_skipped_by_kind_keeping_the_map() {
     // Each kind is logged once, however often it comes.
     assert_eq!(run.stderr.matches("(bad message;").count(), 1, "{}", run.stderr);
     // What was mapped is kept and saved.
-    let map = edtmap::load_map(&d.join("node.edtmap")).expect("saved map");
     assert!(map.occupancy().len() > 10);
+}
+
+#[test]
+fn map_clearing_bounds_the_map_and_keeps_its_edt_exact() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let (_, full) = flooded_node(&subdir(dir.path(), "full"), 30, "", 53);
+    let (_, cleared) = flooded_node(&subdir(dir.path(), "cleared"), 30, "map_clearing_radius_m = 3.0\nmap_clearing_period_s = 0.01\n", 67);
+    // A ball of 3 m holds at most (4/3)π(3 + 1.4)³ / 1.6³ ≈ 87 blocks of 1.6 m.
+    assert!(cleared.occupancy().len() <= 87 && full.occupancy().len() > 2 * cleared.occupancy().len(), "{} blocks cleared, {} without", cleared.occupancy().len(), full.occupancy().len());
+    let errors = edtmap::eval::edt_errors(&cleared, &edtmap::eval::edt_extent(&cleared).expect("an EDT")).expect("exact EDT");
+    assert!(errors.max_m == 0.0 && errors.wrong_fraction == 0.0, "{errors:?}");
+}
+
+/// The folder `name` in `dir`, made.
+fn subdir(dir: &Path, name: &str) -> std::path::PathBuf {
+    let sub = dir.join(name);
+    std::fs::create_dir_all(&sub).expect("mkdir");
+    sub
 }
 
 /// Publishes the whole recording at once, then bad messages.

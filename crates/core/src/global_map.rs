@@ -68,6 +68,12 @@ impl GlobalMap {
         &self.edt
     }
 
+    /// The global EDT layer, to drop blocks from (map clearing); the
+    /// integration writes it through [`Self::edt_and_obstacles`].
+    pub fn edt_mut(&mut self) -> &mut EdtMap {
+        &mut self.edt
+    }
+
     /// The fixed-obstacle layer (forbidden zones, a prior map).
     pub fn fixed_obstacles(&self) -> &StaticMap {
         &self.fixed

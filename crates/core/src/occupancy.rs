@@ -230,6 +230,18 @@ impl<B: Default> BlockMap<B> {
         self.blocks.get(&key).map(|b| &***b)
     }
 
+    /// Drops the blocks for whose key `far` holds; returns their keys.
+    pub fn remove_where(&mut self, mut far: impl FnMut(BlockKey) -> bool) -> Vec<BlockKey> {
+        let gone: Vec<BlockKey> = self.blocks.keys().copied().filter(|&k| far(k)).collect();
+        if !gone.is_empty() {
+            self.stamp.revision += 1;
+            for k in &gone {
+                self.blocks.remove(k);
+            }
+        }
+        gone
+    }
+
     /// Every allocated block, in no particular order.
     pub fn iter(&self) -> impl Iterator<Item = (BlockKey, &B)> {
         self.blocks.iter().map(|(k, b)| (*k, &***b))

@@ -82,6 +82,19 @@ pub struct FrameStats {
     pub map_bytes: usize,
 }
 
+/// What [`Mapper::clear_far`] dropped.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Cleared {
+    /// Occupancy blocks dropped.
+    pub occupancy_blocks: usize,
+    /// EDT blocks dropped.
+    pub edt_blocks: usize,
+    /// Memory the map held before, bytes.
+    pub bytes_before: usize,
+    /// Memory the map holds now, bytes.
+    pub bytes_after: usize,
+}
+
 /// Builds the occupancy map and the local EDT from a stream of frames, on
 /// backend `B` (the CPU by default; `edtmap_gpu::GpuBackend` for a GPU).
 /// Every backend gives the same map, bit for bit.
@@ -262,6 +275,44 @@ impl<B: Backend> Mapper<B> {
         } else {
             self.integration.update(backend, edt, obstacles, changed)?
         })
+    }
+
+    /// Forgets the map farther than `radius_m` from `centre_m` (world,
+    /// metres), as a long-running node bounds its memory (nvblox's map
+    /// clearing): occupancy blocks whose centre is farther are dropped, the
+    /// obstacles they held vanish from the global EDT exactly, and EDT
+    /// blocks too far from every remaining obstacle to hold a distance
+    /// within the cutoff are dropped. Fixed obstacles stay. The EDT stays
+    /// the exact EDT of the obstacles kept. Exact mode only (the wavefront
+    /// mode's merge would need the window's batch EDT).
+    pub fn clear_far(&mut self, centre_m: [f64; 3], radius_m: f64) -> Result<Cleared, MapError> {
+        let invalid = |reason| MapError::Core(edtmap_core::CoreError::InvalidParam { field: "map_clearing_radius_m", value: radius_m.to_string(), reason });
+        if !(radius_m.is_finite() && radius_m > 0.0 && centre_m.iter().all(|c| c.is_finite())) {
+            return Err(invalid("must be a positive number of metres, around a finite centre"));
+        }
+        if self.wavefront() {
+            return Err(invalid("needs [global] mode = \"exact\""));
+        }
+        let bytes_before = self.map.bytes();
+        let vs = self.params.voxel_size_m;
+        let side = f64::from(edtmap_core::BLOCK_SIDE) * vs;
+        let dist = |k: BlockKey| (0..3).map(|a| ((f64::from(k.0[a]) + 0.5) * side - centre_m[a]).powi(2)).sum::<f64>().sqrt();
+        let gone = self.map.occupancy_mut().remove_where(|k| dist(k) > radius_m);
+        if gone.is_empty() {
+            return Ok(Cleared { bytes_before, bytes_after: bytes_before, ..Cleared::default() });
+        }
+        // The obstacles of the dropped blocks vanish: the exact update over them.
+        let (edt, obstacles) = self.map.edt_and_obstacles();
+        self.integration.update(&mut self.backend, edt, obstacles, &gone)?;
+        // Every obstacle left lies in a block within the radius, or is fixed:
+        // EDT blocks beyond the radius by more than the cutoff and a block
+        // diagonal hold no distance within the cutoff.
+        let margin = self.params.global.max_distance_m + 2.0 * side * 3f64.sqrt();
+        let fixed: Vec<BlockKey> = self.map.fixed_obstacles().iter().map(|(k, _)| k).collect();
+        let near_fixed = |k: BlockKey| fixed.iter().any(|f| (0..3).map(|a| (f64::from(f.0[a] - k.0[a]) * side).powi(2)).sum::<f64>().sqrt() <= margin);
+        let edt_gone = self.map.edt_mut().remove_where(|k| dist(k) > radius_m + margin && !near_fixed(k));
+        self.local = OnceLock::new();
+        Ok(Cleared { occupancy_blocks: gone.len(), edt_blocks: edt_gone.len(), bytes_before, bytes_after: self.map.bytes() })
     }
 
     /// The backend the stages run on.

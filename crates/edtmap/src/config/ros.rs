@@ -11,6 +11,10 @@ use std::path::PathBuf;
 const POSE_WAIT_S: Limit = Limit { lo: 0.0, lo_open: false, hi: 60.0, hi_open: false, accepted: "must be finite, in [0, 60] seconds" };
 /// Output rates, hertz (0: never).
 const RATE_HZ: Limit = Limit { lo: 0.0, lo_open: false, hi: 1000.0, hi_open: false, accepted: "must be finite, in [0, 1000] Hz (0: never)" };
+/// Map clearing radius, metres (0: never).
+const CLEARING_M: Limit = Limit { lo: 0.0, lo_open: false, hi: 1e5, hi_open: false, accepted: "must be finite, in [0, 1e5] metres (0: never)" };
+/// Map clearing period, seconds.
+const CLEARING_S: Limit = Limit { lo: 0.01, lo_open: false, hi: 3600.0, hi_open: false, accepted: "must be finite, in [0.01, 3600] seconds" };
 /// How much transform history a node keeps, seconds.
 const TF_HISTORY_S: Limit = Limit { lo: 0.1, lo_open: false, hi: 3600.0, hi_open: false, accepted: "must be finite, in [0.1, 3600] seconds" };
 
@@ -105,6 +109,12 @@ pub struct RosSection {
     /// Service request layout: `cyclone` (rmw_cyclonedds) or `enhanced`
     /// (rmw_fastrtps).
     pub service_mapping: ServiceMapping,
+    /// Forget the map farther than this from the sensor (metres; 0: keep
+    /// everything), so a node that runs for hours holds a bounded map.
+    /// Needs `[global] mode = "exact"`.
+    pub map_clearing_radius_m: f64,
+    /// How often the map is cleared, seconds.
+    pub map_clearing_period_s: f64,
     /// Where to save the map when the node stops (SIGINT); nothing by default.
     pub save_on_exit: Option<PathBuf>,
     /// Only talk over loopback (127.0.0.1), with unicast discovery: for
@@ -134,6 +144,8 @@ impl Default for RosSection {
             slice_hz: 2.0,
             slice_height_m: 1.0,
             service_mapping: ServiceMapping::Cyclone,
+            map_clearing_radius_m: 0.0,
+            map_clearing_period_s: 1.0,
             save_on_exit: None,
             localhost_only: false,
         }
@@ -174,6 +186,8 @@ impl RosSection {
         RATE_HZ.f64("occupied_pointcloud_hz", self.occupied_pointcloud_hz)?;
         RATE_HZ.f64("slice_hz", self.slice_hz)?;
         WORLD_M.f64("slice_height_m", self.slice_height_m)?;
+        CLEARING_M.f64("map_clearing_radius_m", self.map_clearing_radius_m)?;
+        CLEARING_S.f64("map_clearing_period_s", self.map_clearing_period_s)?;
         if let Some(pose) = &self.sensor_in_body {
             OFFSET_M.all("sensor_in_body", &pose[..3])?;
         }

@@ -237,6 +237,9 @@ pub fn mapper(config: &Config, map: Option<GlobalMap>, max_memory_bytes: Option<
 /// (see [`mapper`]).
 pub fn start(config: &Config, mapper: Mapper) -> Result<NodeHandle, NodeError> {
     let opts = ros_options(config)?;
+    if config.ros.map_clearing_radius_m > 0.0 && mapper.params().global.mode != edtmap::IntegrationMode::Exact {
+        return Err(NodeError::Config("map_clearing_radius_m needs [global] mode = \"exact\" (the default)".into()));
+    }
     let r = &config.ros;
     let domain: u16 = match std::env::var("ROS_DOMAIN_ID") {
         Ok(v) if !v.trim().is_empty() => v.trim().parse().ok().filter(|&d| d <= 232).ok_or_else(|| NodeError::Config(format!("ROS_DOMAIN_ID={v:?} is not a domain id (0 to 232)")))?,
@@ -488,13 +491,15 @@ struct Rates {
     slice: Option<Duration>,
     scope: OccupiedScope,
     slice_height_m: f64,
+    clearing: Option<(f64, Duration)>,
 }
 
 impl Rates {
     fn of(config: &Config) -> Self {
         let period = |hz: f64| (hz > 0.0).then(|| Duration::from_secs_f64(1.0 / hz));
         let r = &config.ros;
-        Rates { esdf: period(r.esdf_pointcloud_hz), occupied: period(r.occupied_pointcloud_hz), slice: period(r.slice_hz), scope: r.occupied_scope, slice_height_m: r.slice_height_m }
+        let clearing = (r.map_clearing_radius_m > 0.0).then(|| (r.map_clearing_radius_m, Duration::from_secs_f64(r.map_clearing_period_s)));
+        Rates { esdf: period(r.esdf_pointcloud_hz), occupied: period(r.occupied_pointcloud_hz), slice: period(r.slice_hz), scope: r.occupied_scope, slice_height_m: r.slice_height_m, clearing }
     }
 }
 
@@ -510,7 +515,8 @@ fn due(period: Option<Duration>, last: &mut Option<Instant>, now: Instant) -> bo
 }
 
 fn mapping_loop(shared: &Shared, mut mapper: Mapper, out: Outputs, rates: Rates) -> Result<(), NodeError> {
-    let (mut last_esdf, mut last_occ, mut last_slice) = (None, None, None);
+    let (mut last_esdf, mut last_occ, mut last_slice, mut last_clear) = (None, None, None, None);
+    let mut cleared_blocks = 0usize;
     loop {
         let frame = {
             let mut slot = shared.slot.lock().unwrap_or_else(PoisonError::into_inner);
@@ -534,6 +540,16 @@ fn mapping_loop(shared: &Shared, mut mapper: Mapper, out: Outputs, rates: Rates)
             }
         };
         let frames = shared.integrated.fetch_add(1, Relaxed) + 1;
+        if let Some((radius, period)) = rates.clearing {
+            if due(Some(period), &mut last_clear, Instant::now()) {
+                let at = frame.t_world_sensor.translation.vector;
+                let c = mapper.clear_far([at.x, at.y, at.z], radius)?;
+                cleared_blocks += c.occupancy_blocks;
+                if c.occupancy_blocks > 0 {
+                    tracing::debug!("cleared {} occupancy and {} EDT blocks farther than {radius} m: {} → {} bytes", c.occupancy_blocks, c.edt_blocks, c.bytes_before, c.bytes_after);
+                }
+            }
+        }
         let volume = mapper.local_volume().copied();
         let snapshot = Arc::new(Snapshot { map: mapper.map().clone(), volume, stamp_ns, frames });
         *shared.snapshot.write().unwrap_or_else(PoisonError::into_inner) = snapshot.clone();
@@ -575,8 +591,10 @@ fn mapping_loop(shared: &Shared, mut mapper: Mapper, out: Outputs, rates: Rates)
             ("total_ms", format!("{:.3}", stats.total_ms)),
             ("voxels_updated", stats.voxels_updated.to_string()),
             ("edt_voxels_changed", stats.edt_voxels_changed.to_string()),
-            ("map_blocks", stats.map_blocks.to_string()),
-            ("map_bytes", stats.map_bytes.to_string()),
+            ("map_blocks", (mapper.map().occupancy().len() + mapper.map().edt().len()).to_string()),
+            ("map_bytes", mapper.map().bytes().to_string()),
+            ("kept_bytes", mapper.backend().kept_bytes().to_string()),
+            ("cleared_blocks", cleared_blocks.to_string()),
         ];
         values.extend(st.skipped.iter().map(|(k, v)| ("skipped_kind", format!("{k}: {v}"))));
         let level = u8::from(st.dropped + skipped > 0);
