@@ -8,8 +8,11 @@
 # scene, the mapping rate achieved, the latency from publishing a frame to
 # receiving its ESDF cloud, get_distances round trips for 1, 1,000 and
 # 100,000 points (the last as calls of 1,800 points: see the README's
-# known limits), and the node's peak memory; appends the table to
-# docs/results.md.
+# known limits), and the node's peak memory. Then a long replay (uav_pillars,
+# 5 × the frames; the scene's path repeats) without and with map clearing
+# (`map_clearing_radius_m = 8`): the map's bytes (map and kept passes, from
+# /edtmap/frame_stats) at a quarter, half, three quarters and the end.
+# Appends both tables to docs/results.md.
 #
 #   bash bench/node.sh [--frames N] [--no-append]
 #
@@ -25,7 +28,7 @@ while [ $# -gt 0 ]; do
     case "$1" in
         --frames) frames="$2"; shift 2 ;;
         --no-append) append=0; shift ;;
-        -h|--help) sed -n '2,19p' "$0"; exit 0 ;;
+        -h|--help) sed -n '2,21p' "$0"; exit 0 ;;
         *) echo "node.sh: unknown argument $1 (see --help)" >&2; exit 2 ;;
     esac
 done
@@ -39,20 +42,26 @@ trap 'rm -rf "$work"' EXIT
 table="| scene | sensor | frames mapped | rate Hz | ESDF cloud latency median / p95 ms | get_distances 1 pt median ms | 1,000 pts | 100,000 pts | node peak RSS MiB |
 |---|---|---|---|---|---|---|---|---|"
 domain=$(( 160 + $$ % 60 ))
-for spec in "uav_pillars|/points|PointCloud2" "room|/camera/depth/image|Image" "planar|/scan|LaserScan"; do
-    IFS='|' read -r scene topic kind <<<"$spec"
-    dir="$work/$scene"
+# run_node NAME SCENE FRAMES TOPIC EXTRA_ROS: records, maps live, sets $result and $rss_kib.
+run_node() {
+    local name="$1" scene="$2" n="$3" topic="$4" extra="$5"
+    local dir="$work/$name"
     mkdir -p "$dir"
-    "$edtmap" record --scene "$scene" --frames "$frames" "$dir/rec.mcap" >/dev/null
+    "$edtmap" record --scene "$scene" --frames "$n" "$dir/rec.mcap" >/dev/null
     cp "$dir/rec.toml" "$dir/node.toml"
-    printf '\n[ros]\nsensor_topic = "%s"\npose_topic = "/tf"\nworld_frame = "map"\nlocalhost_only = true\nesdf_pointcloud_hz = 1000.0\noccupied_pointcloud_hz = 0.0\nslice_hz = 0.0\npose_wait_s = 2.0\n' "$topic" >>"$dir/node.toml"
+    printf '\n[ros]\nsensor_topic = "%s"\npose_topic = "/tf"\nworld_frame = "map"\nlocalhost_only = true\nesdf_pointcloud_hz = 1000.0\noccupied_pointcloud_hz = 0.0\nslice_hz = 0.0\npose_wait_s = 2.0\n%b' "$topic" "$extra" >>"$dir/node.toml"
     ROS_DOMAIN_ID=$domain "$edtmap" node --config "$dir/node.toml" >"$dir/node.out" 2>"$dir/node.err" &
-    pid=$!
+    local pid=$!
     result=$("$player" "$dir/rec.mcap" "$topic" "$domain")
     rss_kib=$(awk '/VmHWM/ {print $2}' "/proc/$pid/status" 2>/dev/null || echo 0)
     kill -INT "$pid"
-    wait "$pid" || { echo "node.sh: the node on $scene failed:" >&2; cat "$dir/node.err" >&2; exit 1; }
-    echo "$scene: $result" >&2
+    wait "$pid" || { echo "node.sh: the node on $name failed:" >&2; cat "$dir/node.err" >&2; exit 1; }
+    echo "$name: $result" >&2
+    domain=$((domain + 1))
+}
+for spec in "uav_pillars|/points|PointCloud2" "room|/camera/depth/image|Image" "planar|/scan|LaserScan"; do
+    IFS='|' read -r scene topic kind <<<"$spec"
+    run_node "$scene" "$scene" "$frames" "$topic" ""
     row=$(python3 - "$scene" "$kind" "$rss_kib" "$result" <<'PY'
 import json, sys
 scene, kind, rss, r = sys.argv[1], sys.argv[2], int(sys.argv[3]), json.loads(sys.argv[4])
@@ -62,9 +71,25 @@ PY
 )
     table="$table
 $row"
-    domain=$((domain + 1))
+done
+long="| uav_pillars, $((5 * frames)) frames | map + kept bytes at 1/4 | 1/2 | 3/4 | end | node peak RSS MiB |
+|---|---|---|---|---|---|"
+for clearing in 0 8; do
+    run_node "long$clearing" uav_pillars $((5 * frames)) /points "map_clearing_radius_m = $clearing.0\n"
+    row=$(python3 - "$clearing" "$rss_kib" "$result" <<'PY'
+import json, sys
+c, rss, r = int(sys.argv[1]), int(sys.argv[2]), json.loads(sys.argv[3])
+q = [f"{b / 2**20:.1f} MiB" for b in r["map_bytes_quartiles"]]
+label = "no clearing" if c == 0 else f"map_clearing_radius_m = {c}"
+print(f"| {label} | {q[0]} | {q[1]} | {q[2]} | {q[3]} | {rss / 1024:.0f} |")
+PY
+)
+    long="$long
+$row"
 done
 echo "$table"
+echo
+echo "$long"
 if [ "$append" = 1 ]; then
     {
         echo
@@ -73,5 +98,7 @@ if [ "$append" = 1 ]; then
         echo "\`bash bench/node.sh --frames $frames\`: each scene published one frame as soon as the previous was mapped, get_distances asked continuously from a second participant meanwhile."
         echo
         echo "$table"
+        echo
+        echo "$long"
     } >>docs/results.md
 fi

@@ -146,6 +146,9 @@ fn main() {
         _ => {}
     };
     let mut latencies = Vec::new();
+    // The node's map and kept bytes after each frame.
+    let mut memory: Vec<u64> = Vec::new();
+    let value = |s: &DiagnosticArray, key: &str| s.status.iter().flat_map(|st| &st.values).find(|kv| kv.key == key).and_then(|kv| kv.value.parse::<u64>().ok()).unwrap_or(0);
     let (mut mapped, mut lost_frames) = (0u64, 0u64);
     let start = Instant::now();
     for (stamp_ns, messages) in &frames {
@@ -165,6 +168,7 @@ fn main() {
                 if s.header.stamp.sec == want_sec && s.header.stamp.nanosec == want_ns {
                     got_stats = true;
                     mapped += 1;
+                    memory.push(value(&s, "map_bytes") + value(&s, "kept_bytes"));
                 }
             }
             std::thread::sleep(Duration::from_micros(100));
@@ -177,8 +181,10 @@ fn main() {
     mapping.store(false, Ordering::Relaxed);
     let (mut times, lost_queries) = queries.join().expect("query thread");
     let q = |k: usize, t: &mut Vec<Vec<f64>>| format!("{{\"calls\": {}, \"median_ms\": {:.3}, \"p95_ms\": {:.3}}}", t[k].len(), percentile(&mut t[k], 0.5), percentile(&mut t[k], 0.95));
+    let at = |f: f64| memory.get(((memory.len().max(1) - 1) as f64 * f) as usize).copied().unwrap_or(0);
+    let memory_json = format!("[{}, {}, {}, {}]", at(0.25), at(0.5), at(0.75), at(1.0));
     println!(
-        "{{\"frames\": {}, \"mapped\": {mapped}, \"lost_frames\": {lost_frames}, \"rate_hz\": {:.2}, \"esdf_latency_median_ms\": {:.2}, \"esdf_latency_p95_ms\": {:.2}, \"get_distances_1\": {}, \"get_distances_1000\": {}, \"get_distances_100000\": {}, \"lost_queries\": {lost_queries}}}",
+        "{{\"map_bytes_quartiles\": {memory_json}, \"frames\": {}, \"mapped\": {mapped}, \"lost_frames\": {lost_frames}, \"rate_hz\": {:.2}, \"esdf_latency_median_ms\": {:.2}, \"esdf_latency_p95_ms\": {:.2}, \"get_distances_1\": {}, \"get_distances_1000\": {}, \"get_distances_100000\": {}, \"lost_queries\": {lost_queries}}}",
         frames.len(),
         mapped as f64 / elapsed,
         percentile(&mut latencies.clone(), 0.5),

@@ -27,7 +27,7 @@ mod sensor;
 pub use dataset::{DatasetSection, IntrinsicsSource, OnError, RECORDING_MAX_POSE_GAP_S};
 
 pub use memory::MemorySection;
-pub use ros::{OccupiedScope, PoseType, RosSection, ServiceMapping};
+pub use ros::{Intrinsics, OccupiedScope, PoseType, RosSection, ServiceMapping};
 pub use sensor::{CameraFields, ConstructionName, LidarFields, SensorKind, SensorSection};
 
 use crate::{MapError, MapperParams};

@@ -46,6 +46,19 @@ pub enum ServiceMapping {
     Enhanced,
 }
 
+/// Whose intrinsics a depth camera is mapped with.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Intrinsics {
+    /// The camera info's (as `[dataset] intrinsics = "recording"`): images
+    /// wait for the first camera info; it replaces `[sensor]`'s before the
+    /// first frame.
+    #[default]
+    CameraInfo,
+    /// `[sensor]`'s, always.
+    Config,
+}
+
 /// What `/edtmap/occupied_pointcloud` covers.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -96,6 +109,9 @@ pub struct RosSection {
     pub tf_history_s: f64,
     /// Metres per unit of 16-bit depth images.
     pub depth_scale_m: f32,
+    /// Depth cameras: `camera_info` (the default: the camera's own
+    /// intrinsics) or `config` (`[sensor]`'s).
+    pub intrinsics: Intrinsics,
     /// `/edtmap/esdf_pointcloud` rate, Hz (0: never).
     pub esdf_pointcloud_hz: f64,
     /// `/edtmap/occupied_pointcloud` rate, Hz (0: never).
@@ -138,6 +154,7 @@ impl Default for RosSection {
             pose_wait_s: 0.5,
             tf_history_s: 10.0,
             depth_scale_m: 0.001,
+            intrinsics: Intrinsics::CameraInfo,
             esdf_pointcloud_hz: 2.0,
             occupied_pointcloud_hz: 1.0,
             occupied_scope: OccupiedScope::Window,

@@ -21,9 +21,9 @@ mod outputs;
 mod services;
 pub mod types;
 
-use crate::msg::Message;
+use crate::msg::{CameraInfo, Message};
 use crate::RosOptions;
-use edtmap::config::{Config, OccupiedScope, PoseType, SensorKind};
+use edtmap::config::{Config, Intrinsics, OccupiedScope, PoseType, SensorKind};
 use edtmap::sensor::Frame;
 use edtmap::{GlobalMap, LocalVolume, MapError, Mapper};
 use live::{LiveFrames, Skipped};
@@ -86,7 +86,8 @@ pub struct NodeStats {
 /// What the threads share.
 struct Shared {
     stop: AtomicBool,
-    slot: Mutex<Option<Frame>>,
+    /// The newest frame not yet mapped, with the depth camera's latest info.
+    slot: Mutex<Option<(Frame, Option<CameraInfo>)>>,
     wake: Condvar,
     snapshot: RwLock<Arc<Snapshot>>,
     received: AtomicU64,
@@ -322,19 +323,17 @@ pub fn start(config: &Config, mapper: Mapper) -> Result<NodeHandle, NodeError> {
         skipped: Mutex::new(BTreeMap::new()),
         world_frame: Mutex::new(r.world_frame.clone().unwrap_or_else(|| "map".into())),
     });
-    let camera = match mapper.sensor() {
-        edtmap::sensor::Sensor::Depth(c) => Some(([c.fx, c.fy, c.cx, c.cy], c.width, c.height)),
-        _ => None,
-    };
+    let needs_camera_info = config.sensor.kind == SensorKind::Depth && r.intrinsics == Intrinsics::CameraInfo;
     let live = LiveFrames::new(opts, pose_type == PoseType::Tf, r.pose_wait_s, r.tf_history_s);
     let mut threads = Vec::new();
     let s = shared.clone();
-    threads.push(std::thread::Builder::new().name("edtmap-input".into()).spawn(move || input_loop(&s, sensor_sub, pose_sub, live, camera)).map_err(|e| NodeError::Dds(format!("input thread: {e}")))?);
+    threads.push(std::thread::Builder::new().name("edtmap-input".into()).spawn(move || input_loop(&s, sensor_sub, pose_sub, live, needs_camera_info)).map_err(|e| NodeError::Dds(format!("input thread: {e}")))?);
     let s = shared.clone();
     threads.push(std::thread::Builder::new().name("edtmap-services".into()).spawn(move || servers.serve(&s)).map_err(|e| NodeError::Dds(format!("service thread: {e}")))?);
     let s = shared.clone();
     let rates = Rates::of(config);
-    let mapping = std::thread::Builder::new().name("edtmap-mapping".into()).spawn(move || mapping_loop(&s, mapper, outputs, rates)).map_err(|e| NodeError::Dds(format!("mapping thread: {e}")))?;
+    let camera = needs_camera_info.then(|| config.clone());
+    let mapping = std::thread::Builder::new().name("edtmap-mapping".into()).spawn(move || mapping_loop(&s, mapper, outputs, rates, camera)).map_err(|e| NodeError::Dds(format!("mapping thread: {e}")))?;
     tracing::info!("node {}edtmap on ROS 2 domain {domain}: {} on {}, poses from {}", if r.namespace == "/" { "/".to_string() } else { format!("{}/", r.namespace) }, format!("{:?}", config.sensor.kind).to_lowercase(), r.sensor_topic, r.pose_topic);
     Ok(NodeHandle { shared, threads, mapping: Some(mapping), save_on_exit: r.save_on_exit.clone(), _node: Arc::new(Mutex::new(node)) })
 }
@@ -388,11 +387,7 @@ fn drain<M: 'static + serde::de::DeserializeOwned>(sub: &Subscription<M>, shared
     }
 }
 
-/// The intrinsics `[fx, fy, cx, cy]`, width and height a depth camera's
-/// info is checked against.
-type Camera = ([f64; 4], u32, u32);
-
-fn input_loop(shared: &Shared, mut sensor: SensorSub, mut pose: PoseSub, mut live: LiveFrames, camera: Option<Camera>) {
+fn input_loop(shared: &Shared, mut sensor: SensorSub, mut pose: PoseSub, mut live: LiveFrames, needs_camera_info: bool) {
     let Ok(mut poll) = Poll::new() else {
         tracing::error!("input thread: cannot create a poll");
         return;
@@ -455,25 +450,21 @@ fn input_loop(shared: &Shared, mut sensor: SensorSub, mut pose: PoseSub, mut liv
             SensorSub::Scan(s) => drain(s, shared, |m| sensor_msg(Message::LaserScan(m.into()), &mut live)),
             SensorSub::Image(s, info) => {
                 if let Some(i) = info {
-                    drain(i, shared, |m| {
-                        let info: crate::msg::CameraInfo = m.into();
-                        if let (Some(want), None) = (&camera, live.camera()) {
-                            let got = ([info.k[0], info.k[4], info.k[2], info.k[5]], info.width, info.height);
-                            if got.1 != want.1 || got.2 != want.2 || (0..4).any(|i| (got.0[i] - want.0[i]).abs() > 1e-6 * want.0[i].abs().max(1.0)) {
-                                tracing::warn!("the camera info says fx fy cx cy {:?} at {}x{}, [sensor] says {:?} at {}x{}: the node maps with [sensor]'s; make them agree", got.0, got.1, got.2, want.0, want.1, want.2);
-                            }
-                        }
-                        live.set_camera(info);
-                    });
+                    drain(i, shared, |m| live.set_camera(m.into()));
                 }
                 drain(s, shared, |m| sensor_msg(Message::Image(m.into()), &mut live));
             }
         }
         for ready in live.ready(now) {
             match ready {
+                Ok(_) if needs_camera_info && live.camera().is_none() => shared.skip(&Skipped {
+                    kind: "no camera info yet",
+                    reason: "a depth image came before any camera info; [ros] intrinsics = \"camera_info\" maps only with the camera's own intrinsics (\"config\" uses [sensor]'s)".into(),
+                }),
                 Ok(frame) => {
+                    let info = live.camera().cloned();
                     let mut slot = shared.slot.lock().unwrap_or_else(PoisonError::into_inner);
-                    if slot.replace(frame).is_some() {
+                    if slot.replace((frame, info)).is_some() {
                         shared.dropped.fetch_add(1, Relaxed);
                     }
                     shared.wake.notify_one();
@@ -514,9 +505,43 @@ fn due(period: Option<Duration>, last: &mut Option<Instant>, now: Instant) -> bo
     }
 }
 
-fn mapping_loop(shared: &Shared, mut mapper: Mapper, out: Outputs, rates: Rates) -> Result<(), NodeError> {
+/// A depth camera's mapper with the intrinsics of its camera info: the
+/// same mapper when they are `[sensor]`'s, a new one on the same map
+/// before the first frame, and the same one (with a warning) after it.
+fn with_camera(mapper: Mapper, config: &Config, info: &CameraInfo, frames: u64, warned: &mut bool) -> Result<Mapper, (Mapper, String)> {
+    let edtmap::sensor::Sensor::Depth(c) = mapper.sensor() else { return Ok(mapper) };
+    let k = [info.k[0], info.k[4], info.k[2], info.k[5]];
+    let close = |a: f64, b: f64| (a - b).abs() <= 1e-6 * b.abs().max(1.0);
+    if (0..4).all(|i| close([c.fx, c.fy, c.cx, c.cy][i], k[i])) && (c.width, c.height) == (info.width, info.height) {
+        return Ok(mapper);
+    }
+    let ours = format!("fx fy cx cy {:?} at {}x{}", [c.fx, c.fy, c.cx, c.cy], c.width, c.height);
+    let theirs = format!("{k:?} at {}x{}", info.width, info.height);
+    if frames > 0 {
+        if !*warned {
+            *warned = true;
+            tracing::warn!("depth camera: the camera info changed to {theirs} after the first frame, mapped with {ours}: keeping {ours}");
+        }
+        return Ok(mapper);
+    }
+    let mut config = config.clone();
+    let s = &mut config.sensor.camera;
+    (s.fx, s.fy, s.cx, s.cy, s.width, s.height) = (Some(k[0]), Some(k[1]), Some(k[2]), Some(k[3]), Some(info.width), Some(info.height));
+    let max_memory = mapper.params().max_memory_bytes;
+    let map = mapper.map().clone();
+    match self::mapper(&config, Some(map), max_memory) {
+        Ok(m) => {
+            tracing::info!("depth camera: mapping with the camera info's {theirs} (the config said {ours})");
+            Ok(m)
+        }
+        Err(e) => Err((mapper, format!("the camera info's intrinsics {theirs} are refused: {e}"))),
+    }
+}
+
+fn mapping_loop(shared: &Shared, mut mapper: Mapper, out: Outputs, rates: Rates, camera: Option<Config>) -> Result<(), NodeError> {
     let (mut last_esdf, mut last_occ, mut last_slice, mut last_clear) = (None, None, None, None);
     let mut cleared_blocks = 0usize;
+    let mut warned = false;
     loop {
         let frame = {
             let mut slot = shared.slot.lock().unwrap_or_else(PoisonError::into_inner);
@@ -530,6 +555,17 @@ fn mapping_loop(shared: &Shared, mut mapper: Mapper, out: Outputs, rates: Rates)
                 slot = shared.wake.wait_timeout(slot, Duration::from_millis(100)).unwrap_or_else(PoisonError::into_inner).0;
             }
         };
+        let (frame, info) = frame;
+        if let (Some(config), Some(info)) = (&camera, &info) {
+            mapper = match with_camera(mapper, config, info, shared.integrated.load(Relaxed), &mut warned) {
+                Ok(m) => m,
+                Err((m, reason)) => {
+                    shared.skip(&Skipped { kind: "bad camera info", reason });
+                    mapper = m;
+                    continue;
+                }
+            };
+        }
         let stamp_ns = (frame.stamp_s * 1e9).round() as i64;
         let stats = match mapper.integrate_frame(&frame) {
             Ok(stats) => stats,
