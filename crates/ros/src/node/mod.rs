@@ -508,12 +508,12 @@ fn due(period: Option<Duration>, last: &mut Option<Instant>, now: Instant) -> bo
 /// A depth camera's mapper with the intrinsics of its camera info: the
 /// same mapper when they are `[sensor]`'s, a new one on the same map
 /// before the first frame, and the same one (with a warning) after it.
-fn with_camera(mapper: Mapper, config: &Config, info: &CameraInfo, frames: u64, warned: &mut bool) -> Result<Mapper, (Mapper, String)> {
-    let edtmap::sensor::Sensor::Depth(c) = mapper.sensor() else { return Ok(mapper) };
+fn with_camera(mapper: &mut Mapper, config: &Config, info: &CameraInfo, frames: u64, warned: &mut bool) -> Result<(), String> {
+    let edtmap::sensor::Sensor::Depth(c) = mapper.sensor() else { return Ok(()) };
     let k = [info.k[0], info.k[4], info.k[2], info.k[5]];
     let close = |a: f64, b: f64| (a - b).abs() <= 1e-6 * b.abs().max(1.0);
     if (0..4).all(|i| close([c.fx, c.fy, c.cx, c.cy][i], k[i])) && (c.width, c.height) == (info.width, info.height) {
-        return Ok(mapper);
+        return Ok(());
     }
     let ours = format!("fx fy cx cy {:?} at {}x{}", [c.fx, c.fy, c.cx, c.cy], c.width, c.height);
     let theirs = format!("{k:?} at {}x{}", info.width, info.height);
@@ -522,20 +522,17 @@ fn with_camera(mapper: Mapper, config: &Config, info: &CameraInfo, frames: u64, 
             *warned = true;
             tracing::warn!("depth camera: the camera info changed to {theirs} after the first frame, mapped with {ours}: keeping {ours}");
         }
-        return Ok(mapper);
+        return Ok(());
     }
     let mut config = config.clone();
     let s = &mut config.sensor.camera;
     (s.fx, s.fy, s.cx, s.cy, s.width, s.height) = (Some(k[0]), Some(k[1]), Some(k[2]), Some(k[3]), Some(info.width), Some(info.height));
     let max_memory = mapper.params().max_memory_bytes;
     let map = mapper.map().clone();
-    match self::mapper(&config, Some(map), max_memory) {
-        Ok(m) => {
-            tracing::info!("depth camera: mapping with the camera info's {theirs} (the config said {ours})");
-            Ok(m)
-        }
-        Err(e) => Err((mapper, format!("the camera info's intrinsics {theirs} are refused: {e}"))),
-    }
+    let with_info = self::mapper(&config, Some(map), max_memory).map_err(|e| format!("the camera info's intrinsics {theirs} are refused: {e}"))?;
+    tracing::info!("depth camera: mapping with the camera info's {theirs} (the config said {ours})");
+    *mapper = with_info;
+    Ok(())
 }
 
 fn mapping_loop(shared: &Shared, mut mapper: Mapper, out: Outputs, rates: Rates, camera: Option<Config>) -> Result<(), NodeError> {
@@ -557,14 +554,10 @@ fn mapping_loop(shared: &Shared, mut mapper: Mapper, out: Outputs, rates: Rates,
         };
         let (frame, info) = frame;
         if let (Some(config), Some(info)) = (&camera, &info) {
-            mapper = match with_camera(mapper, config, info, shared.integrated.load(Relaxed), &mut warned) {
-                Ok(m) => m,
-                Err((m, reason)) => {
-                    shared.skip(&Skipped { kind: "bad camera info", reason });
-                    mapper = m;
-                    continue;
-                }
-            };
+            if let Err(reason) = with_camera(&mut mapper, config, info, shared.integrated.load(Relaxed), &mut warned) {
+                shared.skip(&Skipped { kind: "bad camera info", reason });
+                continue;
+            }
         }
         let stamp_ns = (frame.stamp_s * 1e9).round() as i64;
         let stats = match mapper.integrate_frame(&frame) {
