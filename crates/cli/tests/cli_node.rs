@@ -286,7 +286,11 @@ fn a_flood_drops_frames_and_bad_messages_are_skipped_by_kind_keeping_the_map() {
 fn map_clearing_bounds_the_map_and_keeps_its_edt_exact() {
     let dir = tempfile::tempdir().expect("temp dir");
     let (_, full) = flooded_node(&subdir(dir.path(), "full"), 30, "", 53);
-    let (_, cleared) = flooded_node(&subdir(dir.path(), "cleared"), 30, "map_clearing_radius_m = 3.0\nmap_clearing_period_s = 0.01\n", 67);
+    let cleared_dir = subdir(dir.path(), "cleared");
+    let (_, cleared) = flooded_node(&cleared_dir, 30, "map_clearing_radius_m = 3.0\nmap_clearing_period_s = 0.01\nmap_clearing_save = \"before_clearing.edtmap\"\n", 67);
+    // What was forgotten was saved first: the last save holds more than the map kept.
+    let saved = edtmap::load_map(&cleared_dir.join("before_clearing.edtmap")).expect("saved before clearing");
+    assert!(saved.occupancy().len() > cleared.occupancy().len(), "{} saved, {} kept", saved.occupancy().len(), cleared.occupancy().len());
     // A ball of 3 m holds at most (4/3)π(3 + 1.4)³ / 1.6³ ≈ 87 blocks of 1.6 m.
     assert!(cleared.occupancy().len() <= 87 && full.occupancy().len() > 2 * cleared.occupancy().len(), "{} blocks cleared, {} without", cleared.occupancy().len(), full.occupancy().len());
     let errors = edtmap::eval::edt_errors(&cleared, &edtmap::eval::edt_extent(&cleared).expect("an EDT")).expect("exact EDT");

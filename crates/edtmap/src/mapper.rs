@@ -277,6 +277,12 @@ impl<B: Backend> Mapper<B> {
         })
     }
 
+    /// Whether [`Self::clear_far`] with these arguments would drop a block.
+    pub fn would_clear(&self, centre_m: [f64; 3], radius_m: f64) -> bool {
+        let side = f64::from(edtmap_core::BLOCK_SIDE) * self.params.voxel_size_m;
+        self.map.occupancy().iter().any(|(k, _)| block_distance(k, side, centre_m) > radius_m)
+    }
+
     /// Forgets the map farther than `radius_m` from `centre_m` (world,
     /// metres), as a long-running node bounds its memory (nvblox's map
     /// clearing): occupancy blocks whose centre is farther are dropped, the
@@ -296,7 +302,7 @@ impl<B: Backend> Mapper<B> {
         let bytes_before = self.map.bytes();
         let vs = self.params.voxel_size_m;
         let side = f64::from(edtmap_core::BLOCK_SIDE) * vs;
-        let dist = |k: BlockKey| (0..3).map(|a| ((f64::from(k.0[a]) + 0.5) * side - centre_m[a]).powi(2)).sum::<f64>().sqrt();
+        let dist = |k: BlockKey| block_distance(k, side, centre_m);
         let gone = self.map.occupancy_mut().remove_where(|k| dist(k) > radius_m);
         if gone.is_empty() {
             return Ok(Cleared { bytes_before, bytes_after: bytes_before, ..Cleared::default() });
@@ -428,6 +434,11 @@ impl<B: Backend> Mapper<B> {
             local_field(&mut CpuBackend::default(), &self.map, volume, self.params.edt.unknown_as_occupied).unwrap_or_else(|_| EdtField::empty())
         })
     }
+}
+
+/// Distance from block `k`'s centre (blocks of `side` metres) to `p`.
+fn block_distance(k: BlockKey, side: f64, p: [f64; 3]) -> f64 {
+    (0..3).map(|a| ((f64::from(k.0[a]) + 0.5) * side - p[a]).powi(2)).sum::<f64>().sqrt()
 }
 
 fn ms_since(t: Instant) -> f64 {

@@ -131,6 +131,10 @@ pub struct RosSection {
     pub map_clearing_radius_m: f64,
     /// How often the map is cleared, seconds.
     pub map_clearing_period_s: f64,
+    /// Where to save the whole map before each clearing that drops
+    /// something (replaced atomically each time), so what is forgotten is
+    /// kept on disk; nothing by default.
+    pub map_clearing_save: Option<PathBuf>,
     /// Where to save the map when the node stops (SIGINT); nothing by default.
     pub save_on_exit: Option<PathBuf>,
     /// Only talk over loopback (127.0.0.1), with unicast discovery: for
@@ -163,6 +167,7 @@ impl Default for RosSection {
             service_mapping: ServiceMapping::Cyclone,
             map_clearing_radius_m: 0.0,
             map_clearing_period_s: 1.0,
+            map_clearing_save: None,
             save_on_exit: None,
             localhost_only: false,
         }

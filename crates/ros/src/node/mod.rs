@@ -483,6 +483,7 @@ struct Rates {
     scope: OccupiedScope,
     slice_height_m: f64,
     clearing: Option<(f64, Duration)>,
+    clearing_save: Option<PathBuf>,
 }
 
 impl Rates {
@@ -490,7 +491,8 @@ impl Rates {
         let period = |hz: f64| (hz > 0.0).then(|| Duration::from_secs_f64(1.0 / hz));
         let r = &config.ros;
         let clearing = (r.map_clearing_radius_m > 0.0).then(|| (r.map_clearing_radius_m, Duration::from_secs_f64(r.map_clearing_period_s)));
-        Rates { esdf: period(r.esdf_pointcloud_hz), occupied: period(r.occupied_pointcloud_hz), slice: period(r.slice_hz), scope: r.occupied_scope, slice_height_m: r.slice_height_m, clearing }
+        let clearing_save = r.map_clearing_save.clone();
+        Rates { esdf: period(r.esdf_pointcloud_hz), occupied: period(r.occupied_pointcloud_hz), slice: period(r.slice_hz), scope: r.occupied_scope, slice_height_m: r.slice_height_m, clearing, clearing_save }
     }
 }
 
@@ -572,7 +574,18 @@ fn mapping_loop(shared: &Shared, mut mapper: Mapper, out: Outputs, rates: Rates,
         if let Some((radius, period)) = rates.clearing {
             if due(Some(period), &mut last_clear, Instant::now()) {
                 let at = frame.t_world_sensor.translation.vector;
-                let c = mapper.clear_far([at.x, at.y, at.z], radius)?;
+                let centre = [at.x, at.y, at.z];
+                if let Some(path) = &rates.clearing_save {
+                    if mapper.would_clear(centre, radius) {
+                        // Keep what is about to be forgotten; a failure to save
+                        // is reported and the clearing waits for the next period.
+                        if let Err(e) = edtmap::save_map(mapper.map(), path) {
+                            shared.skip(&Skipped { kind: "map not saved before clearing", reason: format!("{}: {e}", path.display()) });
+                            continue;
+                        }
+                    }
+                }
+                let c = mapper.clear_far(centre, radius)?;
                 cleared_blocks += c.occupancy_blocks;
                 if c.occupancy_blocks > 0 {
                     tracing::debug!("cleared {} occupancy and {} EDT blocks farther than {radius} m: {} → {} bytes", c.occupancy_blocks, c.edt_blocks, c.bytes_before, c.bytes_after);
