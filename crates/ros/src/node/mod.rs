@@ -96,7 +96,7 @@ struct Shared {
     requests: AtomicU64,
     skipped: Mutex<BTreeMap<String, u64>>,
     /// The world frame outputs are published in.
-    world_frame: Mutex<String>,
+    world_frame: String,
 }
 
 impl Shared {
@@ -123,10 +123,6 @@ impl Shared {
             skipped: self.skipped.lock().unwrap_or_else(PoisonError::into_inner).clone(),
             requests: self.requests.load(Relaxed),
         }
-    }
-
-    fn world_frame(&self) -> String {
-        self.world_frame.lock().unwrap_or_else(PoisonError::into_inner).clone()
     }
 }
 
@@ -321,7 +317,7 @@ pub fn start(config: &Config, mapper: Mapper) -> Result<NodeHandle, NodeError> {
         dropped: AtomicU64::new(0),
         requests: AtomicU64::new(0),
         skipped: Mutex::new(BTreeMap::new()),
-        world_frame: Mutex::new(r.world_frame.clone().unwrap_or_else(|| "map".into())),
+        world_frame: r.world_frame.clone().unwrap_or_else(|| "map".into()),
     });
     let needs_camera_info = config.sensor.kind == SensorKind::Depth && r.intrinsics == Intrinsics::CameraInfo;
     let live = LiveFrames::new(opts, pose_type == PoseType::Tf, r.pose_wait_s, r.tf_history_s);
@@ -595,7 +591,7 @@ fn mapping_loop(shared: &Shared, mut mapper: Mapper, out: Outputs, rates: Rates,
         let volume = mapper.local_volume().copied();
         let snapshot = Arc::new(Snapshot { map: mapper.map().clone(), volume, stamp_ns, frames });
         *shared.snapshot.write().unwrap_or_else(PoisonError::into_inner) = snapshot.clone();
-        let world = shared.world_frame();
+        let world = shared.world_frame.clone();
         let header = types::Header { stamp: Time::from_ns(stamp_ns), frame_id: world.clone() };
         let now = Instant::now();
         let publish_failed = |what: &str, e: String| tracing::debug!("publishing {what}: {e}");
@@ -646,6 +642,3 @@ fn mapping_loop(shared: &Shared, mut mapper: Mapper, out: Outputs, rates: Rates,
         }
     }
 }
-
-/// The message types the node reads, for documentation and checks.
-pub const INPUT_TYPES: [&str; 7] = ["sensor_msgs/PointCloud2", "sensor_msgs/Image", "sensor_msgs/CameraInfo", "sensor_msgs/LaserScan", "tf2_msgs/TFMessage", "nav_msgs/Odometry", "geometry_msgs/PoseStamped"];
