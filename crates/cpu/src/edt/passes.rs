@@ -103,7 +103,24 @@ pub fn edt_into<T: Sync>(
     layout: ScanLayout,
     field: &mut EdtField,
 ) -> Result<(), CpuError> {
-    let dims = grid.dims();
+    edt_slice_into(grid.as_slice(), grid.dims(), is_obstacle, layout, field)
+}
+
+/// [`edt_into`] of voxels held in any slice (one per voxel, `x` fastest,
+/// `dims = [nx, ny, nz]`), so that borrowed data needs no copy into a
+/// [`Grid3`].
+pub fn edt_slice_into<T: Sync>(
+    voxels: &[T],
+    dims: [usize; 3],
+    is_obstacle: impl Fn(&T) -> bool + Sync,
+    layout: ScanLayout,
+    field: &mut EdtField,
+) -> Result<(), CpuError> {
+    let expected = Grid3::<()>::voxel_count(dims)?;
+    if voxels.len() != expected {
+        let actual = voxels.len();
+        return Err(edtmap_core::CoreError::LengthMismatch { dims, expected, actual }.into());
+    }
     let (dist, near) = field.prepare(dims)?;
     let [nx, ny, nz] = dims;
     let y_lines = |outer| LineSet { outer, outer_stride: nx * ny, len: ny, stride: nx, nx };
@@ -113,7 +130,7 @@ pub fn edt_into<T: Sync>(
         let slab = nx * ny;
         dist.par_chunks_mut(slab)
             .zip(near.par_chunks_mut(slab))
-            .zip(grid.as_slice().par_chunks(slab))
+            .zip(voxels.par_chunks(slab))
             .enumerate()
             .for_each_init(TileScratch::default, |scratch, (z, ((dist, near), voxels))| {
                 scan_x_rows(voxels, &is_obstacle, nx, z * slab, dist, near);
@@ -122,7 +139,7 @@ pub fn edt_into<T: Sync>(
                 }
             });
     } else {
-        scan_x(grid.as_slice(), &is_obstacle, nx, dist, near);
+        scan_x(voxels, &is_obstacle, nx, dist, near);
         if ny > 1 {
             scan_strided(&y_lines(nz), layout, dist, near);
         }
