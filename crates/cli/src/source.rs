@@ -5,10 +5,9 @@
 use std::path::Path;
 
 use anyhow::{bail, Context, Result};
-use edtmap::config::{Config, IntrinsicsSource, SensorKind};
+use edtmap::config::Config;
 use edtmap::sensor::{Frame, Sensor};
-use edtmap_io::dataset::Dataset;
-use edtmap_ros::{self as ros, RosOptions, RosReplay};
+use edtmap_ros::recording::Recording;
 use edtmap_sim::{Scene, SceneName, SceneOptions};
 
 /// A frame that did not come out, with where it was and why.
@@ -39,48 +38,14 @@ pub(crate) enum FailureKind {
 pub(crate) enum Source {
     /// A built-in scene, simulated.
     Scene(Box<Scene>),
-    /// A folder of depth images or point clouds.
-    Folder(Dataset),
-    /// A ROS 1 bag or ROS 2 MCAP file.
-    Ros(Box<RosReplay>),
+    /// A recording: a folder, a ROS 1 bag or a ROS 2 MCAP file.
+    Recording(Recording),
 }
 
 impl Source {
-    /// Opens the recording at `path`. For a depth camera, the recording's
-    /// calibration (a folder's `camera-intrinsics.txt` with its first
-    /// image's size, a ROS camera info) replaces `[sensor]`'s, with a
-    /// warning where they differ, unless `[dataset] intrinsics = "config"`.
+    /// Opens the recording at `path` (see [`Recording::open`]).
     pub(crate) fn open_recording(path: &Path, config: &mut Config, origin: &str) -> Result<Source> {
-        let in_dataset = |e| edtmap::MapError::Config { section: "dataset", source: e };
-        if ros::is_recording(path) {
-            let opts = ros_options(&config.dataset).map_err(in_dataset).with_context(|| format!("{origin}: replaying {}", path.display()))?;
-            let replay = RosReplay::open(path, &opts)?;
-            for w in replay.warnings() {
-                tracing::warn!("{w}");
-            }
-            if let (SensorKind::Depth, Some(info)) = (config.sensor.kind, replay.camera_info()) {
-                let k = info.k;
-                let from = format!("the camera info of {} says", path.display());
-                use_calibration(config, &Calibration { k: [k[0], k[4], k[2], k[5]], width: info.width, height: info.height, from }, origin);
-            }
-            tracing::info!("{}: {} messages of {} on {}", path.display(), replay.len(), replay.sensor_type(), opts.sensor_topic);
-            return Ok(Source::Ros(Box::new(replay)));
-        }
-        config.dataset.validate().map_err(in_dataset)?;
-        let opts = config.dataset_options(path)?;
-        let set = Dataset::open_with(path, &opts)?;
-        for w in set.warnings() {
-            tracing::warn!("{w}");
-        }
-        if let (SensorKind::Depth, Dataset::Depth(folder)) = (config.sensor.kind, &set) {
-            if let Some(file) = &folder.intrinsics_file {
-                let c = &folder.camera;
-                let from = format!("{} and the first image say", file.display());
-                use_calibration(config, &Calibration { k: [c.fx, c.fy, c.cx, c.cy], width: c.width, height: c.height, from }, origin);
-            }
-        }
-        tracing::info!("{}: {} frames of {}", path.display(), set.len(), set.kind());
-        Ok(Source::Folder(set))
+        Ok(Source::Recording(Recording::open(path, config, origin)?))
     }
 
     /// A scene by name, with the config's `[scene]` settings.
@@ -93,8 +58,7 @@ impl Source {
     pub(crate) fn len(&self) -> Option<usize> {
         match self {
             Source::Scene(_) => None,
-            Source::Folder(d) => Some(d.len()),
-            Source::Ros(r) => Some(r.len()),
+            Source::Recording(r) => Some(r.len()),
         }
     }
 
@@ -102,8 +66,7 @@ impl Source {
     pub(crate) fn kind(&self) -> Option<&'static str> {
         match self {
             Source::Scene(_) => None,
-            Source::Folder(d) => Some(d.kind()),
-            Source::Ros(r) => Some(r.kind()),
+            Source::Recording(r) => Some(r.kind()),
         }
     }
 
@@ -111,18 +74,12 @@ impl Source {
     pub(crate) fn frames<'a>(&'a self, sensor: &'a Sensor, n: usize, name: &'a str) -> Box<dyn Iterator<Item = Result<Frame, Failure>> + 'a> {
         match self {
             Source::Scene(scene) => Box::new((0..n).map(move |i| scene.frame(sensor, i).map_err(|e| Failure { index: i, message: format!("simulating frame {i}: {e}"), kind: FailureKind::Fatal }))),
-            Source::Folder(set) => Box::new((0..n).map(move |i| set.frame(i).map_err(|e| Failure { index: i, message: format!("frame {i} of {name}: {e}"), kind: FailureKind::Frame }))),
-            // The index counts only what precedes damage: when every indexed
-            // frame is asked for, still report the damage that ends the file.
-            Source::Ros(replay) => {
-                let all = n >= replay.len();
-                Box::new(replay.frames().enumerate().take_while(move |(i, r)| *i < n || (all && r.as_ref().is_err_and(|e| e.fatal))).map(|(i, r)| {
-                    r.map_err(|e| {
-                        let kind = if e.fatal { FailureKind::Damage } else { FailureKind::Frame };
-                        Failure { index: i, message: e.to_string(), kind }
-                    })
-                }))
-            }
+            Source::Recording(r) => Box::new(r.frames(n, name).map(|r| {
+                r.map_err(|e| {
+                    let kind = if e.damage { FailureKind::Damage } else { FailureKind::Frame };
+                    Failure { index: e.index, message: e.message, kind }
+                })
+            })),
         }
     }
 }
@@ -138,87 +95,10 @@ pub(crate) fn build_scene(name: &str, config: &Config) -> Result<(Scene, usize)>
     Ok((scene, n))
 }
 
-/// A depth camera's calibration as a recording gives it.
-struct Calibration {
-    /// `[fx, fy, cx, cy]`, pixels.
-    k: [f64; 4],
-    /// Image width, pixels.
-    width: u32,
-    /// Image height, pixels.
-    height: u32,
-    /// Where it comes from, as the subject of `says`: `the camera info
-    /// of drive.bag says`.
-    from: String,
-}
-
-/// The camera `[sensor]` describes, in the words of the messages.
-fn describe(k: [Option<f64>; 4], width: Option<u32>, height: Option<u32>) -> String {
-    let show = |v: Option<f64>| v.map_or_else(|| "unset".to_string(), |v| v.to_string());
-    let size = |v: Option<u32>| v.map_or_else(|| "unset".to_string(), |v| v.to_string());
-    format!("fx {}, fy {}, cx {}, cy {}, {} x {} pixels", show(k[0]), show(k[1]), show(k[2]), show(k[3]), size(width), size(height))
-}
-
-/// Applies a recording's calibration to `[sensor]` as `[dataset]
-/// intrinsics` says: the recording's wins (default) or `[sensor]`'s, its
-/// unset fields filled from the recording's. Where both give a value and
-/// they differ, a warning names both and the one used.
-fn use_calibration(config: &mut Config, cal: &Calibration, origin: &str) {
-    let policy = config.dataset.intrinsics;
-    let s = &mut config.sensor.camera;
-    let theirs = describe(cal.k.map(Some), Some(cal.width), Some(cal.height));
-    let ours = describe([s.fx, s.fy, s.cx, s.cy], s.width, s.height);
-    let close = |a: f64, b: f64| (a - b).abs() <= 1e-6 * b.abs().max(1.0);
-    let mut differ = false;
-    for (field, value) in [(&mut s.fx, cal.k[0]), (&mut s.fy, cal.k[1]), (&mut s.cx, cal.k[2]), (&mut s.cy, cal.k[3])] {
-        differ |= field.is_some_and(|v| !close(v, value));
-        if policy == IntrinsicsSource::Recording || field.is_none() {
-            *field = Some(value);
-        }
-    }
-    for (field, value) in [(&mut s.width, cal.width), (&mut s.height, cal.height)] {
-        differ |= field.is_some_and(|v| v != value);
-        if policy == IntrinsicsSource::Recording || field.is_none() {
-            *field = Some(value);
-        }
-    }
-    if differ {
-        match policy {
-            IntrinsicsSource::Recording => tracing::warn!(
-                "depth camera: {origin} [sensor] says {ours} but {} {theirs}: using the recording's; set [dataset] intrinsics = \"config\" to use [sensor]'s",
-                cal.from
-            ),
-            IntrinsicsSource::Config => tracing::warn!(
-                "depth camera: {origin} [sensor] says {ours} but {} {theirs}: using [sensor]'s, as [dataset] intrinsics = \"config\" asks",
-                cal.from
-            ),
-        }
-    }
-    let used = describe([s.fx, s.fy, s.cx, s.cy], s.width, s.height);
-    tracing::info!("depth camera: {used} ({} {theirs})", cal.from);
-}
-
 /// Refuses a recording whose sensor is not the config's.
 pub(crate) fn check_kind(source: &Source, sensor: &Sensor, path: &Path, origin: &str) -> Result<()> {
     match source.kind() {
         Some(kind) if kind != sensor.kind() => bail!("{} holds {kind} frames but {origin}'s [sensor] is a {}", path.display(), sensor.kind()),
         _ => Ok(()),
     }
-}
-
-/// The options of a ROS replay from `[dataset]`; `sensor_topic` and
-/// `pose_topic` are needed.
-fn ros_options(d: &edtmap::config::DatasetSection) -> std::result::Result<RosOptions, edtmap::CoreError> {
-    d.validate()?;
-    let missing = |field: &'static str| edtmap::CoreError::InvalidParam { field, value: "missing".into(), reason: "required to replay a ROS bag or MCAP file" };
-    Ok(RosOptions {
-        sensor_topic: d.sensor_topic.clone().ok_or_else(|| missing("sensor_topic"))?,
-        camera_info_topic: d.camera_info_topic.clone(),
-        pose_topic: d.pose_topic.clone().ok_or_else(|| missing("pose_topic"))?,
-        static_tf_topic: d.static_tf_topic.clone(),
-        world_frame: d.world_frame.clone(),
-        body_frame: d.body_frame.clone(),
-        t_body_sensor: d.t_body_sensor()?,
-        max_pose_gap_s: d.max_pose_gap_s,
-        depth_scale_m: d.depth_scale_m,
-    })
 }

@@ -6,6 +6,8 @@
 
 use pyo3::prelude::*;
 
+mod mapper;
+mod recording;
 mod transforms;
 
 /// The extension module.
@@ -14,5 +16,7 @@ fn _edtmap(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add_function(wrap_pyfunction!(transforms::transform, m)?)?;
     m.add_function(wrap_pyfunction!(transforms::several_labels, m)?)?;
+    m.add_class::<mapper::PyMapper>()?;
+    m.add_class::<recording::PyRecording>()?;
     Ok(())
 }

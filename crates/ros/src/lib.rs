@@ -15,6 +15,7 @@ pub mod node;
 #[cfg(test)]
 mod msg_tests;
 pub mod record;
+pub mod recording;
 pub mod replay;
 pub mod tf;
 mod wire;
