@@ -21,6 +21,9 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use rayon::prelude::*;
 
+/// Distances, gradients and state codes of a batched query.
+type Answers<'py> = (Bound<'py, PyArray1<f64>>, Bound<'py, PyArray2<f64>>, Bound<'py, PyArray1<u8>>);
+
 /// Points per parallel task of a batched query.
 const QUERY_CHUNK: usize = 4096;
 
@@ -296,7 +299,7 @@ impl PyMapper {
         py: Python<'py>,
         points: PyReadonlyArray2<'py, f64>,
         signed: bool,
-    ) -> PyResult<(Bound<'py, PyArray1<f64>>, Bound<'py, PyArray2<f64>>, Bound<'py, PyArray1<u8>>)> {
+    ) -> PyResult<Answers<'py>> {
         let pts = points3(&points, "points")?;
         let map = self.map()?;
         let n = pts.len();
