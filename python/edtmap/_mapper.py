@@ -146,16 +146,18 @@ class Mapper:
     ``connectivity``, ``mode``, ``forbidden``) and ``[sensor]``
     (``construction``, ``clear_no_return``, ...) sections, plus
     ``max_memory`` (``"4GiB"``). Or :meth:`from_config` with a TOML file.
+    ``backend``: ``"cpu"``, or ``"gpu"``/``"auto"`` in a build with the
+    ``gpu`` feature; every backend gives the same map, bit for bit.
 
     Poses are ``T_world_sensor``: a 4 x 4 rigid transform, or
     ``[x, y, z, qx, qy, qz, qw]``. Integration and queries release the GIL;
     queries from any thread read the map as it was after the last frame.
     """
 
-    def __init__(self, sensor: _Sensor, voxel_size_m: float, **params: Any):
+    def __init__(self, sensor: _Sensor, voxel_size_m: float, backend: str = "cpu", **params: Any):
         config = _config(sensor, voxel_size_m, params)
         self._config = config
-        self._core = _edtmap.Mapper.from_config_json(json.dumps(config), "edtmap.Mapper(...)")
+        self._core = _edtmap.Mapper.from_config_json(json.dumps(config), "edtmap.Mapper(...)", backend)
 
     @classmethod
     def _wrap(cls, core, config: Optional[Dict[str, Any]]) -> "Mapper":
@@ -165,19 +167,25 @@ class Mapper:
         return mapper
 
     @classmethod
-    def from_config(cls, path: PathLike) -> "Mapper":
+    def from_config(cls, path: PathLike, backend: str = "cpu") -> "Mapper":
         """A mapper from a TOML configuration file (as ``edtmap run --config``)."""
-        return cls._wrap(_edtmap.Mapper.from_config_file(os.fspath(path)), None)
+        return cls._wrap(_edtmap.Mapper.from_config_file(os.fspath(path), backend), None)
 
     @classmethod
-    def load(cls, path: PathLike, sensor: Optional[_Sensor] = None, **params: Any) -> "Mapper":
+    def load(cls, path: PathLike, sensor: Optional[_Sensor] = None, backend: str = "cpu",
+             **params: Any) -> "Mapper":
         """A mapper that goes on from a saved map (``map.edtmap``). The map's
         voxel size, probabilities and global EDT parameters are kept; the
         sensor (default :class:`PointSensor`) and ``params`` are for the
         frames integrated from now on."""
         config = _config(sensor if sensor is not None else PointSensor(), 1.0, params)
-        core = _edtmap.Mapper.load(os.fspath(path), json.dumps(config), "edtmap.Mapper.load(...)")
+        core = _edtmap.Mapper.load(os.fspath(path), json.dumps(config), "edtmap.Mapper.load(...)", backend)
         return cls._wrap(core, config)
+
+    @property
+    def backend(self) -> str:
+        """What the mapper runs on: ``cpu (N threads)`` or the GPU's name."""
+        return self._core.backend
 
     @property
     def voxel_size_m(self) -> float:
@@ -337,10 +345,10 @@ class Recording:
         """Messages of the frames skipped so far (``[dataset] on_error``)."""
         return self._core.skipped
 
-    def mapper(self) -> Mapper:
+    def mapper(self, backend: str = "cpu") -> Mapper:
         """A mapper for this recording's configuration, the recording's
         camera calibration applied as ``edtmap run --dataset`` does."""
-        return Mapper._wrap(self._core.mapper(), None)
+        return Mapper._wrap(self._core.mapper(backend), None)
 
 
 def read_recording(path: PathLike, config: PathLike, frames: Optional[int] = None) -> Recording:

@@ -12,7 +12,8 @@ use edtmap::config::Config;
 use edtmap::sensor::{
     DepthData, DepthImage, Frame, LaserScan, LidarScan, Measurement, PointCloud, RangeLimits, Sensor,
 };
-use edtmap::{FrameStats, GlobalMap, MapError, Mapper, PointState};
+use edtmap::cpu::CpuBackend;
+use edtmap::{Backend, FrameStats, GlobalMap, MapError, Mapper, PointState};
 use edtmap_cpu::query;
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
 use numpy::{PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
@@ -23,6 +24,34 @@ use rayon::prelude::*;
 
 /// Distances, gradients and state codes of a batched query.
 type Answers<'py> = (Bound<'py, PyArray1<f64>>, Bound<'py, PyArray2<f64>>, Bound<'py, PyArray1<u8>>);
+
+/// The backend a mapper runs on, chosen when it is made.
+pub(crate) type DynBackend = Box<dyn Backend + Send>;
+
+/// Opens the backend `name` names: `cpu`, and with the `gpu` feature
+/// `gpu` (an error without an adapter) or `auto` (a hardware GPU, else the
+/// CPU).
+fn open_backend(name: &str) -> PyResult<DynBackend> {
+    match name {
+        "cpu" => Ok(Box::new(CpuBackend::default())),
+        #[cfg(feature = "gpu")]
+        "gpu" => {
+            let gpu = edtmap_gpu::GpuBackend::new().map_err(|e| PyRuntimeError::new_err(format!("backend='gpu': {e}")))?;
+            Ok(Box::new(gpu))
+        }
+        #[cfg(feature = "gpu")]
+        "auto" => match edtmap_gpu::GpuBackend::new() {
+            Ok(gpu) if !gpu.context().is_software() => Ok(Box::new(gpu)),
+            _ => Ok(Box::new(CpuBackend::default())),
+        },
+        #[cfg(not(feature = "gpu"))]
+        "gpu" | "auto" => Err(PyValueError::new_err(format!(
+            "backend={name:?}: this build of edtmap has no GPU backend; install it with \
+             MATURIN_PEP517_ARGS=\"--features gpu\" pip install ./python"
+        ))),
+        other => Err(PyValueError::new_err(format!("backend must be 'cpu', 'gpu' or 'auto', not {other:?}"))),
+    }
+}
 
 /// Points per parallel task of a batched query.
 const QUERY_CHUNK: usize = 4096;
@@ -39,19 +68,19 @@ pub(crate) fn map_err(e: MapError) -> PyErr {
 /// The mapper and the snapshot its queries read.
 #[pyclass(name = "Mapper", module = "edtmap._edtmap", frozen)]
 pub(crate) struct PyMapper {
-    mapper: Mutex<Mapper>,
+    mapper: Mutex<Mapper<DynBackend>>,
     snapshot: RwLock<Arc<GlobalMap>>,
     /// Range limits of a planar LiDAR's scans (`[sensor]` min/max range).
     scan_range: RangeLimits,
 }
 
 impl PyMapper {
-    fn new(mapper: Mapper, scan_range: RangeLimits) -> Self {
+    fn new(mapper: Mapper<DynBackend>, scan_range: RangeLimits) -> Self {
         let snapshot = RwLock::new(Arc::new(mapper.map().clone()));
         PyMapper { mapper: Mutex::new(mapper), snapshot, scan_range }
     }
 
-    fn lock(&self) -> PyResult<MutexGuard<'_, Mapper>> {
+    fn lock(&self) -> PyResult<MutexGuard<'_, Mapper<DynBackend>>> {
         self.mapper.lock().map_err(|_| PyRuntimeError::new_err("the mapper panicked in another thread"))
     }
 
@@ -74,12 +103,13 @@ impl PyMapper {
 
 impl PyMapper {
 /// Builds a mapper from a parsed configuration.
-pub(crate) fn from_parsed(config: &Config, map: Option<GlobalMap>) -> PyResult<PyMapper> {
+pub(crate) fn from_parsed(config: &Config, map: Option<GlobalMap>, backend: &str) -> PyResult<PyMapper> {
     let (sensor, params) = config.mapper_params().map_err(map_err)?;
     let scan_range = RangeLimits { min_m: config.sensor.min_range_m, max_m: config.sensor.max_range_m };
+    let backend = open_backend(backend)?;
     let mapper = match map {
-        Some(map) => Mapper::with_map(sensor, params, map),
-        None => Mapper::new(sensor, params),
+        Some(map) => Mapper::with_map_on(backend, sensor, params, map),
+        None => Mapper::new_on(backend, sensor, params),
     }
     .map_err(map_err)?;
     Ok(PyMapper::new(mapper, scan_range))
@@ -182,32 +212,32 @@ impl PyMapper {
     /// A mapper from a TOML configuration file (`[sensor]`, `[occupancy]`,
     /// `[edt]`, `[global]`, `[memory]`; other sections are ignored here).
     #[staticmethod]
-    fn from_config_file(path: PathBuf) -> PyResult<Self> {
+    fn from_config_file(path: PathBuf, backend: &str) -> PyResult<Self> {
         let config = Config::load(&path).map_err(map_err)?;
-        PyMapper::from_parsed(&config, None)
+        PyMapper::from_parsed(&config, None, backend)
     }
 
     /// A mapper from a configuration given as JSON text (the TOML file's
     /// structure), as `edtmap.Mapper(...)` builds it; `origin` names it in
     /// errors.
     #[staticmethod]
-    fn from_config_json(text: &str, origin: &str) -> PyResult<Self> {
+    fn from_config_json(text: &str, origin: &str, backend: &str) -> PyResult<Self> {
         let config: Config = serde_json::from_str(text)
             .map_err(|e| PyValueError::new_err(format!("{origin}: {e}")))?;
-        PyMapper::from_parsed(&config, None)
+        PyMapper::from_parsed(&config, None, backend)
     }
 
     /// A mapper that goes on from the map file `path`, for the sensor and
     /// parameters of `config_json` (the map's voxel size, probabilities and
     /// global EDT parameters win).
     #[staticmethod]
-    fn load(py: Python<'_>, path: PathBuf, config_json: &str, origin: &str) -> PyResult<Self> {
+    fn load(py: Python<'_>, path: PathBuf, config_json: &str, origin: &str, backend: &str) -> PyResult<Self> {
         let mut config: Config = serde_json::from_str(config_json)
             .map_err(|e| PyValueError::new_err(format!("{origin}: {e}")))?;
         let map = py.detach(|| edtmap::load_map(&path)).map_err(map_err)?;
         // The map's voxel size wins; the occupancy options follow it.
         config.occupancy.voxel_size_m = map.voxel_size_m();
-        PyMapper::from_parsed(&config, Some(map))
+        PyMapper::from_parsed(&config, Some(map), backend)
     }
 
     /// Integrates a depth image in metres (float32, H × W).
@@ -396,6 +426,12 @@ impl PyMapper {
     #[getter]
     fn max_distance_m(&self) -> PyResult<f64> {
         Ok(self.map()?.params().max_distance_m)
+    }
+
+    /// What the mapper runs on: `cpu (N threads)` or the GPU's name.
+    #[getter]
+    fn backend(&self) -> PyResult<String> {
+        Ok(self.lock()?.backend().name())
     }
 
     /// The sensor kind: `depth`, `lidar`, `points` or `planar`.

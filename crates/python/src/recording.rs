@@ -87,8 +87,9 @@ impl PyRecording {
 
     /// A mapper for this recording: the configuration with the recording's
     /// calibration applied, as `edtmap run --dataset` makes it.
-    fn mapper(&self) -> PyResult<PyMapper> {
-        PyMapper::from_parsed(&self.config, None)
+    #[pyo3(signature = (backend="cpu"))]
+    fn mapper(&self, backend: &str) -> PyResult<PyMapper> {
+        PyMapper::from_parsed(&self.config, None, backend)
     }
 
     fn __iter__(slf: PyRef<'_, Self>) -> PyRef<'_, Self> {

@@ -11,6 +11,7 @@ mod convert;
 pub mod mcap;
 mod poses;
 pub mod msg;
+#[cfg(feature = "node")]
 pub mod node;
 #[cfg(test)]
 mod msg_tests;

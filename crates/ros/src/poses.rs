@@ -62,6 +62,7 @@ impl Poses {
 
     /// Drops poses older than `t` (one before it kept), bounding a live
     /// node's history.
+    #[cfg(feature = "node")]
     pub(crate) fn forget_before(&mut self, t: f64) {
         match self {
             Poses::Topic(traj) => traj.forget_before(t),
@@ -82,6 +83,7 @@ impl Poses {
 
     /// The latest time a message in `frame_id` has a pose at, if any: a
     /// live node waits for it to pass a message's stamp.
+    #[cfg(feature = "node")]
     pub(crate) fn latest(&self, frame_id: &str, opts: &RosOptions) -> Option<f64> {
         match self {
             Poses::Topic(traj) => traj.span().map(|s| s.1),
