@@ -163,6 +163,20 @@ def test_save_load_round_trip(tmp_path):
     assert (tmp_path / "a.edtmap").read_bytes() == (tmp_path / "b.edtmap").read_bytes()
 
 
+def test_backends():
+    mapper = edtmap.Mapper(edtmap.PointSensor(), 0.1, backend="cpu")
+    assert mapper.backend.startswith("cpu")
+    with pytest.raises(ValueError, match="backend must be"):
+        edtmap.Mapper(edtmap.PointSensor(), 0.1, backend="tpu")
+    try:
+        gpu = edtmap.Mapper(edtmap.PointSensor(), 0.1, backend="auto")
+    except ValueError as e:
+        # A build without the gpu feature says how to get it.
+        assert "--features gpu" in str(e)
+    else:
+        assert gpu.backend
+
+
 def test_from_config_and_local_edt(tmp_path):
     mapper = edtmap.Mapper.from_config(REPO / "configs" / "uav_pillars.toml")
     assert mapper.sensor_kind == "lidar" and mapper.voxel_size_m == 0.2

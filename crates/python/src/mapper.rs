@@ -148,6 +148,11 @@ fn pose(values: &[f64]) -> PyResult<Isometry3<f64>> {
     }
 }
 
+/// A frame of `measurement` taken at `pose_values` (see [`pose`]).
+fn frame(pose_values: &[f64], stamp: f64, measurement: Measurement) -> PyResult<Frame> {
+    Ok(Frame { stamp_s: stamp, t_world_sensor: pose(pose_values)?, measurement })
+}
+
 /// A frame's statistics as a dict.
 fn stats_dict<'py>(py: Python<'py>, s: &FrameStats) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
@@ -284,8 +289,7 @@ impl PyMapper {
         }
         let flat = points.as_slice().map_err(|_| PyValueError::new_err("points must be C-contiguous"))?;
         let cloud = PointCloud { points: flat.as_chunks::<3>().0.to_vec() };
-        let frame = Frame { stamp_s: stamp, t_world_sensor: pose(&pose_values)?, measurement: Measurement::Points(cloud) };
-        self.integrate(py, frame)
+        self.integrate(py, frame(&pose_values, stamp, Measurement::Points(cloud))?)
     }
 
     /// Integrates a planar scan (ranges in metres, float32); the range
@@ -304,8 +308,7 @@ impl PyMapper {
         let ranges = ranges.as_slice().map_err(|_| PyValueError::new_err("ranges must be contiguous"))?.to_vec();
         let range = range_limits.map_or(self.scan_range, |(min_m, max_m)| RangeLimits { min_m, max_m });
         let scan = LaserScan { angle_min_rad: angle_min, angle_increment_rad: angle_increment, ranges, range };
-        let frame = Frame { stamp_s: stamp, t_world_sensor: pose(&pose_values)?, measurement: Measurement::Scan(scan) };
-        self.integrate(py, frame)
+        self.integrate(py, frame(&pose_values, stamp, Measurement::Scan(scan))?)
     }
 
     /// Integrates a spinning LiDAR's range image (rings × azimuth bins).
@@ -318,8 +321,7 @@ impl PyMapper {
     ) -> PyResult<Bound<'py, PyDict>> {
         let (values, _) = image(&ranges, "ranges")?;
         let scan = LidarScan { ranges: values.to_vec() };
-        let frame = Frame { stamp_s: stamp, t_world_sensor: pose(&pose_values)?, measurement: Measurement::Lidar(scan) };
-        self.integrate(py, frame)
+        self.integrate(py, frame(&pose_values, stamp, Measurement::Lidar(scan))?)
     }
 
     /// Distances (metres), gradients and state codes of N points, in
@@ -459,7 +461,6 @@ impl PyMapper {
     ) -> PyResult<Bound<'py, PyDict>> {
         let too_big = |n: usize| u32::try_from(n).map_err(|_| PyValueError::new_err(format!("depth image side {n} is too large")));
         let image = DepthImage { width: too_big(width)?, height: too_big(height)?, data };
-        let frame = Frame { stamp_s: stamp, t_world_sensor: pose(pose_values)?, measurement: Measurement::Depth(image) };
-        self.integrate(py, frame)
+        self.integrate(py, frame(pose_values, stamp, Measurement::Depth(image))?)
     }
 }
