@@ -287,6 +287,7 @@ fn replay(args: &RunArgs, setup: &Setup, mapper: &mut CliMapper, progress: bool)
     let mut out = Replayed { records: Vec::new(), skipped: Vec::new(), stopped: None };
     let mut truth = (Vec::new(), Vec::new());
     for (i, item) in setup.source.frames(&setup.sensor, setup.frames, &setup.name).enumerate() {
+        let counted = mapper.backend().device_counters();
         let (frame, stats) = match item.and_then(|frame| integrate(mapper, frame, i, &setup.name)) {
             Ok(done) => done,
             Err(failure) => {
@@ -302,6 +303,9 @@ fn replay(args: &RunArgs, setup: &Setup, mapper: &mut CliMapper, progress: bool)
         };
         tracing::debug!("frame {i} at {:.3} s: {:.2} ms", frame.stamp_s, stats.total_ms);
         let mut rec = frame_record(i, &frame, &stats, mapper.map().occupancy().len());
+        if let (Some(before), Some(now)) = (counted, mapper.backend().device_counters()) {
+            rec.global.extend(device_fields(now.since(before)));
+        }
         if args.eval {
             evaluate(&mut rec, setup, &frame, mapper, &mut truth)?;
         }
@@ -492,6 +496,16 @@ fn global_fields(s: &FrameStats, occupancy_blocks: usize) -> Vec<(&'static str, 
         ("kept_outside", s.waves.kept_outside as f64),
         ("wave_seeds", s.waves.seeds as f64),
         ("wave_levels", s.waves.levels as f64),
+    ]
+}
+
+/// A device backend's traffic and work during one frame (GPU runs).
+fn device_fields(c: edtmap::DeviceCounters) -> [(&'static str, f64); 4] {
+    [
+        ("gpu_uploaded_bytes", c.uploaded_bytes as f64),
+        ("gpu_downloaded_bytes", c.downloaded_bytes as f64),
+        ("gpu_dispatches", c.dispatches as f64),
+        ("gpu_submissions", c.submissions as f64),
     ]
 }
 

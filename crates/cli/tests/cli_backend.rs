@@ -63,3 +63,40 @@ fn gpu_gives_the_cpu_answers_when_an_adapter_exists() {
         assert_eq!(fs::read(dir.path().join(name)).expect("gpu"), fs::read(dir.path().join(cpu_name)).expect("cpu"), "{name}");
     }
 }
+
+/// A GPU run's `report.json` counts each frame's device traffic: the
+/// batch EDT's field comes down (8 bytes per window voxel at least in the
+/// wavefront mode, which runs it every frame), something goes up, and work
+/// is dispatched; a CPU run has no such fields.
+#[test]
+fn gpu_reports_count_device_traffic() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let run = |backend: &str| {
+        let out = dir.path().join(backend);
+        let done = Command::new(env!("CARGO_BIN_EXE_edtmap"))
+            .args(["run", "--scene", "planar", "--frames", "3", "--integration", "wavefront", "--backend", backend, "--out"])
+            .arg(&out)
+            .output()
+            .expect("edtmap runs");
+        (done, out.join("report.json"))
+    };
+    let (gpu, report) = run("gpu");
+    if !gpu.status.success() {
+        let err = String::from_utf8_lossy(&gpu.stderr);
+        assert!(std::env::var("EDTMAP_REQUIRE_GPU").map_or(true, |v| v != "1"), "EDTMAP_REQUIRE_GPU=1 but: {err}");
+        eprintln!("skipping: {err}");
+        return;
+    }
+    let report: serde_json::Value = serde_json::from_slice(&fs::read(report).expect("report")).expect("json");
+    let voxels: u64 = report["local_dims"].as_array().expect("dims").iter().map(|d| d.as_u64().expect("dim")).product();
+    for frame in report["frames"].as_array().expect("frames") {
+        let field = |k: &str| frame[k].as_f64().unwrap_or_else(|| panic!("{k} missing in {frame}"));
+        assert!(field("gpu_downloaded_bytes") >= 8.0 * voxels as f64, "{frame}");
+        assert!(field("gpu_uploaded_bytes") > 0.0 && field("gpu_dispatches") >= 7.0 && field("gpu_submissions") >= 1.0, "{frame}");
+    }
+    assert!(report["summary"]["gpu_dispatches"]["median"].as_f64().is_some());
+    let (cpu, report) = run("cpu");
+    assert!(cpu.status.success());
+    let report: serde_json::Value = serde_json::from_slice(&fs::read(report).expect("report")).expect("json");
+    assert!(report["frames"][0].get("gpu_dispatches").is_none());
+}

@@ -79,6 +79,13 @@ pub trait Backend: BatchEdt {
     /// GPU's name and API.
     fn name(&self) -> String;
 
+    /// What crossed between the host and the device, and how much work
+    /// was launched there, since the backend was made; `None` for a
+    /// backend without a device (the CPU). Callers take differences.
+    fn device_counters(&self) -> Option<DeviceCounters> {
+        None
+    }
+
     /// Ray casting (paper §IV-A): walks `rays`, set up at scale `q` for
     /// `obs`'s volume ([`crate::fixed_ray::prepare_rays`]), into `obs`
     /// (freshly reset): [`crate::OBS_MISS`] for every voxel a walk visits,
@@ -188,6 +195,10 @@ impl<B: Backend + ?Sized> Backend for Box<B> {
         (**self).name()
     }
 
+    fn device_counters(&self) -> Option<DeviceCounters> {
+        (**self).device_counters()
+    }
+
     fn cast_rays(&mut self, rays: &[FixedRay], q: u32, obs: &Observations) -> Result<(), BackendError> {
         (**self).cast_rays(rays, q, obs)
     }
@@ -198,6 +209,32 @@ impl<B: Backend + ?Sized> Backend for Box<B> {
 
     fn integrate(&mut self, job: IntegrateJob<'_>) -> Result<IntegrateReport, BackendError> {
         (**self).integrate(job)
+    }
+}
+
+/// Running totals of a device backend's traffic and work
+/// ([`Backend::device_counters`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
+pub struct DeviceCounters {
+    /// Bytes written from the host into device buffers.
+    pub uploaded_bytes: u64,
+    /// Bytes read back from the device.
+    pub downloaded_bytes: u64,
+    /// Compute dispatches (direct and indirect).
+    pub dispatches: u64,
+    /// Command buffer submissions.
+    pub submissions: u64,
+}
+
+impl DeviceCounters {
+    /// What happened between `earlier` and `self`.
+    pub fn since(self, earlier: DeviceCounters) -> DeviceCounters {
+        DeviceCounters {
+            uploaded_bytes: self.uploaded_bytes.saturating_sub(earlier.uploaded_bytes),
+            downloaded_bytes: self.downloaded_bytes.saturating_sub(earlier.downloaded_bytes),
+            dispatches: self.dispatches.saturating_sub(earlier.dispatches),
+            submissions: self.submissions.saturating_sub(earlier.submissions),
+        }
     }
 }
 

@@ -1,7 +1,8 @@
 //! [`GpuContext`]: the adapter, device and queue every kernel shares, and
 //! the error handling around them (no adapter, lost device, validation).
 
-use edtmap_core::BackendError;
+use edtmap_core::{BackendError, DeviceCounters};
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
@@ -13,7 +14,7 @@ const SUBMIT_TIMEOUT: Duration = Duration::from_secs(120);
 #[derive(Debug, Clone)]
 pub struct GpuContext {
     pub(crate) device: wgpu::Device,
-    pub(crate) queue: wgpu::Queue,
+    pub(crate) queue: CountingQueue,
     info: wgpu::AdapterInfo,
     limits: wgpu::Limits,
     /// Set by the device-lost callback: why the device went away.
@@ -56,6 +57,7 @@ impl GpuContext {
         });
         // Errors outside an error scope would otherwise abort the process.
         device.on_uncaptured_error(Arc::new(|_| {}));
+        let queue = CountingQueue { queue, counters: Arc::new(Counters::default()) };
         Ok(GpuContext { device, queue, info, limits, lost })
     }
 
@@ -127,6 +129,17 @@ impl GpuContext {
         poll.map(|_| ()).map_err(|e| BackendError::DeviceLost(format!("waiting for the GPU: {e}")))
     }
 
+    /// The running totals of uploads, read-backs, dispatches and
+    /// submissions.
+    pub fn counters(&self) -> DeviceCounters {
+        self.queue.counters.snapshot()
+    }
+
+    /// The counters, for kernels to count their dispatches.
+    pub(crate) fn counter_handle(&self) -> Arc<Counters> {
+        Arc::clone(&self.queue.counters)
+    }
+
     /// Copies `bytes` bytes of `staging` (a `MAP_READ` buffer the caller
     /// already filled in a submitted command) into `out` through `read`.
     pub(crate) fn read_back(
@@ -135,6 +148,7 @@ impl GpuContext {
         bytes: u64,
         read: impl FnOnce(&[u8]),
     ) -> Result<(), BackendError> {
+        self.queue.counters.downloaded.fetch_add(bytes, Ordering::Relaxed);
         let slice = staging.slice(..bytes);
         let status = Arc::new(Mutex::new(None));
         let done = Arc::clone(&status);
@@ -156,5 +170,47 @@ impl GpuContext {
         }
         staging.unmap();
         Ok(())
+    }
+}
+
+/// Atomic running totals behind [`DeviceCounters`].
+#[derive(Debug, Default)]
+pub(crate) struct Counters {
+    uploaded: AtomicU64,
+    downloaded: AtomicU64,
+    pub(crate) dispatches: AtomicU64,
+    submissions: AtomicU64,
+}
+
+impl Counters {
+    fn snapshot(&self) -> DeviceCounters {
+        DeviceCounters {
+            uploaded_bytes: self.uploaded.load(Ordering::Relaxed),
+            downloaded_bytes: self.downloaded.load(Ordering::Relaxed),
+            dispatches: self.dispatches.load(Ordering::Relaxed),
+            submissions: self.submissions.load(Ordering::Relaxed),
+        }
+    }
+}
+
+/// The device's queue, counting what goes through it: every upload and
+/// submission of the kernels passes here.
+#[derive(Debug, Clone)]
+pub(crate) struct CountingQueue {
+    queue: wgpu::Queue,
+    counters: Arc<Counters>,
+}
+
+impl CountingQueue {
+    /// `wgpu::Queue::write_buffer`, counted.
+    pub(crate) fn write_buffer(&self, buffer: &wgpu::Buffer, offset: u64, data: &[u8]) {
+        self.counters.uploaded.fetch_add(data.len() as u64, Ordering::Relaxed);
+        self.queue.write_buffer(buffer, offset, data);
+    }
+
+    /// `wgpu::Queue::submit`, counted.
+    pub(crate) fn submit<I: IntoIterator<Item = wgpu::CommandBuffer>>(&self, buffers: I) -> wgpu::SubmissionIndex {
+        self.counters.submissions.fetch_add(1, Ordering::Relaxed);
+        self.queue.submit(buffers)
     }
 }

@@ -1,7 +1,10 @@
 //! Small helpers shared by the kernels: pipelines, bind group layout
 //! entries and dispatch sizes.
 
-use crate::context::GpuContext;
+use std::sync::atomic::Ordering;
+use std::sync::Arc;
+
+use crate::context::{Counters, GpuContext};
 
 /// Invocations per workgroup of the one-dimensional kernels (`GROUP` in
 /// the shaders).
@@ -14,6 +17,8 @@ const MAX_GROUPS: u64 = 65535;
 #[derive(Debug)]
 pub(crate) struct Kernel {
     pipeline: wgpu::ComputePipeline,
+    /// The context's counters, for the dispatches this kernel records.
+    counters: Arc<Counters>,
 }
 
 impl Kernel {
@@ -38,7 +43,7 @@ impl Kernel {
             compilation_options: Default::default(),
             cache: None,
         });
-        Kernel { pipeline }
+        Kernel { pipeline, counters: ctx.counter_handle() }
     }
 
     /// Records one dispatch of `groups` workgroups with `group` bound at the
@@ -47,6 +52,7 @@ impl Kernel {
         pass.set_pipeline(&self.pipeline);
         pass.set_bind_group(0, group, &[offset]);
         pass.dispatch_workgroups(groups[0], groups[1], groups[2]);
+        self.counters.dispatches.fetch_add(1, Ordering::Relaxed);
     }
 
     /// Records one dispatch of `groups` workgroups with `bind[k]` as bind
@@ -54,6 +60,7 @@ impl Kernel {
     pub(crate) fn dispatch(&self, pass: &mut wgpu::ComputePass<'_>, bind: &[&wgpu::BindGroup], groups: [u32; 3]) {
         self.bind(pass, bind);
         pass.dispatch_workgroups(groups[0], groups[1], groups[2]);
+        self.counters.dispatches.fetch_add(1, Ordering::Relaxed);
     }
 
     /// Records one dispatch whose workgroup counts the device wrote at
@@ -61,6 +68,7 @@ impl Kernel {
     pub(crate) fn dispatch_indirect(&self, pass: &mut wgpu::ComputePass<'_>, bind: &[&wgpu::BindGroup], args: &wgpu::Buffer, offset: u64) {
         self.bind(pass, bind);
         pass.dispatch_workgroups_indirect(args, offset);
+        self.counters.dispatches.fetch_add(1, Ordering::Relaxed);
     }
 
     fn bind(&self, pass: &mut wgpu::ComputePass<'_>, bind: &[&wgpu::BindGroup]) {

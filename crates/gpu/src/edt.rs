@@ -185,7 +185,7 @@ impl GpuEdt {
 }
 
 /// Uploads the mask, one byte per voxel, padded to whole words.
-fn write_mask(queue: &wgpu::Queue, buffer: &wgpu::Buffer, mask: &[bool]) {
+fn write_mask(queue: &crate::context::CountingQueue, buffer: &wgpu::Buffer, mask: &[bool]) {
     // SAFETY: `bool` is one byte holding 0 or 1, so a `[bool]` is a valid
     // `[u8]` of the same length.
     let bytes = unsafe { std::slice::from_raw_parts(mask.as_ptr().cast::<u8>(), mask.len()) };

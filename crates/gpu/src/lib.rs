@@ -91,6 +91,10 @@ impl Backend for GpuBackend {
         format!("gpu: {}", self.ctx.name())
     }
 
+    fn device_counters(&self) -> Option<edtmap_core::DeviceCounters> {
+        Some(self.ctx.counters())
+    }
+
     fn cast_rays(&mut self, rays: &[FixedRay], q: u32, obs: &Observations) -> Result<(), BackendError> {
         if self.raycast.run(rays, q, obs.volume().dims, &mut self.bits)? {
             obs.load_bits(&self.bits);

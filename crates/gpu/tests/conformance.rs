@@ -26,3 +26,23 @@ fn projection_kernel_leaves_few_voxels_uncertain() {
         assert!(kind == "aligned" || share < 0.01, "{kind}: too many uncertain voxels");
     }
 }
+
+/// The device counters see a batch EDT's traffic as it is: the mask up (a
+/// byte per voxel, padded to a word, plus the parameter block), the field
+/// down (8 bytes per voxel), seven dispatches (one initial pass, a
+/// transpose and a scan per axis) in one submission.
+#[test]
+fn device_counters_count_a_batch_edt() {
+    use edtmap_core::{Backend, BatchEdt, EdtField, Grid3};
+    let Some(mut gpu) = common::gpu_or_skip("device counters") else { return };
+    let dims = [37, 21, 9];
+    let n = 37 * 21 * 9;
+    let mask = Grid3::from_fn(dims, |x, y, z| (7 * x + 3 * y + z) % 11 == 0).expect("grid");
+    let before = gpu.device_counters().expect("a device backend counts");
+    let mut out = EdtField::empty();
+    gpu.batch_edt(&mask, &mut out).expect("batch EDT");
+    let d = gpu.device_counters().expect("counters").since(before);
+    assert_eq!(d.downloaded_bytes, 8 * n as u64);
+    assert_eq!((d.dispatches, d.submissions), (7, 1));
+    assert!(d.uploaded_bytes >= n as u64 && d.uploaded_bytes <= n as u64 + 4 + 7 * 256, "{d:?}");
+}
