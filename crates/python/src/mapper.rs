@@ -148,6 +148,12 @@ fn pose(values: &[f64]) -> PyResult<Isometry3<f64>> {
     }
 }
 
+/// A configuration given as JSON text (the TOML file's structure), as
+/// `edtmap.Mapper(...)` builds it; `origin` names it in errors.
+fn config_from_json(text: &str, origin: &str) -> PyResult<Config> {
+    serde_json::from_str(text).map_err(|e| PyValueError::new_err(format!("{origin}: {e}")))
+}
+
 /// A frame of `measurement` taken at `pose_values` (see [`pose`]).
 fn frame(pose_values: &[f64], stamp: f64, measurement: Measurement) -> PyResult<Frame> {
     Ok(Frame { stamp_s: stamp, t_world_sensor: pose(pose_values)?, measurement })
@@ -227,9 +233,7 @@ impl PyMapper {
     /// errors.
     #[staticmethod]
     fn from_config_json(text: &str, origin: &str, backend: &str) -> PyResult<Self> {
-        let config: Config = serde_json::from_str(text)
-            .map_err(|e| PyValueError::new_err(format!("{origin}: {e}")))?;
-        PyMapper::from_parsed(&config, None, backend)
+        PyMapper::from_parsed(&config_from_json(text, origin)?, None, backend)
     }
 
     /// A mapper that goes on from the map file `path`, for the sensor and
@@ -237,8 +241,7 @@ impl PyMapper {
     /// global EDT parameters win).
     #[staticmethod]
     fn load(py: Python<'_>, path: PathBuf, config_json: &str, origin: &str, backend: &str) -> PyResult<Self> {
-        let mut config: Config = serde_json::from_str(config_json)
-            .map_err(|e| PyValueError::new_err(format!("{origin}: {e}")))?;
+        let mut config = config_from_json(config_json, origin)?;
         let map = py.detach(|| edtmap::load_map(&path)).map_err(map_err)?;
         // The map's voxel size wins; the occupancy options follow it.
         config.occupancy.voxel_size_m = map.voxel_size_m();
