@@ -1,6 +1,8 @@
-//! The exact batch EDT on the GPU (`edt.wgsl`): init, then for each axis a
-//! transpose and a scan, all in one compute pass; only the mask goes up
-//! and only the distances and nearest obstacles come back.
+//! The exact batch EDT on the GPU (`edt.wgsl`): a scan along x straight
+//! from the mask bits, then for y and z a transpose and a scan, all in one
+//! compute pass (five dispatches); only the mask goes up
+//! (one bit per voxel) and only the distances and nearest obstacles come
+//! back, or stay on the device for the exact integration (`exact.rs`).
 
 use crate::context::GpuContext;
 use crate::dispatch::{groups_1d, Kernel};
@@ -10,8 +12,9 @@ use edtmap_core::{BackendError, CoreError, EdtField, Grid3};
 /// envelope arithmetic (its largest intermediate is twice the diagonal²).
 const MAX_DIAG_SQ: u64 = 1 << 30;
 
-/// Parameter slots, one per dispatch: init, then (transpose, scan) × 3.
-const SLOTS: usize = 7;
+/// Parameter slots, one per dispatch: the scan along x straight from the
+/// mask, then (transpose, scan) along y and along z.
+const SLOTS: usize = 5;
 
 /// Uniform parameters of one dispatch (`Params` in the shader).
 #[repr(C)]
@@ -28,7 +31,7 @@ struct Params {
 #[derive(Debug)]
 pub struct GpuEdt {
     ctx: GpuContext,
-    init: Kernel,
+    scan_x: Kernel,
     transpose: Kernel,
     scan: Kernel,
     layout: wgpu::BindGroupLayout,
@@ -37,6 +40,8 @@ pub struct GpuEdt {
     slot_bytes: u64,
     /// The parameter slots as uploaded, `slot_bytes` apart.
     packed: Vec<u8>,
+    /// The mask as uploaded, one bit per voxel.
+    bits: Vec<u32>,
     bufs: Option<Buffers>,
 }
 
@@ -80,13 +85,14 @@ impl GpuEdt {
             let kernel = |entry| Kernel::new(ctx, &module, &layout, entry);
             GpuEdt {
                 ctx: ctx.clone(),
-                init: kernel("init"),
+                scan_x: kernel("scan_x"),
                 transpose: kernel("transpose"),
                 scan: kernel("scan"),
                 layout,
                 params,
                 slot_bytes,
                 packed: vec![0; slot_bytes as usize * SLOTS],
+                bits: Vec::new(),
                 bufs: None,
             }
         })
@@ -95,6 +101,31 @@ impl GpuEdt {
     /// The EDT of `mask` (true = obstacle) into `out`, bit-identical to
     /// the CPU backend's.
     pub fn run(&mut self, mask: &Grid3<bool>, out: &mut EdtField) -> Result<(), BackendError> {
+        let dims = mask.dims();
+        let n = EdtField::check_dims(dims)?;
+        let mut enc = self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("edt") });
+        self.encode(mask, &mut enc)?;
+        let bufs = self.bufs.as_ref().ok_or_else(|| BackendError::Device("buffers missing".into()))?;
+        let bytes_out = 4 * n as u64;
+        self.ctx.scoped(|| {
+            enc.copy_buffer_to_buffer(&bufs.out_d, 0, &bufs.staging, 0, bytes_out);
+            enc.copy_buffer_to_buffer(&bufs.out_s, 0, &bufs.staging, bytes_out, bytes_out);
+            self.ctx.queue.submit([enc.finish()]);
+        })?;
+        let (dist, nearest) = out.prepare(dims)?;
+        self.ctx.read_back(&bufs.staging, 2 * bytes_out, |bytes| {
+            let (d, s) = bytes.split_at(bytes_out as usize);
+            copy_words(d, dist);
+            copy_words(s, nearest);
+        })
+    }
+
+    /// Uploads `mask` (one bit per voxel) and records its EDT into `enc`,
+    /// leaving the result on the device: [`Self::outputs`] then holds the
+    /// squared distances and the nearest obstacles' linear indices
+    /// ([`edtmap_core::NO_SITE`] where there is none), for a later stage
+    /// to read there.
+    pub(crate) fn encode(&mut self, mask: &Grid3<bool>, enc: &mut wgpu::CommandEncoder) -> Result<(), BackendError> {
         let dims = mask.dims();
         let n = EdtField::check_dims(dims)?;
         let diag_sq: u64 = dims.iter().map(|&d| (d as u64 - 1).pow(2)).sum();
@@ -106,9 +137,7 @@ impl GpuEdt {
         let [nx, ny, nz] = dims.map(|d| d as u32);
         let total = n as u32;
         let slots: [Params; SLOTS] = [
-            Params { total, ..Params::default() },
-            Params { len: nx, count: ny * nz, ..Params::default() },
-            Params { len: nx, count: ny * nz, ..Params::default() },
+            Params { len: nx, count: ny * nz, total, ..Params::default() },
             Params { len: ny, count: nz * nx, ..Params::default() },
             Params { len: ny, count: nz * nx, ..Params::default() },
             Params { len: nz, count: nx * ny, ..Params::default() },
@@ -118,35 +147,31 @@ impl GpuEdt {
             let at = k * self.slot_bytes as usize;
             self.packed[at..at + 16].copy_from_slice(bytemuck::bytes_of(p));
         }
-        let packed = &self.packed;
-        let bytes_out = 4 * n as u64;
+        pack_bits(mask.as_slice(), &mut self.bits);
+        let (packed, bits) = (&self.packed, &self.bits);
         self.ctx.scoped(|| {
             let q = &self.ctx.queue;
             q.write_buffer(&self.params, 0, packed);
-            write_mask(q, &bufs.mask, mask.as_slice());
-            let mut enc = self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("edt") });
-            {
-                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("edt"), timestamp_writes: None });
-                let offset = |k: usize| (k as u64 * self.slot_bytes) as u32;
-                self.init.dispatch_at(&mut pass, &bufs.b_to_a, offset(0), groups_1d(n as u64));
-                let axes = [(nx, ny * nz), (ny, nz * nx), (nz, nx * ny)];
-                for (axis, &(len, count)) in axes.iter().enumerate() {
-                    let tiles = u64::from(count).div_ceil(16);
-                    let t_groups = [len.div_ceil(16), tiles.min(65535) as u32, tiles.div_ceil(65535) as u32];
-                    self.transpose.dispatch_at(&mut pass, &bufs.a_to_b, offset(1 + 2 * axis), t_groups);
-                    self.scan.dispatch_at(&mut pass, &bufs.b_to_a, offset(2 + 2 * axis), groups_1d(u64::from(count)));
-                }
+            q.write_buffer(&bufs.mask, 0, bytemuck::cast_slice(bits));
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("edt"), timestamp_writes: None });
+            let offset = |k: usize| (k as u64 * self.slot_bytes) as u32;
+            // x: straight from the mask bits into [y z x]; then y and z
+            // through a transpose and a scan each.
+            self.scan_x.dispatch_at(&mut pass, &bufs.b_to_a, offset(0), groups_1d(u64::from(ny * nz)));
+            let axes = [(nx, ny * nz), (ny, nz * nx), (nz, nx * ny)];
+            for (axis, &(len, count)) in axes.iter().enumerate().skip(1) {
+                let tiles = u64::from(count).div_ceil(16);
+                let t_groups = [len.div_ceil(16), tiles.min(65535) as u32, tiles.div_ceil(65535) as u32];
+                self.transpose.dispatch_at(&mut pass, &bufs.a_to_b, offset(2 * axis - 1), t_groups);
+                self.scan.dispatch_at(&mut pass, &bufs.b_to_a, offset(2 * axis), groups_1d(u64::from(count)));
             }
-            enc.copy_buffer_to_buffer(&bufs.out_d, 0, &bufs.staging, 0, bytes_out);
-            enc.copy_buffer_to_buffer(&bufs.out_s, 0, &bufs.staging, bytes_out, bytes_out);
-            q.submit([enc.finish()]);
-        })?;
-        let (dist, nearest) = out.prepare(dims)?;
-        self.ctx.read_back(&bufs.staging, 2 * bytes_out, |bytes| {
-            let (d, s) = bytes.split_at(bytes_out as usize);
-            copy_words(d, dist);
-            copy_words(s, nearest);
         })
+    }
+
+    /// The device buffers [`Self::encode`] leaves its result in: squared
+    /// distances and nearest obstacles, one `u32` per voxel each.
+    pub(crate) fn outputs(&self) -> Option<(&wgpu::Buffer, &wgpu::Buffer)> {
+        self.bufs.as_ref().map(|b| (&b.out_d, &b.out_s))
     }
 
     /// Allocates the buffers for `n` voxels unless those in place are large
@@ -163,7 +188,7 @@ impl GpuEdt {
         let bufs = self.ctx.scoped(|| {
             let buffer = |label, size, usage| self.ctx.buffer(label, size, usage);
             let storage = wgpu::BufferUsages::STORAGE;
-            let mask = buffer("edt mask", n64.div_ceil(4) * 4, storage | wgpu::BufferUsages::COPY_DST);
+            let mask = buffer("edt mask", n64.div_ceil(32) * 4, storage | wgpu::BufferUsages::COPY_DST);
             let a = buffer("edt A", 8 * n64, storage);
             let b = buffer("edt B", 8 * n64, storage);
             let stack = buffer("edt stack", 8 * n64, storage);
@@ -184,20 +209,11 @@ impl GpuEdt {
     }
 }
 
-/// Uploads the mask, one byte per voxel, padded to whole words.
-fn write_mask(queue: &crate::context::CountingQueue, buffer: &wgpu::Buffer, mask: &[bool]) {
-    // SAFETY: `bool` is one byte holding 0 or 1, so a `[bool]` is a valid
-    // `[u8]` of the same length.
-    let bytes = unsafe { std::slice::from_raw_parts(mask.as_ptr().cast::<u8>(), mask.len()) };
-    let whole = bytes.len() / 4 * 4;
-    if whole > 0 {
-        queue.write_buffer(buffer, 0, &bytes[..whole]);
-    }
-    if whole < bytes.len() {
-        let mut tail = [0u8; 4];
-        tail[..bytes.len() - whole].copy_from_slice(&bytes[whole..]);
-        queue.write_buffer(buffer, whole as u64, &tail);
-    }
+/// Packs `mask` into `bits`, one bit per voxel, voxel `i` at bit `i % 32`
+/// of word `i / 32`.
+fn pack_bits(mask: &[bool], bits: &mut Vec<u32>) {
+    bits.clear();
+    bits.extend(mask.chunks(32).map(|chunk| chunk.iter().enumerate().fold(0u32, |w, (k, &b)| w | (u32::from(b) << k))));
 }
 
 /// Copies native-endian `u32`s from `bytes` into `out`.

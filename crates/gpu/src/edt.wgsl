@@ -5,7 +5,8 @@
 // scan a transpose makes the scanned axis the slowest one, so that the
 // invocations of a workgroup, one per line, read and write consecutive
 // addresses at every step (coalesced), as the paper's transposes do:
-//   init (x fastest) -> T -> [y z x] scan x -> T -> [z x y] scan y -> T -> [x y z] scan z
+//   mask bits (x fastest) -> scan_x into [y z x] -> T -> [z x y] scan y -> T -> [x y z] scan z
+// (scan_x does what a transpose and Meijster's scan would on a binary line).
 // A cyclic shift of the axes is a 2D transpose of an A x R matrix (A the
 // fastest axis, R the product of the other two), done in 16x16 tiles
 // through workgroup memory.
@@ -44,19 +45,51 @@ fn flat_id(wid: vec3<u32>, nwg: vec3<u32>, lid: u32) -> u32 {
     return (wid.x + wid.y * nwg.x) * GROUP + lid;
 }
 
-// Obstacles (nonzero mask bytes) at distance 0 from themselves.
+// The scan along x, straight from the mask: invocation l
+// walks x-line l (l = y + ny z) of the mask bits and writes the line's 1D
+// EDT at dst[l + count x], the layout `scan` along x would leave. On a
+// binary line Meijster's envelope is the nearest obstacle, the lower one
+// on a tie, which is what this writes.
 @compute @workgroup_size(64)
-fn init(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
-        @builtin(local_invocation_index) lid: u32) {
-    let i = flat_id(wid, nwg, lid);
-    if (i >= P.total) {
+fn scan_x(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
+          @builtin(local_invocation_index) lid: u32) {
+    let l = flat_id(wid, nwg, lid);
+    let c = P.count;
+    if (l >= c) {
         return;
     }
-    let byte = (mask[i >> 2u] >> ((i & 3u) * 8u)) & 0xffu;
-    if (byte != 0u) {
-        dst[i] = vec2<u32>(0u, i);
-    } else {
-        dst[i] = vec2<u32>(INF, INF);
+    let n = P.len;
+    let base = n * l;
+    // Forward: the nearest obstacle at or before x, parked in dst.
+    var left = INF;
+    for (var x = 0u; x < n; x++) {
+        let i = base + x;
+        if (((mask[i >> 5u] >> (i & 31u)) & 1u) != 0u) {
+            left = x;
+        }
+        dst[l + c * x] = vec2<u32>(left, 0u);
+    }
+    // Backward: against the nearest one after x.
+    var right = INF;
+    for (var k = n; k > 0u; k--) {
+        let x = k - 1u;
+        let i = base + x;
+        if (((mask[i >> 5u] >> (i & 31u)) & 1u) != 0u) {
+            right = x;
+        }
+        let lo = dst[l + c * x].x;
+        var p = INF;
+        if (lo != INF && (right == INF || x - lo <= right - x)) {
+            p = lo;
+        } else if (right != INF) {
+            p = right;
+        }
+        var value = vec2<u32>(INF, INF);
+        if (p != INF) {
+            let d = max(x, p) - min(x, p);
+            value = vec2<u32>(d * d, base + p);
+        }
+        dst[l + c * x] = value;
     }
 }
 
