@@ -224,16 +224,20 @@ pub struct DeviceCounters {
     pub dispatches: u64,
     /// Command buffer submissions.
     pub submissions: u64,
+    /// Device memory the backend's buffers hold now, bytes (a level, not a
+    /// running total); 0 where the driver does not report it (Metal).
+    pub memory_bytes: u64,
 }
 
 impl DeviceCounters {
-    /// What happened between `earlier` and `self`.
+    /// What happened between `earlier` and `self`, with `self`'s memory.
     pub fn since(self, earlier: DeviceCounters) -> DeviceCounters {
         DeviceCounters {
             uploaded_bytes: self.uploaded_bytes.saturating_sub(earlier.uploaded_bytes),
             downloaded_bytes: self.downloaded_bytes.saturating_sub(earlier.downloaded_bytes),
             dispatches: self.dispatches.saturating_sub(earlier.dispatches),
             submissions: self.submissions.saturating_sub(earlier.submissions),
+            memory_bytes: self.memory_bytes,
         }
     }
 }

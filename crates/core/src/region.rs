@@ -256,30 +256,44 @@ pub fn write_back(map: &mut EdtMap, p: &Packing, candidates: &[BlockKey], old: &
 
 /// [`write_back`] with the new values given by `cur(region_linear)`.
 pub fn write_back_with(map: &mut EdtMap, p: &Packing, candidates: &[BlockKey], old: &[u64], cur: impl Fn(usize) -> u64 + Sync) -> WriteBack {
+    write_back_where(map, p, candidates, |_, i, _| old[i], |_, i, _| cur(i))
+}
+
+/// [`write_back`] with the old and new values of each voxel given by
+/// `old(k, region_linear, offset_in_block)` and `cur(…)`, `k` the index of
+/// its block in `candidates`: for a caller holding them per block.
+pub fn write_back_where(
+    map: &mut EdtMap,
+    p: &Packing,
+    candidates: &[BlockKey],
+    old: impl Fn(usize, usize, usize) -> u64 + Sync,
+    cur: impl Fn(usize, usize, usize) -> u64 + Sync,
+) -> WriteBack {
     let truncated = |v: u64| {
         let reach = f64::from(p.cutoff.max_dist_sq).sqrt();
         if v == FAR { reach } else { ((v >> 32) as f64).sqrt().min(reach) }
     };
-    let per_block: Vec<(BlockKey, usize, f64)> = candidates
+    let per_block: Vec<(usize, usize, f64)> = candidates
         .par_iter()
-        .map(|&key| {
+        .enumerate()
+        .map(|(k, &key)| {
             let (mut changed, mut sum) = (0, 0.0);
-            for_region_voxels(p, key, |i, _| {
-                let (o, n) = (old[i], cur(i));
+            for_region_voxels(p, key, |i, offset| {
+                let (o, n) = (old(k, i, offset), cur(k, i, offset));
                 if o != n {
                     changed += 1;
                     sum += (truncated(n) - truncated(o)).abs();
                 }
             });
-            (key, changed, sum)
+            (k, changed, sum)
         })
         .filter(|&(_, changed, _)| changed > 0)
         .collect();
-    let keys: Vec<BlockKey> = per_block.iter().map(|b| b.0).collect();
+    let keys: Vec<BlockKey> = per_block.iter().map(|b| candidates[b.0]).collect();
     let mut taken = map.take(&keys);
-    taken.par_iter_mut().for_each(|(key, block)| {
+    taken.par_iter_mut().zip(per_block.par_iter()).for_each(|((key, block), &(k, _, _))| {
         for_region_voxels(p, *key, |i, offset| {
-            let (d, o) = p.unpack(cur(i));
+            let (d, o) = p.unpack(cur(k, i, offset));
             block.dist_sq[offset] = d;
             block.nearest[offset] = o;
         });

@@ -130,9 +130,11 @@ impl GpuContext {
     }
 
     /// The running totals of uploads, read-backs, dispatches and
-    /// submissions.
+    /// submissions, and the device memory held now (the allocator's
+    /// report, where the backend has one).
     pub fn counters(&self) -> DeviceCounters {
-        self.queue.counters.snapshot()
+        let memory_bytes = self.device.generate_allocator_report().map_or(0, |r| r.total_allocated_bytes);
+        DeviceCounters { memory_bytes, ..self.queue.counters.snapshot() }
     }
 
     /// The counters, for kernels to count their dispatches.
@@ -189,6 +191,7 @@ impl Counters {
             downloaded_bytes: self.downloaded.load(Ordering::Relaxed),
             dispatches: self.dispatches.load(Ordering::Relaxed),
             submissions: self.submissions.load(Ordering::Relaxed),
+            memory_bytes: 0,
         }
     }
 }

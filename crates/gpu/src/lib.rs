@@ -12,11 +12,13 @@
 mod context;
 mod dispatch;
 mod edt;
+mod exact;
 mod integrate;
 mod project;
 mod raycast;
 
 pub use context::GpuContext;
+use exact::GpuExact;
 pub use edt::GpuEdt;
 pub use integrate::GpuIntegrator;
 pub use project::GpuProject;
@@ -42,7 +44,10 @@ pub struct GpuBackend {
     integrator: GpuIntegrator,
     raycast: GpuRaycast,
     project: GpuProject,
-    exact: ExactBuffers,
+    exact: GpuExact,
+    /// The host-side exact integration, for cutoffs the device's pool
+    /// cannot encode.
+    exact_host: ExactBuffers,
     /// Observation bytes read back from the device.
     bits: Vec<u8>,
 }
@@ -56,7 +61,17 @@ impl GpuBackend {
         let integrator = GpuIntegrator::new(&ctx)?;
         let raycast = GpuRaycast::new(&ctx)?;
         let project = GpuProject::new(&ctx)?;
-        Ok(GpuBackend { ctx, edt, integrator, raycast, project, exact: ExactBuffers::default(), bits: Vec::new() })
+        let exact = GpuExact::new(&ctx)?;
+        Ok(GpuBackend { ctx, edt, integrator, raycast, project, exact, exact_host: ExactBuffers::default(), bits: Vec::new() })
+    }
+
+    /// Caps the blocks of the global EDT the exact integration keeps
+    /// resident on the device (2 KiB each) at `blocks`, for a device with
+    /// little memory to spare; a frame's region always fits, and the
+    /// blocks least recently used make way. By default the pool grows to
+    /// twice the largest region seen, within the device's buffer limit.
+    pub fn limit_resident_blocks(&mut self, blocks: usize) {
+        self.exact.limit_pool(blocks);
     }
 
     /// The device in use.
@@ -71,6 +86,21 @@ impl GpuBackend {
     /// measuring how much the host has to decide.
     pub fn project_bits(&mut self, job: &ProjectJob<'_>, bits: &mut Vec<u8>) -> Result<bool, BackendError> {
         self.project.run(job, bits)
+    }
+}
+
+impl GpuBackend {
+    /// Recomputes `region` of `map` exactly: on the device with its
+    /// resident block pool, only the changed blocks read back; on the host
+    /// from the device's batch EDT where the pool cannot encode the cutoff.
+    fn recompute(&mut self, map: &mut edtmap_core::EdtMap, obstacles: &edtmap_core::Obstacles<'_>, region: Region, cutoff: edtmap_core::Cutoff) -> Result<IntegrateReport, BackendError> {
+        let packing = Packing::new(region, cutoff)?;
+        let written = if GpuExact::supports(cutoff.reach) {
+            self.exact.run(&mut self.edt, map, obstacles, &packing)?
+        } else {
+            recompute_exact(&mut self.edt, map, obstacles, &packing, &mut self.exact_host)?
+        };
+        Ok(written.into_report(region.len(), WaveCounts::default()))
     }
 }
 
@@ -122,18 +152,9 @@ impl Backend for GpuBackend {
                 // Exact over every voxel within the cutoff of the changed
                 // blocks: the same map as the CPU's line-by-line update.
                 let Some(region) = Region::bounding(blocks) else { return Ok(IntegrateReport::default()) };
-                let region = region.grown(cutoff.reach);
-                let packing = Packing::new(region, cutoff)?;
-                let written = recompute_exact(&mut self.edt, map, &obstacles, &packing, &mut self.exact)?;
-                Ok(written.into_report(region.len(), WaveCounts::default()))
+                self.recompute(map, &obstacles, region.grown(cutoff.reach), cutoff)
             }
-            Integration::Recompute { region } => {
-                // The batch EDT of the source box on the device, the rest
-                // on the host, as on the CPU.
-                let packing = Packing::new(region, cutoff)?;
-                let written = recompute_exact(&mut self.edt, map, &obstacles, &packing, &mut self.exact)?;
-                Ok(written.into_report(region.len(), WaveCounts::default()))
-            }
+            Integration::Recompute { region } => self.recompute(map, &obstacles, region, cutoff),
         }
     }
 }

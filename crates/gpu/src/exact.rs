@@ -1,0 +1,414 @@
+//! Exact integration on the GPU (`exact.wgsl`), bit-identical to the CPU's
+//! [`edtmap_core::stages::exact::recompute_exact`].
+//!
+//! The device keeps a pool of the global EDT's blocks, resident between
+//! frames while the map's stamp says nothing else changed it. A frame
+//! uploads the source box's obstacles (one bit per voxel), the blocks of
+//! its region the pool does not hold yet and a table of the region's pool
+//! slots; the batch EDT, the comparison with the old values and the list
+//! of changed blocks stay on the device, and only the changed blocks come
+//! back (2 KiB each), for the host to write into its map. Before, the
+//! whole source box's EDT came back, 8 bytes per voxel.
+//!
+//! The pool evicts the blocks least recently used when a region needs more
+//! slots than are free, and grows (starting over) while the device allows.
+//! A frame is one dispatch after the batch EDT's and two round trips: the
+//! list of changed blocks, then their values.
+
+use std::collections::HashMap;
+
+use crate::context::GpuContext;
+use crate::dispatch::{groups_1d, storage_entry, uniform_entry, Kernel, GROUP};
+use crate::edt::{copy_words, GpuEdt};
+use edtmap_core::region::{fill_mask, write_back_where, Packing, WriteBack, FAR};
+use edtmap_core::{BackendError, BlockKey, EdtMap, Grid3, MapStamp, Obstacles, VoxelIndex, BLOCK_VOXELS, NO_OBSTACLE};
+
+/// The largest reach, voxels, a value's 10-bit offsets hold.
+const MAX_REACH: i32 = 511;
+
+/// A voxel with no obstacle within the cutoff (`FAR` in the shader).
+const ENC_FAR: u32 = u32::MAX;
+
+/// A host value the encoding cannot hold (its distance is not its offset's
+/// length): never equal to a new value, so the voxel is rewritten.
+const ENC_INVALID: u32 = u32::MAX - 1;
+
+/// Bytes of one pool block.
+const BLOCK_BYTES: u64 = 4 * BLOCK_VOXELS as u64;
+
+/// The fewest pool slots allocated.
+const MIN_SLOTS: usize = 1024;
+
+/// Uniform parameters (`Params` in the shader).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct Params {
+    source: [u32; 4],
+    region: [u32; 4],
+    o8: [u32; 4],
+    blocks: [u32; 4],
+}
+
+/// The exact integration's kernels, its block pool and its buffers.
+#[derive(Debug)]
+pub(crate) struct GpuExact {
+    ctx: GpuContext,
+    compare: Kernel,
+    layout: wgpu::BindGroupLayout,
+    params: wgpu::Buffer,
+    ctrl: wgpu::Buffer,
+    pool: Option<Pool>,
+    frame_bufs: Option<FrameBuffers>,
+    /// The source box's obstacles, as uploaded.
+    mask: Grid3<bool>,
+    /// The map's stamp after this integration last wrote it.
+    seen: Option<MapStamp>,
+    /// Frames run, for the pool's least-recently-used order.
+    frame: u64,
+    /// The most blocks the pool may hold.
+    max_slots: usize,
+    /// Values of the blocks being uploaded, and the region's slot table.
+    upload: Vec<u32>,
+    slot_table: Vec<u32>,
+}
+
+/// The resident blocks: `slots` pool blocks on the device and which map
+/// block each holds.
+#[derive(Debug)]
+struct Pool {
+    buffer: wgpu::Buffer,
+    slots: usize,
+    table: HashMap<BlockKey, u32>,
+    /// Per slot: the block it holds and the frame it was last used in.
+    owner: Vec<Option<(BlockKey, u64)>>,
+    free: Vec<u32>,
+}
+
+/// Per-frame buffers, sized for regions of up to `blocks` blocks.
+#[derive(Debug)]
+struct FrameBuffers {
+    blocks: usize,
+    slots: wgpu::Buffer,
+    list: wgpu::Buffer,
+    list_staging: wgpu::Buffer,
+    staging: wgpu::Buffer,
+}
+
+impl GpuExact {
+    /// Compiles the kernels once for `ctx`.
+    pub(crate) fn new(ctx: &GpuContext) -> Result<Self, BackendError> {
+        ctx.scoped(|| {
+            let dev = &ctx.device;
+            let module = dev.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some("exact.wgsl"),
+                source: wgpu::ShaderSource::Wgsl(include_str!("exact.wgsl").into()),
+            });
+            let mut entries = vec![uniform_entry(0, false)];
+            entries.extend((1..=6).map(|b| storage_entry(b, b <= 3)));
+            let layout = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some("exact"), entries: &entries });
+            let compare = Kernel::new(ctx, &module, &layout, "compare");
+            let params = ctx.buffer("exact params", std::mem::size_of::<Params>() as u64, wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST);
+            let ctrl = ctx.buffer("exact ctrl", 16, wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC);
+            GpuExact {
+                ctx: ctx.clone(),
+                compare,
+                layout,
+                params,
+                ctrl,
+                pool: None,
+                frame_bufs: None,
+                mask: Grid3::default(),
+                seen: None,
+                frame: 0,
+                max_slots: usize::MAX,
+                upload: Vec::new(),
+                slot_table: Vec::new(),
+            }
+        })
+    }
+
+    /// Caps the pool at `blocks` blocks (at least a region's), dropping
+    /// what it holds.
+    pub(crate) fn limit_pool(&mut self, blocks: usize) {
+        self.max_slots = blocks.max(1);
+        self.pool = None;
+        self.seen = None;
+    }
+
+    /// Whether [`Self::run`] can take a cutoff of `reach` voxels.
+    pub(crate) fn supports(reach: i32) -> bool {
+        reach <= MAX_REACH
+    }
+
+    /// Recomputes `packing.region` of `map` exactly from `obstacles`, with
+    /// the batch EDT of `edt`, writing back the voxels that changed. On a
+    /// failure the pool is dropped (the device may hold values the host
+    /// map does not) and the map is untouched.
+    pub(crate) fn run(&mut self, edt: &mut GpuEdt, map: &mut EdtMap, obstacles: &Obstacles<'_>, packing: &Packing) -> Result<WriteBack, BackendError> {
+        let result = self.frame(edt, map, obstacles, packing);
+        match &result {
+            Ok(_) => self.seen = Some(map.stamp()),
+            Err(_) => {
+                self.pool = None;
+                self.seen = None;
+            }
+        }
+        result
+    }
+
+    fn frame(&mut self, edt: &mut GpuEdt, map: &mut EdtMap, obstacles: &Obstacles<'_>, p: &Packing) -> Result<WriteBack, BackendError> {
+        if !Self::supports(p.cutoff.reach) {
+            return Err(BackendError::Device(format!("a cutoff reach of {} voxels is beyond the pool's {MAX_REACH}", p.cutoff.reach)));
+        }
+        self.frame += 1;
+        let keys = p.region.blocks();
+        let nb = keys.len();
+        if nb == 0 {
+            return Ok(WriteBack::default());
+        }
+        if self.seen != Some(map.stamp()) {
+            if let Some(pool) = &mut self.pool {
+                pool.clear();
+            }
+        }
+        self.ensure_buffers(nb)?;
+        self.assign_slots(map, &keys, p)?;
+        fill_mask(obstacles, &p.source, &mut self.mask)?;
+
+        let first = keys[0].first_voxel().0;
+        let o8 = [0, 1, 2].map(|a| (p.region.origin[a] - first[a]) as u32);
+        let nb3 = [0, 1, 2].map(|a| (o8[a] + p.region.dims[a] as u32).div_ceil(8));
+        let params = Params {
+            source: [p.source.dims[0] as u32, p.source.dims[1] as u32, p.source.dims[2] as u32, p.cutoff.reach as u32],
+            region: [p.region.dims[0] as u32, p.region.dims[1] as u32, p.region.dims[2] as u32, p.region.len() as u32],
+            o8: [o8[0], o8[1], o8[2], p.cutoff.max_dist_sq],
+            blocks: [nb3[0], nb3[1], nb3[2], nb as u32],
+        };
+        let mut enc = self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("exact") });
+        edt.encode(&self.mask, &mut enc)?;
+        let (out_d, out_s) = edt.outputs().ok_or_else(|| BackendError::Device("EDT buffers missing".into()))?;
+        let pool = self.pool.as_ref().ok_or_else(|| BackendError::Device("pool missing".into()))?;
+        let bufs = self.frame_bufs.as_ref().ok_or_else(|| BackendError::Device("buffers missing".into()))?;
+        let list_bytes = 4 * nb as u64;
+        self.ctx.scoped(|| {
+            let resources = [&self.params, out_d, out_s, &bufs.slots, &pool.buffer, &bufs.list, &self.ctrl].map(|b| b.as_entire_binding());
+            let group = self.ctx.bind_group("exact", &self.layout, &resources);
+            let q = &self.ctx.queue;
+            q.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
+            q.write_buffer(&bufs.slots, 0, bytemuck::cast_slice(&self.slot_table));
+            enc.clear_buffer(&self.ctrl, 0, None);
+            {
+                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("exact compare"), timestamp_writes: None });
+                // One workgroup per block.
+                self.compare.dispatch(&mut pass, &[&group], groups_1d(nb as u64 * GROUP));
+            }
+            enc.copy_buffer_to_buffer(&self.ctrl, 0, &bufs.list_staging, 0, 16);
+            enc.copy_buffer_to_buffer(&bufs.list, 0, &bufs.list_staging, 16, list_bytes);
+            q.submit([enc.finish()]);
+        })?;
+        let mut listed = Vec::new();
+        self.ctx.read_back(&bufs.list_staging, 16 + list_bytes, |bytes| {
+            let (ctrl, list) = bytes.split_at(16);
+            let count = u32::from_ne_bytes([ctrl[0], ctrl[1], ctrl[2], ctrl[3]]) as usize;
+            listed = vec![u32::MAX; count.min(nb)];
+            copy_words(&list[..4 * listed.len()], &mut listed);
+        })?;
+        listed.sort_unstable();
+        if listed.last().is_some_and(|&b| b as usize >= nb) || listed.windows(2).any(|w| w[0] == w[1]) {
+            return Err(BackendError::Device("the device listed a block twice or out of the region".into()));
+        }
+        // In key order, as the CPU lists them.
+        listed.sort_unstable_by_key(|&b| keys[b as usize]);
+        let count = listed.len();
+        if count == 0 {
+            return Ok(WriteBack::default());
+        }
+
+        // The changed blocks' values, copied out of the pool (runs of
+        // consecutive slots in one copy).
+        let values_bytes = count as u64 * BLOCK_BYTES;
+        self.ctx.scoped(|| {
+            let mut enc = self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("exact read") });
+            let mut k = 0;
+            while k < count {
+                let first = self.slot_table[listed[k] as usize];
+                let mut end = k + 1;
+                while end < count && self.slot_table[listed[end] as usize] == first + (end - k) as u32 {
+                    end += 1;
+                }
+                enc.copy_buffer_to_buffer(&pool.buffer, u64::from(first) * BLOCK_BYTES, &bufs.staging, k as u64 * BLOCK_BYTES, (end - k) as u64 * BLOCK_BYTES);
+                k = end;
+            }
+            self.ctx.queue.submit([enc.finish()]);
+        })?;
+        let mut values = vec![0u32; count * BLOCK_VOXELS];
+        self.ctx.read_back(&bufs.staging, values_bytes, |bytes| copy_words(bytes, &mut values))?;
+
+        let candidates: Vec<BlockKey> = listed.iter().map(|&b| keys[b as usize]).collect();
+        let old: Vec<Vec<u64>> = candidates
+            .iter()
+            .map(|&key| {
+                let block = map.get(key);
+                (0..BLOCK_VOXELS).map(|off| block.map_or(FAR, |b| p.pack(b.dist_sq[off], b.nearest[off]))).collect()
+            })
+            .collect();
+        let cur = |k: usize, _: usize, off: usize| decode(p, candidates[k].voxel(off), values[k * BLOCK_VOXELS + off]);
+        Ok(write_back_where(map, p, &candidates, |k, _, off| old[k][off], cur))
+    }
+
+    /// Gives every block of `keys` a pool slot, uploading those not
+    /// resident, and fills the slot table.
+    fn assign_slots(&mut self, map: &EdtMap, keys: &[BlockKey], p: &Packing) -> Result<(), BackendError> {
+        let pool = self.pool.as_mut().ok_or_else(|| BackendError::Device("pool missing".into()))?;
+        let frame = self.frame;
+        let mut missing = Vec::new();
+        self.slot_table.clear();
+        for (i, &key) in keys.iter().enumerate() {
+            match pool.table.get(&key) {
+                Some(&slot) => {
+                    pool.owner[slot as usize] = Some((key, frame));
+                    self.slot_table.push(slot);
+                }
+                None => {
+                    missing.push(i);
+                    self.slot_table.push(u32::MAX);
+                }
+            }
+        }
+        if missing.len() > pool.free.len() {
+            pool.evict(missing.len() - pool.free.len(), frame);
+        }
+        let mut fresh: Vec<(u32, BlockKey)> = Vec::with_capacity(missing.len());
+        for i in missing {
+            let slot = pool.free.pop().ok_or_else(|| BackendError::Device("pool slots exhausted".into()))?;
+            pool.table.insert(keys[i], slot);
+            pool.owner[slot as usize] = Some((keys[i], frame));
+            self.slot_table[i] = slot;
+            fresh.push((slot, keys[i]));
+        }
+        // Runs of consecutive slots go up in one write.
+        fresh.sort_unstable_by_key(|f| f.0);
+        let reach = p.cutoff.reach;
+        let max = p.cutoff.max_dist_sq;
+        let q = &self.ctx.queue;
+        let mut run = 0;
+        while run < fresh.len() {
+            let mut end = run + 1;
+            while end < fresh.len() && fresh[end].0 == fresh[end - 1].0 + 1 {
+                end += 1;
+            }
+            self.upload.clear();
+            for &(_, key) in &fresh[run..end] {
+                match map.get(key) {
+                    Some(b) => self.upload.extend((0..BLOCK_VOXELS).map(|off| encode(key.voxel(off), b.dist_sq[off], b.nearest[off], max, reach))),
+                    None => self.upload.extend(std::iter::repeat_n(ENC_FAR, BLOCK_VOXELS)),
+                }
+            }
+            q.write_buffer(&pool.buffer, u64::from(fresh[run].0) * BLOCK_BYTES, bytemuck::cast_slice(&self.upload));
+            run = end;
+        }
+        Ok(())
+    }
+
+    /// Sizes the pool and the per-frame buffers for regions of `nb` blocks.
+    fn ensure_buffers(&mut self, nb: usize) -> Result<(), BackendError> {
+        if self.pool.as_ref().is_none_or(|pool| pool.slots < nb) {
+            let slots = (2 * nb).max(MIN_SLOTS);
+            let max = self.ctx.limits().max_storage_buffer_binding_size.min(self.ctx.limits().max_buffer_size);
+            let slots = slots.min((max / BLOCK_BYTES) as usize).min(self.max_slots).max(nb);
+            self.pool = None;
+            self.ctx.check_buffer("the exact integration's block pool", slots as u64 * BLOCK_BYTES)?;
+            let buffer = self.ctx.scoped(|| {
+                self.ctx.buffer("exact pool", slots as u64 * BLOCK_BYTES, wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC)
+            })?;
+            self.pool = Some(Pool { buffer, slots, table: HashMap::new(), owner: vec![None; slots], free: (0..slots as u32).rev().collect() });
+        }
+        if self.frame_bufs.as_ref().is_none_or(|f| f.blocks < nb) {
+            self.frame_bufs = None;
+            let blocks = nb.next_power_of_two();
+            let n = blocks as u64;
+            self.ctx.check_buffer("the exact integration's changed blocks", n * BLOCK_BYTES)?;
+            let bufs = self.ctx.scoped(|| {
+                let storage = wgpu::BufferUsages::STORAGE;
+                let buffer = |label, size, usage| self.ctx.buffer(label, size, usage);
+                FrameBuffers {
+                    blocks,
+                    slots: buffer("exact slots", 4 * n, storage | wgpu::BufferUsages::COPY_DST),
+                    list: buffer("exact list", 4 * n, storage | wgpu::BufferUsages::COPY_SRC),
+                    list_staging: buffer("exact list staging", 16 + 4 * n, wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST),
+                    staging: buffer("exact staging", n * BLOCK_BYTES, wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST),
+                }
+            })?;
+            self.frame_bufs = Some(bufs);
+        }
+        Ok(())
+    }
+}
+
+impl Pool {
+    /// Forgets every resident block.
+    fn clear(&mut self) {
+        self.table.clear();
+        self.owner.iter_mut().for_each(|o| *o = None);
+        self.free = (0..self.slots as u32).rev().collect();
+    }
+
+    /// Frees at least `n` slots not used in `frame`, least recently used
+    /// first.
+    fn evict(&mut self, n: usize, frame: u64) {
+        let mut used: Vec<(u64, u32)> = self.owner.iter().enumerate().filter_map(|(s, o)| o.filter(|o| o.1 < frame).map(|o| (o.1, s as u32))).collect();
+        used.sort_unstable();
+        for &(_, slot) in used.iter().take(n) {
+            if let Some((key, _)) = self.owner[slot as usize].take() {
+                self.table.remove(&key);
+            }
+            self.free.push(slot);
+        }
+    }
+}
+
+/// The pool's word for the host value (`dist_sq`, `nearest`) of voxel `v`.
+fn encode(v: VoxelIndex, dist_sq: u32, nearest: VoxelIndex, max_dist_sq: u32, reach: i32) -> u32 {
+    if dist_sq > max_dist_sq || nearest == NO_OBSTACLE {
+        return ENC_FAR;
+    }
+    let off = [0, 1, 2].map(|a| i64::from(nearest.0[a]) - i64::from(v.0[a]));
+    let len_sq: i64 = off.iter().map(|o| o * o).sum();
+    if off.iter().any(|o| o.abs() > i64::from(reach)) || len_sq != i64::from(dist_sq) {
+        return ENC_INVALID;
+    }
+    let b = off.map(|o| (o + 512) as u32);
+    b[0] | (b[1] << 10) | (b[2] << 20)
+}
+
+/// The packed value of the device word `word` of region voxel `v`.
+fn decode(p: &Packing, v: VoxelIndex, word: u32) -> u64 {
+    if word == ENC_FAR {
+        return FAR;
+    }
+    let off = [0, 10, 20].map(|s| ((word >> s) & 0x3ff) as i32 - 512);
+    let dist_sq = off.iter().map(|o| (o * o) as u32).sum::<u32>();
+    let nearest = VoxelIndex([0, 1, 2].map(|a| v.0[a] + off[a]));
+    p.pack(dist_sq, nearest)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use edtmap_core::region::Region;
+    use edtmap_core::{Cutoff, FAR_DIST_SQ};
+
+    #[test]
+    fn encoding_round_trips_through_the_packing() {
+        let cutoff = Cutoff { max_dist_sq: 400, reach: 20 };
+        let p = Packing::new(Region { origin: [-5, 3, 0], dims: [10, 10, 10] }, cutoff).expect("small");
+        let v = VoxelIndex([0, 5, 2]);
+        for (n, d) in [(VoxelIndex([3, -4, 2]), 9 + 81), (v, 0), (VoxelIndex([-20, 5, 2]), 400)] {
+            let word = encode(v, d, n, cutoff.max_dist_sq, cutoff.reach);
+            assert_eq!(decode(&p, v, word), p.pack(d, n));
+        }
+        assert_eq!(encode(v, 401, VoxelIndex([-21, 5, 2]), 400, 20), ENC_FAR);
+        assert_eq!(encode(v, FAR_DIST_SQ, NO_OBSTACLE, 400, 20), ENC_FAR);
+        assert_eq!(encode(v, 5, VoxelIndex([1, 5, 2]), 400, 20), ENC_INVALID, "distance not the offset's");
+    }
+}

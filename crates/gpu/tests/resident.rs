@@ -1,0 +1,129 @@
+//! The exact integration's resident block pool on the GPU against the CPU
+//! backend, map for map and report for report: frame after frame (the
+//! pool kept), with the map changed in between by the CPU (the pool
+//! dropped), with a pool too small to keep anything (blocks evicted every
+//! frame), and from a map holding values the pool cannot encode. The CPU's
+//! exact update is itself checked against brute force by the conformance
+//! suite. Also: what a frame costs in traffic.
+
+mod common;
+
+use edtmap_core::region::{Packing, Region};
+use edtmap_core::stages::exact::{recompute_exact, ExactBuffers};
+use edtmap_core::stages::IntegrationStage;
+use edtmap_core::{Backend, BlockKey, EdtMap, GlobalParams, IntegrateReport, IntegrationMode, VoxelIndex};
+use edtmap_cpu::CpuBackend;
+use edtmap_sim::conformance::IntegrationWorld;
+
+/// Every block of `map`, sorted, as comparable rows.
+fn rows(map: &EdtMap) -> Vec<(BlockKey, Vec<u32>, Vec<VoxelIndex>)> {
+    let mut rows: Vec<_> = map.iter().map(|(k, b)| (k, b.dist_sq.to_vec(), b.nearest.to_vec())).collect();
+    rows.sort_by_key(|r| r.0 .0);
+    rows
+}
+
+fn stage(cutoff_vox: u64) -> IntegrationStage {
+    let params = GlobalParams { mode: IntegrationMode::Exact, max_distance_m: cutoff_vox as f64 * IntegrationWorld::VOXEL_M, ..Default::default() };
+    IntegrationStage::new(&params, IntegrationWorld::VOXEL_M).expect("valid cutoff")
+}
+
+fn same_report(a: &IntegrateReport, b: &IntegrateReport, at: &str) {
+    assert_eq!(a.voxels_changed, b.voxels_changed, "{at}: voxels changed");
+    assert_eq!(a.changed_blocks, b.changed_blocks, "{at}: changed blocks");
+    assert!((a.change_sum_vox - b.change_sum_vox).abs() <= 1e-9 * a.change_sum_vox.max(1.0), "{at}: change sum");
+}
+
+/// A GPU map kept equal to a CPU map while the pool is kept, dropped
+/// (every third frame runs on the CPU instead) or evicted (a one-block
+/// cap leaves only the current region resident).
+#[test]
+fn resident_pool_gives_the_cpu_map_frame_after_frame() {
+    let Some(mut gpu) = common::gpu_or_skip("resident pool") else { return };
+    let Some(mut tiny) = common::gpu_or_skip("resident pool") else { return };
+    tiny.limit_resident_blocks(1);
+    for seed in 0..6u64 {
+        let stage = stage(2 + seed % 6);
+        for (name, backend) in [("default pool", &mut gpu), ("one-block cap", &mut tiny)] {
+            let mut world = IntegrationWorld::new(100 + seed);
+            let (mut cpu_map, mut gpu_map) = (EdtMap::new(), EdtMap::new());
+            let mut cpu = CpuBackend::default();
+            for step in 0..14 {
+                let at = format!("{name}, seed {seed}, step {step}");
+                let (window, _) = world.step();
+                let blocks = window.region().blocks();
+                let want = stage.update(&mut cpu, &mut cpu_map, world.obstacles(), &blocks).expect("cpu");
+                let mut other = CpuBackend::default();
+                let on: &mut dyn Backend = if step % 3 == 2 { &mut other } else { &mut *backend };
+                let got = stage.update(on, &mut gpu_map, world.obstacles(), &blocks).unwrap_or_else(|e| panic!("{at}: {e}"));
+                same_report(&got, &want, &at);
+                assert!(rows(&gpu_map) == rows(&cpu_map), "{at}: maps differ");
+            }
+        }
+    }
+}
+
+/// A map whose stored values the pool cannot encode as offsets (a
+/// distance that is not its obstacle's, an obstacle beyond the reach) is
+/// rewritten as the host-side definition does (`recompute_exact` on the
+/// CPU's batch EDT: the region recomputed, written where it differs).
+#[test]
+fn values_the_pool_cannot_encode_are_rewritten_as_the_definition_says() {
+    let Some(mut gpu) = common::gpu_or_skip("resident pool") else { return };
+    let stage = stage(4);
+    let mut world = IntegrationWorld::new(7);
+    let (window, _) = world.step();
+    let blocks = window.region().blocks();
+    let mut start = EdtMap::new();
+    stage.update(&mut CpuBackend::default(), &mut start, world.obstacles(), &blocks).expect("cpu");
+    let odd = [(window.world([3, 4, 2]), 3, [1, 0, 0]), (window.world([9, 2, 5]), 1, [700, 0, 0]), (window.world([0, 0, 0]), 0, [0, 0, 0])];
+    for (v, dist_sq, off) in odd {
+        let block = start.get_or_insert(v.block());
+        block.dist_sq[v.offset_in_block()] = dist_sq;
+        block.nearest[v.offset_in_block()] = VoxelIndex([0, 1, 2].map(|a| v.0[a] + off[a]));
+    }
+    let (mut host_map, mut gpu_map) = (start.clone(), start);
+    let region = Region::bounding(&blocks).expect("blocks").grown(stage.cutoff().reach);
+    let packing = Packing::new(region, stage.cutoff()).expect("packing");
+    let want = recompute_exact(&mut CpuBackend::default(), &mut host_map, &world.obstacles(), &packing, &mut ExactBuffers::default()).expect("host");
+    let got = stage.update(&mut gpu, &mut gpu_map, world.obstacles(), &blocks).expect("gpu");
+    assert_eq!((got.voxels_changed, &got.changed_blocks), (want.voxels_changed, &want.changed_blocks));
+    assert!(want.voxels_changed >= 2, "the odd voxels rewritten");
+    assert!(rows(&gpu_map) == rows(&host_map), "maps differ");
+}
+
+/// Traffic of one exact frame with the pool warm: the source box's mask
+/// (a bit per voxel) and the slot table up, no block (all resident); the
+/// changed-block list and only the changed blocks (2 KiB each) down; the
+/// batch EDT's five dispatches and one more, in two submissions (one when
+/// nothing changed).
+#[test]
+fn a_warm_frame_moves_the_mask_and_the_changed_blocks() {
+    let Some(mut gpu) = common::gpu_or_skip("resident pool") else { return };
+    let stage = stage(5);
+    let cutoff = stage.cutoff();
+    let mut world = IntegrationWorld::new(3);
+    let mut map = EdtMap::new();
+    // The whole box once, so that every later region is resident.
+    let all = Region { origin: [-32, -24, -24], dims: [64, 48, 48] };
+    let blocks = all.blocks();
+    stage.update(&mut gpu, &mut map, world.obstacles(), &blocks).expect("gpu");
+    let mut checked = 0;
+    for step in 0..10 {
+        let (window, _) = world.step();
+        let blocks = window.region().blocks();
+        let region = Region::bounding(&blocks).expect("blocks").grown(cutoff.reach);
+        let nb = region.blocks().len() as u64;
+        let source = region.grown(cutoff.reach).len() as u64;
+        let before = gpu.device_counters().expect("counters");
+        let report = stage.update(&mut gpu, &mut map, world.obstacles(), &blocks).expect("gpu");
+        let d = gpu.device_counters().expect("counters").since(before);
+        let changed = report.changed_blocks.len() as u64;
+        assert_eq!(d.downloaded_bytes, 16 + 4 * nb + 2048 * changed, "step {step}: {d:?}");
+        let (mask, table) = (4 * source.div_ceil(32), 4 * nb);
+        assert!(d.uploaded_bytes >= mask + table && d.uploaded_bytes <= mask + table + 5 * 256 + 64, "step {step}: {d:?}, mask {mask}, table {table}");
+        assert_eq!(d.dispatches, 6, "step {step}");
+        assert_eq!(d.submissions, if changed > 0 { 2 } else { 1 }, "step {step}");
+        checked += usize::from(changed > 0);
+    }
+    assert!(checked >= 5, "too few frames changed anything");
+}
