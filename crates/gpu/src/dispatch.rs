@@ -131,3 +131,14 @@ pub(crate) fn groups_1d(items: u64) -> [u32; 3] {
     let groups = items.div_ceil(GROUP).max(1);
     [groups.min(MAX_GROUPS) as u32, groups.div_ceil(MAX_GROUPS) as u32, 1]
 }
+
+/// Expands two-bit codes, sixteen per native-endian word (voxel `i` at
+/// bits `2 (i % 16)` of word `i / 16`), into one byte each, filling `out`.
+pub(crate) fn unpack_codes(words: &[u8], out: &mut [u8]) {
+    for (chunk, word) in out.chunks_mut(16).zip(words.chunks_exact(4)) {
+        let w = u32::from_ne_bytes([word[0], word[1], word[2], word[3]]);
+        for (k, o) in chunk.iter_mut().enumerate() {
+            *o = ((w >> (2 * k)) & 3) as u8;
+        }
+    }
+}

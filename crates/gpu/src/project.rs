@@ -13,7 +13,7 @@
 //! images are left to the CPU.
 
 use crate::context::GpuContext;
-use crate::dispatch::{groups_1d, in_out_kernel, Kernel};
+use crate::dispatch::{groups_1d, in_out_kernel, unpack_codes, Kernel};
 use edtmap_core::sensor::{Measurement, Sensor};
 use edtmap_core::{BackendError, ProjectJob};
 use std::f64::consts::TAU;
@@ -76,13 +76,14 @@ impl GpuProject {
     }
 
     /// Decides every voxel of `job.volume` into `bits`, one byte per voxel
+    /// (two bits each on the way back)
     /// (see `Backend::project_volume`). `Ok(false)` for a LiDAR, or for
     /// geometry beyond the shader's exact range (a sensor millions of
     /// voxels away, a scan of more than 2²⁴ beams per turn).
     pub fn run(&mut self, job: &ProjectJob<'_>, bits: &mut Vec<u8>) -> Result<bool, BackendError> {
         let Some(params) = self.prepare(job) else { return Ok(false) };
         let voxels = job.volume.len();
-        let words = voxels.div_ceil(4) as u64;
+        let words = voxels.div_ceil(16) as u64;
         self.ensure_buffers(self.free_below.len(), voxels)?;
         let bufs = self.bufs.as_ref().ok_or_else(|| BackendError::Device("buffers missing".into()))?;
         self.ctx.scoped(|| {
@@ -98,7 +99,7 @@ impl GpuProject {
             q.submit([enc.finish()]);
         })?;
         bits.resize(voxels, 0);
-        self.ctx.read_back(&bufs.staging, 4 * words, |b| bits.copy_from_slice(&b[..voxels]))?;
+        self.ctx.read_back(&bufs.staging, 4 * words, |b| unpack_codes(b, bits))?;
         Ok(true)
     }
 
@@ -166,7 +167,7 @@ impl GpuProject {
         }
         let (beams, voxels) = self.bufs.as_ref().map_or((beams, voxels), |b| (b.beams.max(beams), b.voxels.max(voxels)));
         self.bufs = None;
-        let words = voxels.div_ceil(4).max(1) as u64;
+        let words = voxels.div_ceil(16).max(1) as u64;
         self.ctx.check_buffer("the free ranges of the pixels or beams", 4 * beams as u64)?;
         self.ctx.check_buffer("the projection bits", 4 * words)?;
         let bufs = self.ctx.scoped(|| {

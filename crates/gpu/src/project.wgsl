@@ -1,5 +1,6 @@
 // Volumetric projection (paper §IV-A), dispatched by project.rs: one
-// invocation per word of four voxels (each owns its word: no atomics)
+// invocation per word of sixteen voxels, two bits each (each owns its word:
+// no atomics)
 // decides edtmap_core::ProjectJob::is_miss in f32 together with a bound on
 // how far each quantity it thresholds can be from the CPU's value. A voxel
 // is written NOT_MISS or MISS only when every threshold is farther than
@@ -235,14 +236,14 @@ fn decide(i: u32) -> u32 {
 fn project(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
         @builtin(local_invocation_index) lid: u32) {
     let w = (wid.x + wid.y * nwg.x) * GROUP + lid;
-    let first = 4u * w;
+    let first = 16u * w;
     if (first >= P.dims.w) {
         return;
     }
     var word = 0u;
-    for (var k = 0u; k < 4u; k++) {
+    for (var k = 0u; k < 16u; k++) {
         if (first + k < P.dims.w) {
-            word |= decide(first + k) << (8u * k);
+            word |= decide(first + k) << (2u * k);
         }
     }
     out[w] = word;

@@ -1,9 +1,10 @@
 //! Ray casting on the GPU (`raycast.wgsl`): the host sets the rays up
 //! (`edtmap_core::fixed_ray::prepare_rays`, shared with the CPU), the
-//! device walks them, the observation bits come back, one byte per voxel.
+//! device walks them, the observation codes come back, two bits per voxel
+//! (unpacked to a byte each on the host).
 
 use crate::context::GpuContext;
-use crate::dispatch::{groups_1d, in_out_kernel, Kernel};
+use crate::dispatch::{groups_1d, in_out_kernel, unpack_codes, Kernel};
 use edtmap_core::fixed_ray::{fixed_scale, FixedRay};
 use edtmap_core::BackendError;
 
@@ -51,7 +52,8 @@ impl GpuRaycast {
     }
 
     /// Walks `rays` (set up at scale `q` for a volume of `dims`) into
-    /// `bits`, one byte per voxel. `Ok(false)` when `q` does not fit `dims`
+    /// `bits`, one byte per voxel (two bits each on the way back).
+    /// `Ok(false)` when `q` does not fit `dims`
     /// (the CPU then walks nothing either, so it is left to it).
     pub fn run(&mut self, rays: &[FixedRay], q: u32, dims: [usize; 3], bits: &mut Vec<u8>) -> Result<bool, BackendError> {
         let fits = fixed_scale(dims).is_ok_and(|max| q >= 1 && q <= max);
@@ -59,7 +61,7 @@ impl GpuRaycast {
             return Ok(false);
         }
         let voxels: usize = dims.iter().product();
-        let words = voxels.div_ceil(4) as u64;
+        let words = voxels.div_ceil(16) as u64;
         self.ensure_buffers(rays.len().max(1), voxels)?;
         let bufs = self.bufs.as_ref().ok_or_else(|| BackendError::Device("buffers missing".into()))?;
         let params = Params { dims: [dims[0] as u32, dims[1] as u32, dims[2] as u32, voxels as u32], q, rays: rays.len() as u32, pad: [0; 2] };
@@ -84,7 +86,7 @@ impl GpuRaycast {
             q.submit([enc.finish()]);
         })?;
         bits.resize(voxels, 0);
-        self.ctx.read_back(&bufs.staging, 4 * words, |b| bits.copy_from_slice(&b[..voxels]))?;
+        self.ctx.read_back(&bufs.staging, 4 * words, |b| unpack_codes(b, bits))?;
         Ok(true)
     }
 
@@ -94,7 +96,7 @@ impl GpuRaycast {
         }
         let (rays, voxels) = self.bufs.as_ref().map_or((rays, voxels), |b| (b.rays.max(rays), b.voxels.max(voxels)));
         self.bufs = None;
-        let words = voxels.div_ceil(4) as u64;
+        let words = voxels.div_ceil(16) as u64;
         self.ctx.check_buffer("the rays", RAY_BYTES * rays as u64)?;
         self.ctx.check_buffer("the observation bits", 4 * words)?;
         let bufs = self.ctx.scoped(|| {

@@ -78,10 +78,11 @@ fn axis_step(a: ptr<function, Axis>, linear: u32, stride: u32, q: u32) -> u32 {
     return linear - stride;
 }
 
+// Two bits per voxel, sixteen voxels per word.
 fn mark(i: u32, bit: u32) {
-    let m = bit << ((i & 3u) * 8u);
-    if ((atomicLoad(&obs[i >> 2u]) & m) == 0u) {
-        atomicOr(&obs[i >> 2u], m);
+    let m = bit << ((i & 15u) * 2u);
+    if ((atomicLoad(&obs[i >> 4u]) & m) == 0u) {
+        atomicOr(&obs[i >> 4u], m);
     }
 }
 
