@@ -66,8 +66,9 @@ fn gpu_gives_the_cpu_answers_when_an_adapter_exists() {
 
 /// A GPU run's `report.json` counts each frame's device traffic: the
 /// batch EDT's field comes down (8 bytes per window voxel at least in the
-/// wavefront mode, which runs it every frame), something goes up, and work
-/// is dispatched; a CPU run has no such fields.
+/// wavefront mode, which runs it every frame), something goes up, work is
+/// dispatched, device memory is held and device time reported; a CPU run
+/// has no such fields.
 #[test]
 fn gpu_reports_count_device_traffic() {
     let dir = tempfile::tempdir().expect("temp dir");
@@ -93,6 +94,12 @@ fn gpu_reports_count_device_traffic() {
         let field = |k: &str| frame[k].as_f64().unwrap_or_else(|| panic!("{k} missing in {frame}"));
         assert!(field("gpu_downloaded_bytes") >= 8.0 * voxels as f64, "{frame}");
         assert!(field("gpu_uploaded_bytes") > 0.0 && field("gpu_dispatches") >= 7.0 && field("gpu_submissions") >= 1.0, "{frame}");
+        // Vulkan reports its allocations; the device times are there (0
+        // on an adapter without timestamps).
+        assert!(field("gpu_memory_bytes") > 0.0, "{frame}");
+        for k in ["gpu_ogm_device_ms", "gpu_batch_edt_device_ms", "gpu_integrate_device_ms"] {
+            assert!(field(k) >= 0.0, "{frame}");
+        }
     }
     assert!(report["summary"]["gpu_dispatches"]["median"].as_f64().is_some());
     let (cpu, report) = run("cpu");

@@ -227,6 +227,15 @@ pub struct DeviceCounters {
     /// Device memory the backend's buffers hold now, bytes (a level, not a
     /// running total); 0 where the driver does not report it (Metal).
     pub memory_bytes: u64,
+    /// Device time of the occupancy stage's compute passes (ray casting,
+    /// projection), nanoseconds, by timestamp queries; 0 where the adapter
+    /// has none.
+    pub occupancy_ns: u64,
+    /// Device time of the batch EDT's passes, nanoseconds.
+    pub batch_edt_ns: u64,
+    /// Device time of the integration's passes (its own batch EDT
+    /// included), nanoseconds.
+    pub integrate_ns: u64,
 }
 
 impl DeviceCounters {
@@ -238,6 +247,9 @@ impl DeviceCounters {
             dispatches: self.dispatches.saturating_sub(earlier.dispatches),
             submissions: self.submissions.saturating_sub(earlier.submissions),
             memory_bytes: self.memory_bytes,
+            occupancy_ns: self.occupancy_ns.saturating_sub(earlier.occupancy_ns),
+            batch_edt_ns: self.batch_edt_ns.saturating_sub(earlier.batch_edt_ns),
+            integrate_ns: self.integrate_ns.saturating_sub(earlier.integrate_ns),
         }
     }
 }

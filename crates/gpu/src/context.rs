@@ -2,7 +2,7 @@
 //! the error handling around them (no adapter, lost device, validation).
 
 use edtmap_core::{BackendError, DeviceCounters};
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
@@ -19,6 +19,44 @@ pub struct GpuContext {
     limits: wgpu::Limits,
     /// Set by the device-lost callback: why the device went away.
     lost: Arc<Mutex<Option<String>>>,
+    /// Timestamps around every compute pass, where the adapter has them.
+    timer: Option<Arc<Timer>>,
+    /// The stage the passes recorded now belong to ([`Stage`]).
+    stage: Arc<AtomicUsize>,
+}
+
+/// The pipeline stages device time is reported for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Stage {
+    /// Ray casting or projection.
+    Occupancy = 0,
+    /// The batch EDT of the window.
+    BatchEdt = 1,
+    /// The global integration (its batch EDT included).
+    Integrate = 2,
+}
+
+/// Most compute passes timed between two reads of the counters; passes
+/// past it go untimed.
+const TIMED_PASSES: u32 = 256;
+
+/// A timestamp query set around compute passes and what it has measured.
+#[derive(Debug)]
+struct Timer {
+    set: wgpu::QuerySet,
+    resolve: wgpu::Buffer,
+    staging: wgpu::Buffer,
+    /// Nanoseconds per timestamp tick.
+    period_ns: f64,
+    state: Mutex<TimerState>,
+}
+
+#[derive(Debug, Default)]
+struct TimerState {
+    /// The stage of each pass timed since the last collection.
+    passes: Vec<Stage>,
+    /// Device nanoseconds per stage, collected so far.
+    totals: [u64; 3],
 }
 
 impl GpuContext {
@@ -41,8 +79,10 @@ impl GpuContext {
         };
         let info = adapter.get_info();
         let limits = adapter.limits();
+        let features = adapter.features() & wgpu::Features::TIMESTAMP_QUERY;
         let desc = wgpu::DeviceDescriptor {
             label: Some("edtmap"),
+            required_features: features,
             required_limits: limits.clone(),
             ..Default::default()
         };
@@ -57,8 +97,81 @@ impl GpuContext {
         });
         // Errors outside an error scope would otherwise abort the process.
         device.on_uncaptured_error(Arc::new(|_| {}));
+        let timer = features.contains(wgpu::Features::TIMESTAMP_QUERY).then(|| {
+            let bytes = 16 * u64::from(TIMED_PASSES);
+            let buffer = |label, usage| device.create_buffer(&wgpu::BufferDescriptor { label: Some(label), size: bytes, usage, mapped_at_creation: false });
+            Arc::new(Timer {
+                set: device.create_query_set(&wgpu::QuerySetDescriptor { label: Some("edtmap passes"), ty: wgpu::QueryType::Timestamp, count: 2 * TIMED_PASSES }),
+                resolve: buffer("timestamps", wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC),
+                staging: buffer("timestamps staging", wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST),
+                period_ns: f64::from(queue.get_timestamp_period()),
+                state: Mutex::new(TimerState::default()),
+            })
+        });
         let queue = CountingQueue { queue, counters: Arc::new(Counters::default()) };
-        Ok(GpuContext { device, queue, info, limits, lost })
+        Ok(GpuContext { device, queue, info, limits, lost, timer, stage: Arc::new(AtomicUsize::new(Stage::BatchEdt as usize)) })
+    }
+
+    /// Whether compute passes are timed on the device (the adapter has
+    /// timestamp queries).
+    pub fn has_timestamps(&self) -> bool {
+        self.timer.is_some()
+    }
+
+    /// Attributes the passes recorded from now on to `stage`.
+    pub(crate) fn set_stage(&self, stage: Stage) {
+        self.stage.store(stage as usize, Ordering::Relaxed);
+    }
+
+    /// Begins a compute pass on `enc`, timed on the device where the
+    /// adapter allows.
+    pub(crate) fn pass<'e>(&self, enc: &'e mut wgpu::CommandEncoder, label: &str) -> wgpu::ComputePass<'e> {
+        let stage = match self.stage.load(Ordering::Relaxed) {
+            0 => Stage::Occupancy,
+            1 => Stage::BatchEdt,
+            _ => Stage::Integrate,
+        };
+        let slot = self.timer.as_ref().and_then(|t| {
+            let mut state = t.state.lock().ok()?;
+            let k = state.passes.len() as u32;
+            (k < TIMED_PASSES).then(|| {
+                state.passes.push(stage);
+                (t, k)
+            })
+        });
+        let timestamp_writes = slot.map(|(t, k)| wgpu::ComputePassTimestampWrites {
+            query_set: &t.set,
+            beginning_of_pass_write_index: Some(2 * k),
+            end_of_pass_write_index: Some(2 * k + 1),
+        });
+        enc.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some(label), timestamp_writes })
+    }
+
+    /// Reads the timestamps of the passes timed since the last call into
+    /// the totals (its own submission and read-back are not counted as
+    /// the pipeline's traffic). Every pass timed must have been submitted.
+    fn collect_times(&self) -> Result<[u64; 3], BackendError> {
+        let Some(t) = &self.timer else { return Ok([0; 3]) };
+        let mut state = t.state.lock().map_err(|_| BackendError::Device("timer lock poisoned".into()))?;
+        let n = state.passes.len() as u64;
+        if n > 0 {
+            let mut enc = self.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("timestamps") });
+            enc.resolve_query_set(&t.set, 0..2 * n as u32, &t.resolve, 0);
+            enc.copy_buffer_to_buffer(&t.resolve, 0, &t.staging, 0, 16 * n);
+            self.queue.queue.submit([enc.finish()]);
+            let mut ticks = vec![0u64; 2 * n as usize];
+            self.map_read(&t.staging, 16 * n, |bytes| {
+                for (tick, b) in ticks.iter_mut().zip(bytes.chunks_exact(8)) {
+                    *tick = u64::from_ne_bytes([b[0], b[1], b[2], b[3], b[4], b[5], b[6], b[7]]);
+                }
+            })?;
+            let passes = std::mem::take(&mut state.passes);
+            for (stage, pair) in passes.into_iter().zip(ticks.chunks_exact(2)) {
+                let ns = (pair[1].saturating_sub(pair[0]) as f64 * t.period_ns).round() as u64;
+                state.totals[stage as usize] += ns;
+            }
+        }
+        Ok(state.totals)
     }
 
     /// The adapter's name and API, e.g. `NVIDIA H100 (Vulkan)`.
@@ -134,7 +247,10 @@ impl GpuContext {
     /// report, where the backend has one).
     pub fn counters(&self) -> DeviceCounters {
         let memory_bytes = self.device.generate_allocator_report().map_or(0, |r| r.total_allocated_bytes);
-        DeviceCounters { memory_bytes, ..self.queue.counters.snapshot() }
+        // A device that fails here fails the next job too; the times are
+        // then missing, not wrong.
+        let [occupancy_ns, batch_edt_ns, integrate_ns] = self.collect_times().unwrap_or([0; 3]);
+        DeviceCounters { memory_bytes, occupancy_ns, batch_edt_ns, integrate_ns, ..self.queue.counters.snapshot() }
     }
 
     /// The counters, for kernels to count their dispatches.
@@ -151,6 +267,12 @@ impl GpuContext {
         read: impl FnOnce(&[u8]),
     ) -> Result<(), BackendError> {
         self.queue.counters.downloaded.fetch_add(bytes, Ordering::Relaxed);
+        self.map_read(staging, bytes, read)
+    }
+
+    /// Maps the first `bytes` of `staging` once the device is done and
+    /// gives them to `read`, uncounted.
+    fn map_read(&self, staging: &wgpu::Buffer, bytes: u64, read: impl FnOnce(&[u8])) -> Result<(), BackendError> {
         let slice = staging.slice(..bytes);
         let status = Arc::new(Mutex::new(None));
         let done = Arc::clone(&status);
@@ -191,7 +313,7 @@ impl Counters {
             downloaded_bytes: self.downloaded.load(Ordering::Relaxed),
             dispatches: self.dispatches.load(Ordering::Relaxed),
             submissions: self.submissions.load(Ordering::Relaxed),
-            memory_bytes: 0,
+            ..DeviceCounters::default()
         }
     }
 }

@@ -153,7 +153,7 @@ impl GpuEdt {
             let q = &self.ctx.queue;
             q.write_buffer(&self.params, 0, packed);
             q.write_buffer(&bufs.mask, 0, bytemuck::cast_slice(bits));
-            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("edt"), timestamp_writes: None });
+            let mut pass = self.ctx.pass(enc, "edt");
             let offset = |k: usize| (k as u64 * self.slot_bytes) as u32;
             // x: straight from the mask bits into [y z x]; then y and z
             // through a transpose and a scan each.

@@ -198,7 +198,7 @@ impl GpuExact {
             q.write_buffer(&bufs.slots, 0, bytemuck::cast_slice(&self.slot_table));
             enc.clear_buffer(&self.ctrl, 0, None);
             {
-                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("exact compare"), timestamp_writes: None });
+                let mut pass = self.ctx.pass(&mut enc, "exact compare");
                 // One workgroup per block.
                 self.compare.dispatch(&mut pass, &[&group], groups_1d(nb as u64 * GROUP));
             }

@@ -311,7 +311,7 @@ impl GpuIntegrator {
             let mut enc = self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("integrate") });
             enc.clear_buffer(&bufs.blk, 0, Some(8 * nb as u64));
             {
-                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("merge and seed"), timestamp_writes: None });
+                let mut pass = self.ctx.pass(&mut enc, "merge and seed");
                 if job.resident {
                     k.shift.dispatch(&mut pass, &one, groups_1d(r as u64));
                     if !self.fresh.is_empty() {
@@ -340,7 +340,7 @@ impl GpuIntegrator {
             self.ctx.scoped(|| {
                 let mut enc = self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("lower") });
                 {
-                    let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("lower"), timestamp_writes: None });
+                    let mut pass = self.ctx.pass(&mut enc, "lower");
                     // A small frontier goes to one workgroup, which runs
                     // levels until the waves end or a frontier outgrows its
                     // memory; a large one runs level by level across the
@@ -377,7 +377,7 @@ impl GpuIntegrator {
         self.ctx.scoped(|| {
             let mut enc = self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("changes") });
             {
-                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("changes"), timestamp_writes: None });
+                let mut pass = self.ctx.pass(&mut enc, "changes");
                 k.diff.dispatch(&mut pass, &one, groups_1d(r as u64));
                 k.compact.dispatch(&mut pass, &one, groups_1d(nb as u64));
                 k.prep_gather.dispatch(&mut pass, &with_args, [1, 1, 1]);

@@ -18,6 +18,7 @@ mod project;
 mod raycast;
 
 pub use context::GpuContext;
+use context::Stage;
 use exact::GpuExact;
 pub use edt::GpuEdt;
 pub use integrate::GpuIntegrator;
@@ -112,6 +113,7 @@ impl BatchEdt for GpuEdt {
 
 impl BatchEdt for GpuBackend {
     fn batch_edt(&mut self, mask: &Grid3<bool>, out: &mut EdtField) -> Result<(), BackendError> {
+        self.ctx.set_stage(Stage::BatchEdt);
         self.edt.run(mask, out)
     }
 }
@@ -126,6 +128,7 @@ impl Backend for GpuBackend {
     }
 
     fn cast_rays(&mut self, rays: &[FixedRay], q: u32, obs: &Observations) -> Result<(), BackendError> {
+        self.ctx.set_stage(Stage::Occupancy);
         if self.raycast.run(rays, q, obs.volume().dims, &mut self.bits)? {
             obs.load_bits(&self.bits);
         } else {
@@ -135,6 +138,7 @@ impl Backend for GpuBackend {
     }
 
     fn project_volume(&mut self, job: &ProjectJob<'_>, obs: &Observations) -> Result<(), BackendError> {
+        self.ctx.set_stage(Stage::Occupancy);
         if self.project.run(job, &mut self.bits)? {
             decide_uncertain(job, &mut self.bits);
             obs.load_bits(&self.bits);
@@ -145,6 +149,7 @@ impl Backend for GpuBackend {
     }
 
     fn integrate(&mut self, job: IntegrateJob<'_>) -> Result<IntegrateReport, BackendError> {
+        self.ctx.set_stage(Stage::Integrate);
         let IntegrateJob { map, obstacles, cutoff, work } = job;
         match work {
             Integration::Wavefront { window, batch, offsets } => self.integrator.run(map, window, batch, cutoff, offsets),

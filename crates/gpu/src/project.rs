@@ -92,7 +92,7 @@ impl GpuProject {
             q.write_buffer(&bufs.free_below, 0, bytemuck::cast_slice(&self.free_below));
             let mut enc = self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("project") });
             {
-                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("project"), timestamp_writes: None });
+                let mut pass = self.ctx.pass(&mut enc, "project");
                 self.kernel.dispatch(&mut pass, &[&bufs.group], groups_1d(words));
             }
             enc.copy_buffer_to_buffer(&bufs.out, 0, &bufs.staging, 0, 4 * words);

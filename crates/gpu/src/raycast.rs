@@ -77,7 +77,7 @@ impl GpuRaycast {
             let mut enc = self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("raycast") });
             enc.clear_buffer(&bufs.obs, 0, Some(4 * words));
             {
-                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("raycast"), timestamp_writes: None });
+                let mut pass = self.ctx.pass(&mut enc, "raycast");
                 if !rays.is_empty() {
                     self.kernel.dispatch(&mut pass, &[&bufs.group], groups_1d(rays.len() as u64));
                 }

@@ -30,7 +30,8 @@ fn projection_kernel_leaves_few_voxels_uncertain() {
 /// The device counters see a batch EDT's traffic as it is: the mask up (a
 /// bit per voxel, padded to a word, plus the parameter block), the field
 /// down (8 bytes per voxel), five dispatches (the scan along x from the
-/// mask, a transpose and a scan along y and along z) in one submission.
+/// mask, a transpose and a scan along y and along z) in one submission,
+/// and its device time, where the adapter has timestamps.
 #[test]
 fn device_counters_count_a_batch_edt() {
     use edtmap_core::{Backend, BatchEdt, EdtField, Grid3};
@@ -46,4 +47,9 @@ fn device_counters_count_a_batch_edt() {
     assert_eq!((d.dispatches, d.submissions), (5, 1));
     let bits = 4 * (n as u64).div_ceil(32);
     assert!(d.uploaded_bytes >= bits && d.uploaded_bytes <= bits + 5 * 256, "{d:?}");
+    // Device time lands on the batch EDT's stage alone, where there are
+    // timestamps at all.
+    eprintln!("timestamps: {}, {d:?}", gpu.context().has_timestamps());
+    assert_eq!(gpu.context().has_timestamps(), d.batch_edt_ns > 0, "{d:?}");
+    assert_eq!((d.occupancy_ns, d.integrate_ns), (0, 0));
 }
