@@ -147,15 +147,15 @@ for run in "${runs[@]}"; do
     fi
     echo "### $s${extra[1]+ at ${extra[1]} m}, $f frames (edtmap run --scene $s ${extra[*]+"${extra[*]} "}--frames $f): median ms per frame"
     echo
-    echo "| backend (device) | local volume | ogm | batch_edt | integrate | total | up MB | down MB | dispatches | submits | device MB |"
-    echo "|---|---|---|---|---|---|---|---|---|---|---|"
+    echo "| backend (device) | local volume | ogm | batch_edt | integrate | total | up MB | down MB | dispatches | submits | device MB | device ms ogm / edt / int |"
+    echo "|---|---|---|---|---|---|---|---|---|---|---|---|"
     for b in "${backends[@]}"; do
         dir="$out/run_${tag}_$b"
         rm -f "$out/map_${tag}_$b.edtmap"
         if ! "$edtmap" run --scene "$s" "${extra[@]+"${extra[@]}"}" --frames "$f" --backend "$b" --out "$dir" --save "$out/map_${tag}_$b.edtmap" >/dev/null 2>"$dir.log"; then
             # The CPU must always work; a GPU may refuse a size over its limits.
             if [ "$b" = cpu ]; then echo "edtmap run --scene $s --backend cpu failed:" >&2; cat "$dir.log" >&2; exit 1; fi
-            echo "| $b | not run: $(grep -o 'edtmap: error: .*' "$dir.log" | head -1 | cut -c16-) | | | | | | | | | |"
+            echo "| $b | not run: $(grep -o 'edtmap: error: .*' "$dir.log" | head -1 | cut -c16-) | | | | | | | | | | |"
             continue
         fi
         python3 - "$dir/report.json" <<'PY'
@@ -171,6 +171,9 @@ device = f"{mb('gpu_uploaded_bytes')} | {mb('gpu_downloaded_bytes')} | {count('g
 # Device memory held after the last frame.
 held = r["frames"][-1].get("gpu_memory_bytes") if r.get("frames") else None
 device += f" | {held / 1e6:.1f}" if held else " | –"
+# Device time per stage (timestamp queries; 0 without them).
+times = [f"{s[k]['median']:.2f}" for k in ("gpu_ogm_device_ms", "gpu_batch_edt_device_ms", "gpu_integrate_device_ms") if k in s]
+device += f" | {' / '.join(times)}" if times else " | –"
 print(f"| {r['backend']} | {dims} at {r['voxel_size_m']} m | {stages} | {device} |")
 PY
     done
