@@ -30,7 +30,6 @@ use edtmap_core::region::{Packing, Region};
 use edtmap_core::stages::exact::{recompute_exact, ExactBuffers};
 use edtmap_core::{
     decide_uncertain, mark_misses, Backend, BackendError, BatchEdt, EdtField, Grid3, IntegrateJob, IntegrateReport, Integration, Observations, ProjectJob,
-    WaveCounts,
 };
 
 /// The GPU as a [`Backend`] of the mapper: one device, kernels compiled
@@ -51,6 +50,8 @@ pub struct GpuBackend {
     exact_host: ExactBuffers,
     /// Observation bytes read back from the device.
     bits: Vec<u8>,
+    /// The most voxels one batch EDT of the exact integration may have.
+    max_tile_voxels: u64,
 }
 
 impl GpuBackend {
@@ -63,7 +64,7 @@ impl GpuBackend {
         let raycast = GpuRaycast::new(&ctx)?;
         let project = GpuProject::new(&ctx)?;
         let exact = GpuExact::new(&ctx)?;
-        Ok(GpuBackend { ctx, edt, integrator, raycast, project, exact, exact_host: ExactBuffers::default(), bits: Vec::new() })
+        Ok(GpuBackend { ctx, edt, integrator, raycast, project, exact, exact_host: ExactBuffers::default(), bits: Vec::new(), max_tile_voxels: u64::MAX })
     }
 
     /// Caps the blocks of the global EDT the exact integration keeps
@@ -73,6 +74,14 @@ impl GpuBackend {
     /// twice the largest region seen, within the device's buffer limit.
     pub fn limit_resident_blocks(&mut self, blocks: usize) {
         self.exact.limit_pool(blocks);
+    }
+
+    /// Caps the voxels of one batch EDT of the exact integration (its
+    /// region grown by the cutoff's reach twice) at `voxels`, below the
+    /// device's buffer limit, which is the default: larger regions go in
+    /// tiles, each exact, so the map is the same.
+    pub fn limit_tile_voxels(&mut self, voxels: u64) {
+        self.max_tile_voxels = voxels;
     }
 
     /// The device in use.
@@ -94,15 +103,57 @@ impl GpuBackend {
     /// Recomputes `region` of `map` exactly: on the device with its
     /// resident block pool, only the changed blocks read back; on the host
     /// from the device's batch EDT where the pool cannot encode the cutoff.
+    /// A region whose source box (grown by the reach) is over the device's
+    /// buffer limit goes in tiles that fit, each exact on its own.
     fn recompute(&mut self, map: &mut edtmap_core::EdtMap, obstacles: &edtmap_core::Obstacles<'_>, region: Region, cutoff: edtmap_core::Cutoff) -> Result<IntegrateReport, BackendError> {
-        let packing = Packing::new(region, cutoff)?;
-        let written = if GpuExact::supports(cutoff.reach) {
-            self.exact.run(&mut self.edt, map, obstacles, &packing)?
-        } else {
-            recompute_exact(&mut self.edt, map, obstacles, &packing, &mut self.exact_host)?
-        };
-        Ok(written.into_report(region.len(), WaveCounts::default()))
+        let limits = self.ctx.limits();
+        // The batch EDT's largest buffers hold 8 bytes per source voxel.
+        let max_voxels = (limits.max_buffer_size.min(limits.max_storage_buffer_binding_size) / 8).min(self.max_tile_voxels);
+        let tile = tile_dims(region.dims, cutoff.reach, max_voxels).ok_or(BackendError::OverLimit {
+            what: "the exact integration's batch EDT (even an 8³ tile grown by the cutoff's reach)",
+            needed: 8 * (8 + 2 * cutoff.reach as u64).pow(3),
+            limit: 8 * max_voxels,
+        })?;
+        let mut total = IntegrateReport::default();
+        for z in (0..region.dims[2]).step_by(tile[2]) {
+            for y in (0..region.dims[1]).step_by(tile[1]) {
+                for x in (0..region.dims[0]).step_by(tile[0]) {
+                    let c = [x, y, z];
+                    let part = Region { origin: [0, 1, 2].map(|a| region.origin[a] + c[a] as i32), dims: [0, 1, 2].map(|a| tile[a].min(region.dims[a] - c[a])) };
+                    let packing = Packing::new(part, cutoff)?;
+                    let written = if GpuExact::supports(cutoff.reach) {
+                        self.exact.run(&mut self.edt, map, obstacles, &packing)?
+                    } else {
+                        recompute_exact(&mut self.edt, map, obstacles, &packing, &mut self.exact_host)?
+                    };
+                    total.voxels_changed += written.voxels_changed;
+                    total.change_sum_vox += written.change_sum_vox;
+                    total.changed_blocks.extend(written.changed_blocks);
+                }
+            }
+        }
+        total.changed_blocks.sort_unstable();
+        total.changed_blocks.dedup();
+        total.region_voxels = region.len();
+        Ok(total)
     }
+}
+
+/// Tile dims for a region of `dims` whose tiles, grown by `reach` on every
+/// side, hold at most `max_voxels`: the region whole if it fits, else its
+/// longest side halved (to whole blocks) until it does; `None` when even
+/// an 8³ tile does not fit.
+fn tile_dims(dims: [usize; 3], reach: i32, max_voxels: u64) -> Option<[usize; 3]> {
+    let grown = |t: [usize; 3]| t.iter().map(|&d| d as u64 + 2 * reach.max(0) as u64).product::<u64>();
+    let mut tile = dims;
+    while grown(tile) > max_voxels {
+        let a = (0..3).max_by_key(|&a| tile[a])?;
+        if tile[a] <= 8 {
+            return None;
+        }
+        tile[a] = (tile[a].div_ceil(2)).div_ceil(8) * 8;
+    }
+    Some(tile)
 }
 
 impl BatchEdt for GpuEdt {
@@ -161,5 +212,19 @@ impl Backend for GpuBackend {
             }
             Integration::Recompute { region } => self.recompute(map, &obstacles, region, cutoff),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::tile_dims;
+
+    #[test]
+    fn tiles_fit_and_cover_in_whole_blocks() {
+        assert_eq!(tile_dims([100, 50, 20], 5, u64::MAX), Some([100, 50, 20]));
+        let t = tile_dims([360, 360, 220], 40, 16 << 20).expect("fits");
+        assert!(t.iter().map(|&d| d as u64 + 80).product::<u64>() <= 16 << 20, "{t:?}");
+        assert!(t.iter().all(|&d| d % 8 == 0), "{t:?}");
+        assert_eq!(tile_dims([64, 64, 64], 40, 1000), None);
     }
 }

@@ -35,15 +35,18 @@ fn same_report(a: &IntegrateReport, b: &IntegrateReport, at: &str) {
 
 /// A GPU map kept equal to a CPU map while the pool is kept, dropped
 /// (every third frame runs on the CPU instead) or evicted (a one-block
-/// cap leaves only the current region resident).
+/// cap leaves only the current region resident), whole or in tiles.
 #[test]
 fn resident_pool_gives_the_cpu_map_frame_after_frame() {
     let Some(mut gpu) = common::gpu_or_skip("resident pool") else { return };
     let Some(mut tiny) = common::gpu_or_skip("resident pool") else { return };
     tiny.limit_resident_blocks(1);
+    // Regions in tiles of at most 24³ source voxels: the cutoffs of 2–7
+    // voxels leave tiles of 8 to 16 voxels a side.
+    tiny.limit_tile_voxels(24 * 24 * 24);
     for seed in 0..6u64 {
         let stage = stage(2 + seed % 6);
-        for (name, backend) in [("default pool", &mut gpu), ("one-block cap", &mut tiny)] {
+        for (name, backend) in [("default pool", &mut gpu), ("one-block cap, small tiles", &mut tiny)] {
             let mut world = IntegrationWorld::new(100 + seed);
             let (mut cpu_map, mut gpu_map) = (EdtMap::new(), EdtMap::new());
             let mut cpu = CpuBackend::default();
