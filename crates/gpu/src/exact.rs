@@ -67,6 +67,8 @@ pub(crate) struct GpuExact {
     frame: u64,
     /// The most blocks the pool may hold.
     max_slots: usize,
+    /// Blocks the current job covers in all (its tiles together).
+    job_blocks: usize,
     /// Values of the blocks being uploaded, and the region's slot table.
     upload: Vec<u32>,
     slot_table: Vec<u32>,
@@ -121,6 +123,7 @@ impl GpuExact {
                 seen: None,
                 frame: 0,
                 max_slots: usize::MAX,
+                job_blocks: 0,
                 upload: Vec::new(),
                 slot_table: Vec::new(),
             }
@@ -133,6 +136,12 @@ impl GpuExact {
         self.max_slots = blocks.max(1);
         self.pool = None;
         self.seen = None;
+    }
+
+    /// Sizes the pool for a job of `blocks` blocks that comes in tiles,
+    /// so that one tile does not evict the blocks of the next frame's.
+    pub(crate) fn reserve(&mut self, blocks: usize) {
+        self.job_blocks = blocks;
     }
 
     /// Whether [`Self::run`] can take a cutoff of `reach` voxels.
@@ -312,8 +321,9 @@ impl GpuExact {
 
     /// Sizes the pool and the per-frame buffers for regions of `nb` blocks.
     fn ensure_buffers(&mut self, nb: usize) -> Result<(), BackendError> {
-        if self.pool.as_ref().is_none_or(|pool| pool.slots < nb) {
-            let slots = (2 * nb).max(MIN_SLOTS);
+        let want = nb.max(self.job_blocks);
+        if self.pool.as_ref().is_none_or(|pool| pool.slots < want) {
+            let slots = (2 * want).max(MIN_SLOTS);
             let max = self.ctx.limits().max_storage_buffer_binding_size.min(self.ctx.limits().max_buffer_size);
             let slots = slots.min((max / BLOCK_BYTES) as usize).min(self.max_slots).max(nb);
             self.pool = None;
