@@ -9,8 +9,8 @@
 //! fraction (so the device's coordinates are small and exact where they
 //! can be), the rotation, and per pixel or beam the range below which a
 //! point is free (`ProjectJob::free_below_m`, the CPU's own `f32`
-//! subtraction). Depth cameras and planar scans run here; LiDAR range
-//! images are left to the CPU.
+//! subtraction). Depth cameras, planar scans and spinning LiDARs run here
+//! (for a LiDAR also its ring elevations and the bounds between them).
 
 use crate::context::GpuContext;
 use crate::dispatch::{groups_1d, in_out_kernel, unpack_codes, Kernel};
@@ -31,11 +31,13 @@ struct Params {
     scan: [f32; 4],
     wrap: [i32; 4],
     err: [f32; 4],
+    lidar: [u32; 4],
 }
 
 /// `Params::base[3]` of a depth camera and of a planar scan.
 const KIND_DEPTH: i32 = 0;
 const KIND_PLANAR: i32 = 1;
+const KIND_LIDAR: i32 = 2;
 
 /// Largest voxel offset the shader takes exactly (`x - n` in `f32`).
 const MAX_OFFSET: f64 = (1u32 << 22) as f64;
@@ -77,8 +79,8 @@ impl GpuProject {
 
     /// Decides every voxel of `job.volume` into `bits`, one byte per voxel
     /// (two bits each on the way back)
-    /// (see `Backend::project_volume`). `Ok(false)` for a LiDAR, or for
-    /// geometry beyond the shader's exact range (a sensor millions of
+    /// (see `Backend::project_volume`). `Ok(false)` for geometry beyond
+    /// the shader's exact range (a sensor millions of
     /// voxels away, a scan of more than 2²⁴ beams per turn).
     pub fn run(&mut self, job: &ProjectJob<'_>, bits: &mut Vec<u8>) -> Result<bool, BackendError> {
         let Some(params) = self.prepare(job) else { return Ok(false) };
@@ -154,6 +156,25 @@ impl GpuProject {
                 p.scan = [scan.angle_min_rad.rem_euclid(TAU) as f32, sign, inc.abs() as f32, job.planar_half_thickness_m];
                 p.err[1] = (HOST_REL_ERR * (scan.angle_min_rad.abs() + 4.0 * TAU)) as f32;
                 self.free_below.extend(scan.ranges.iter().map(|&d| job.free_below_m(d, &scan.range)));
+            }
+            (Sensor::Lidar(lidar), Measurement::Lidar(scan)) => {
+                p.base[3] = KIND_LIDAR;
+                let rings = &lidar.ring_elevations_rad;
+                let beams = scan.ranges.len();
+                if beams != rings.len() * lidar.azimuth_bins || beams + 2 * rings.len() + 1 >= u32::MAX as usize {
+                    return None;
+                }
+                p.lidar = [lidar.azimuth_bins as u32, rings.len() as u32, beams as u32, (beams + rings.len()) as u32];
+                // The radius SpinningLidar::ring_passes_at is given.
+                p.scan[3] = (job.volume.voxel_size_m / 2.0) as f32;
+                self.free_below.extend(scan.ranges.iter().map(|&d| job.free_below_m(d, &lidar.range)));
+                self.free_below.extend(rings.iter().map(|&e| e as f32));
+                // Ring k is the nearest on [bound k, bound k + 1): the fan's
+                // ends, and the midpoints between rings.
+                let (lo, hi) = lidar.fan_rad();
+                self.free_below.push(lo as f32);
+                self.free_below.extend(rings.windows(2).map(|w| ((w[0] + w[1]) / 2.0) as f32));
+                self.free_below.push(hi as f32);
             }
             _ => return None,
         }

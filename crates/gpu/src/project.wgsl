@@ -22,6 +22,7 @@ const NOT_MISS: u32 = 0u;
 const MISS: u32 = 1u;
 const UNCERTAIN: u32 = 2u;
 const KIND_DEPTH: i32 = 0;
+const KIND_LIDAR: i32 = 2;
 const PI: f32 = 3.14159265358979;
 const TAU: f32 = 6.28318530717959;
 // Error of atan2_acc against the exact atan2 of its (f32) arguments, rad;
@@ -32,7 +33,7 @@ struct Params {
     // Volume dims and voxel count.
     dims: vec4<u32>,
     // Integer part n of (o / s - 1/2) per axis (o: sensor origin from the
-    // volume's corner), and the kind (0 depth, 1 planar).
+    // volume's corner), and the kind (0 depth, 1 planar, 2 LiDAR).
     base: vec4<i32>,
     // Fraction f = o / s - 1/2 - n per axis (|f| <= 1/2) and the voxel size.
     frac: vec4<f32>,
@@ -52,11 +53,16 @@ struct Params {
     // Bounds on the CPU's f64 errors: x on the point, m; y on the scan
     // angle relative to angle_min (and the host's reduction mod 2 pi), rad.
     err: vec4<f32>,
+    // LiDAR: azimuth bins, rings, and where in `free_below` the ring
+    // elevations (rings words) and the rings' elevation bounds (rings + 1
+    // words: ring k is nearest on [bound k, bound k + 1)) start.
+    lidar: vec4<u32>,
 }
 
 @group(0) @binding(0) var<uniform> P: Params;
 // Per pixel or beam: the range below which a point is free
-// (ProjectJob::free_below_m, computed on the host), f32::MIN for never.
+// (ProjectJob::free_below_m, computed on the host), f32::MIN for never;
+// for a LiDAR (beam ring * bins + bin), then its rings and ring bounds.
 @group(0) @binding(1) var<storage, read> free_below: array<f32>;
 @group(0) @binding(2) var<storage, read_write> out: array<u32>;
 
@@ -213,6 +219,102 @@ fn planar(p: vec3<f32>, ep: f32) -> u32 {
     return merge(beam(floor(k - ma), r, mr), beam(floor(k + ma), r, mr));
 }
 
+// Three-valued AND: NOT_MISS if either is, MISS if both are.
+fn both(a: u32, b: u32) -> u32 {
+    if (a == NOT_MISS || b == NOT_MISS) {
+        return NOT_MISS;
+    }
+    return select(UNCERTAIN, MISS, a == MISS && b == MISS);
+}
+
+// The ring SpinningLidar::nearest_ring gives elevation x (binary search of
+// the bounds), or `rings` for none (outside the fan).
+fn ring_at(x: f32) -> u32 {
+    let n = P.lidar.y;
+    var lo = 0u;
+    var hi = n + 1u;
+    while (lo < hi) {
+        let mid = (lo + hi) / 2u;
+        if (free_below[P.lidar.w + mid] <= x) {
+            lo = mid + 1u;
+        } else {
+            hi = mid;
+        }
+    }
+    // lo bounds lie at or below x.
+    if (lo == 0u || lo > n) {
+        return n;
+    }
+    return lo - 1u;
+}
+
+// One (ring, bin) candidate: the range test, then whether the ring passes
+// within half a voxel (SpinningLidar::ring_passes_at: |ring - el| <=
+// asin(radius / r)); `mring` bounds that comparison's error.
+fn lidar_beam(ring: u32, bin: u32, r: f32, mr: f32, el: f32, reach: f32, mring: f32) -> u32 {
+    if (ring >= P.lidar.y) {
+        return NOT_MISS;
+    }
+    let range = compare(r, free_below[ring * P.lidar.x + bin], mr);
+    let ring_el = free_below[P.lidar.z + ring];
+    return both(range, compare(abs(ring_el - el), reach, mring));
+}
+
+// A spinning LiDAR (SpinningLidar::project, the range test, the ring test).
+// With |p_gpu - p_cpu| <= ep per coordinate (1.75 ep in length):
+// - the range r = |p| differs by 1.75 ep + 15u r (as in `planar`);
+// - the azimuth by ANGLE_ERR + 3.5 ep / h (h the horizontal range, > 4 ep),
+//   and the bin coordinate t = (az + pi) / 2pi * bins by that times
+//   bins / 2pi plus u (4 t + 4) for the GPU's roundings; the cut at ±pi
+//   (bin 0 on one side, bins - 1 on the other) takes both candidates;
+// - the elevation atan2(z, h) by ANGLE_ERR + 1.75 ep / r + 8u (h's
+//   roundings: 12u relative, halved by the derivative), plus 2u for the
+//   rings' and bounds' rounding to f32 (|el| < pi/2);
+// - the ring's reach asin(x), x = radius / r <= 2/3 (r >= 1.5 radius, else
+//   uncertain): ANGLE_ERR + 10u (asin through atan2_acc and a square root)
+//   + x (1.75 ep + 20u r) / (0.745 r) (dx, over sqrt(1 - x²) >= 0.745).
+// Near the ring bounds and bin edges both candidates are decided and must
+// agree.
+fn lidar(p: vec3<f32>, ep: f32) -> u32 {
+    let radius = P.scan.w;
+    let r = sqrt(dot(p, p));
+    let h = sqrt(p.x * p.x + p.y * p.y);
+    if (r < 1.5 * radius || h <= 4.0 * ep || r <= 4.0 * ep) {
+        return UNCERTAIN;
+    }
+    let mr = SLACK * (1.75 * ep + 15.0 * U * r);
+    // Azimuth bin candidates.
+    let bins = P.lidar.x;
+    let az = atan2_acc(p.y, p.x);
+    let t = (az + PI) / TAU * f32(bins);
+    let mt = SLACK * ((ANGLE_ERR + 3.5 * ep / h) * f32(bins) / TAU + U * (4.0 * t + 4.0));
+    if (mt >= 0.5) {
+        return UNCERTAIN;
+    }
+    let k0 = floor(t - mt);
+    let k1 = floor(t + mt);
+    var b0 = u32(max(k0, 0.0));
+    var b1 = min(u32(max(k1, 0.0)), bins - 1u);
+    if (k0 < 0.0 || k1 >= f32(bins)) {
+        b0 = 0u;
+        b1 = bins - 1u;
+    }
+    b0 = min(b0, bins - 1u);
+    // Ring candidates.
+    let el = atan2_acc(p.z, h);
+    let me = SLACK * (ANGLE_ERR + 1.75 * ep / r + 10.0 * U);
+    let r0 = ring_at(el - me);
+    let r1 = ring_at(el + me);
+    // The ring's reach.
+    let x = radius / r;
+    let reach = atan2_acc(x, sqrt((1.0 - x) * (1.0 + x)));
+    let mring = me + SLACK * (ANGLE_ERR + 10.0 * U + x * (1.75 * ep + 20.0 * U * r) / (0.745 * r));
+    var out = lidar_beam(r0, b0, r, mr, el, reach, mring);
+    out = merge(out, lidar_beam(r0, b1, r, mr, el, reach, mring));
+    out = merge(out, lidar_beam(r1, b0, r, mr, el, reach, mring));
+    return merge(out, lidar_beam(r1, b1, r, mr, el, reach, mring));
+}
+
 // The voxel's centre in the sensor frame. d / s = (x - n) - f: the integer
 // part exact, f rounded (u/2), the difference rounded (u |d / s|); times s
 // (s rounded, product rounded: 2u); each row of R (unit norm, entries
@@ -228,6 +330,9 @@ fn decide(i: u32) -> u32 {
     let ep = U * (8.5 * (abs(p.x) + abs(p.y) + abs(p.z)) + P.frac.w) + P.err.x;
     if (P.base.w == KIND_DEPTH) {
         return depth(p, ep);
+    }
+    if (P.base.w == KIND_LIDAR) {
+        return lidar(p, ep);
     }
     return planar(p, ep);
 }

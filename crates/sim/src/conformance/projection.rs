@@ -1,10 +1,10 @@
 //! The volumetric projection suite: a depth camera (metric and 16-bit
-//! images) and planar scanners at random poses over synthetic
-//! measurements; a backend's bytes must match `ProjectJob::is_miss` on
+//! images), planar scanners and spinning LiDARs at random poses over
+//! synthetic measurements; a backend's bytes must match `ProjectJob::is_miss` on
 //! every voxel it decides, and it may leave only a few undecided.
 
 use super::SplitMix;
-use edtmap_core::sensor::{DepthData, DepthImage, Frame, LaserScan, Measurement, PinholeCamera, RangeLimits, Sensor};
+use edtmap_core::sensor::{DepthData, DepthImage, Frame, LaserScan, LidarScan, Measurement, PinholeCamera, RangeLimits, Sensor, SpinningLidar};
 use edtmap_core::{Backend, LocalVolume, Observations, ProjectJob, VoxelIndex, OBS_MISS, OBS_NONE, PROJ_MISS, PROJ_NOT_MISS, PROJ_UNCERTAIN};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use std::f64::consts::{PI, TAU};
@@ -53,6 +53,8 @@ pub struct ProjectionTally {
     pub depth: (usize, usize),
     /// Planar-scan cases in general position.
     pub planar: (usize, usize),
+    /// Spinning-LiDAR cases in general position.
+    pub lidar: (usize, usize),
     /// Aligned cases of both sensors, where many voxels sit on thresholds.
     pub aligned: (usize, usize),
 }
@@ -156,13 +158,14 @@ fn random_rotation(rng: &mut SplitMix, tilt: f64, aligned: bool) -> UnitQuaterni
 }
 
 /// The cases of the projection suite (seeded): `depth` depth-camera frames
-/// (alternating metric and 16-bit images) and `planar` planar scans. One
-/// case in three is aligned: the sensor's axes are the world's and it sits
-/// on voxel faces or centres, the camera's pixel edges and depths (less
-/// the free margin) and the scan's beam edges and plane thickness fall on
-/// voxel centres, so the backend's margins are exercised, not just its
-/// arithmetic.
-pub fn projection_cases(depth: usize, planar: usize) -> Vec<ProjectionCase> {
+/// (alternating metric and 16-bit images), `planar` planar scans and
+/// `lidar` spinning-LiDAR scans. One case in three (one in four for the
+/// LiDAR) is aligned: the sensor's axes are the world's and it sits on
+/// voxel faces or centres, the camera's pixel edges and depths (less the
+/// free margin), the scan's beam edges and plane thickness, the LiDAR's
+/// bin edges, a ring and its ranges fall on voxel centres, so the
+/// backend's margins are exercised, not just its arithmetic.
+pub fn projection_cases(depth: usize, planar: usize, lidar: usize) -> Vec<ProjectionCase> {
     let mut rng = SplitMix(0x5eed_0f9a_07ec_7000);
     let mut cases = Vec::new();
     for k in 0..depth {
@@ -200,7 +203,60 @@ pub fn projection_cases(depth: usize, planar: usize) -> Vec<ProjectionCase> {
         let margin = (voxel_size_m * 3f64.sqrt() / 2.0) as f32;
         cases.push(ProjectionCase { sensor: Sensor::Planar, frame, volume, free_margin_m: margin, clear_no_return: k % 3 == 0, planar_half_thickness_m: half, aligned });
     }
+    for k in 0..lidar {
+        let voxel_size_m = [0.1, 0.2, 0.05][k % 3];
+        let aligned = k % 4 == 3;
+        let (volume, t) = volume_and_position(&mut rng, [64, 64, 24], voxel_size_m, aligned);
+        let range = RangeLimits { min_m: 0.3, max_m: 6.0 };
+        let sensor = if aligned {
+            // Rings every 2° through 0°, bins of 1°: edges on the axes and
+            // the diagonals.
+            SpinningLidar::uniform(17, (-16f64).to_radians(), 16f64.to_radians(), 360, range)
+        } else {
+            let rings = [16usize, 32, 64][k % 3];
+            let mut elevations: Vec<f64> = (0..rings).map(|_| uniform(&mut rng, -0.45, 0.3)).collect();
+            elevations.sort_by(f64::total_cmp);
+            elevations.dedup();
+            SpinningLidar { ring_elevations_rad: elevations, azimuth_bins: [512, 1024, 1800, 2048][k % 4], range }
+        };
+        let mut scan = lidar_scan(&mut rng, &sensor);
+        if aligned {
+            let half = voxel_size_m / 2.0;
+            let half_diagonal = voxel_size_m * 3f64.sqrt() / 2.0;
+            scan.ranges.iter_mut().filter(|d| d.is_finite()).for_each(|d| *d = ((f64::from(*d) / half).round() * half + half_diagonal) as f32);
+        }
+        let rot = random_rotation(&mut rng, 0.1, aligned);
+        let frame = Frame { stamp_s: k as f64, t_world_sensor: Isometry3::from_parts(Translation3::from(Vector3::from(t)), rot), measurement: Measurement::Lidar(scan) };
+        let margin = (voxel_size_m * 3f64.sqrt() / 2.0) as f32;
+        cases.push(ProjectionCase { sensor: Sensor::Lidar(sensor), frame, volume, free_margin_m: margin, clear_no_return: k % 2 == 0, planar_half_thickness_m: 0.0, aligned });
+    }
     cases
+}
+
+/// A spinning LiDAR's scan from inside a box room (walls, floor and
+/// ceiling), with dropouts (NaN, infinity, zero) and returns beyond the
+/// range.
+fn lidar_scan(rng: &mut SplitMix, lidar: &SpinningLidar) -> LidarScan {
+    let centre = [uniform(rng, -1.0, 1.0), uniform(rng, -1.0, 1.0), uniform(rng, 0.0, 0.5)];
+    let half = [uniform(rng, 2.0, 7.0), uniform(rng, 2.0, 7.0), uniform(rng, 1.0, 2.0)];
+    let mut ranges = Vec::with_capacity(lidar.ring_elevations_rad.len() * lidar.azimuth_bins);
+    for r in 0..lidar.ring_elevations_rad.len() {
+        for b in 0..lidar.azimuth_bins {
+            let d = lidar.direction(r, b);
+            // Distance to the box's faces along the beam (the sensor is inside).
+            let t = (0..3)
+                .filter(|&a| d[a].abs() > 1e-12)
+                .map(|a| (centre[a] + half[a].copysign(d[a])) / d[a])
+                .fold(f64::INFINITY, f64::min);
+            ranges.push(match rng.below(40) {
+                0 => f32::INFINITY,
+                1 => f32::NAN,
+                2 => 0.0,
+                _ => t as f32,
+            });
+        }
+    }
+    LidarScan { ranges }
 }
 
 /// Runs the projection suite on `backend` through
@@ -208,7 +264,7 @@ pub fn projection_cases(depth: usize, planar: usize) -> Vec<ProjectionCase> {
 /// `ProjectJob::is_miss` says so. Returns the voxels checked.
 pub fn check_projection(backend: &mut dyn Backend) -> Result<usize, String> {
     let mut checked = 0;
-    for (n, case) in projection_cases(12, 12).iter().enumerate() {
+    for (n, case) in projection_cases(12, 12, 8).iter().enumerate() {
         let job = case.job();
         let obs = Observations::new(case.volume);
         backend.project_volume(&job, &obs).map_err(|e| format!("case {n}: {e}"))?;
@@ -235,7 +291,7 @@ pub fn check_projection(backend: &mut dyn Backend) -> Result<usize, String> {
 pub fn check_projection_bits(mut project: impl FnMut(&ProjectJob<'_>, &mut Vec<u8>) -> Result<bool, String>) -> Result<Option<ProjectionTally>, String> {
     let mut tally = ProjectionTally::default();
     let mut bits = Vec::new();
-    for (n, case) in projection_cases(12, 12).iter().enumerate() {
+    for (n, case) in projection_cases(12, 12, 8).iter().enumerate() {
         let job = case.job();
         if !project(&job, &mut bits)? {
             return Ok(None);
@@ -258,6 +314,7 @@ pub fn check_projection_bits(mut project: impl FnMut(&ProjectJob<'_>, &mut Vec<u
         let slot = match (case.aligned, &case.sensor) {
             (true, _) => &mut tally.aligned,
             (false, Sensor::Planar) => &mut tally.planar,
+            (false, Sensor::Lidar(_)) => &mut tally.lidar,
             (false, _) => &mut tally.depth,
         };
         slot.0 += bits.len();
