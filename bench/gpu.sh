@@ -1,11 +1,19 @@
 #!/usr/bin/env bash
-# The GPU backend against the CPU backend: batch EDT of dense cubes and every
-# built-in scene end to end, on each backend this machine has.
+# The GPU backend against the CPU backend: batch EDT of dense cubes, every
+# built-in scene and both shared recordings end to end, on each backend this
+# machine has.
 #
-#   bash bench/gpu.sh [--quick]
+#   bash bench/gpu.sh [--quick] [--device]
 #
 #   --quick   cubes of 64³ and 128³ only, 10 frames per scene
 #             (default: 128³, 256³ and 512³, 60 frames per scene)
+#   --device  on a machine with a GPU and no toolchain or network (the
+#             device tool's): builds nothing, takes the binary, the GPU test
+#             executables and the recordings from .device/bundle.tar.xz
+#             (made here by `bash bench/gpu_bundle.sh`), unpacks the Vulkan
+#             loader from .device/gl/ if the machine has none, runs every
+#             GPU test with EDTMAP_REQUIRE_GPU=1 first, then measures; the
+#             tables also go to $OUT/gpu.md when OUT is set
 #
 # What it does:
 #   1. Builds the release CLI (cargo build --release --locked -p edtmap-cli;
@@ -28,6 +36,12 @@
 #      per-frame stage times (ogm, batch_edt, integrate, total) from
 #      report.json. Stages the GPU backend leaves to the CPU (fusion,
 #      spinning-LiDAR projection) run on the CPU inside a gpu run.
+#      Then the shared recordings (3dmatch-seq01 with configs/3dmatch.toml,
+#      velodyne-pair with configs/velodyne.toml; from $EDTMAP_DATA, default
+#      ../shared/data, skipped with a note when missing), whole. Each table
+#      also has the device traffic per frame (up and down MB, dispatches,
+#      submissions), the device memory held after the last frame and the
+#      device time per stage (timestamp queries; medians).
 #   5. Checks that the maps saved (--save) by the cpu and gpu runs of every
 #      run are byte-identical (cmp): prints "maps identical" or fails.
 # Grids, reports and maps land in bench/out/gpu/.
@@ -39,11 +53,13 @@ cd "$(dirname "$0")/.."
 # Mesa's window-system probing complains without a runtime directory.
 export XDG_RUNTIME_DIR="${XDG_RUNTIME_DIR:-$(mktemp -d)}"
 quick=0
+device=0
 while [ $# -gt 0 ]; do
     case "$1" in
         --quick) quick=1; shift ;;
+        --device) device=1; shift ;;
         -h|--help) sed -n '2,/^set -euo/p' "$0" | sed '$d' | sed 's/^# \{0,1\}//'; exit 0 ;;
-        *) echo "usage: bash bench/gpu.sh [--quick]" >&2; exit 2 ;;
+        *) echo "usage: bash bench/gpu.sh [--quick] [--device]" >&2; exit 2 ;;
     esac
 done
 if [ "$quick" = 1 ]; then
@@ -53,12 +69,47 @@ else
 fi
 scenes=(uav_pillars ugv_corridor room planar)
 start=$SECONDS
-target="${CARGO_TARGET_DIR:-target}"
-cargo build --release --locked -p edtmap-cli >&2
-edtmap="$target/release/edtmap"
 out=bench/out/gpu
 rm -rf "$out"
 mkdir -p "$out"
+# Everything printed from here on is also kept in $out/gpu.md (and in
+# $OUT/gpu.md on the device tool's machine).
+exec > >(tee "$out/gpu.md" ${OUT:+"$OUT/gpu.md"})
+test_failures=0
+if [ "$device" = 1 ]; then
+    [ -f .device/bundle.tar.xz ] || { echo "gpu.sh --device: .device/bundle.tar.xz is missing (make it with bash bench/gpu_bundle.sh and carry .device)" >&2; exit 1; }
+    bundle=$(mktemp -d)
+    tar -C "$bundle" -xJf .device/bundle.tar.xz
+    edtmap="$bundle/bin/edtmap"
+    data="$bundle/data"
+    if ! ldconfig -p | grep -q 'libvulkan.so.1'; then
+        for f in .device/gl/*.deb; do [ -e "$f" ] && dpkg -x "$f" /; done
+        ldconfig
+    fi
+    nvidia_icd=/usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json
+    if [ -z "${VK_DRIVER_FILES:-}" ] && [ -e "$nvidia_icd" ] && ! ls /usr/share/vulkan/icd.d/nvidia* /etc/vulkan/icd.d/nvidia* >/dev/null 2>&1; then
+        export VK_DRIVER_FILES="$nvidia_icd"
+    fi
+    command -v nvidia-smi >/dev/null && nvidia-smi -L
+    # 0. Every GPU test, a missing adapter a failure.
+    echo "### GPU tests (EDTMAP_REQUIRE_GPU=1)"
+    echo
+    for t in "$bundle"/tests/*; do
+        if EDTMAP_REQUIRE_GPU=1 "$t" >"$out/test_$(basename "$t").log" 2>&1; then
+            echo "- $(basename "$t"): $(grep -h '^test result' "$out/test_$(basename "$t").log" | tail -n 1)"
+        else
+            echo "- $(basename "$t"): FAILED"
+            grep -h -A15 -- '---- .* stdout ----\|panicked' "$out/test_$(basename "$t").log" | head -n 40
+            test_failures=1
+        fi
+    done
+    echo
+else
+    target="${CARGO_TARGET_DIR:-target}"
+    cargo build --release --locked -p edtmap-cli >&2
+    edtmap="$target/release/edtmap"
+    data="${EDTMAP_DATA:-../shared/data}"
+fi
 
 # grid N FILE: an N³ uint8 C-order .npy (format 1.0), 1 % obstacles, seed N.
 grid() {
@@ -137,24 +188,30 @@ echo
 # 2. Built-in scenes end to end, then the issue's full-update target: the
 #    10 x 10 x 3 m window at 0.05 m (uav_pillars at --voxel-size 0.05,
 #    200 x 200 x 60 voxels), fewer frames.
-runs=("${scenes[@]}" "uav_pillars@0.05")
+runs=()
+for sc in "${scenes[@]}"; do runs+=("$sc|$sc, $frames frames|--scene $sc --frames $frames"); done
+f05=$(( frames / 3 > 5 ? frames / 3 : 5 ))
+runs+=("uav_pillars_0.05|uav_pillars at 0.05 m, $f05 frames|--scene uav_pillars --voxel-size 0.05 --frames $f05")
+if [ -d "$data/3dmatch-seq01" ] && [ -d "$data/velodyne-pair" ]; then
+    runs+=("3dmatch|3dmatch-seq01, whole|--config configs/3dmatch.toml --dataset $data/3dmatch-seq01")
+    runs+=("velodyne|velodyne-pair, whole|--config configs/velodyne.toml --dataset $data/velodyne-pair")
+else
+    echo "(the shared recordings are not in $data: set EDTMAP_DATA; skipped)"
+fi
 mismatch=0
 for run in "${runs[@]}"; do
-    s=${run%@*}
-    extra=(); f=$frames; tag=$s
-    if [ "$run" != "$s" ]; then
-        extra=(--voxel-size "${run#*@}"); f=$(( frames / 3 > 5 ? frames / 3 : 5 )); tag="${s}_${run#*@}"
-    fi
-    echo "### $s${extra[1]+ at ${extra[1]} m}, $f frames (edtmap run --scene $s ${extra[*]+"${extra[*]} "}--frames $f): median ms per frame"
+    IFS='|' read -r tag title args <<<"$run"
+    read -r -a extra <<<"$args"
+    echo "### $title (edtmap run $args): median ms per frame"
     echo
     echo "| backend (device) | local volume | ogm | batch_edt | integrate | total | up MB | down MB | dispatches | submits | device MB | device ms ogm / edt / int |"
     echo "|---|---|---|---|---|---|---|---|---|---|---|---|"
     for b in "${backends[@]}"; do
         dir="$out/run_${tag}_$b"
         rm -f "$out/map_${tag}_$b.edtmap"
-        if ! "$edtmap" run --scene "$s" "${extra[@]+"${extra[@]}"}" --frames "$f" --backend "$b" --out "$dir" --save "$out/map_${tag}_$b.edtmap" >/dev/null 2>"$dir.log"; then
+        if ! "$edtmap" run "${extra[@]}" --backend "$b" --out "$dir" --save "$out/map_${tag}_$b.edtmap" >/dev/null 2>"$dir.log"; then
             # The CPU must always work; a GPU may refuse a size over its limits.
-            if [ "$b" = cpu ]; then echo "edtmap run --scene $s --backend cpu failed:" >&2; cat "$dir.log" >&2; exit 1; fi
+            if [ "$b" = cpu ]; then echo "edtmap run $args --backend cpu failed:" >&2; cat "$dir.log" >&2; exit 1; fi
             echo "| $b | not run: $(grep -o 'edtmap: error: .*' "$dir.log" | head -1 | cut -c16-) | | | | | | | | | | |"
             continue
         fi
@@ -193,6 +250,6 @@ PY
     fi
 done
 [ "${#backends[@]}" -gt 1 ] || echo "(one backend only: no map comparison)"
-[ "$mismatch" = 0 ] || exit 1
 echo
 echo "total runtime $((SECONDS - start)) s (build included)"
+[ "$mismatch" = 0 ] && [ "$test_failures" = 0 ] || exit 1
