@@ -35,8 +35,11 @@ mkdir -p "$stage/bin" "$stage/tests" "$stage/data"
 cargo build --release --locked -p edtmap-cli >&2
 cp target/release/edtmap "$stage/bin/"
 # The test executables, from cargo's own list of what it built.
-cargo test --release --locked --no-run --message-format=json -p edtmap-gpu \
-    -p edtmap --test gpu_pipeline --test gpu_integrate --test gpu_projection 2>/dev/null |
+# (Two calls: `--test` narrows every package it is given with.)
+{
+    cargo test --release --locked --no-run --message-format=json -p edtmap-gpu
+    cargo test --release --locked --no-run --message-format=json -p edtmap --test gpu_pipeline --test gpu_integrate --test gpu_projection
+} 2>/dev/null |
     python3 -c '
 import json, sys
 for line in sys.stdin:
