@@ -22,7 +22,7 @@ const SLOTS: usize = 5;
 struct Params {
     len: u32,
     count: u32,
-    final_out: u32,
+    pad: u32,
     total: u32,
 }
 
@@ -50,9 +50,10 @@ pub struct GpuEdt {
 struct Buffers {
     voxels: usize,
     mask: wgpu::Buffer,
-    out_d: wgpu::Buffer,
-    out_s: wgpu::Buffer,
-    staging: wgpu::Buffer,
+    /// Where the last scan leaves the pairs (`dst` of `b_to_a`).
+    a: wgpu::Buffer,
+    /// For reading the pairs back, made on the first [`GpuEdt::run`].
+    staging: Option<wgpu::Buffer>,
     /// src = A, dst = B, and the reverse (A is the other ping-pong buffer).
     a_to_b: wgpu::BindGroup,
     b_to_a: wgpu::BindGroup,
@@ -67,15 +68,7 @@ impl GpuEdt {
                 source: wgpu::ShaderSource::Wgsl(include_str!("edt.wgsl").into()),
             });
             let storage = |binding, read_only| crate::dispatch::storage_entry(binding, read_only);
-            let entries = [
-                crate::dispatch::uniform_entry(0, true),
-                storage(1, true),
-                storage(2, true),
-                storage(3, false),
-                storage(4, false),
-                storage(5, false),
-                storage(6, false),
-            ];
+            let entries = [crate::dispatch::uniform_entry(0, true), storage(1, true), storage(2, true), storage(3, false), storage(4, false)];
             let layout = ctx.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
                 label: Some("edt"),
                 entries: &entries,
@@ -105,23 +98,28 @@ impl GpuEdt {
         let n = EdtField::check_dims(dims)?;
         let mut enc = self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("edt") });
         self.encode(mask, &mut enc)?;
-        let bufs = self.bufs.as_ref().ok_or_else(|| BackendError::Device("buffers missing".into()))?;
-        let bytes_out = 4 * n as u64;
+        let bytes = 8 * n as u64;
+        let bufs = self.bufs.as_mut().ok_or_else(|| BackendError::Device("buffers missing".into()))?;
+        if bufs.staging.is_none() {
+            let size = 8 * bufs.voxels as u64;
+            bufs.staging = Some(self.ctx.scoped(|| self.ctx.buffer("edt staging", size, wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST))?);
+        }
+        let staging = bufs.staging.as_ref().ok_or_else(|| BackendError::Device("staging missing".into()))?;
         self.ctx.scoped(|| {
-            enc.copy_buffer_to_buffer(&bufs.out_d, 0, &bufs.staging, 0, bytes_out);
-            enc.copy_buffer_to_buffer(&bufs.out_s, 0, &bufs.staging, bytes_out, bytes_out);
+            enc.copy_buffer_to_buffer(&bufs.a, 0, staging, 0, bytes);
             self.ctx.queue.submit([enc.finish()]);
         })?;
         let (dist, nearest) = out.prepare(dims)?;
-        self.ctx.read_back(&bufs.staging, 2 * bytes_out, |bytes| {
-            let (d, s) = bytes.split_at(bytes_out as usize);
-            copy_words(d, dist);
-            copy_words(s, nearest);
+        self.ctx.read_back(staging, bytes, |bytes| {
+            for ((d, s), pair) in dist.iter_mut().zip(nearest.iter_mut()).zip(bytes.chunks_exact(8)) {
+                *d = u32::from_ne_bytes([pair[0], pair[1], pair[2], pair[3]]);
+                *s = u32::from_ne_bytes([pair[4], pair[5], pair[6], pair[7]]);
+            }
         })
     }
 
     /// Uploads `mask` (one bit per voxel) and records its EDT into `enc`,
-    /// leaving the result on the device: [`Self::outputs`] then holds the
+    /// leaving the result on the device: [`Self::output`] then holds the
     /// squared distances and the nearest obstacles' linear indices
     /// ([`edtmap_core::NO_SITE`] where there is none), for a later stage
     /// to read there.
@@ -141,7 +139,7 @@ impl GpuEdt {
             Params { len: ny, count: nz * nx, ..Params::default() },
             Params { len: ny, count: nz * nx, ..Params::default() },
             Params { len: nz, count: nx * ny, ..Params::default() },
-            Params { len: nz, count: nx * ny, final_out: 1, total },
+            Params { len: nz, count: nx * ny, ..Params::default() },
         ];
         for (k, p) in slots.iter().enumerate() {
             let at = k * self.slot_bytes as usize;
@@ -168,10 +166,10 @@ impl GpuEdt {
         })
     }
 
-    /// The device buffers [`Self::encode`] leaves its result in: squared
-    /// distances and nearest obstacles, one `u32` per voxel each.
-    pub(crate) fn outputs(&self) -> Option<(&wgpu::Buffer, &wgpu::Buffer)> {
-        self.bufs.as_ref().map(|b| (&b.out_d, &b.out_s))
+    /// The device buffer [`Self::encode`] leaves its result in: per voxel
+    /// a pair of `u32`, the squared distance and the nearest obstacle.
+    pub(crate) fn output(&self) -> Option<&wgpu::Buffer> {
+        self.bufs.as_ref().map(|b| &b.a)
     }
 
     /// Allocates the buffers for `n` voxels unless those in place are large
@@ -182,27 +180,22 @@ impl GpuEdt {
         }
         self.bufs = None;
         let n64 = n as u64;
-        for (what, bytes) in [("the EDT's pair buffers", 8 * n64), ("the EDT's output", 4 * n64)] {
-            self.ctx.check_buffer(what, bytes)?;
-        }
+        self.ctx.check_buffer("the EDT's pair buffers", 8 * n64)?;
         let bufs = self.ctx.scoped(|| {
             let buffer = |label, size, usage| self.ctx.buffer(label, size, usage);
             let storage = wgpu::BufferUsages::STORAGE;
             let mask = buffer("edt mask", n64.div_ceil(32) * 4, storage | wgpu::BufferUsages::COPY_DST);
-            let a = buffer("edt A", 8 * n64, storage);
+            let a = buffer("edt A", 8 * n64, storage | wgpu::BufferUsages::COPY_SRC);
             let b = buffer("edt B", 8 * n64, storage);
             let stack = buffer("edt stack", 8 * n64, storage);
-            let out_d = buffer("edt distances", 4 * n64, storage | wgpu::BufferUsages::COPY_SRC);
-            let out_s = buffer("edt nearest", 4 * n64, storage | wgpu::BufferUsages::COPY_SRC);
-            let staging = buffer("edt staging", 8 * n64, wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST);
             let group = |src: &wgpu::Buffer, dst: &wgpu::Buffer| {
                 let params = wgpu::BufferBinding { buffer: &self.params, offset: 0, size: wgpu::BufferSize::new(16) };
                 let mut resources = vec![wgpu::BindingResource::Buffer(params)];
-                resources.extend([&mask, src, dst, &stack, &out_d, &out_s].map(|b| b.as_entire_binding()));
+                resources.extend([&mask, src, dst, &stack].map(|b| b.as_entire_binding()));
                 self.ctx.bind_group("edt", &self.layout, &resources)
             };
             let (a_to_b, b_to_a) = (group(&a, &b), group(&b, &a));
-            Buffers { voxels: n, mask, out_d, out_s, staging, a_to_b, b_to_a }
+            Buffers { voxels: n, mask, a, staging: None, a_to_b, b_to_a }
         })?;
         self.bufs = Some(bufs);
         Ok(())

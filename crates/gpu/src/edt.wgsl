@@ -25,8 +25,8 @@ struct Params {
     len: u32,
     // Number of lines (scan), product R of the other axes (transpose).
     count: u32,
-    // Scan: write the split outputs instead of `dst`.
-    final_out: u32,
+    // Unused (padding).
+    pad: u32,
     // Voxels in the grid.
     total: u32,
 }
@@ -36,8 +36,6 @@ struct Params {
 @group(0) @binding(2) var<storage, read> src: array<vec2<u32>>;
 @group(0) @binding(3) var<storage, read_write> dst: array<vec2<u32>>;
 @group(0) @binding(4) var<storage, read_write> stack: array<vec2<i32>>;
-@group(0) @binding(5) var<storage, read_write> out_d: array<u32>;
-@group(0) @binding(6) var<storage, read_write> out_s: array<u32>;
 
 // One invocation per item over a 2D grid of workgroups (a 1D dispatch is
 // limited to 65535 workgroups).
@@ -193,11 +191,6 @@ fn scan(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec
             let d = x - p;
             value = vec2<u32>(u32(d * d) + e.x, e.y);
         }
-        if (P.final_out != 0u) {
-            out_d[o] = value.x;
-            out_s[o] = value.y;
-        } else {
-            dst[o] = value;
-        }
+        dst[o] = value;
     }
 }

@@ -106,7 +106,7 @@ impl GpuExact {
                 source: wgpu::ShaderSource::Wgsl(include_str!("exact.wgsl").into()),
             });
             let mut entries = vec![uniform_entry(0, false)];
-            entries.extend((1..=6).map(|b| storage_entry(b, b <= 3)));
+            entries.extend((1..=5).map(|b| storage_entry(b, b <= 2)));
             let layout = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some("exact"), entries: &entries });
             let compare = Kernel::new(ctx, &module, &layout, "compare");
             let params = ctx.buffer("exact params", std::mem::size_of::<Params>() as u64, wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST);
@@ -195,12 +195,12 @@ impl GpuExact {
         };
         let mut enc = self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("exact") });
         edt.encode(&self.mask, &mut enc)?;
-        let (out_d, out_s) = edt.outputs().ok_or_else(|| BackendError::Device("EDT buffers missing".into()))?;
+        let pairs = edt.output().ok_or_else(|| BackendError::Device("EDT buffers missing".into()))?;
         let pool = self.pool.as_ref().ok_or_else(|| BackendError::Device("pool missing".into()))?;
         let bufs = self.frame_bufs.as_ref().ok_or_else(|| BackendError::Device("buffers missing".into()))?;
         let list_bytes = 4 * nb as u64;
         self.ctx.scoped(|| {
-            let resources = [&self.params, out_d, out_s, &bufs.slots, &pool.buffer, &bufs.list, &self.ctrl].map(|b| b.as_entire_binding());
+            let resources = [&self.params, pairs, &bufs.slots, &pool.buffer, &bufs.list, &self.ctrl].map(|b| b.as_entire_binding());
             let group = self.ctx.bind_group("exact", &self.layout, &resources);
             let q = &self.ctx.queue;
             q.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));

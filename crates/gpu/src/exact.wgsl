@@ -1,8 +1,8 @@
 // Exact integration on the device, dispatched by exact.rs.
 //
 // The batch EDT of the source box (the region grown by the cutoff's reach)
-// is left on the device by edt.wgsl: out_d holds squared distances, out_s
-// the nearest obstacles' linear indices in the source box. `compare` turns
+// is left on the device by edt.wgsl: per voxel the squared distance and the
+// nearest obstacle's linear index in the source box. `compare` turns
 // it into each region voxel's new value and compares it with the value the
 // device holds in its block pool (the host map's, kept resident between
 // frames); where they differ it writes the new value into the pool and
@@ -30,16 +30,16 @@ struct Params {
 }
 
 @group(0) @binding(0) var<uniform> P: Params;
-@group(0) @binding(1) var<storage, read> out_d: array<u32>;
-@group(0) @binding(2) var<storage, read> out_s: array<u32>;
+// Per source voxel: squared distance, nearest obstacle's index.
+@group(0) @binding(1) var<storage, read> pairs: array<vec2<u32>>;
 // Pool slot of each region block (x fastest).
-@group(0) @binding(3) var<storage, read> slots: array<u32>;
+@group(0) @binding(2) var<storage, read> slots: array<u32>;
 // 512 values per slot, voxels in block order (x fastest).
-@group(0) @binding(4) var<storage, read_write> pool: array<u32>;
+@group(0) @binding(3) var<storage, read_write> pool: array<u32>;
 // The changed blocks, in no particular order.
-@group(0) @binding(5) var<storage, read_write> list: array<u32>;
+@group(0) @binding(4) var<storage, read_write> list: array<u32>;
 // [0]: how many blocks are listed.
-@group(0) @binding(6) var<storage, read_write> ctrl: array<atomic<u32>>;
+@group(0) @binding(5) var<storage, read_write> ctrl: array<atomic<u32>>;
 
 fn encode(off: vec3<i32>) -> u32 {
     let b = vec3<u32>(off + vec3<i32>(512));
@@ -74,8 +74,9 @@ fn compare(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: 
         }
         let sc = c + vec3<u32>(P.source.w);
         let s = sc.x + P.source.x * (sc.y + P.source.y * sc.z);
-        let d = out_d[s];
-        let n = out_s[s];
+        let e = pairs[s];
+        let d = e.x;
+        let n = e.y;
         var value = FAR;
         if (n != NO_SITE && d <= P.o8.w) {
             let nc = vec3<u32>(n % P.source.x, (n / P.source.x) % P.source.y, n / (P.source.x * P.source.y));
