@@ -1,6 +1,7 @@
 //! The exact batch EDT on the GPU (`edt.wgsl`): a scan along x straight
-//! from the mask bits, then for y and z a transpose and a scan, all in one
-//! compute pass (five dispatches); only the mask goes up
+//! from the mask bits into the layout the scan along y reads, that scan, a
+//! transpose and the scan along z, all in one compute pass (four
+//! dispatches); only the mask goes up
 //! (one bit per voxel) and only the distances and nearest obstacles come
 //! back, or stay on the device for the exact integration (`exact.rs`).
 
@@ -13,8 +14,8 @@ use edtmap_core::{BackendError, CoreError, EdtField, Grid3};
 const MAX_DIAG_SQ: u64 = 1 << 30;
 
 /// Parameter slots, one per dispatch: the scan along x straight from the
-/// mask, then (transpose, scan) along y and along z.
-const SLOTS: usize = 5;
+/// mask, the scan along y, a transpose, the scan along z.
+const SLOTS: usize = 4;
 
 /// Uniform parameters of one dispatch (`Params` in the shader).
 #[repr(C)]
@@ -22,7 +23,7 @@ const SLOTS: usize = 5;
 struct Params {
     len: u32,
     count: u32,
-    pad: u32,
+    aux: u32,
     total: u32,
 }
 
@@ -135,8 +136,7 @@ impl GpuEdt {
         let [nx, ny, nz] = dims.map(|d| d as u32);
         let total = n as u32;
         let slots: [Params; SLOTS] = [
-            Params { len: nx, count: ny * nz, total, ..Params::default() },
-            Params { len: ny, count: nz * nx, ..Params::default() },
+            Params { len: nx, count: ny * nz, aux: nz, total },
             Params { len: ny, count: nz * nx, ..Params::default() },
             Params { len: nz, count: nx * ny, ..Params::default() },
             Params { len: nz, count: nx * ny, ..Params::default() },
@@ -153,16 +153,14 @@ impl GpuEdt {
             q.write_buffer(&bufs.mask, 0, bytemuck::cast_slice(bits));
             let mut pass = self.ctx.pass(enc, "edt");
             let offset = |k: usize| (k as u64 * self.slot_bytes) as u32;
-            // x: straight from the mask bits into [y z x]; then y and z
-            // through a transpose and a scan each.
-            self.scan_x.dispatch_at(&mut pass, &bufs.b_to_a, offset(0), groups_1d(u64::from(ny * nz)));
-            let axes = [(nx, ny * nz), (ny, nz * nx), (nz, nx * ny)];
-            for (axis, &(len, count)) in axes.iter().enumerate().skip(1) {
-                let tiles = u64::from(count).div_ceil(16);
-                let t_groups = [len.div_ceil(16), tiles.min(65535) as u32, tiles.div_ceil(65535) as u32];
-                self.transpose.dispatch_at(&mut pass, &bufs.a_to_b, offset(2 * axis - 1), t_groups);
-                self.scan.dispatch_at(&mut pass, &bufs.b_to_a, offset(2 * axis), groups_1d(u64::from(count)));
-            }
+            // x straight from the mask bits into B as [z x y]; y from B into
+            // A; A transposed into B as [x y z]; z from B into A.
+            self.scan_x.dispatch_at(&mut pass, &bufs.a_to_b, offset(0), groups_1d(u64::from(ny * nz)));
+            self.scan.dispatch_at(&mut pass, &bufs.b_to_a, offset(1), groups_1d(u64::from(nz * nx)));
+            let tiles = u64::from(nx * ny).div_ceil(16);
+            let t_groups = [nz.div_ceil(16), tiles.min(65535) as u32, tiles.div_ceil(65535) as u32];
+            self.transpose.dispatch_at(&mut pass, &bufs.a_to_b, offset(2), t_groups);
+            self.scan.dispatch_at(&mut pass, &bufs.b_to_a, offset(3), groups_1d(u64::from(nx * ny)));
         })
     }
 

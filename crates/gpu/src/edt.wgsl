@@ -5,8 +5,9 @@
 // scan a transpose makes the scanned axis the slowest one, so that the
 // invocations of a workgroup, one per line, read and write consecutive
 // addresses at every step (coalesced), as the paper's transposes do:
-//   mask bits (x fastest) -> scan_x into [y z x] -> T -> [z x y] scan y -> T -> [x y z] scan z
-// (scan_x does what a transpose and Meijster's scan would on a binary line).
+//   mask bits (x fastest) -> scan_x into [z x y] -> scan y -> T -> [x y z] scan z
+// (scan_x does what two transposes and Meijster's scan would on a binary
+// line).
 // A cyclic shift of the axes is a 2D transpose of an A x R matrix (A the
 // fastest axis, R the product of the other two), done in 16x16 tiles
 // through workgroup memory.
@@ -25,8 +26,8 @@ struct Params {
     len: u32,
     // Number of lines (scan), product R of the other axes (transpose).
     count: u32,
-    // Unused (padding).
-    pad: u32,
+    // scan_x: the grid's z size.
+    aux: u32,
     // Voxels in the grid.
     total: u32,
 }
@@ -43,11 +44,12 @@ fn flat_id(wid: vec3<u32>, nwg: vec3<u32>, lid: u32) -> u32 {
     return (wid.x + wid.y * nwg.x) * GROUP + lid;
 }
 
-// The scan along x, straight from the mask: invocation l
-// walks x-line l (l = y + ny z) of the mask bits and writes the line's 1D
-// EDT at dst[l + count x], the layout `scan` along x would leave. On a
-// binary line Meijster's envelope is the nearest obstacle, the lower one
-// on a tie, which is what this writes.
+// The scan along x, straight from the mask: invocation l = z + nz y walks
+// the x line (y, z) of the mask bits and writes the line's 1D EDT where the
+// scan along y reads it, [z x y] (element y of line z + nz x), so no
+// transpose is needed in between; neighbouring invocations write
+// neighbouring addresses. On a binary line Meijster's envelope is the
+// nearest obstacle, the lower one on a tie, which is what this writes.
 @compute @workgroup_size(64)
 fn scan_x(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
           @builtin(local_invocation_index) lid: u32) {
@@ -57,7 +59,12 @@ fn scan_x(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: v
         return;
     }
     let n = P.len;
-    let base = n * l;
+    let nz = P.aux;
+    let z = l % nz;
+    let y = l / nz;
+    let base = n * (y + (c / nz) * z);
+    // Element x of this line goes to first + nz x.
+    let first = z + nz * n * y;
     // Forward: the nearest obstacle at or before x, parked in dst.
     var left = INF;
     for (var x = 0u; x < n; x++) {
@@ -65,7 +72,7 @@ fn scan_x(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: v
         if (((mask[i >> 5u] >> (i & 31u)) & 1u) != 0u) {
             left = x;
         }
-        dst[l + c * x] = vec2<u32>(left, 0u);
+        dst[first + nz * x] = vec2<u32>(left, 0u);
     }
     // Backward: against the nearest one after x.
     var right = INF;
@@ -75,7 +82,7 @@ fn scan_x(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: v
         if (((mask[i >> 5u] >> (i & 31u)) & 1u) != 0u) {
             right = x;
         }
-        let lo = dst[l + c * x].x;
+        let lo = dst[first + nz * x].x;
         var p = INF;
         if (lo != INF && (right == INF || x - lo <= right - x)) {
             p = lo;
@@ -87,7 +94,7 @@ fn scan_x(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: v
             let d = max(x, p) - min(x, p);
             value = vec2<u32>(d * d, base + p);
         }
-        dst[l + c * x] = value;
+        dst[first + nz * x] = value;
     }
 }
 
