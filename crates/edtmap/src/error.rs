@@ -32,6 +32,9 @@ pub enum MapError {
         /// The problem, naming the field.
         source: CoreError,
     },
+    /// A thread panicked while it held this (a [`crate::SharedMapper`]'s
+    /// mapper or snapshot); what it guards may be half-updated.
+    Poisoned(&'static str),
 }
 
 impl fmt::Display for MapError {
@@ -43,6 +46,7 @@ impl fmt::Display for MapError {
             MapError::Io(e) => e.fmt(f),
             MapError::ConfigFile { path, message } => write!(f, "{path}: {message}"),
             MapError::Config { section, source } => write!(f, "config [{section}] {source}"),
+            MapError::Poisoned(what) => write!(f, "{what} was left half-updated by a panic in another thread; make a new mapper (saving this one's map first may keep what it had)"),
         }
     }
 }
@@ -56,7 +60,7 @@ impl std::error::Error for MapError {
             MapError::Cpu(e) => e.source(),
             MapError::Backend(e) => e.source(),
             MapError::Io(e) => e.source(),
-            MapError::ConfigFile { .. } | MapError::Config { .. } => None,
+            MapError::ConfigFile { .. } | MapError::Config { .. } | MapError::Poisoned(_) => None,
         }
     }
 }

@@ -56,6 +56,7 @@ pub mod eval;
 mod error;
 mod mapfile;
 mod mapper;
+mod shared;
 
 pub use edtmap_core::*;
 /// The CPU backend (rayon), the reference implementation.
@@ -63,4 +64,5 @@ pub use edtmap_cpu as cpu;
 pub use error::MapError;
 pub use mapfile::{load_map, save_map};
 pub use mapper::{Cleared, FrameStats, Mapper, MapperParams};
+pub use shared::SharedMapper;
 pub use edtmap_cpu::query::{Distance, DistanceBox, PointState};

@@ -1,0 +1,855 @@
+//! The C ABI of edtmap: `include/edtmap.h` (generated from this file by
+//! cbindgen; `tests/header.rs` checks that the committed header is current)
+//! and the C++17 wrapper `include/edtmap.hpp` over it.
+//!
+//! # Conventions
+//! - Every function that can fail returns an [`edtmap_status`];
+//!   [`edtmap_last_error`] then gives the message, per thread (the last
+//!   failed call *of the calling thread*).
+//! - Handles are opaque: [`edtmap_mapper`] (a mapping pipeline) and
+//!   [`edtmap_map`] (a saved map, for queries). Each `*_new`/`*_load` is
+//!   paired with a `*_free`. There is no global state.
+//! - Pointers are checked: a null pointer is [`edtmap_status::EDTMAP_NULL_ARGUMENT`],
+//!   a misaligned one or a length that does not fit
+//!   [`edtmap_status::EDTMAP_INVALID_ARGUMENT`]. Buffers are the caller's; a
+//!   call never keeps a pointer after it returns.
+//! - No panic crosses the boundary: each entry point catches it and
+//!   returns [`edtmap_status::EDTMAP_PANIC`].
+//!
+//! # Threads
+//! Every function taking an `edtmap_mapper*` may be called from any
+//! thread, concurrently with the others on the same mapper: frames are
+//! integrated one at a time (a second caller waits), and queries
+//! ([`edtmap_mapper_query`], [`edtmap_mapper_export_box`],
+//! [`edtmap_mapper_save`]) never wait for a frame: they read the map as it
+//! was after the last frame that finished. An [`edtmap_map`] is immutable:
+//! any number of threads may query it. Only `*_free` must not run
+//! concurrently with another call on the same handle.
+#![allow(non_camel_case_types)]
+#![allow(clippy::missing_safety_doc)]
+
+use std::cell::RefCell;
+use std::ffi::{c_char, CStr, CString};
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::path::Path;
+use std::sync::Arc;
+
+use edtmap::config::Config;
+use edtmap::cpu::CpuBackend;
+use edtmap::sensor::{DepthData, DepthImage, Frame, LaserScan, LidarScan, Measurement, PointCloud, RangeLimits};
+use edtmap::{Backend, FrameStats, GlobalMap, MapError, Mapper, PointState, SharedMapper};
+use edtmap_cpu::query;
+use rayon::prelude::*;
+
+/// The outcome of a call.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum edtmap_status {
+    /// It worked.
+    EDTMAP_OK = 0,
+    /// A required pointer (a handle, a buffer, a path) was null.
+    EDTMAP_NULL_ARGUMENT = 1,
+    /// An argument was out of range: a misaligned pointer, a length that
+    /// does not fit, a non-finite pose, a string that is not UTF-8.
+    EDTMAP_INVALID_ARGUMENT = 2,
+    /// The configuration or the parameters were refused.
+    EDTMAP_CONFIG = 3,
+    /// The frame was refused (it does not fit the sensor, its pose is not
+    /// rigid); the map is as it was.
+    EDTMAP_FRAME = 4,
+    /// A file could not be read or written, or is not a valid map.
+    EDTMAP_IO = 5,
+    /// The backend failed (no GPU adapter, a lost device); the frame was
+    /// finished on the CPU and the map is whole.
+    EDTMAP_BACKEND = 6,
+    /// edtmap panicked (a bug): the handle should be freed.
+    EDTMAP_PANIC = 7,
+}
+
+/// The sensor a mapper made by [`edtmap_mapper_new`] takes frames of.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum edtmap_sensor {
+    /// Point clouds in the sensor frame ([`edtmap_integrate_points`]).
+    EDTMAP_SENSOR_POINTS = 0,
+    /// A pinhole depth camera ([`edtmap_integrate_depth`],
+    /// [`edtmap_integrate_depth_u16`]).
+    EDTMAP_SENSOR_DEPTH = 1,
+    /// A spinning LiDAR with evenly spread rings
+    /// ([`edtmap_integrate_range_image`]).
+    EDTMAP_SENSOR_LIDAR = 2,
+    /// A planar 2D LiDAR ([`edtmap_integrate_scan`]).
+    EDTMAP_SENSOR_PLANAR = 3,
+}
+
+/// The device a mapper runs on.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum edtmap_backend {
+    /// The CPU, all cores (rayon).
+    EDTMAP_BACKEND_CPU = 0,
+    /// A GPU through wgpu (a library built with the `gpu` feature).
+    EDTMAP_BACKEND_GPU = 1,
+    /// A hardware GPU if there is one, else the CPU.
+    EDTMAP_BACKEND_AUTO = 2,
+}
+
+/// Explicit parameters of a mapper ([`edtmap_mapper_new`]); fill them with
+/// [`edtmap_params_default`] first, then set what differs. The fields are
+/// the configuration file's (docs/CONFIG.md), with the same checks.
+#[repr(C)]
+#[derive(Debug, Clone, Copy)]
+pub struct edtmap_params {
+    /// The sensor kind.
+    pub sensor: edtmap_sensor,
+    /// The device.
+    pub backend: edtmap_backend,
+    /// Voxel edge, metres (`[occupancy] voxel_size_m`).
+    pub voxel_size_m: f64,
+    /// Local volume around the sensor, metres (`[occupancy] local_size_m`).
+    pub local_size_m: [f64; 3],
+    /// Cutoff of the global EDT, metres (`[global] max_distance_m`).
+    pub max_distance_m: f64,
+    /// Exact integration (true, the default) or the paper's wavefronts.
+    pub exact: bool,
+    /// Shortest and longest valid return, metres.
+    pub min_range_m: f32,
+    /// See `min_range_m`.
+    pub max_range_m: f32,
+    /// Whether a beam with no return clears space up to `max_range_m`.
+    pub clear_no_return: bool,
+    /// Depth camera: focal lengths and principal point, pixels.
+    pub fx: f64,
+    /// See `fx`.
+    pub fy: f64,
+    /// See `fx`.
+    pub cx: f64,
+    /// See `fx`.
+    pub cy: f64,
+    /// Depth camera: image size, pixels.
+    pub width: u32,
+    /// See `width`.
+    pub height: u32,
+    /// LiDAR: number of rings, evenly spread between the two elevations.
+    pub rings: u32,
+    /// LiDAR: elevation of the lowest ring, degrees.
+    pub elevation_min_deg: f64,
+    /// LiDAR: elevation of the highest ring, degrees.
+    pub elevation_max_deg: f64,
+    /// LiDAR: azimuth bins per turn.
+    pub azimuth_bins: u32,
+}
+
+/// What one frame did ([`Mapper`]'s `FrameStats`).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default)]
+pub struct edtmap_frame_stats {
+    /// Occupancy (ray casting or projection, fusion), milliseconds.
+    pub ogm_ms: f64,
+    /// The window's batch EDT (wavefront mode), milliseconds.
+    pub batch_edt_ms: f64,
+    /// The global EDT's update, milliseconds.
+    pub integrate_ms: f64,
+    /// The whole frame, milliseconds.
+    pub total_ms: f64,
+    /// Voxels observed.
+    pub voxels_updated: u64,
+    /// Voxels whose state (unknown, free, occupied) changed.
+    pub voxels_changed: u64,
+    /// Blocks holding such a voxel.
+    pub changed_blocks: u64,
+    /// Voxels of the global EDT whose distance or obstacle changed.
+    pub edt_voxels_changed: u64,
+    /// Blocks of the map (occupancy, EDT, fixed).
+    pub map_blocks: u64,
+    /// Bytes of the map.
+    pub map_bytes: u64,
+}
+
+/// A dense box's shape ([`edtmap_mapper_export_box`]).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default)]
+pub struct edtmap_box {
+    /// Voxels along x, y, z; element (x, y, z) is at x + nx (y + ny z).
+    pub dims: [u64; 3],
+    /// World voxel index of element (0, 0, 0).
+    pub origin: [i32; 3],
+    /// Voxel edge, metres.
+    pub voxel_size_m: f64,
+}
+
+/// State codes written by the queries: no block there (or not a finite
+/// point).
+pub const EDTMAP_STATE_OUTSIDE: u8 = 0;
+/// In a mapped block, never observed.
+pub const EDTMAP_STATE_UNKNOWN: u8 = 1;
+/// Observed free.
+pub const EDTMAP_STATE_FREE: u8 = 2;
+/// Observed occupied, or a fixed obstacle.
+pub const EDTMAP_STATE_OCCUPIED: u8 = 3;
+
+/// A mapping pipeline: its mapper and the snapshot queries read.
+pub struct edtmap_mapper {
+    shared: SharedMapper<Box<dyn Backend + Send>>,
+    /// A planar LiDAR's range limits (`[sensor]` min and max range).
+    scan_range: RangeLimits,
+}
+
+/// A saved map, loaded for queries.
+pub struct edtmap_map {
+    map: Arc<GlobalMap>,
+}
+
+thread_local! {
+    static LAST_ERROR: RefCell<CString> = RefCell::new(CString::default());
+}
+
+/// An error: its status and message.
+struct Failure(edtmap_status, String);
+
+type Result<T> = std::result::Result<T, Failure>;
+
+fn fail<T>(status: edtmap_status, message: impl Into<String>) -> Result<T> {
+    Err(Failure(status, message.into()))
+}
+
+impl From<MapError> for Failure {
+    fn from(e: MapError) -> Self {
+        let status = match &e {
+            MapError::Io(_) => edtmap_status::EDTMAP_IO,
+            MapError::ConfigFile { .. } | MapError::Config { .. } => edtmap_status::EDTMAP_CONFIG,
+            MapError::Backend(_) => edtmap_status::EDTMAP_BACKEND,
+            MapError::Poisoned(_) => edtmap_status::EDTMAP_PANIC,
+            _ if e.is_backend_failure() => edtmap_status::EDTMAP_BACKEND,
+            _ => edtmap_status::EDTMAP_FRAME,
+        };
+        Failure(status, e.to_string())
+    }
+}
+
+/// Runs `f`, turning its failure or panic into a status and the thread's
+/// last error; `what` names the function in the message.
+fn guard(what: &str, f: impl FnOnce() -> Result<()>) -> edtmap_status {
+    let outcome = catch_unwind(AssertUnwindSafe(f)).unwrap_or_else(|panic| {
+        let why = panic.downcast_ref::<&str>().map(|s| s.to_string()).or_else(|| panic.downcast_ref::<String>().cloned()).unwrap_or_default();
+        Err(Failure(edtmap_status::EDTMAP_PANIC, format!("edtmap panicked (a bug; please report it): {why}")))
+    });
+    match outcome {
+        Ok(()) => edtmap_status::EDTMAP_OK,
+        Err(Failure(status, message)) => {
+            let text = CString::new(format!("{what}: {message}").replace('\0', " ")).unwrap_or_default();
+            LAST_ERROR.with(|e| *e.borrow_mut() = text);
+            status
+        }
+    }
+}
+
+/// A shared reference from a handle pointer.
+unsafe fn handle<'a, T>(ptr: *const T, name: &str) -> Result<&'a T> {
+    // SAFETY: the caller passes a pointer it got from this library (or null).
+    unsafe { ptr.as_ref() }.map_or_else(|| fail(edtmap_status::EDTMAP_NULL_ARGUMENT, format!("{name} is null")), Ok)
+}
+
+/// A slice of `len` `T` at `ptr`, checked for null, alignment and size.
+unsafe fn slice<'a, T>(ptr: *const T, len: usize, name: &str) -> Result<&'a [T]> {
+    check_ptr(ptr, len, name)?;
+    if len == 0 {
+        return Ok(&[]);
+    }
+    // SAFETY: non-null, aligned, and the caller promises `len` elements.
+    Ok(unsafe { std::slice::from_raw_parts(ptr, len) })
+}
+
+/// A mutable slice of `len` `T` at `ptr`, checked likewise.
+unsafe fn slice_mut<'a, T>(ptr: *mut T, len: usize, name: &str) -> Result<&'a mut [T]> {
+    check_ptr(ptr, len, name)?;
+    if len == 0 {
+        return Ok(&mut []);
+    }
+    // SAFETY: as in `slice`, and the caller gives the buffer to this call.
+    Ok(unsafe { std::slice::from_raw_parts_mut(ptr, len) })
+}
+
+fn check_ptr<T>(ptr: *const T, len: usize, name: &str) -> Result<()> {
+    if ptr.is_null() {
+        return fail(edtmap_status::EDTMAP_NULL_ARGUMENT, format!("{name} is null"));
+    }
+    if !(ptr as usize).is_multiple_of(std::mem::align_of::<T>()) {
+        return fail(edtmap_status::EDTMAP_INVALID_ARGUMENT, format!("{name} is not aligned to {} bytes", std::mem::align_of::<T>()));
+    }
+    if len.checked_mul(std::mem::size_of::<T>()).is_none_or(|b| b > isize::MAX as usize) {
+        return fail(edtmap_status::EDTMAP_INVALID_ARGUMENT, format!("{name}: {len} elements is more than memory holds"));
+    }
+    Ok(())
+}
+
+/// A UTF-8 path from a C string.
+unsafe fn path<'a>(ptr: *const c_char, name: &str) -> Result<&'a Path> {
+    if ptr.is_null() {
+        return fail(edtmap_status::EDTMAP_NULL_ARGUMENT, format!("{name} is null"));
+    }
+    // SAFETY: the caller passes a NUL-terminated string.
+    let text = unsafe { CStr::from_ptr(ptr) }.to_str().or_else(|_| fail(edtmap_status::EDTMAP_INVALID_ARGUMENT, format!("{name} is not UTF-8")))?;
+    Ok(Path::new(text))
+}
+
+/// Writes `value` through `out`, checked for null.
+unsafe fn put<T>(out: *mut T, value: T, name: &str) -> Result<()> {
+    if out.is_null() {
+        return fail(edtmap_status::EDTMAP_NULL_ARGUMENT, format!("{name} is null"));
+    }
+    // SAFETY: non-null, and the caller passes a writable `T`.
+    unsafe { out.write(value) };
+    Ok(())
+}
+
+fn open_backend(b: edtmap_backend) -> Result<Box<dyn Backend + Send>> {
+    match b {
+        edtmap_backend::EDTMAP_BACKEND_CPU => Ok(Box::new(CpuBackend::default())),
+        #[cfg(feature = "gpu")]
+        edtmap_backend::EDTMAP_BACKEND_GPU => {
+            let gpu = edtmap_gpu::GpuBackend::new().or_else(|e| fail(edtmap_status::EDTMAP_BACKEND, e.to_string()))?;
+            Ok(Box::new(gpu))
+        }
+        #[cfg(feature = "gpu")]
+        edtmap_backend::EDTMAP_BACKEND_AUTO => match edtmap_gpu::GpuBackend::new() {
+            Ok(gpu) if !gpu.context().is_software() => Ok(Box::new(gpu)),
+            _ => Ok(Box::new(CpuBackend::default())),
+        },
+        #[cfg(not(feature = "gpu"))]
+        edtmap_backend::EDTMAP_BACKEND_GPU => fail(edtmap_status::EDTMAP_BACKEND, "this build of libedtmap_c has no GPU backend; build it with the `gpu` feature (cmake -DEDTMAP_GPU=ON)"),
+        #[cfg(not(feature = "gpu"))]
+        edtmap_backend::EDTMAP_BACKEND_AUTO => Ok(Box::new(CpuBackend::default())),
+    }
+}
+
+fn mapper_from(config: &Config, backend: edtmap_backend, map: Option<GlobalMap>) -> Result<Box<edtmap_mapper>> {
+    let (sensor, params) = config.mapper_params()?;
+    let scan_range = RangeLimits { min_m: config.sensor.min_range_m, max_m: config.sensor.max_range_m };
+    let backend = open_backend(backend)?;
+    let mapper = match map {
+        Some(map) => Mapper::with_map_on(backend, sensor, params, map),
+        None => Mapper::new_on(backend, sensor, params),
+    }?;
+    Ok(Box::new(edtmap_mapper { shared: SharedMapper::new(mapper), scan_range }))
+}
+
+/// The configuration `p` stands for, checked as a file's would be.
+fn config_of(p: &edtmap_params) -> Result<Config> {
+    use serde_json::json;
+    let kind = match p.sensor {
+        edtmap_sensor::EDTMAP_SENSOR_POINTS => "points",
+        edtmap_sensor::EDTMAP_SENSOR_DEPTH => "depth",
+        edtmap_sensor::EDTMAP_SENSOR_LIDAR => "lidar",
+        edtmap_sensor::EDTMAP_SENSOR_PLANAR => "planar",
+    };
+    let mut sensor = json!({
+        "kind": kind,
+        "min_range_m": p.min_range_m,
+        "max_range_m": p.max_range_m,
+        "clear_no_return": p.clear_no_return,
+    });
+    match p.sensor {
+        edtmap_sensor::EDTMAP_SENSOR_DEPTH => {
+            for (k, v) in [("fx", json!(p.fx)), ("fy", json!(p.fy)), ("cx", json!(p.cx)), ("cy", json!(p.cy)), ("width", json!(p.width)), ("height", json!(p.height))] {
+                sensor[k] = v;
+            }
+        }
+        edtmap_sensor::EDTMAP_SENSOR_LIDAR => {
+            for (k, v) in [
+                ("rings", json!(p.rings)),
+                ("elevation_min_deg", json!(p.elevation_min_deg)),
+                ("elevation_max_deg", json!(p.elevation_max_deg)),
+                ("azimuth_bins", json!(p.azimuth_bins)),
+            ] {
+                sensor[k] = v;
+            }
+        }
+        _ => {}
+    }
+    let value = json!({
+        "sensor": sensor,
+        "occupancy": { "voxel_size_m": p.voxel_size_m, "local_size_m": p.local_size_m },
+        "global": { "max_distance_m": p.max_distance_m, "mode": if p.exact { "exact" } else { "wavefront" } },
+    });
+    // Non-finite numbers become JSON null, refused below with the field.
+    serde_json::from_value(value).or_else(|e| fail(edtmap_status::EDTMAP_CONFIG, format!("edtmap_params: {e}")))
+}
+
+/// The library's version, e.g. `"0.1.0"` (static storage).
+#[no_mangle]
+pub extern "C" fn edtmap_version() -> *const c_char {
+    concat!(env!("CARGO_PKG_VERSION"), "\0").as_ptr().cast()
+}
+
+/// The message of the calling thread's last failed call (empty if none);
+/// valid until that thread's next failed call.
+#[no_mangle]
+pub extern "C" fn edtmap_last_error() -> *const c_char {
+    LAST_ERROR.with(|e| e.borrow().as_ptr())
+}
+
+/// Fills `out` with the defaults: a point-cloud sensor (0.3–10 m), 0.1 m
+/// voxels, a 10 × 10 × 4 m local volume, a 2 m cutoff, exact integration,
+/// the CPU; a 640 × 480 camera (fx = fy = 525, centred), a 16-ring LiDAR
+/// (±15°, 1800 bins) for when `sensor` is set to those.
+#[no_mangle]
+pub unsafe extern "C" fn edtmap_params_default(out: *mut edtmap_params) -> edtmap_status {
+    guard("edtmap_params_default", || {
+        let p = edtmap_params {
+            sensor: edtmap_sensor::EDTMAP_SENSOR_POINTS,
+            backend: edtmap_backend::EDTMAP_BACKEND_CPU,
+            voxel_size_m: 0.1,
+            local_size_m: [10.0, 10.0, 4.0],
+            max_distance_m: 2.0,
+            exact: true,
+            min_range_m: 0.3,
+            max_range_m: 10.0,
+            clear_no_return: false,
+            fx: 525.0,
+            fy: 525.0,
+            cx: 319.5,
+            cy: 239.5,
+            width: 640,
+            height: 480,
+            rings: 16,
+            elevation_min_deg: -15.0,
+            elevation_max_deg: 15.0,
+            azimuth_bins: 1800,
+        };
+        // SAFETY: the caller passes a writable `edtmap_params`.
+        unsafe { put(out, p, "out") }
+    })
+}
+
+/// A mapper with the parameters `params` into `*out` (free it with
+/// [`edtmap_mapper_free`]).
+#[no_mangle]
+pub unsafe extern "C" fn edtmap_mapper_new(params: *const edtmap_params, out: *mut *mut edtmap_mapper) -> edtmap_status {
+    guard("edtmap_mapper_new", || {
+        // SAFETY: the caller passes a valid `edtmap_params` or null.
+        let p = unsafe { handle(params, "params") }?;
+        let mapper = mapper_from(&config_of(p)?, p.backend, None)?;
+        // SAFETY: the caller passes a writable pointer or null.
+        unsafe { put(out, Box::into_raw(mapper), "out") }
+    })
+}
+
+/// A mapper from the configuration file at `config_path` (the TOML of
+/// `edtmap run --config`) on `backend` into `*out`.
+#[no_mangle]
+pub unsafe extern "C" fn edtmap_mapper_from_config(config_path: *const c_char, backend: edtmap_backend, out: *mut *mut edtmap_mapper) -> edtmap_status {
+    guard("edtmap_mapper_from_config", || {
+        // SAFETY: the caller passes a NUL-terminated string or null.
+        let config = Config::load(unsafe { path(config_path, "config_path") }?)?;
+        let mapper = mapper_from(&config, backend, None)?;
+        // SAFETY: as in `edtmap_mapper_new`.
+        unsafe { put(out, Box::into_raw(mapper), "out") }
+    })
+}
+
+/// A mapper from the configuration file at `config_path`, continuing the
+/// map saved at `map_path` (by [`edtmap_mapper_save`] or `edtmap run
+/// --save`), into `*out`.
+#[no_mangle]
+pub unsafe extern "C" fn edtmap_mapper_resume(config_path: *const c_char, map_path: *const c_char, backend: edtmap_backend, out: *mut *mut edtmap_mapper) -> edtmap_status {
+    guard("edtmap_mapper_resume", || {
+        // SAFETY: as in `edtmap_mapper_from_config`.
+        let config = Config::load(unsafe { path(config_path, "config_path") }?)?;
+        // SAFETY: likewise.
+        let map = edtmap::load_map(unsafe { path(map_path, "map_path") }?)?;
+        let mapper = mapper_from(&config, backend, Some(map))?;
+        // SAFETY: as in `edtmap_mapper_new`.
+        unsafe { put(out, Box::into_raw(mapper), "out") }
+    })
+}
+
+/// Frees a mapper (null is allowed and does nothing).
+#[no_mangle]
+pub unsafe extern "C" fn edtmap_mapper_free(mapper: *mut edtmap_mapper) {
+    if !mapper.is_null() {
+        // SAFETY: the pointer came from `Box::into_raw` in this library and
+        // is freed once, as the header documents.
+        let _ = catch_unwind(AssertUnwindSafe(|| drop(unsafe { Box::from_raw(mapper) })));
+    }
+}
+
+/// A pose from a row-major 4 × 4 rigid transform.
+unsafe fn pose(t_world_sensor: *const f64) -> Result<nalgebra::Isometry3<f64>> {
+    // SAFETY: the caller passes 16 doubles or null.
+    let v = unsafe { slice(t_world_sensor, 16, "t_world_sensor") }?;
+    if let Some(x) = v.iter().find(|x| !x.is_finite()) {
+        return fail(edtmap_status::EDTMAP_INVALID_ARGUMENT, format!("t_world_sensor holds {x}; every value must be finite"));
+    }
+    let mut m = [[0.0; 4]; 4];
+    for (r, row) in m.iter_mut().enumerate() {
+        row.copy_from_slice(&v[4 * r..4 * r + 4]);
+    }
+    edtmap::sensor::pose_from_matrix(&m).or_else(|e| fail(edtmap_status::EDTMAP_INVALID_ARGUMENT, format!("t_world_sensor: {e}")))
+}
+
+/// Integrates a frame and fills `stats` when it is not null.
+unsafe fn integrate(mapper: *const edtmap_mapper, t_world_sensor: *const f64, stamp_s: f64, stats: *mut edtmap_frame_stats, measurement: impl FnOnce(&edtmap_mapper) -> Result<Measurement>) -> Result<()> {
+    // SAFETY: the caller passes a mapper from this library or null.
+    let m = unsafe { handle(mapper, "mapper") }?;
+    // SAFETY: as in `pose`.
+    let t_world_sensor = unsafe { pose(t_world_sensor) }?;
+    let frame = Frame { stamp_s, t_world_sensor, measurement: measurement(m)? };
+    let s: FrameStats = m.shared.integrate(&frame)?;
+    if !stats.is_null() {
+        let out = edtmap_frame_stats {
+            ogm_ms: s.ogm_ms,
+            batch_edt_ms: s.batch_edt_ms,
+            integrate_ms: s.integrate_ms,
+            total_ms: s.total_ms,
+            voxels_updated: s.voxels_updated as u64,
+            voxels_changed: s.voxels_changed as u64,
+            changed_blocks: s.changed_blocks.len() as u64,
+            edt_voxels_changed: s.edt_voxels_changed as u64,
+            map_blocks: s.map_blocks as u64,
+            map_bytes: s.map_bytes as u64,
+        };
+        // SAFETY: non-null; the caller passes a writable stats struct.
+        unsafe { put(stats, out, "stats") }?;
+    }
+    Ok(())
+}
+
+/// Integrates a point cloud: `n_points` points, `xyz` holding x, y, z of
+/// each in the sensor frame (metres), seen from the pose `t_world_sensor`
+/// (16 doubles, a row-major 4 × 4 rigid transform) at `stamp_s` seconds.
+/// `stats` may be null.
+#[no_mangle]
+pub unsafe extern "C" fn edtmap_integrate_points(
+    mapper: *mut edtmap_mapper,
+    xyz: *const f32,
+    n_points: usize,
+    t_world_sensor: *const f64,
+    stamp_s: f64,
+    stats: *mut edtmap_frame_stats,
+) -> edtmap_status {
+    guard("edtmap_integrate_points", || {
+        let len = n_points.checked_mul(3).ok_or(Failure(edtmap_status::EDTMAP_INVALID_ARGUMENT, format!("n_points = {n_points} is too many")))?;
+        // SAFETY: the caller passes 3 n_points floats.
+        let values = unsafe { slice(xyz, len, "xyz") }?;
+        let points = values.as_chunks::<3>().0.to_vec();
+        // SAFETY: the pointers are checked in `integrate`.
+        unsafe { integrate(mapper, t_world_sensor, stamp_s, stats, |_| Ok(Measurement::Points(PointCloud { points }))) }
+    })
+}
+
+/// Integrates a depth image in metres (`width × height` floats, row by row;
+/// 0 or NaN for no return). The camera is the mapper's.
+#[no_mangle]
+pub unsafe extern "C" fn edtmap_integrate_depth(
+    mapper: *mut edtmap_mapper,
+    depth_m: *const f32,
+    width: u32,
+    height: u32,
+    t_world_sensor: *const f64,
+    stamp_s: f64,
+    stats: *mut edtmap_frame_stats,
+) -> edtmap_status {
+    guard("edtmap_integrate_depth", || {
+        let n = width as usize * height as usize;
+        // SAFETY: the caller passes width × height floats.
+        let values = unsafe { slice(depth_m, n, "depth_m") }?.to_vec();
+        let image = DepthImage { width, height, data: DepthData::Metres(values) };
+        // SAFETY: as in `edtmap_integrate_points`.
+        unsafe { integrate(mapper, t_world_sensor, stamp_s, stats, |_| Ok(Measurement::Depth(image))) }
+    })
+}
+
+/// Integrates a 16-bit depth image (`width × height` values, row by row;
+/// 0 for no return), each value times `metres_per_unit` metres (0.001
+/// for millimetres).
+#[no_mangle]
+#[allow(clippy::too_many_arguments)]
+pub unsafe extern "C" fn edtmap_integrate_depth_u16(
+    mapper: *mut edtmap_mapper,
+    depth: *const u16,
+    width: u32,
+    height: u32,
+    metres_per_unit: f32,
+    t_world_sensor: *const f64,
+    stamp_s: f64,
+    stats: *mut edtmap_frame_stats,
+) -> edtmap_status {
+    guard("edtmap_integrate_depth_u16", || {
+        if !(metres_per_unit.is_finite() && metres_per_unit > 0.0) {
+            return fail(edtmap_status::EDTMAP_INVALID_ARGUMENT, format!("metres_per_unit = {metres_per_unit}; it must be a positive number"));
+        }
+        let n = width as usize * height as usize;
+        // SAFETY: the caller passes width × height values.
+        let values = unsafe { slice(depth, n, "depth") }?.to_vec();
+        let image = DepthImage { width, height, data: DepthData::U16 { values, metres_per_unit } };
+        // SAFETY: as in `edtmap_integrate_points`.
+        unsafe { integrate(mapper, t_world_sensor, stamp_s, stats, |_| Ok(Measurement::Depth(image))) }
+    })
+}
+
+/// Integrates a planar scan: `n` ranges (metres; NaN, infinity or out of
+/// the mapper's range for no return), beam i at `angle_min_rad + i ·
+/// angle_increment_rad` in the sensor's x-y plane.
+#[no_mangle]
+#[allow(clippy::too_many_arguments)]
+pub unsafe extern "C" fn edtmap_integrate_scan(
+    mapper: *mut edtmap_mapper,
+    ranges: *const f32,
+    n: usize,
+    angle_min_rad: f64,
+    angle_increment_rad: f64,
+    t_world_sensor: *const f64,
+    stamp_s: f64,
+    stats: *mut edtmap_frame_stats,
+) -> edtmap_status {
+    guard("edtmap_integrate_scan", || {
+        // SAFETY: the caller passes n floats.
+        let ranges = unsafe { slice(ranges, n, "ranges") }?.to_vec();
+        // SAFETY: as in `edtmap_integrate_points`.
+        unsafe {
+            integrate(mapper, t_world_sensor, stamp_s, stats, |m| {
+                Ok(Measurement::Scan(LaserScan { angle_min_rad, angle_increment_rad, ranges, range: m.scan_range }))
+            })
+        }
+    })
+}
+
+/// Integrates a spinning LiDAR's range image: `n` = rings × azimuth bins
+/// ranges (metres), ring by ring from the lowest, bins from azimuth −π.
+#[no_mangle]
+pub unsafe extern "C" fn edtmap_integrate_range_image(
+    mapper: *mut edtmap_mapper,
+    ranges: *const f32,
+    n: usize,
+    t_world_sensor: *const f64,
+    stamp_s: f64,
+    stats: *mut edtmap_frame_stats,
+) -> edtmap_status {
+    guard("edtmap_integrate_range_image", || {
+        // SAFETY: the caller passes n floats.
+        let ranges = unsafe { slice(ranges, n, "ranges") }?.to_vec();
+        // SAFETY: as in `edtmap_integrate_points`.
+        unsafe { integrate(mapper, t_world_sensor, stamp_s, stats, |_| Ok(Measurement::Lidar(LidarScan { ranges }))) }
+    })
+}
+
+/// Points per parallel task of a batched query.
+const QUERY_CHUNK: usize = 4096;
+
+fn state_code(s: PointState) -> u8 {
+    match s {
+        PointState::Outside => EDTMAP_STATE_OUTSIDE,
+        PointState::Unknown => EDTMAP_STATE_UNKNOWN,
+        PointState::Free => EDTMAP_STATE_FREE,
+        PointState::Occupied => EDTMAP_STATE_OCCUPIED,
+    }
+}
+
+/// Distances (and gradients and states where those buffers are not null)
+/// of `n` points of `map`, in parallel.
+#[allow(clippy::too_many_arguments)]
+unsafe fn query_into(map: &GlobalMap, points: *const f64, n: usize, signed: bool, distances: *mut f64, gradients: *mut f64, states: *mut u8) -> Result<()> {
+    let len3 = n.checked_mul(3).ok_or(Failure(edtmap_status::EDTMAP_INVALID_ARGUMENT, format!("n = {n} is too many")))?;
+    // SAFETY: the caller passes 3 n doubles.
+    let pts = unsafe { slice(points, len3, "points") }?.as_chunks::<3>().0;
+    // SAFETY: the caller passes n doubles to write.
+    let dist = unsafe { slice_mut(distances, n, "distances") }?;
+    let mut grad = if gradients.is_null() {
+        None
+    } else {
+        // SAFETY: non-null; the caller passes 3 n doubles to write.
+        Some(unsafe { slice_mut(gradients, len3, "gradients") }?)
+    };
+    let mut state = if states.is_null() {
+        None
+    } else {
+        // SAFETY: non-null; the caller passes n bytes to write.
+        Some(unsafe { slice_mut(states, n, "states") }?)
+    };
+    let grad_chunks = grad.as_mut().map(|g| g.par_chunks_mut(3 * QUERY_CHUNK));
+    let state_chunks = state.as_mut().map(|s| s.par_chunks_mut(QUERY_CHUNK));
+    let answer = |(pts, dist): (&[[f64; 3]], &mut [f64]), mut grad: Option<&mut [f64]>, mut state: Option<&mut [u8]>| {
+        for (i, p) in pts.iter().enumerate() {
+            let d = query::distance(map, *p, signed);
+            dist[i] = d.distance_m;
+            if let Some(g) = grad.as_deref_mut() {
+                g[3 * i..3 * i + 3].copy_from_slice(&d.gradient);
+            }
+            if let Some(s) = state.as_deref_mut() {
+                s[i] = state_code(d.state);
+            }
+        }
+    };
+    let base = pts.par_chunks(QUERY_CHUNK).zip(dist.par_chunks_mut(QUERY_CHUNK));
+    match (grad_chunks, state_chunks) {
+        (Some(g), Some(s)) => base.zip(g).zip(s).for_each(|((b, g), s)| answer(b, Some(g), Some(s))),
+        (Some(g), None) => base.zip(g).for_each(|(b, g)| answer(b, Some(g), None)),
+        (None, Some(s)) => base.zip(s).for_each(|(b, s)| answer(b, None, Some(s))),
+        (None, None) => base.for_each(|b| answer(b, None, None)),
+    }
+    Ok(())
+}
+
+/// Distances (metres) to the nearest obstacle at `n` world points (`points`:
+/// x, y, z of each), interpolated between voxel centres, into `distances`
+/// (n doubles); their gradients into `gradients` (3 n doubles) and their
+/// states (`EDTMAP_STATE_*`) into `states` (n bytes) unless those are null.
+/// `signed`: negative inside obstacles. Saturated at the cutoff; NaN for a
+/// point that is not finite. Reads the map as of the last finished frame.
+#[no_mangle]
+#[allow(clippy::too_many_arguments)]
+pub unsafe extern "C" fn edtmap_mapper_query(
+    mapper: *const edtmap_mapper,
+    points: *const f64,
+    n: usize,
+    signed: bool,
+    distances: *mut f64,
+    gradients: *mut f64,
+    states: *mut u8,
+) -> edtmap_status {
+    guard("edtmap_mapper_query", || {
+        // SAFETY: a mapper from this library or null.
+        let map = unsafe { handle(mapper, "mapper") }?.shared.snapshot()?;
+        // SAFETY: the buffers as documented.
+        unsafe { query_into(&map, points, n, signed, distances, gradients, states) }
+    })
+}
+
+/// [`edtmap_mapper_query`] on a loaded map.
+#[no_mangle]
+#[allow(clippy::too_many_arguments)]
+pub unsafe extern "C" fn edtmap_map_query(
+    map: *const edtmap_map,
+    points: *const f64,
+    n: usize,
+    signed: bool,
+    distances: *mut f64,
+    gradients: *mut f64,
+    states: *mut u8,
+) -> edtmap_status {
+    guard("edtmap_map_query", || {
+        // SAFETY: a map from this library or null.
+        let m = unsafe { handle(map, "map") }?;
+        // SAFETY: the buffers as documented.
+        unsafe { query_into(&m.map, points, n, signed, distances, gradients, states) }
+    })
+}
+
+/// The body of the two `export_box` functions.
+#[allow(clippy::too_many_arguments)]
+unsafe fn export_box(map: &GlobalMap, min_m: *const f64, max_m: *const f64, signed: bool, distances: *mut f32, states: *mut u8, capacity: usize, info: *mut edtmap_box) -> Result<()> {
+    // SAFETY: the caller passes 3 doubles each.
+    let (lo, hi) = unsafe { (slice(min_m, 3, "min_m")?, slice(max_m, 3, "max_m")?) };
+    let dense = query::distance_box(map, [lo[0], lo[1], lo[2]], [hi[0], hi[1], hi[2]], signed).or_else(|e| fail(edtmap_status::EDTMAP_INVALID_ARGUMENT, e.to_string()))?;
+    let n = dense.distance_m.len();
+    let shape = edtmap_box { dims: dense.dims.map(|d| d as u64), origin: dense.origin.0, voxel_size_m: map.voxel_size_m() };
+    // SAFETY: the caller passes a writable `edtmap_box` or null.
+    unsafe { put(info, shape, "info") }?;
+    if distances.is_null() && states.is_null() {
+        return Ok(());
+    }
+    if capacity < n {
+        return fail(edtmap_status::EDTMAP_INVALID_ARGUMENT, format!("capacity {capacity} is less than the box's {n} voxels"));
+    }
+    // SAFETY: the caller passes `capacity` elements each.
+    unsafe { slice_mut(distances, n, "distances") }?.copy_from_slice(&dense.distance_m);
+    // SAFETY: likewise.
+    unsafe { slice_mut(states, n, "states") }?.copy_from_slice(&dense.state);
+    Ok(())
+}
+
+/// [`edtmap_map_export_box`] on the mapper's map as of the last finished
+/// frame.
+#[no_mangle]
+#[allow(clippy::too_many_arguments)]
+pub unsafe extern "C" fn edtmap_mapper_export_box(
+    mapper: *const edtmap_mapper,
+    min_m: *const f64,
+    max_m: *const f64,
+    signed: bool,
+    distances: *mut f32,
+    states: *mut u8,
+    capacity: usize,
+    info: *mut edtmap_box,
+) -> edtmap_status {
+    guard("edtmap_mapper_export_box", || {
+        // SAFETY: a mapper from this library or null.
+        let map = unsafe { handle(mapper, "mapper") }?.shared.snapshot()?;
+        // SAFETY: the buffers as documented.
+        unsafe { export_box(&map, min_m, max_m, signed, distances, states, capacity, info) }
+    })
+}
+
+/// A dense box of `map` from `min_m` to `max_m` (world metres): its shape
+/// into `info`, and, unless `distances` and `states` are both null, the
+/// distances (metres) and states (`EDTMAP_STATE_*`) of its voxel centres,
+/// x fastest, into them (`capacity` elements each, at least the box's).
+/// Call with null buffers first to learn the size.
+#[no_mangle]
+#[allow(clippy::too_many_arguments)]
+pub unsafe extern "C" fn edtmap_map_export_box(
+    map: *const edtmap_map,
+    min_m: *const f64,
+    max_m: *const f64,
+    signed: bool,
+    distances: *mut f32,
+    states: *mut u8,
+    capacity: usize,
+    info: *mut edtmap_box,
+) -> edtmap_status {
+    guard("edtmap_map_export_box", || {
+        // SAFETY: a map from this library or null.
+        let m = unsafe { handle(map, "map") }?;
+        // SAFETY: the buffers as documented.
+        unsafe { export_box(&m.map, min_m, max_m, signed, distances, states, capacity, info) }
+    })
+}
+
+/// Saves the mapper's map (as of the last finished frame) to `path`,
+/// atomically (a temporary file renamed into place).
+#[no_mangle]
+pub unsafe extern "C" fn edtmap_mapper_save(mapper: *const edtmap_mapper, path_: *const c_char) -> edtmap_status {
+    guard("edtmap_mapper_save", || {
+        // SAFETY: a mapper from this library or null.
+        let map = unsafe { handle(mapper, "mapper") }?.shared.snapshot()?;
+        // SAFETY: a NUL-terminated string or null.
+        edtmap::save_map(&map, unsafe { path(path_, "path") }?)?;
+        Ok(())
+    })
+}
+
+/// Loads the map saved at `path` (by [`edtmap_mapper_save`] or `edtmap run
+/// --save`) into `*out`, for queries; free it with [`edtmap_map_free`].
+#[no_mangle]
+pub unsafe extern "C" fn edtmap_map_load(path_: *const c_char, out: *mut *mut edtmap_map) -> edtmap_status {
+    guard("edtmap_map_load", || {
+        // SAFETY: a NUL-terminated string or null.
+        let map = edtmap::load_map(unsafe { path(path_, "path") }?)?;
+        // SAFETY: a writable pointer or null.
+        unsafe { put(out, Box::into_raw(Box::new(edtmap_map { map: Arc::new(map) })), "out") }
+    })
+}
+
+/// Frees a loaded map (null is allowed and does nothing).
+#[no_mangle]
+pub unsafe extern "C" fn edtmap_map_free(map: *mut edtmap_map) {
+    if !map.is_null() {
+        // SAFETY: from `Box::into_raw` in this library, freed once.
+        let _ = catch_unwind(AssertUnwindSafe(|| drop(unsafe { Box::from_raw(map) })));
+    }
+}
+
+/// The voxel edge of a loaded map, metres (0 for a null map).
+#[no_mangle]
+pub unsafe extern "C" fn edtmap_map_voxel_size(map: *const edtmap_map) -> f64 {
+    // SAFETY: a map from this library or null.
+    unsafe { map.as_ref() }.map_or(0.0, |m| m.map.voxel_size_m())
+}
+
+/// The cutoff of a loaded map's distances, metres (0 for a null map).
+#[no_mangle]
+pub unsafe extern "C" fn edtmap_map_max_distance(map: *const edtmap_map) -> f64 {
+    // SAFETY: a map from this library or null.
+    unsafe { map.as_ref() }.map_or(0.0, |m| m.map.params().max_distance_m)
+}
