@@ -337,6 +337,24 @@ fn mapper_from(config: &Config, backend: edtmap_backend, map: Option<GlobalMap>)
 /// The configuration `p` stands for, checked as a file's would be.
 fn config_of(p: &edtmap_params) -> Result<Config> {
     use serde_json::json;
+    let numbers = [
+        ("voxel_size_m", p.voxel_size_m),
+        ("local_size_m[0]", p.local_size_m[0]),
+        ("local_size_m[1]", p.local_size_m[1]),
+        ("local_size_m[2]", p.local_size_m[2]),
+        ("max_distance_m", p.max_distance_m),
+        ("min_range_m", f64::from(p.min_range_m)),
+        ("max_range_m", f64::from(p.max_range_m)),
+        ("fx", p.fx),
+        ("fy", p.fy),
+        ("cx", p.cx),
+        ("cy", p.cy),
+        ("elevation_min_deg", p.elevation_min_deg),
+        ("elevation_max_deg", p.elevation_max_deg),
+    ];
+    if let Some((name, value)) = numbers.iter().find(|(_, v)| !v.is_finite()) {
+        return fail(edtmap_status::EDTMAP_CONFIG, format!("edtmap_params.{name} = {value}: must be a finite number"));
+    }
     let kind = match p.sensor {
         edtmap_sensor::EDTMAP_SENSOR_POINTS => "points",
         edtmap_sensor::EDTMAP_SENSOR_DEPTH => "depth",
@@ -372,7 +390,6 @@ fn config_of(p: &edtmap_params) -> Result<Config> {
         "occupancy": { "voxel_size_m": p.voxel_size_m, "local_size_m": p.local_size_m },
         "global": { "max_distance_m": p.max_distance_m, "mode": if p.exact { "exact" } else { "wavefront" } },
     });
-    // Non-finite numbers become JSON null, refused below with the field.
     serde_json::from_value(value).or_else(|e| fail(edtmap_status::EDTMAP_CONFIG, format!("edtmap_params: {e}")))
 }
 

@@ -1,0 +1,100 @@
+// The C++ wrapper (edtmap.hpp) against the analytic wall, the Rust Mapper
+// (bit for bit), a saved map, and its exceptions. Built against the
+// installed package (tests/capi/CMakeLists.txt), run by tests/capi/run.sh.
+//
+//   test_edtmap_cpp REFERENCE.bin TMPDIR
+#include <edtmap.hpp>
+
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include "wall.h"
+
+#define CHECK(cond, msg)                                                               \
+    do {                                                                               \
+        if (!(cond)) {                                                                 \
+            std::fprintf(stderr, "FAIL %s:%d: %s: %s\n", __FILE__, __LINE__, #cond, msg); \
+            std::exit(1);                                                              \
+        }                                                                              \
+    } while (0)
+
+// Runs `f`, which must throw edtmap::Error with `status`.
+template <class F>
+void throws(F f, edtmap_status status, const char* what) {
+    try {
+        f();
+    } catch (const edtmap::Error& e) {
+        CHECK(e.status() == status, e.what());
+        CHECK(std::strlen(e.what()) > 0, what);
+        return;
+    }
+    CHECK(false, what);
+}
+
+int main(int argc, char** argv) {
+    CHECK(argc == 3, "usage: test_edtmap_cpp REFERENCE.bin TMPDIR");
+    edtmap::Params p;
+    CHECK(p.voxel_size_m == 0.1 && p.sensor == EDTMAP_SENSOR_POINTS, "defaults");
+    edtmap::Mapper mapper(p);
+    std::vector<float> flat(3 * WALL_POINTS);
+    wall_cloud(flat.data());
+    std::vector<std::array<float, 3>> cloud(WALL_POINTS);
+    for (std::size_t i = 0; i < cloud.size(); ++i) {
+        cloud[i] = {flat[3 * i], flat[3 * i + 1], flat[3 * i + 2]};
+    }
+    edtmap::FrameStats st = mapper.integrate_points(cloud, edtmap::identity_pose(), 0.0);
+    CHECK(st.voxels_updated > 0, "frame");
+
+    for (int i = 5; i < 19; ++i) {
+        edtmap::Point g{};
+        double d = mapper.distance({(i + 0.5) * 0.1, 0.05, 0.05}, &g);
+        CHECK(std::fabs(d - (20 - i) * 0.1) < 1e-9, "analytic distance");
+        CHECK(std::fabs(g[0] + 1.0) < 1e-9 && std::fabs(g[1]) < 1e-9, "analytic gradient");
+        CHECK(mapper.state({(i + 0.5) * 0.1, 0.05, 0.05}) == EDTMAP_STATE_FREE, "state");
+    }
+
+    std::vector<double> q(3 * WALL_QUERIES);
+    wall_queries(q.data());
+    std::vector<edtmap::Point> points(WALL_QUERIES);
+    for (std::size_t i = 0; i < points.size(); ++i) {
+        points[i] = {q[3 * i], q[3 * i + 1], q[3 * i + 2]};
+    }
+    edtmap::QueryResult r = mapper.query(points);
+    std::vector<double> rd(WALL_QUERIES), rg(3 * WALL_QUERIES);
+    std::vector<uint8_t> rs(WALL_QUERIES);
+    CHECK(wall_reference(argv[1], rd.data(), rg.data(), rs.data()) == 0, "reference file");
+    CHECK(r.distances == rd && r.gradients == rg && r.states == rs, "answers differ from the Rust Mapper's");
+    CHECK(mapper.distances(points) == rd, "distances()");
+
+    std::string path = std::string(argv[2]) + "/wall_cpp.edtmap";
+    mapper.save(path);
+    edtmap::Map map = edtmap::Map::load(path);
+    CHECK(map.query(points).distances == rd, "loaded map");
+    edtmap::DenseBox box = map.export_box({0.0, 0.0, 0.0}, {2.2, 0.3, 0.2});
+    CHECK(box.info.dims[0] == 22 && box.distances.size() == 22 * 3 * 2, "box");
+    edtmap::Map copy = map;  // maps share one immutable handle
+    CHECK(copy.voxel_size() == 0.1 && copy.max_distance() == 2.0, "map parameters");
+
+    edtmap::Mapper moved = std::move(mapper);
+    CHECK(moved.distance({1.05, 0.05, 0.05}) > 0.99, "moved mapper");
+
+    throws([&] { edtmap::Map::load(std::string(argv[2]) + "/missing.edtmap"); }, EDTMAP_IO, "missing map");
+    throws([&] { edtmap::Mapper::from_config(std::string(argv[2]) + "/missing.toml"); }, EDTMAP_IO, "missing config");
+    throws([&] {
+        edtmap::Params bad;
+        bad.local_size_m[0] = -3.0;
+        edtmap::Mapper m(bad);
+    }, EDTMAP_CONFIG, "bad params");
+    throws([&] {
+        edtmap::Pose pose = edtmap::identity_pose();
+        pose[0] = NAN;
+        moved.integrate_points(cloud, pose, 1.0);
+    }, EDTMAP_INVALID_ARGUMENT, "NaN pose");
+    throws([&] { moved.integrate_scan({1.0f, 2.0f}, 0.0, 0.1, edtmap::identity_pose(), 1.0); }, EDTMAP_FRAME, "scan to a point sensor");
+    std::printf("C++ API: all checks passed\n");
+    return 0;
+}
