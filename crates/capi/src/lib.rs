@@ -651,7 +651,8 @@ pub unsafe extern "C" fn edtmap_integrate_range_image(
     })
 }
 
-/// Points per parallel task of a batched query.
+/// Most points per parallel task of a batched query; a small batch is
+/// split into about four tasks per thread, at least 64 points each.
 const QUERY_CHUNK: usize = 4096;
 
 fn state_code(s: PointState) -> u8 {
@@ -684,8 +685,9 @@ unsafe fn query_into(map: &GlobalMap, points: *const f64, n: usize, signed: bool
         // SAFETY: non-null; the caller passes n bytes to write.
         Some(unsafe { slice_mut(states, n, "states") }?)
     };
-    let grad_chunks = grad.as_mut().map(|g| g.par_chunks_mut(3 * QUERY_CHUNK));
-    let state_chunks = state.as_mut().map(|s| s.par_chunks_mut(QUERY_CHUNK));
+    let chunk = n.div_ceil(rayon::current_num_threads()).clamp(64, QUERY_CHUNK);
+    let grad_chunks = grad.as_mut().map(|g| g.par_chunks_mut(3 * chunk));
+    let state_chunks = state.as_mut().map(|s| s.par_chunks_mut(chunk));
     let answer = |(pts, dist): (&[[f64; 3]], &mut [f64]), mut grad: Option<&mut [f64]>, mut state: Option<&mut [u8]>| {
         for (i, p) in pts.iter().enumerate() {
             let d = query::distance(map, *p, signed);
@@ -698,7 +700,7 @@ unsafe fn query_into(map: &GlobalMap, points: *const f64, n: usize, signed: bool
             }
         }
     };
-    let base = pts.par_chunks(QUERY_CHUNK).zip(dist.par_chunks_mut(QUERY_CHUNK));
+    let base = pts.par_chunks(chunk).zip(dist.par_chunks_mut(chunk));
     match (grad_chunks, state_chunks) {
         (Some(g), Some(s)) => base.zip(g).zip(s).for_each(|((b, g), s)| answer(b, Some(g), Some(s))),
         (Some(g), None) => base.zip(g).for_each(|(b, g)| answer(b, Some(g), None)),
