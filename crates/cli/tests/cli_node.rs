@@ -175,6 +175,16 @@ fn drive(d: &Path, domain: u16, frames: u64, sensor_topic: &str) {
         }
     }
     assert_eq!(mapped, frames);
+    // The cloud published after the last frame may still be on its way:
+    // the node publishes at 100 Hz, so the last one of the next second
+    // shows the final map.
+    let until = std::time::Instant::now() + Duration::from_secs(1);
+    while std::time::Instant::now() < until {
+        match esdf.take() {
+            Ok(Some((c, _))) => last_esdf = Some(c),
+            _ => std::thread::sleep(Duration::from_millis(10)),
+        }
+    }
 
     // The replay's map answers the same queries bit for bit.
     let map = edtmap::load_map(&d.join("replay.edtmap")).expect("replay map");
