@@ -91,6 +91,13 @@ impl Region {
         Some(Region::of_blocks((lo, hi)))
     }
 
+    /// How many blocks [`Self::blocks`] lists, without listing them.
+    pub fn block_count(&self) -> usize {
+        let last = VoxelIndex([0, 1, 2].map(|a| self.origin[a] + self.dims[a] as i32 - 1)).block().0;
+        let first = VoxelIndex(self.origin).block().0;
+        (0..3).map(|a| (last[a] - first[a] + 1) as usize).product()
+    }
+
     /// The blocks this box overlaps.
     pub fn blocks(&self) -> Vec<BlockKey> {
         BlockKey::span(VoxelIndex(self.origin), VoxelIndex([0, 1, 2].map(|a| self.origin[a] + self.dims[a] as i32 - 1)))
@@ -332,6 +339,13 @@ fn for_region_voxels(p: &Packing, key: BlockKey, mut f: impl FnMut(usize, usize)
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn block_count_counts_the_listed_blocks() {
+        for r in [Region { origin: [-3, 4, -20], dims: [10, 7, 3] }, Region { origin: [0, 0, 0], dims: [8, 8, 8] }, Region { origin: [-1, -9, 7], dims: [1, 17, 2] }] {
+            assert_eq!(r.block_count(), r.blocks().len(), "{r:?}");
+        }
+    }
 
     #[test]
     fn pack_round_trip_and_order() {

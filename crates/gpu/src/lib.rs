@@ -114,7 +114,7 @@ impl GpuBackend {
             needed: 8 * (8 + 2 * cutoff.reach as u64).pow(3),
             limit: 8 * max_voxels,
         })?;
-        self.exact.reserve(region.blocks().len());
+        self.exact.reserve(region.block_count());
         let mut total = IntegrateReport::default();
         for z in (0..region.dims[2]).step_by(tile[2]) {
             for y in (0..region.dims[1]).step_by(tile[1]) {
