@@ -190,10 +190,11 @@ fn mark_tile(obs: &Observations, job: &ProjectJob<'_>, geom: &VoxelToSensor, lid
     for z in lo[2]..hi[2] {
         for y in lo[1]..hi[1] {
             let shared = geom.row(y, z);
+            let mut ring_hint = 0;
             for x in lo[0]..hi[0] {
                 let p = geom.point_in_row(&shared, x);
                 let miss = match lidar {
-                    Some(l) => l.is_miss_at(p),
+                    Some(l) => l.is_miss_at(p, &mut ring_hint),
                     None => job.is_miss_at(p),
                 };
                 if miss {

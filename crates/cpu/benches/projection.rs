@@ -13,9 +13,11 @@ use rayon::prelude::*;
 use std::time::Duration;
 
 /// Each scene with its config's voxel size and window (configs/*.toml).
-const SCENES: [(SceneName, f64, [f64; 3], Option<f64>); 4] = [
+const SCENES: [(SceneName, f64, [f64; 3], Option<f64>); 5] = [
     (SceneName::Room, 0.05, [6.0, 6.0, 3.0], None),
     (SceneName::UavPillars, 0.2, [10.0, 10.0, 3.0], None),
+    // The issue-15 setting `--voxel-size 0.05`: 200 × 200 × 60 voxels.
+    (SceneName::UavPillars, 0.05, [10.0, 10.0, 3.0], None),
     (SceneName::UgvCorridor, 0.1, [10.0, 10.0, 2.4], Some(1.2)),
     (SceneName::Planar, 0.1, [12.0, 12.0, 0.1], None),
 ];
@@ -44,7 +46,7 @@ fn scenes(c: &mut Criterion) {
         let volume = LocalVolume::centred(&params, voxel_size_m, frame.t_world_sensor.translation.vector.into()).expect("volume");
         let job = project_job(&sensor, &frame, volume, &OgmOptions::for_voxel_size(voxel_size_m));
         let mut obs = Observations::new(volume);
-        let mut g = c.benchmark_group(format!("project_{name:?}"));
+        let mut g = c.benchmark_group(format!("project_{name:?}_{voxel_size_m}m"));
         g.sample_size(20).warm_up_time(Duration::from_secs(1)).measurement_time(Duration::from_secs(3));
         g.throughput(Throughput::Elements(volume.len() as u64));
         for (label, f) in [("every_voxel", every_voxel as fn(&Observations, &ProjectJob<'_>)), ("mark_misses", mark_misses)] {
