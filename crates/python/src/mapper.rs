@@ -6,14 +6,14 @@
 //! of threads query while another integrates, each seeing a whole frame.
 
 use std::path::PathBuf;
-use std::sync::{Arc, Mutex, MutexGuard, RwLock};
+use std::sync::{Arc, MutexGuard};
 
 use edtmap::config::Config;
 use edtmap::sensor::{
     DepthData, DepthImage, Frame, LaserScan, LidarScan, Measurement, PointCloud, RangeLimits, Sensor,
 };
 use edtmap::cpu::CpuBackend;
-use edtmap::{Backend, FrameStats, GlobalMap, MapError, Mapper, PointState};
+use edtmap::{Backend, FrameStats, GlobalMap, MapError, Mapper, PointState, SharedMapper};
 use edtmap_cpu::query;
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
 use numpy::{PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
@@ -65,40 +65,37 @@ pub(crate) fn map_err(e: MapError) -> PyErr {
     }
 }
 
-/// The mapper and the snapshot its queries read.
+/// The mapper and the snapshot its queries read ([`SharedMapper`]).
 #[pyclass(name = "Mapper", module = "edtmap._edtmap", frozen)]
 pub(crate) struct PyMapper {
-    mapper: Mutex<Mapper<DynBackend>>,
-    snapshot: RwLock<Arc<GlobalMap>>,
+    shared: SharedMapper<DynBackend>,
     /// Range limits of a planar LiDAR's scans (`[sensor]` min/max range).
     scan_range: RangeLimits,
 }
 
 impl PyMapper {
     fn new(mapper: Mapper<DynBackend>, scan_range: RangeLimits) -> Self {
-        let snapshot = RwLock::new(Arc::new(mapper.map().clone()));
-        PyMapper { mapper: Mutex::new(mapper), snapshot, scan_range }
+        PyMapper { shared: SharedMapper::new(mapper), scan_range }
     }
 
     fn lock(&self) -> PyResult<MutexGuard<'_, Mapper<DynBackend>>> {
-        self.mapper.lock().map_err(|_| PyRuntimeError::new_err("the mapper panicked in another thread"))
+        self.shared.lock().map_err(poisoned)
     }
 
     fn map(&self) -> PyResult<Arc<GlobalMap>> {
-        Ok(self.snapshot.read().map_err(|_| PyRuntimeError::new_err("the map snapshot is poisoned"))?.clone())
+        self.shared.snapshot().map_err(poisoned)
     }
 
     /// Integrates one frame without the GIL and publishes the new snapshot.
     fn integrate<'py>(&self, py: Python<'py>, frame: Frame) -> PyResult<Bound<'py, PyDict>> {
-        let stats = py.detach(|| -> PyResult<FrameStats> {
-            let mut mapper = self.lock()?;
-            let stats = mapper.integrate_frame(&frame).map_err(map_err)?;
-            let map = Arc::new(mapper.map().clone());
-            *self.snapshot.write().map_err(|_| PyRuntimeError::new_err("the map snapshot is poisoned"))? = map;
-            Ok(stats)
-        })?;
+        let stats = py.detach(|| self.shared.integrate(&frame).map_err(map_err))?;
         stats_dict(py, &stats)
     }
+}
+
+/// A lock left poisoned by a panic, as Python's `RuntimeError`.
+fn poisoned(e: MapError) -> PyErr {
+    PyRuntimeError::new_err(e.to_string())
 }
 
 impl PyMapper {
