@@ -78,7 +78,15 @@ impl SeparableCache {
 
 /// Brings `map`, the exact EDT of the obstacles it held, up to date with
 /// `obstacles`, whose changes lie in `blocks`; returns what changed.
+///
+/// Runs on a thread of rayon's pool: its parallel loops, most of them one
+/// task on a small frame, then run inline, where each started from another
+/// thread would hand its work to the pool and wait for a thread to wake.
 pub fn update_exact(map: &mut EdtMap, obstacles: &Obstacles<'_>, blocks: &[BlockKey], cutoff: Cutoff, cache: &mut SeparableCache) -> IntegrateReport {
+    rayon::scope(|_| update_in_pool(map, obstacles, blocks, cutoff, cache))
+}
+
+fn update_in_pool(map: &mut EdtMap, obstacles: &Obstacles<'_>, blocks: &[BlockKey], cutoff: Cutoff, cache: &mut SeparableCache) -> IntegrateReport {
     let pass = Pass { reach: cutoff.reach, max: cutoff.max_dist_sq };
     if cache.valid_for != Some((map.stamp(), cutoff)) {
         rebuild(map, &pass, cache);
@@ -134,6 +142,25 @@ fn mask_where(f: impl Fn(usize) -> bool) -> Option<Mask> {
 
 fn bit(m: &Mask, o: usize) -> bool {
     m[o / 64] >> (o % 64) & 1 == 1
+}
+
+/// The lines along `axis` through a block that hold a voxel of `m`: bit
+/// `u + 8 v` for the line at `(u, v)` in the block's other two axes.
+fn lines_of(m: &Mask, axis: usize) -> u64 {
+    // Bit i of the result: byte i of w nonzero.
+    let bytes = |w: u64| (0..8).fold(0u64, |a, i| a | u64::from(w >> (8 * i) & 0xff != 0) << i);
+    // The OR of w's eight bytes.
+    let or_bytes = |mut w: u64| {
+        w |= w >> 32;
+        w |= w >> 16;
+        w |= w >> 8;
+        w & 0xff
+    };
+    match axis {
+        0 => (0..8).fold(0, |a, v| a | bytes(m[v]) << (8 * v)),
+        1 => (0..8).fold(0, |a, v| a | or_bytes(m[v]) << (8 * v)),
+        _ => m.iter().fold(0, |a, &w| a | w),
+    }
 }
 
 /// The three passes from the rows through `dirty` (obstacles flipped where
@@ -323,33 +350,36 @@ where
             let masks: Vec<(&Mask, Option<&[u16; BLOCK_VOXELS]>)> = ks.iter().map(|k| (&dirty[k], radii.and_then(|r| r.get(k)).map(|b| &**b))).collect();
             let mut segments = Vec::new();
             let mut owned = Vec::new();
-            for v in 0..8 {
-                for u in 0..8 {
-                    let mut line = [0; 3];
-                    (line[b], line[d]) = (ks[0].0[b] * side + u as i32, ks[0].0[d] * side + v as i32);
-                    // (last dirty position, lowest and highest output).
-                    let mut cur: Option<(i32, i32, i32)> = None;
-                    // A segment's outputs as `lo - reach ..= hi + reach`.
-                    let segment = |(_, a, b): (i32, i32, i32)| Segment { line, lo: a + reach, hi: b - reach };
-                    for (k, &(m, rk)) in ks.iter().zip(&masks) {
-                        for t in 0..8 {
-                            let o = local(axis, u, v, t);
-                            if bit(m, o) {
-                                let p = k.0[axis] * side + t as i32;
-                                let w = rk.map_or(reach, |r| i32::from(r[o]));
-                                cur = match cur {
-                                    Some((last, a, b)) if p - last <= 2 * reach + 1 => Some((p, a.min(p - w), b.max(p + w))),
-                                    Some(c) => {
-                                        segments.push(segment(c));
-                                        Some((p, p - w, p + w))
-                                    }
-                                    None => Some((p, p - w, p + w)),
-                                };
-                            }
+            // Only the lines with a dirty voxel in one of the blocks.
+            let mut lines = masks.iter().fold(0u64, |a, (m, _)| a | lines_of(m, axis));
+            while lines != 0 {
+                let l = lines.trailing_zeros() as usize;
+                lines &= lines - 1;
+                let (u, v) = (l % 8, l / 8);
+                let mut line = [0; 3];
+                (line[b], line[d]) = (ks[0].0[b] * side + u as i32, ks[0].0[d] * side + v as i32);
+                // (last dirty position, lowest and highest output).
+                let mut cur: Option<(i32, i32, i32)> = None;
+                // A segment's outputs as `lo - reach ..= hi + reach`.
+                let segment = |(_, a, b): (i32, i32, i32)| Segment { line, lo: a + reach, hi: b - reach };
+                for (k, &(m, rk)) in ks.iter().zip(&masks) {
+                    for t in 0..8 {
+                        let o = local(axis, u, v, t);
+                        if bit(m, o) {
+                            let p = k.0[axis] * side + t as i32;
+                            let w = rk.map_or(reach, |r| i32::from(r[o]));
+                            cur = match cur {
+                                Some((last, a, b)) if p - last <= 2 * reach + 1 => Some((p, a.min(p - w), b.max(p + w))),
+                                Some(c) => {
+                                    segments.push(segment(c));
+                                    Some((p, p - w, p + w))
+                                }
+                                None => Some((p, p - w, p + w)),
+                            };
                         }
                     }
-                    segments.extend(cur.map(segment));
                 }
+                segments.extend(cur.map(segment));
             }
             for s in &segments {
                 owned.extend((s.lo - reach).div_euclid(side)..=(s.hi + reach).div_euclid(side));
