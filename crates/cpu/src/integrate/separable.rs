@@ -59,6 +59,8 @@ pub struct SeparableCache {
     g2: FxHashMap<BlockKey, Box<G2Block>>,
     /// The map and cutoff `g1` and `g2` belong to.
     valid_for: Option<(MapStamp, Cutoff)>,
+    /// Square roots up to the last cutoff's squared distance.
+    roots: Option<Roots>,
 }
 
 impl SeparableCache {
@@ -87,7 +89,11 @@ pub fn update_exact(map: &mut EdtMap, obstacles: &Obstacles<'_>, blocks: &[Block
 }
 
 fn update_in_pool(map: &mut EdtMap, obstacles: &Obstacles<'_>, blocks: &[BlockKey], cutoff: Cutoff, cache: &mut SeparableCache) -> IntegrateReport {
-    let pass = Pass { reach: cutoff.reach, max: cutoff.max_dist_sq };
+    let roots = match cache.roots.take() {
+        Some(r) if r.max == cutoff.max_dist_sq => r,
+        _ => Roots::new(cutoff.max_dist_sq),
+    };
+    let pass = Pass { reach: cutoff.reach, max: cutoff.max_dist_sq, roots: &roots };
     if cache.valid_for != Some((map.stamp(), cutoff)) {
         rebuild(map, &pass, cache);
     }
@@ -104,11 +110,12 @@ fn update_in_pool(map: &mut EdtMap, obstacles: &Obstacles<'_>, blocks: &[BlockKe
         .collect();
     let report = run_passes(map, &pass, cache, &flips, &flips, true);
     cache.valid_for = Some((map.stamp(), cutoff));
+    cache.roots = Some(roots);
     report
 }
 
 /// Rebuilds `g1` and `g2` from the map's obstacles (its voxels at distance 0).
-fn rebuild(map: &mut EdtMap, pass: &Pass, cache: &mut SeparableCache) {
+fn rebuild(map: &mut EdtMap, pass: &Pass<'_>, cache: &mut SeparableCache) {
     cache.forget();
     let obstacles: Dirty = map
         .iter()
@@ -165,7 +172,7 @@ fn lines_of(m: &Mask, axis: usize) -> u64 {
 
 /// The three passes from the rows through `dirty` (obstacles flipped where
 /// `flips` says); the last, into `map`, only when `last`.
-fn run_passes(map: &mut EdtMap, pass: &Pass, cache: &mut SeparableCache, dirty: &Dirty, flips: &Dirty, last: bool) -> IntegrateReport {
+fn run_passes(map: &mut EdtMap, pass: &Pass<'_>, cache: &mut SeparableCache, dirty: &Dirty, flips: &Dirty, last: bool) -> IntegrateReport {
     let SeparableCache { g1, g2, .. } = cache;
     // Pass x: the rows through the obstacles that changed.
     let edt: &EdtMap = map;
@@ -180,8 +187,8 @@ fn run_passes(map: &mut EdtMap, pass: &Pass, cache: &mut SeparableCache, dirty: 
     }
     // Pass z: the lines through the g2 entries that changed, into the map.
     let g2: &FxHashMap<_, _> = g2;
-    let reach = f64::from(pass.max).sqrt();
-    let truncated = |d: u32| if d == FAR_DIST_SQ { reach } else { f64::from(d).sqrt().min(reach) };
+    // The distance, at most the cutoff (FAR included).
+    let truncated = |d: u32| pass.roots.sqrt(d.min(pass.max));
     let (changed, _, stats) = drive(map, 2, &dirty2, Some(&radii2), pass, |s, seg, out| pass.depth(g2, seg, s, out), |v: (u32, VoxelIndex)| v.0, |o: (u32, VoxelIndex), n: (u32, VoxelIndex)| {
         (truncated(n.0) - truncated(o.0)).abs()
     });
@@ -318,7 +325,7 @@ fn drive<L: Layer>(
     axis: usize,
     dirty: &Dirty,
     radii: Option<&Radii>,
-    pass: &Pass,
+    pass: &Pass<'_>,
     scan: impl Fn(&mut Scratch, Segment, &mut Vec<L::Value>) + Sync,
     value: impl Fn(L::Value) -> u32 + Sync,
     amount: impl Fn(L::Value, L::Value) -> f64 + Sync,
@@ -430,7 +437,7 @@ where
                                 L::write(block, o, new);
                                 mask[o / 64] |= 1 << (o % 64);
                                 let f = value(old).min(value(new));
-                                let w = if f > pass.max { 0 } else { isqrt(pass.max - f) };
+                                let w = if f > pass.max { 0 } else { pass.roots.floor(pass.max - f) };
                                 radius.get_or_insert_with(|| Box::new([0; BLOCK_VOXELS]))[o] = w;
                                 st.changed += 1;
                                 st.sum += amount(old, new);
@@ -527,9 +534,38 @@ impl Scratch {
 }
 
 /// The cutoff, as the passes use it.
-struct Pass {
+struct Pass<'a> {
     reach: i32,
     max: u32,
+    roots: &'a Roots,
+}
+
+/// `floor(sqrt(v))` and `sqrt(v)` for every `v` up to the cutoff's squared
+/// distance, looked up for each changed entry (a large frame changes
+/// millions) rather than computed; computed beyond `ROOTS_MAX`.
+#[derive(Debug)]
+struct Roots {
+    max: u32,
+    floor: Vec<u16>,
+    exact: Vec<f64>,
+}
+
+/// Largest squared cutoff given tables (2.5 MB).
+const ROOTS_MAX: u32 = 1 << 18;
+
+impl Roots {
+    fn new(max: u32) -> Roots {
+        let top = if max <= ROOTS_MAX { max as usize + 1 } else { 0 };
+        Roots { max, floor: (0..top as u32).map(isqrt).collect(), exact: (0..top as u32).map(|v| f64::from(v).sqrt()).collect() }
+    }
+
+    fn floor(&self, v: u32) -> u16 {
+        self.floor.get(v as usize).copied().unwrap_or_else(|| isqrt(v))
+    }
+
+    fn sqrt(&self, v: u32) -> f64 {
+        self.exact.get(v as usize).copied().unwrap_or_else(|| f64::from(v).sqrt())
+    }
 }
 
 fn at_axis(mut c: [i32; 3], axis: usize, t: i32) -> VoxelIndex {
@@ -537,7 +573,7 @@ fn at_axis(mut c: [i32; 3], axis: usize, t: i32) -> VoxelIndex {
     VoxelIndex(c)
 }
 
-impl Pass {
+impl Pass<'_> {
     /// Pass x on row `line` from `lo - reach` to `hi + reach`: the offset
     /// to the nearest obstacle, the map's obstacles flipped where `flips`
     /// says.
