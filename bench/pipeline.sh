@@ -79,7 +79,7 @@ if [ "$append" = 1 ]; then
         echo
         echo "### Pipeline per frame, $(date -u +%Y-%m-%d), commit $(git -C "$root" rev-parse --short HEAD), $(nproc) cores, backend $backend"
         echo
-        echo "\`bash bench/pipeline.sh${frames:+ --frames $frames}${backend:+ --backend $backend}\` (occupancy: construction, fusion and read-back; EDT: batch EDT plus global integration; bytes per mapped voxel: the global map's blocks, all layers, over the occupancy blocks' voxels)"
+        echo "\`bash bench/pipeline.sh${frames:+ --frames $frames}${backend:+ --backend $backend}\` (occupancy: construction and fusion; EDT: batch EDT plus global integration; bytes per mapped voxel: the global map's blocks, all layers, over the occupancy blocks' voxels)"
         echo
         echo "$table"
     } >> "$results"

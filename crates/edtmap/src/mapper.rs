@@ -123,7 +123,7 @@ pub struct Mapper<B: Backend = CpuBackend> {
     batch: BatchEdtStage,
     integration: IntegrationStage,
     volume: Option<LocalVolume>,
-    local_states: Grid3<VoxelState>,
+    local_states: OnceLock<Grid3<VoxelState>>,
     /// Exact mode: the local volume's batch EDT, once asked for.
     local: OnceLock<EdtField>,
 }
@@ -170,7 +170,7 @@ impl<B: Backend> Mapper<B> {
             batch: BatchEdtStage::new(params.edt.unknown_as_occupied),
             integration,
             volume: None,
-            local_states: Grid3::default(),
+            local_states: OnceLock::new(),
             local: OnceLock::new(),
             params,
         };
@@ -196,9 +196,9 @@ impl<B: Backend> Mapper<B> {
         // §IV-A: occupancy of the local volume, fused into the global map.
         let obs = self.occupancy.observe(&mut self.backend, &self.sensor, frame, volume, &self.params.ogm)?;
         let fused = self.map.fuse(obs);
-        read_states(self.map.occupancy(), &volume, self.map.log_odds(), &mut self.local_states)?;
         let ogm_ms = ms_since(start);
         self.local = OnceLock::new();
+        self.local_states = OnceLock::new();
         // §IV-B, Alg. 1: exact batch EDT of the local volume (wavefront).
         let t = Instant::now();
         if self.wavefront() {
@@ -318,6 +318,7 @@ impl<B: Backend> Mapper<B> {
         let near_fixed = |k: BlockKey| fixed.iter().any(|f| (0..3).map(|a| (f64::from(f.0[a] - k.0[a]) * side).powi(2)).sum::<f64>().sqrt() <= margin);
         let edt_gone = self.map.edt_mut().remove_where(|k| dist(k) > radius_m + margin && !near_fixed(k));
         self.local = OnceLock::new();
+        self.local_states = OnceLock::new();
         Ok(Cleared { occupancy_blocks: gone.len(), edt_blocks: edt_gone.len(), bytes_before, bytes_after: self.map.bytes() })
     }
 
@@ -414,9 +415,18 @@ impl<B: Backend> Mapper<B> {
         self.volume.as_ref()
     }
 
-    /// States of the latest local volume (x fastest).
+    /// States of the latest local volume (x fastest), read from the map at
+    /// the first call after a frame (no stage needs them; empty before the
+    /// first frame).
     pub fn local_states(&self) -> &Grid3<VoxelState> {
-        &self.local_states
+        self.local_states.get_or_init(|| {
+            let mut states = Grid3::default();
+            if let Some(volume) = &self.volume {
+                // Only a grid of the wrong size fails, and this one is sized here.
+                let _ = read_states(self.map.occupancy(), volume, self.map.log_odds(), &mut states);
+            }
+            states
+        })
     }
 
     /// Exact EDT of the latest local volume, in its voxel units: the

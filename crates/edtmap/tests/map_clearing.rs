@@ -28,6 +28,22 @@ fn assert_exact(mapper: &Mapper, when: &str) {
     assert!(errors.max_m == 0.0 && errors.wrong_fraction == 0.0, "{when}: {errors:?}");
 }
 
+/// The window's states are the map's, voxel by voxel.
+fn assert_states_are_the_maps(mapper: &Mapper, when: &str) {
+    let volume = mapper.local_volume().expect("a frame was integrated");
+    let states = mapper.local_states().as_slice();
+    let [nx, ny, nz] = volume.dims;
+    assert_eq!(states.len(), nx * ny * nz, "{when}");
+    for z in 0..nz {
+        for y in 0..ny {
+            for x in 0..nx {
+                let v = volume.world([x, y, z]);
+                assert_eq!(states[x + nx * (y + ny * z)], mapper.state(v), "{when}: voxel {v:?}");
+            }
+        }
+    }
+}
+
 #[test]
 fn clearing_far_blocks_keeps_the_edt_exact_and_frees_memory() {
     let mut rng = rand::rngs::StdRng::seed_from_u64(31);
@@ -38,6 +54,7 @@ fn clearing_far_blocks_keeps_the_edt_exact_and_frees_memory() {
         mapper.integrate_frame(&frame(f64::from(i) * 0.5, &mut rng, &pillars)).expect("frame");
     }
     assert_exact(&mapper, "before clearing");
+    assert_states_are_the_maps(&mapper, "before clearing");
     let centre = [19.5, 0.0, 1.0];
     let radius = 6.0;
     let kept_before = mapper.backend().kept_bytes();
@@ -54,6 +71,8 @@ fn clearing_far_blocks_keeps_the_edt_exact_and_frees_memory() {
     // A voxel far behind is forgotten; one near the robot is not.
     assert_eq!(mapper.state(VoxelIndex([0, 0, 5])), edtmap::VoxelState::Unknown);
     assert_exact(&mapper, "after clearing");
+    // The window's states are read again, where blocks were dropped too.
+    assert_states_are_the_maps(&mapper, "after clearing");
     // Mapping goes on (back over the cleared part too), still exact.
     for i in (0..40).rev().step_by(3) {
         mapper.integrate_frame(&frame(f64::from(i) * 0.5, &mut rng, &pillars)).expect("frame");
@@ -62,6 +81,7 @@ fn clearing_far_blocks_keeps_the_edt_exact_and_frees_memory() {
     let again = mapper.clear_far([0.0, 0.0, 1.0], 4.0).expect("clears");
     assert!(again.occupancy_blocks > 0);
     assert_exact(&mapper, "after a second clearing");
+    assert_states_are_the_maps(&mapper, "after a second clearing");
 }
 
 #[test]
