@@ -169,10 +169,11 @@ impl ProjectJob<'_> {
 /// cheaper order, [`lidar`]). The misses are exactly the definition's.
 pub fn mark_misses(obs: &Observations, job: &ProjectJob<'_>) {
     let geom = job.voxel_to_sensor();
-    let Some(cull) = TileCull::new(job, &geom) else {
+    let lidar = LidarMiss::new(job);
+    let bin_free_below_m = lidar.as_ref().map_or(&[][..], |l| l.bin_free_below_m());
+    let Some(cull) = TileCull::new(job, &geom, bin_free_below_m) else {
         return;
     };
-    let lidar = LidarMiss::new(job);
     let tiles = job.volume.dims.map(|n| n.div_ceil(TILE));
     (0..tiles[0] * tiles[1] * tiles[2]).into_par_iter().for_each(|t| {
         let at = [t % tiles[0], (t / tiles[0]) % tiles[1], t / (tiles[0] * tiles[1])];

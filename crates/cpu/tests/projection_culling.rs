@@ -2,7 +2,8 @@
 //! must still be exactly `ProjectJob::is_miss` on every voxel. Random
 //! (seeded) depth cameras, spinning LiDARs and planar scanners, in general
 //! and grid-aligned poses, inside and outside the volume, with maximum
-//! ranges that end inside it, against the definition voxel by voxel.
+//! ranges that end inside it, LiDARs among walls (whole tiles behind them
+//! skipped by azimuth bin), against the definition voxel by voxel.
 
 use edtmap_core::sensor::{DepthData, DepthImage, LaserScan, LidarScan, Measurement, PinholeCamera, RangeLimits, Sensor, SpinningLidar};
 use edtmap_core::{mark_misses, LocalVolume, Observations, ProjectJob, VoxelIndex, OBS_MISS, OBS_NONE};
@@ -134,6 +135,26 @@ fn lidar_case(rng: &mut Rng) -> Case {
     finish(rng, Sensor::Lidar(lidar), Measurement::Lidar(LidarScan { ranges }), volume, pose)
 }
 
+/// A LiDAR among walls: the bins fall in sectors, each a wall at one
+/// range for all its rings (some sectors open, some no return), so whole
+/// tiles lie behind the walls their bins saw and the azimuth cull skips
+/// them; sectors as narrow as a bin, and poses putting the ±π cut inside
+/// the volume, test its edges.
+fn lidar_walls_case(rng: &mut Rng) -> Case {
+    let mut case = lidar_case(rng);
+    let (Sensor::Lidar(lidar), Measurement::Lidar(scan)) = (&case.sensor, &mut case.measurement) else { unreachable!() };
+    let bins = lidar.azimuth_bins;
+    let limits = lidar.range;
+    let sectors = [1, 2, 7, bins][rng.below(4) as usize];
+    let walls: Vec<f32> = (0..sectors).map(|_| if rng.below(4) == 0 { self::range(rng, &limits) } else { rng.uniform(0.1, 1.5) as f32 }).collect();
+    let rotate = rng.below(bins as u64) as usize;
+    for (i, d) in scan.ranges.iter_mut().enumerate() {
+        let bin = (i % bins + rotate) % bins;
+        *d = walls[bin * sectors / bins];
+    }
+    case
+}
+
 fn planar_case(rng: &mut Rng) -> Case {
     let range = limits(rng);
     let beams = [90usize, 360, 1081][rng.below(3) as usize];
@@ -190,6 +211,11 @@ fn culled_depth_projection_is_the_definition() {
 #[test]
 fn culled_lidar_projection_is_the_definition() {
     check_cases(0x11da, 150, lidar_case);
+}
+
+#[test]
+fn culled_lidar_projection_among_walls_is_the_definition() {
+    check_cases(0x3a11, 150, lidar_walls_case);
 }
 
 #[test]

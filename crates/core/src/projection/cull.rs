@@ -12,7 +12,9 @@
 //!   over the measurement;
 //! * a camera's image: in front of the camera and inside the four planes
 //!   through its centre and the image's edges, widened by a pixel;
-//! * a LiDAR's fan of rings ([`crate::sensor::SpinningLidar::fan_rad`]);
+//! * a LiDAR's fan of rings ([`crate::sensor::SpinningLidar::fan_rad`]),
+//!   and the largest free range of the azimuth bins the tile spans (a
+//!   tile behind the walls its bins saw holds no miss);
 //! * a planar scan's slab.
 //!
 //! The sphere holds every voxel centre of the tile as the decision sees it
@@ -36,6 +38,9 @@ const PIXEL_MARGIN: f64 = 1.0;
 /// How far outside a LiDAR's fan an elevation must be, radians (the
 /// decision's elevation errs by an `f32` rounding, ~1e-7).
 const FAN_MARGIN_RAD: f64 = 1e-6;
+/// How far beyond a tile's azimuths a bin is still taken, radians (the
+/// decision's azimuth errs by an `f32` rounding and an `atan2`, ~1e-7).
+const AZIMUTH_MARGIN_RAD: f64 = 1e-6;
 /// Intrinsics beyond which the frustum is not used (the margins above
 /// assume moderate pixel coordinates).
 const MAX_INTRINSIC: f64 = 1e6;
@@ -46,26 +51,31 @@ enum Shape {
     /// A camera: in front of it (depth is the range), inside these planes
     /// (unit normals, `n · p ≥ 0` inside) when the intrinsics allow.
     Depth(Option<[[f64; 3]; 4]>),
-    /// A LiDAR: the range is the norm, elevations within the fan.
+    /// A LiDAR: the range is the norm, elevations within the fan, and the
+    /// range below the largest free range of the azimuth bins spanned.
     Lidar { fan_rad: (f64, f64) },
     /// A planar scan: the range is horizontal, within the slab.
     Planar { half_thickness_m: f64 },
 }
 
 /// A job's tile test: [`Self::may_miss`].
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone)]
 pub(super) struct TileCull {
     geom: VoxelToSensor,
     /// No point at this range or beyond is free, metres.
     free_below_m: f64,
     shape: Shape,
+    /// A LiDAR's largest free range per azimuth bin, metres (bin `b` as
+    /// [`crate::sensor::SpinningLidar::azimuth_bin`] numbers it).
+    bin_free_below_m: Vec<f32>,
 }
 
 impl TileCull {
     /// The test for `job`, or `None` when no voxel can be a miss (no
     /// return frees anything, or the sensor does not project this
-    /// measurement).
-    pub(super) fn new(job: &ProjectJob<'_>, geom: &VoxelToSensor) -> Option<Self> {
+    /// measurement). `bin_free_below_m`: a LiDAR's largest
+    /// [`ProjectJob::free_below_m`] per azimuth bin, over its rings.
+    pub(super) fn new(job: &ProjectJob<'_>, geom: &VoxelToSensor, bin_free_below_m: &[f32]) -> Option<Self> {
         let free_below_m = free_below_sup(job) as f64;
         // Every range the definition compares is ≥ 0 (depth > 0); the
         // supremum is never NaN (`f32::max` drops NaN thresholds, which free
@@ -79,7 +89,7 @@ impl TileCull {
             Sensor::Planar => Shape::Planar { half_thickness_m: job.planar_half_thickness_m as f64 },
             Sensor::Points(_) => return None,
         };
-        Some(TileCull { geom: *geom, free_below_m, shape })
+        Some(TileCull { geom: *geom, free_below_m, shape, bin_free_below_m: bin_free_below_m.to_vec() })
     }
 
     /// Whether the voxels `lo..hi` (local coordinates, per axis) may hold a
@@ -92,9 +102,35 @@ impl TileCull {
                 let in_view = planes.is_none_or(|ps| ps.iter().all(|n| dot(n, &c) + r >= 0.0));
                 c[2] + r > 0.0 && c[2] - r < self.free_below_m && in_view
             }
-            Shape::Lidar { fan_rad } => norm(&c) - r < far && fan_overlaps(&c, r, fan_rad),
+            Shape::Lidar { fan_rad } => {
+                let near = norm(&c) - r;
+                near < far && fan_overlaps(&c, r, fan_rad) && near < self.bins_free_below_m(&c, r) * (1.0 + REL_SLACK)
+            }
             Shape::Planar { half_thickness_m } => c[0].hypot(c[1]) - r < far && c[2].abs() - r <= half_thickness_m,
         }
+    }
+
+    /// The largest free range of the azimuth bins that a point of the
+    /// sphere `(c, r)` can fall in (every bin's when it holds the axis),
+    /// metres. The sphere's azimuths lie within `asin(r / h)` of its
+    /// centre's (`h` the centre's horizontal distance); the bins of that
+    /// span widened by [`AZIMUTH_MARGIN_RAD`] and a bin on each side, taken
+    /// around the ±π cut, hold every bin the definition can give.
+    fn bins_free_below_m(&self, c: &[f64; 3], r: f64) -> f64 {
+        let bins = self.bin_free_below_m.len();
+        let h = c[0].hypot(c[1]);
+        if bins == 0 || h <= r * (1.0 + REL_SLACK) {
+            return self.free_below_m;
+        }
+        let spread = (r / h).asin() + AZIMUTH_MARGIN_RAD;
+        let per_rad = bins as f64 / (2.0 * std::f64::consts::PI);
+        let az = c[1].atan2(c[0]) + std::f64::consts::PI;
+        let first = ((az - spread) * per_rad).floor() as i64 - 1;
+        let last = ((az + spread) * per_rad).floor() as i64 + 1;
+        if last - first + 1 >= bins as i64 {
+            return self.free_below_m;
+        }
+        (first..=last).map(|b| self.bin_free_below_m[b.rem_euclid(bins as i64) as usize]).fold(f32::MIN, f32::max) as f64
     }
 
     /// A sphere in the sensor frame holding every voxel centre of

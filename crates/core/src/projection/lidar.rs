@@ -73,6 +73,12 @@ impl<'a> LidarMiss<'a> {
         Some(LidarMiss { job: *job, lidar, scan, bin_free_below_m, free_below_m, half_voxel_m, angles })
     }
 
+    /// Per azimuth bin, the largest [`ProjectJob::free_below_m`] of its
+    /// beams, metres.
+    pub(super) fn bin_free_below_m(&self) -> &[f32] {
+        &self.bin_free_below_m
+    }
+
     /// [`ProjectJob::is_miss_at`]`(p)`, by sign tests where they are
     /// certain and by [`Self::is_miss_exact`] where they are not. `hint`
     /// is where the search for `p`'s ring starts, and is left at its end:
