@@ -2,8 +2,9 @@
 //! must still be exactly `ProjectJob::is_miss` on every voxel. Random
 //! (seeded) depth cameras, spinning LiDARs and planar scanners, in general
 //! and grid-aligned poses, inside and outside the volume, with maximum
-//! ranges that end inside it, LiDARs among walls (whole tiles behind them
-//! skipped by azimuth bin), against the definition voxel by voxel.
+//! ranges that end inside it, cameras facing surfaces, LiDARs among walls
+//! (whole tiles behind them skipped by azimuth bin), against the
+//! definition voxel by voxel.
 
 use edtmap_core::sensor::{DepthData, DepthImage, LaserScan, LidarScan, Measurement, PinholeCamera, RangeLimits, Sensor, SpinningLidar};
 use edtmap_core::{mark_misses, LocalVolume, Observations, ProjectJob, VoxelIndex, OBS_MISS, OBS_NONE};
@@ -135,6 +136,27 @@ fn lidar_case(rng: &mut Rng) -> Case {
     finish(rng, Sensor::Lidar(lidar), Measurement::Lidar(LidarScan { ranges }), volume, pose)
 }
 
+/// A camera facing surfaces: the image in rectangles, each at one depth
+/// (some no return), from a pixel to the whole image, so whole tiles lie
+/// behind the surfaces their pixels saw.
+fn depth_surfaces_case(rng: &mut Rng) -> Case {
+    let mut case = depth_case(rng);
+    let (Sensor::Depth(camera), Measurement::Depth(image)) = (&case.sensor, &mut case.measurement) else { unreachable!() };
+    let (w, h) = (camera.width as usize, camera.height as usize);
+    let limits = camera.range;
+    let (cols, rows) = [(1, 1), (3, 2), (7, 5), (w, h)][rng.below(4) as usize];
+    let depths: Vec<f32> = (0..cols * rows).map(|_| if rng.below(4) == 0 { self::range(rng, &limits) } else { rng.uniform(0.05, 1.2) as f32 }).collect();
+    let metres: Vec<f32> = (0..w * h).map(|i| depths[(i % w) * cols / w + cols * ((i / w) * rows / h)]).collect();
+    image.data = match image.data {
+        DepthData::Metres(_) => DepthData::Metres(metres),
+        DepthData::U16 { metres_per_unit, .. } => {
+            let values = metres.iter().map(|&d| if d.is_finite() { (d / metres_per_unit).round().min(65535.0) as u16 } else { 0 }).collect();
+            DepthData::U16 { values, metres_per_unit }
+        }
+    };
+    case
+}
+
 /// A LiDAR among walls: the bins fall in sectors, each a wall at one
 /// range for all its rings (some sectors open, some no return), so whole
 /// tiles lie behind the walls their bins saw and the azimuth cull skips
@@ -206,6 +228,11 @@ fn check_cases(seed: u64, count: usize, make: fn(&mut Rng) -> Case) {
 #[test]
 fn culled_depth_projection_is_the_definition() {
     check_cases(0xdeb7, 150, depth_case);
+}
+
+#[test]
+fn culled_depth_projection_facing_surfaces_is_the_definition() {
+    check_cases(0x5fac, 150, depth_surfaces_case);
 }
 
 #[test]
