@@ -57,10 +57,12 @@ fn open_backend(name: &str) -> PyResult<DynBackend> {
 const QUERY_CHUNK: usize = 4096;
 
 /// A [`MapError`] as the Python exception a caller expects: files that
-/// cannot be read or written are `OSError`, everything else `ValueError`.
+/// cannot be read or written are `OSError`, a lock left poisoned by a
+/// panic in another thread `RuntimeError`, everything else `ValueError`.
 pub(crate) fn map_err(e: MapError) -> PyErr {
     match e {
         MapError::Io(io) => PyOSError::new_err(io.to_string()),
+        e @ MapError::Poisoned(_) => PyRuntimeError::new_err(e.to_string()),
         other => PyValueError::new_err(other.to_string()),
     }
 }
@@ -79,11 +81,11 @@ impl PyMapper {
     }
 
     fn lock(&self) -> PyResult<MutexGuard<'_, Mapper<DynBackend>>> {
-        self.shared.lock().map_err(poisoned)
+        self.shared.lock().map_err(map_err)
     }
 
     fn map(&self) -> PyResult<Arc<GlobalMap>> {
-        self.shared.snapshot().map_err(poisoned)
+        self.shared.snapshot().map_err(map_err)
     }
 
     /// Integrates one frame without the GIL and publishes the new snapshot.
@@ -91,11 +93,6 @@ impl PyMapper {
         let stats = py.detach(|| self.shared.integrate(&frame).map_err(map_err))?;
         stats_dict(py, &stats)
     }
-}
-
-/// A lock left poisoned by a panic, as Python's `RuntimeError`.
-fn poisoned(e: MapError) -> PyErr {
-    PyRuntimeError::new_err(e.to_string())
 }
 
 impl PyMapper {

@@ -59,23 +59,23 @@ enum Shape {
 }
 
 /// A job's tile test: [`Self::may_miss`].
-#[derive(Debug, Clone)]
-pub(super) struct TileCull {
+#[derive(Debug, Clone, Copy)]
+pub(super) struct TileCull<'a> {
     geom: VoxelToSensor,
     /// No point at this range or beyond is free, metres.
     free_below_m: f64,
     shape: Shape,
     /// A LiDAR's largest free range per azimuth bin, metres (bin `b` as
     /// [`crate::sensor::SpinningLidar::azimuth_bin`] numbers it).
-    bin_free_below_m: Vec<f32>,
+    bin_free_below_m: &'a [f32],
 }
 
-impl TileCull {
+impl<'a> TileCull<'a> {
     /// The test for `job`, or `None` when no voxel can be a miss (no
     /// return frees anything, or the sensor does not project this
     /// measurement). `bin_free_below_m`: a LiDAR's largest
     /// [`ProjectJob::free_below_m`] per azimuth bin, over its rings.
-    pub(super) fn new(job: &ProjectJob<'_>, geom: &VoxelToSensor, bin_free_below_m: &[f32]) -> Option<Self> {
+    pub(super) fn new(job: &ProjectJob<'_>, geom: &VoxelToSensor, bin_free_below_m: &'a [f32]) -> Option<Self> {
         let free_below_m = free_below_sup(job) as f64;
         // Every range the definition compares is ≥ 0 (depth > 0); the
         // supremum is never NaN (`f32::max` drops NaN thresholds, which free
@@ -89,7 +89,7 @@ impl TileCull {
             Sensor::Planar => Shape::Planar { half_thickness_m: job.planar_half_thickness_m as f64 },
             Sensor::Points(_) => return None,
         };
-        Some(TileCull { geom: *geom, free_below_m, shape, bin_free_below_m: bin_free_below_m.to_vec() })
+        Some(TileCull { geom: *geom, free_below_m, shape, bin_free_below_m })
     }
 
     /// Whether the voxels `lo..hi` (local coordinates, per axis) may hold a
