@@ -134,9 +134,18 @@ const MIN_TASKS: usize = 16;
 type Mask = [u64; 8];
 /// Voxels to look at, per block.
 type Dirty = FxHashMap<BlockKey, Mask>;
-/// How far along the next pass each changed entry can matter, voxels:
-/// `sqrt(max - f)` for the smaller of its old and new values `f`.
-type Radii = FxHashMap<BlockKey, Box<[u16; BLOCK_VOXELS]>>;
+/// How the entries of a block that a pass changed changed.
+#[derive(Debug)]
+struct Changed {
+    /// How far along the next pass each can matter, voxels: `sqrt(max -
+    /// f)` for the smaller of its old and new values `f`.
+    radius: [u16; BLOCK_VOXELS],
+    /// Those whose value fell.
+    lowered: Mask,
+}
+
+/// What changed, per block.
+type Radii = FxHashMap<BlockKey, Box<Changed>>;
 
 /// The voxels of a block for which `f(offset)` holds, `None` for none.
 fn mask_where(f: impl Fn(usize) -> bool) -> Option<Mask> {
@@ -178,10 +187,10 @@ fn run_passes(map: &mut EdtMap, pass: &Pass<'_>, cache: &mut SeparableCache, dir
     let edt: &EdtMap = map;
     let value1 = |o: i16| if o == NONE { UNREACHABLE_DIST_SQ } else { (i32::from(o) * i32::from(o)) as u32 };
     let value2 = |o: [i16; 2]| if o[0] == NONE { UNREACHABLE_DIST_SQ } else { (i32::from(o[0]).pow(2) + i32::from(o[1]).pow(2)) as u32 };
-    let (dirty1, radii1, _) = drive(&mut Cached { map: g1, none: NONE }, 0, dirty, None, pass, |s, seg, out| pass.row(edt, flips, seg, s, out), value1, |_, _| 0.0);
+    let (dirty1, radii1, _) = drive(&mut Cached { map: g1, none: NONE }, 0, dirty, None::<(&Radii, &Rescan)>, pass, |s, seg, out| pass.row(edt, flips, seg, s, out), value1, |_, _| 0.0);
     // Pass y: the columns through the g1 entries that changed.
     let g1: &FxHashMap<_, _> = g1;
-    let (dirty2, radii2, _) = drive(&mut Cached { map: g2, none: NONE2 }, 1, &dirty1, Some(&radii1), pass, |s, seg, out| pass.column(g1, seg, s, out), value2, |_, _| 0.0);
+    let (dirty2, radii2, _) = drive(&mut Cached { map: g2, none: NONE2 }, 1, &dirty1, Some((&radii1, &LowerY { g1 })), pass, |s, seg, out| pass.column(g1, seg, s, out), value2, |_, _| 0.0);
     if !last {
         return IntegrateReport::default();
     }
@@ -189,7 +198,7 @@ fn run_passes(map: &mut EdtMap, pass: &Pass<'_>, cache: &mut SeparableCache, dir
     let g2: &FxHashMap<_, _> = g2;
     // The distance, at most the cutoff (FAR included).
     let truncated = |d: u32| pass.roots.sqrt(d.min(pass.max));
-    let (changed, _, stats) = drive(map, 2, &dirty2, Some(&radii2), pass, |s, seg, out| pass.depth(g2, seg, s, out), |v: (u32, VoxelIndex)| v.0, |o: (u32, VoxelIndex), n: (u32, VoxelIndex)| {
+    let (changed, _, stats) = drive(map, 2, &dirty2, Some((&radii2, &LowerZ { g2 })), pass, |s, seg, out| pass.depth(g2, seg, s, out), |v: (u32, VoxelIndex)| v.0, |o: (u32, VoxelIndex), n: (u32, VoxelIndex)| {
         (truncated(n.0) - truncated(o.0)).abs()
     });
     let mut changed_blocks: Vec<BlockKey> = changed.into_keys().collect();
@@ -205,10 +214,11 @@ fn run_passes(map: &mut EdtMap, pass: &Pass<'_>, cache: &mut SeparableCache, dir
 
 /// A layer of per-voxel values in blocks, taken out to be written by one
 /// task and put back.
-trait Layer {
+trait Layer: Sync {
     type Block: Send + Sync;
     type Value: Copy + PartialEq + Send + Sync;
     fn take(&mut self, keys: &[BlockKey]) -> Vec<Box<Self::Block>>;
+    fn get(&self, key: BlockKey) -> Option<&Self::Block>;
     /// Puts blocks back, dropping those left empty.
     fn restore(&mut self, blocks: Vec<(BlockKey, Box<Self::Block>)>);
     fn read(b: &Self::Block, o: usize) -> Self::Value;
@@ -227,6 +237,9 @@ impl<T: Copy + PartialEq + Send + Sync> Layer for Cached<'_, T> {
     fn take(&mut self, keys: &[BlockKey]) -> Vec<Box<Self::Block>> {
         keys.iter().map(|k| self.map.remove(k).unwrap_or_else(|| Box::new([self.none; BLOCK_VOXELS]))).collect()
     }
+    fn get(&self, key: BlockKey) -> Option<&Self::Block> {
+        self.map.get(&key).map(|b| &**b)
+    }
     fn restore(&mut self, blocks: Vec<(BlockKey, Box<Self::Block>)>) {
         let none = self.none;
         self.map.extend(blocks.into_iter().filter(|(_, b)| b.iter().any(|&t| t != none)));
@@ -244,6 +257,9 @@ impl Layer for EdtMap {
     type Value = (u32, VoxelIndex);
     fn take(&mut self, keys: &[BlockKey]) -> Vec<Box<EdtBlock>> {
         BlockMap::take(self, keys).into_iter().map(|(_, b)| b).collect()
+    }
+    fn get(&self, key: BlockKey) -> Option<&EdtBlock> {
+        EdtMap::get(self, key)
     }
     fn restore(&mut self, mut blocks: Vec<(BlockKey, Box<EdtBlock>)>) {
         blocks.retain(|(_, b)| !b.is_far());
@@ -300,8 +316,9 @@ fn local(axis: usize, u: usize, v: usize, t: usize) -> usize {
     c[0] + 8 * (c[1] + 8 * c[2])
 }
 
-/// A task's blocks: coordinate along the axis, block, voxels changed.
-type Owned<B> = Vec<(i32, Box<B>, Mask, Option<Box<[u16; BLOCK_VOXELS]>>)>;
+/// A task's blocks: coordinate along the axis, block, voxels changed and
+/// how they changed.
+type Owned<B> = Vec<(i32, Box<B>, Mask, Option<Box<Changed>>)>;
 
 /// One segment of a line: its first voxel's coordinates (the `axis`
 /// coordinate unused) and the changes it covers, `lo..=hi` along `axis`.
@@ -312,19 +329,190 @@ struct Segment {
     hi: i32,
 }
 
+/// The work of one line: outputs to recompute from all their inputs
+/// (`segments`, outputs `lo - reach ..= hi + reach`), then outputs to lower
+/// from the entries that were lowered (`lower`: outputs `a..=b` and the
+/// range of `entries` that can reach them).
+#[derive(Debug, Default)]
+struct LineWork {
+    line: [i32; 3],
+    segments: Range<usize>,
+    lower: Range<usize>,
+}
+
+/// A task's plan: its lines, their segments, their lowering ranges and the
+/// positions of the lowered entries, and the blocks they write.
+#[derive(Debug, Default)]
+struct Plan {
+    lines: Vec<LineWork>,
+    segments: Vec<Segment>,
+    lower: Vec<(i32, i32, Range<usize>)>,
+    entries: Vec<i32>,
+    owned: Vec<i32>,
+    visited: usize,
+}
+
+/// How a pass's outputs follow from its inputs, for the outputs lowered
+/// directly by the entries that were lowered.
+trait Lower<V>: Sync {
+    type Entry: Copy + Default;
+    /// Squared distance and position along the axis of the entry output
+    /// `o` at `q` comes from; `None` for no obstacle.
+    fn key(&self, q: i32, o: V) -> Option<(u32, i32)>;
+    /// The entries at `ps` (ascending) on `line` along `axis`, with their
+    /// squared distances (`UNREACHABLE_DIST_SQ` for none), into `out`.
+    fn entries(&self, line: [i32; 3], axis: usize, ps: &[i32], out: &mut Vec<(u32, Self::Entry)>);
+    /// The output at `q` of `line` from entry `e` at `p`, `d` away.
+    fn make(&self, line: [i32; 3], q: i32, p: i32, d: u32, e: Self::Entry) -> V;
+}
+
+/// Pass x has no previous pass to follow: its rows are always rescanned.
+struct Rescan;
+
+impl Lower<i16> for Rescan {
+    type Entry = ();
+    fn key(&self, _: i32, _: i16) -> Option<(u32, i32)> {
+        None
+    }
+    fn entries(&self, _: [i32; 3], _: usize, _: &[i32], _: &mut Vec<(u32, ())>) {}
+    fn make(&self, _: [i32; 3], _: i32, _: i32, _: u32, _: ()) -> i16 {
+        NONE
+    }
+}
+
+/// The entries of a cache layer (`none` where it has no block) at
+/// ascending positions `ps` along a line, with their squared distances,
+/// each block looked up once.
+fn read_entries<T: Copy>(layer: &FxHashMap<BlockKey, Box<[T; BLOCK_VOXELS]>>, none: T, line: [i32; 3], axis: usize, ps: &[i32], value: impl Fn(T) -> u32, out: &mut Vec<(u32, T)>) {
+    let mut cur: Option<(BlockKey, Option<&[T; BLOCK_VOXELS]>)> = None;
+    for &p in ps {
+        let v = at_axis(line, axis, p);
+        let key = v.block();
+        let block = match cur {
+            Some((k, b)) if k == key => b,
+            _ => {
+                let b = layer.get(&key).map(|b| &**b);
+                cur = Some((key, b));
+                b
+            }
+        };
+        let e = block.map_or(none, |b| b[v.offset_in_block()]);
+        out.push((value(e), e));
+    }
+}
+
+/// Pass y follows pass x: the nearest entry of a column is a `g1` entry.
+struct LowerY<'a> {
+    g1: &'a FxHashMap<BlockKey, Box<G1Block>>,
+}
+
+impl Lower<[i16; 2]> for LowerY<'_> {
+    type Entry = i16;
+    fn key(&self, q: i32, o: [i16; 2]) -> Option<(u32, i32)> {
+        (o[0] != NONE).then(|| ((i32::from(o[0]).pow(2) + i32::from(o[1]).pow(2)) as u32, q + i32::from(o[1])))
+    }
+    fn entries(&self, line: [i32; 3], axis: usize, ps: &[i32], out: &mut Vec<(u32, i16)>) {
+        read_entries(self.g1, NONE, line, axis, ps, |o| if o == NONE { UNREACHABLE_DIST_SQ } else { (i32::from(o) * i32::from(o)) as u32 }, out);
+    }
+    fn make(&self, _: [i32; 3], q: i32, p: i32, _: u32, e: i16) -> [i16; 2] {
+        [e, (p - q) as i16]
+    }
+}
+
+/// Pass z follows pass y: the nearest entry of a line is a `g2` entry.
+struct LowerZ<'a> {
+    g2: &'a FxHashMap<BlockKey, Box<G2Block>>,
+}
+
+impl Lower<(u32, VoxelIndex)> for LowerZ<'_> {
+    type Entry = [i16; 2];
+    fn key(&self, _: i32, o: (u32, VoxelIndex)) -> Option<(u32, i32)> {
+        (o.0 != FAR_DIST_SQ).then_some((o.0, o.1 .0[2]))
+    }
+    fn entries(&self, line: [i32; 3], axis: usize, ps: &[i32], out: &mut Vec<(u32, [i16; 2])>) {
+        read_entries(self.g2, NONE2, line, axis, ps, |o| if o[0] == NONE { UNREACHABLE_DIST_SQ } else { (i32::from(o[0]).pow(2) + i32::from(o[1]).pow(2)) as u32 }, out);
+    }
+    fn make(&self, line: [i32; 3], _: i32, p: i32, d: u32, e: [i16; 2]) -> (u32, VoxelIndex) {
+        (d, VoxelIndex([line[0] + i32::from(e[0]), line[1] + i32::from(e[1]), p]))
+    }
+}
+
+/// The lower envelope of a few parabolas `(x - p)² + f` at ascending
+/// positions over `lo..=hi`, read at ascending `x`: Meijster's integer
+/// envelope as in [`envelope`], ties to the lowest position.
+#[derive(Debug, Default)]
+struct Sparse {
+    /// Position, value, first x owned, value there, index among the input.
+    stack: Vec<(i64, i64, i64, i64, usize)>,
+    /// The parabola owning the last x read.
+    at: usize,
+}
+
+impl Sparse {
+    fn build(&mut self, lo: i32, hi: i32, items: impl Iterator<Item = (i32, u32)>) {
+        self.stack.clear();
+        self.at = 0;
+        let hi = i64::from(hi);
+        for (i, (q, f)) in items.enumerate() {
+            if f == UNREACHABLE_DIST_SQ {
+                continue;
+            }
+            let (q, fq) = (i64::from(q), i64::from(f));
+            // Drop the parabolas that q beats strictly where they start.
+            while let Some(&(_, _, start, at_start, _)) = self.stack.last() {
+                let d = start - q;
+                if at_start > d * d + fq {
+                    self.stack.pop();
+                } else {
+                    break;
+                }
+            }
+            let start = match self.stack.last() {
+                None => i64::from(lo),
+                Some(&(p, f, ..)) => 1 + (fq + q * q - f - p * p).div_euclid(2 * (q - p)),
+            };
+            if start <= hi {
+                let d = start - q;
+                self.stack.push((q, fq, start, d * d + fq, i));
+            }
+        }
+    }
+
+    /// The envelope at `x` (not below the last `x` read): its value and the
+    /// index of its parabola among the input.
+    fn at(&mut self, x: i32) -> Option<(u32, usize)> {
+        let x = i64::from(x);
+        while self.stack.get(self.at + 1).is_some_and(|p| p.2 <= x) {
+            self.at += 1;
+        }
+        let &(p, f, start, ..) = self.stack.get(self.at)?;
+        if start > x {
+            return None;
+        }
+        let d = x - p;
+        Some(((d * d + f).min(i64::from(u32::MAX)) as u32, self.stack[self.at].4))
+    }
+}
+
 /// Runs one pass along `axis`: every line with a voxel in `dirty` is
-/// rescanned over its dirty voxels grown by the reach (segments of one
-/// line further apart than twice the reach apart), by `scan(scratch,
-/// segment, out)`, which fills `out` with the new values from
-/// `lo - reach` to `hi + reach`. Each task owns one line of blocks of
-/// `layer` along `axis`, so it writes them directly. Returns the voxels
-/// whose value changed, as masks, and what changed (`amount` of each).
+/// brought up to date around it, by `scan(scratch, segment, out)`, which
+/// fills `out` with the new values from `lo - reach` to `hi + reach`.
+///
+/// Without `follow` (pass x) each line is rescanned over its dirty voxels
+/// grown by the reach. With it, each dirty entry is one the previous pass
+/// changed, and `follow.0` says how (how far it can matter, whether it was
+/// lowered): the outputs whose nearest entry rose or changed are rescanned
+/// (found among the old outputs), and the others are lowered directly by
+/// the lower envelope of the lowered entries alone, without reading the
+/// unchanged inputs. Each task owns one line of blocks of `layer` along
+/// `axis`, so it writes them directly. Returns the voxels whose value
+/// changed, as masks, how they changed, and what changed (`amount` of each).
 #[allow(clippy::too_many_arguments)]
-fn drive<L: Layer>(
+fn drive<L: Layer, Lo: Lower<L::Value>>(
     layer: &mut L,
     axis: usize,
     dirty: &Dirty,
-    radii: Option<&Radii>,
+    follow: Option<(&Radii, &Lo)>,
     pass: &Pass<'_>,
     scan: impl Fn(&mut Scratch, Segment, &mut Vec<L::Value>) + Sync,
     value: impl Fn(L::Value) -> u32 + Sync,
@@ -346,17 +534,17 @@ where
             start = i;
         }
     }
-    // Segments of each task's 64 lines, and the blocks they write.
+    // Each task's plan, from the old outputs.
     let side = BLOCK_SIDE;
-    let planned: Vec<(Vec<Segment>, Vec<i32>)> = tasks
+    let view: &L = layer;
+    let planned: Vec<Plan> = tasks
         .par_iter()
         .with_min_len(MIN_TASKS)
-        .map(|r| {
+        .map_init(Vec::new, |found, r| {
             let ks = &keys[r.clone()];
             // Each block's masks, looked up once for its 64 lines.
-            let masks: Vec<(&Mask, Option<&[u16; BLOCK_VOXELS]>)> = ks.iter().map(|k| (&dirty[k], radii.and_then(|r| r.get(k)).map(|b| &**b))).collect();
-            let mut segments = Vec::new();
-            let mut owned = Vec::new();
+            let masks: Vec<(&Mask, Option<&Changed>)> = ks.iter().map(|k| (&dirty[k], follow.and_then(|(c, _)| c.get(k)).map(|b| &**b))).collect();
+            let mut plan = Plan::default();
             // Only the lines with a dirty voxel in one of the blocks.
             let mut lines = masks.iter().fold(0u64, |a, (m, _)| a | lines_of(m, axis));
             while lines != 0 {
@@ -365,35 +553,35 @@ where
                 let (u, v) = (l % 8, l / 8);
                 let mut line = [0; 3];
                 (line[b], line[d]) = (ks[0].0[b] * side + u as i32, ks[0].0[d] * side + v as i32);
-                // (last dirty position, lowest and highest output).
-                let mut cur: Option<(i32, i32, i32)> = None;
-                // A segment's outputs as `lo - reach ..= hi + reach`.
-                let segment = |(_, a, b): (i32, i32, i32)| Segment { line, lo: a + reach, hi: b - reach };
-                for (k, &(m, rk)) in ks.iter().zip(&masks) {
+                // The line's dirty entries: position, reach, lowered.
+                found.clear();
+                for (k, &(m, ch)) in ks.iter().zip(&masks) {
                     for t in 0..8 {
                         let o = local(axis, u, v, t);
                         if bit(m, o) {
                             let p = k.0[axis] * side + t as i32;
-                            let w = rk.map_or(reach, |r| i32::from(r[o]));
-                            cur = match cur {
-                                Some((last, a, b)) if p - last <= 2 * reach + 1 => Some((p, a.min(p - w), b.max(p + w))),
-                                Some(c) => {
-                                    segments.push(segment(c));
-                                    Some((p, p - w, p + w))
-                                }
-                                None => Some((p, p - w, p + w)),
-                            };
+                            let (w, lowered) = ch.map_or((reach, false), |c| (i32::from(c.radius[o]), bit(&c.lowered, o)));
+                            found.push((p, w, lowered));
                         }
                     }
                 }
-                segments.extend(cur.map(segment));
+                let first_segment = plan.segments.len();
+                let first_lower = plan.lower.len();
+                match follow {
+                    None => plan_rescan(&mut plan, line, found, reach),
+                    Some((_, lo)) => plan_follow(&mut plan, view, lo, line, axis, found, reach),
+                }
+                plan.lines.push(LineWork { line, segments: first_segment..plan.segments.len(), lower: first_lower..plan.lower.len() });
             }
-            for s in &segments {
-                owned.extend((s.lo - reach).div_euclid(side)..=(s.hi + reach).div_euclid(side));
+            for s in &plan.segments {
+                plan.owned.extend((s.lo - reach).div_euclid(side)..=(s.hi + reach).div_euclid(side));
             }
-            owned.sort_unstable();
-            owned.dedup();
-            (segments, owned)
+            for &(a, z, _) in &plan.lower {
+                plan.owned.extend(a.div_euclid(side)..=z.div_euclid(side));
+            }
+            plan.owned.sort_unstable();
+            plan.owned.dedup();
+            plan
         })
         .collect();
     // Take every task's blocks out of the layer.
@@ -402,48 +590,94 @@ where
         k[axis] = c;
         BlockKey(k)
     };
-    let all: Vec<BlockKey> = tasks.iter().zip(&planned).flat_map(|(r, (_, owned))| owned.iter().map(move |&c| key_of(r, c))).collect();
+    let all: Vec<BlockKey> = tasks.iter().zip(&planned).flat_map(|(r, p)| p.owned.iter().map(move |&c| key_of(r, c))).collect();
     let mut taken = layer.take(&all).into_iter();
-    let mut work: Vec<(Vec<Segment>, Owned<L::Block>)> = planned
+    let mut work: Vec<(Plan, Owned<L::Block>)> = planned
         .into_iter()
-        .map(|(segments, owned)| {
-            let blocks = owned.into_iter().map(|c| (c, taken.next().expect("one block per key"), [0u64; 8], None)).collect();
-            (segments, blocks)
+        .map(|plan| {
+            let blocks = plan.owned.iter().map(|&c| (c, taken.next().expect("one block per key"), [0u64; 8], None)).collect();
+            (plan, blocks)
         })
         .collect();
-    // Scan, compare, write.
+    // Scan, lower, compare, write.
     let stats: Vec<Stats> = work
         .par_iter_mut()
         .with_min_len(MIN_TASKS)
         .map_init(
-            || (Scratch::default(), Vec::new()),
-            |(s, out), (segments, blocks)| {
-                let mut st = Stats::default();
-                for seg in segments.iter() {
-                    out.clear();
-                    scan(s, *seg, out);
-                    let first = seg.lo - reach;
-                    st.visited += out.len();
-                    let mut j = blocks.partition_point(|x| x.0 < first.div_euclid(side));
-                    by_block(seg.line, axis, first, out.len(), |key, o0, stride, range| {
-                        while blocks[j].0 != key.0[axis] {
-                            j += 1;
+            || (Scratch::default(), Vec::new(), Vec::new(), Sparse::default()),
+            |(s, out, entries, sparse), (plan, blocks)| {
+                let mut st = Stats { visited: plan.visited, ..Stats::default() };
+                // Writes `new` at `o` of block `j` if it differs.
+                let put = |blocks: &mut Owned<L::Block>, j: usize, o: usize, new: L::Value, st: &mut Stats| {
+                    let (_, block, mask, changed) = &mut blocks[j];
+                    let old = L::read(block, o);
+                    if old != new {
+                        L::write(block, o, new);
+                        mask[o / 64] |= 1 << (o % 64);
+                        let (vo, vn) = (value(old), value(new));
+                        let f = vo.min(vn);
+                        let w = if f > pass.max { 0 } else { pass.roots.floor(pass.max - f) };
+                        let c = changed.get_or_insert_with(|| Box::new(Changed { radius: [0; BLOCK_VOXELS], lowered: [0; 8] }));
+                        c.radius[o] = w;
+                        if vn < vo {
+                            c.lowered[o / 64] |= 1 << (o % 64);
                         }
-                        let (_, block, mask, radius) = &mut blocks[j];
-                        for (k, &new) in out[range].iter().enumerate() {
-                            let o = o0 + k * stride;
-                            let old = L::read(block, o);
-                            if old != new {
-                                L::write(block, o, new);
-                                mask[o / 64] |= 1 << (o % 64);
-                                let f = value(old).min(value(new));
-                                let w = if f > pass.max { 0 } else { pass.roots.floor(pass.max - f) };
-                                radius.get_or_insert_with(|| Box::new([0; BLOCK_VOXELS]))[o] = w;
-                                st.changed += 1;
-                                st.sum += amount(old, new);
+                        st.changed += 1;
+                        st.sum += amount(old, new);
+                    }
+                };
+                for lw in &plan.lines {
+                    let segments = &plan.segments[lw.segments.clone()];
+                    for seg in segments {
+                        out.clear();
+                        scan(s, *seg, out);
+                        let first = seg.lo - reach;
+                        st.visited += out.len();
+                        let mut j = blocks.partition_point(|x| x.0 < first.div_euclid(side));
+                        by_block(seg.line, axis, first, out.len(), |key, o0, stride, range| {
+                            while blocks[j].0 != key.0[axis] {
+                                j += 1;
                             }
-                        }
-                    });
+                            for (k, &new) in out[range].iter().enumerate() {
+                                put(blocks, j, o0 + k * stride, new, &mut st);
+                            }
+                        });
+                    }
+                    let Some((_, lo)) = follow else { continue };
+                    for &(a, z, ref ps) in &plan.lower[lw.lower.clone()] {
+                        let ps = &plan.entries[ps.clone()];
+                        entries.clear();
+                        lo.entries(lw.line, axis, ps, entries);
+                        sparse.build(a, z, ps.iter().zip(entries.iter()).map(|(&p, &(f, _))| (p, f)));
+                        // Outputs rescanned above are final: skip them.
+                        let mut skip = segments.iter().map(|g| (g.lo - reach, g.hi + reach)).filter(|g| g.1 >= a).peekable();
+                        let mut j = blocks.partition_point(|x| x.0 < a.div_euclid(side));
+                        st.visited += (z - a + 1) as usize;
+                        by_block(lw.line, axis, a, (z - a + 1) as usize, |key, o0, stride, range| {
+                            while blocks[j].0 != key.0[axis] {
+                                j += 1;
+                            }
+                            for (k, i) in range.enumerate() {
+                                let q = a + i as i32;
+                                while skip.peek().is_some_and(|g| g.1 < q) {
+                                    skip.next();
+                                }
+                                if skip.peek().is_some_and(|g| g.0 <= q) {
+                                    continue;
+                                }
+                                let Some((dq, at)) = sparse.at(q) else { continue };
+                                if dq > pass.max {
+                                    continue;
+                                }
+                                let p = ps[at];
+                                let o = o0 + k * stride;
+                                let old = L::read(&blocks[j].1, o);
+                                if lo.key(q, old).is_none_or(|cur| (dq, p) < cur) {
+                                    put(blocks, j, o, lo.make(lw.line, q, p, dq, entries[at].1), &mut st);
+                                }
+                            }
+                        });
+                    }
                 }
                 st
             },
@@ -451,21 +685,110 @@ where
         .collect();
     // Put the blocks back; the changed voxels are the next pass's dirty ones.
     let mut next = Dirty::default();
-    let mut next_radii = Radii::default();
+    let mut next_changed = Radii::default();
     let mut back = Vec::with_capacity(all.len());
     for (r, (_, blocks)) in tasks.iter().zip(work) {
-        for (c, block, mask, radius) in blocks {
+        for (c, block, mask, changed) in blocks {
             let key = key_of(r, c);
-            if let Some(radius) = radius {
+            if let Some(changed) = changed {
                 next.insert(key, mask);
-                next_radii.insert(key, radius);
+                next_changed.insert(key, changed);
             }
             back.push((key, block));
         }
     }
     layer.restore(back);
     let total = stats.iter().fold(Stats::default(), |a, s| Stats { changed: a.changed + s.changed, sum: a.sum + s.sum, visited: a.visited + s.visited });
-    (next, next_radii, total)
+    (next, next_changed, total)
+}
+
+/// Plans a line of pass x: its dirty voxels, each grown by its reach,
+/// rescanned in segments (those closer than twice the reach merged).
+fn plan_rescan(plan: &mut Plan, line: [i32; 3], found: &[(i32, i32, bool)], reach: i32) {
+    // (last dirty position, lowest and highest output).
+    let mut cur: Option<(i32, i32, i32)> = None;
+    // A segment's outputs as `lo - reach ..= hi + reach`.
+    let segment = |(_, a, b): (i32, i32, i32)| Segment { line, lo: a + reach, hi: b - reach };
+    for &(p, w, _) in found {
+        cur = match cur {
+            Some((last, a, b)) if p - last <= 2 * reach + 1 => Some((p, a.min(p - w), b.max(p + w))),
+            Some(c) => {
+                plan.segments.push(segment(c));
+                Some((p, p - w, p + w))
+            }
+            None => Some((p, p - w, p + w)),
+        };
+    }
+    plan.segments.extend(cur.map(segment));
+}
+
+/// Plans a line of pass y or z from the entries the previous pass changed
+/// (`found`: position, reach, lowered; ascending): the outputs whose
+/// nearest entry rose (or changed without falling) are rescanned, found
+/// among the old outputs in reach of those entries, and runs of them less
+/// than twice the reach apart are merged; the lowered entries' reaches,
+/// merged where they overlap, are lowered from those entries alone.
+fn plan_follow<L: Layer, Lo: Lower<L::Value>>(plan: &mut Plan, layer: &L, lo: &Lo, line: [i32; 3], axis: usize, found: &[(i32, i32, bool)], reach: i32) {
+    // Rose: the old outputs that came from these entries.
+    let rose: Vec<i32> = found.iter().filter(|e| !e.2).map(|e| e.0).collect();
+    let mut run: Option<(i32, i32)> = None;
+    let push = |plan: &mut Plan, (a, b): (i32, i32)| plan.segments.push(Segment { line, lo: a + reach, hi: b - reach });
+    for (a, z) in merged(found.iter().filter(|e| !e.2).map(|e| (e.0 - e.1, e.0 + e.1))) {
+        plan.visited += (z - a + 1) as usize;
+        by_block(line, axis, a, (z - a + 1) as usize, |key, o0, stride, range| {
+            let block = layer.get(key);
+            for (k, i) in range.enumerate() {
+                let q = a + i as i32;
+                let Some(old) = block.map(|b| L::read(b, o0 + k * stride)) else { continue };
+                let from_rose = lo.key(q, old).is_some_and(|(_, s)| rose.binary_search(&s).is_ok());
+                if from_rose {
+                    run = match run {
+                        Some((s, e)) if q - e <= 2 * reach => Some((s, q)),
+                        Some(c) => {
+                            push(plan, c);
+                            Some((q, q))
+                        }
+                        None => Some((q, q)),
+                    };
+                }
+            }
+        });
+    }
+    if let Some(c) = run {
+        push(plan, c);
+    }
+    // Fell: their reaches, and the entries whose reaches make up each.
+    let ranges = merged(found.iter().filter(|e| e.2).map(|e| (e.0 - e.1, e.0 + e.1)));
+    let (mut r, mut open) = (0, None);
+    for e in found.iter().filter(|e| e.2) {
+        while ranges[r].1 < e.0 {
+            r += 1;
+        }
+        if open != Some(r) {
+            let n = plan.entries.len();
+            plan.lower.push((ranges[r].0, ranges[r].1, n..n));
+            open = Some(r);
+        }
+        plan.entries.push(e.0);
+        if let Some(last) = plan.lower.last_mut() {
+            last.2.end = plan.entries.len();
+        }
+    }
+}
+
+/// The union of intervals, as disjoint ascending intervals (touching ones
+/// joined).
+fn merged(iv: impl Iterator<Item = (i32, i32)>) -> Vec<(i32, i32)> {
+    let mut iv: Vec<(i32, i32)> = iv.collect();
+    iv.sort_unstable();
+    let mut out: Vec<(i32, i32)> = Vec::new();
+    for (a, b) in iv {
+        match out.last_mut() {
+            Some(last) if a <= last.1 + 1 => last.1 = last.1.max(b),
+            _ => out.push((a, b)),
+        }
+    }
+    out
 }
 
 /// `floor(sqrt(v))`, at most `u16::MAX`.
