@@ -10,21 +10,34 @@
 //! backend keeps `g1` and `g2` of the whole map between frames, as offsets
 //! to the nearest obstacle, next to the global EDT (the last pass). When
 //! obstacles appear or vanish, only the rows through them are scanned
-//! again (over their changes grown by the reach); only the columns through
-//! the `g1` entries that changed, and only the lines through the `g2`
-//! entries that changed. A changed entry of value `f` (the smaller of its
-//! old and new) can matter only `sqrt(max - f)` along the next pass, so
-//! each line is redone over its changes grown by that much. The work
-//! follows the changed entries of each pass, however large the window.
+//! again (over their changes grown by the reach); then only the columns
+//! through the `g1` entries that changed, and only the lines through the
+//! `g2` entries that changed, are brought up to date. A changed entry of
+//! value `f` (the smaller of its old and new) can matter only `sqrt(max -
+//! f)` along the next pass. The work follows the changed entries of each
+//! pass, however large the window.
 //!
-//! **Exact, and the batch EDT's answer.** Each line is scanned by the batch
-//! EDT's own kernels (`sweep_row`, Meijster's `envelope`) over its
-//! changes grown by twice the reach, and written over them grown once:
-//! every entry that can have changed is recomputed from inputs that are
-//! all current. Ties go to the lowest position along each axis, as in the
-//! batch EDT, so the map equals an exact batch EDT of the obstacles, the
-//! nearest obstacles included (what the GPU's exact mode computes), bit for
-//! bit.
+//! **Lowered and raised entries.** In passes y and z each changed entry is
+//! either lowered (its value fell) or not. An output whose nearest entry
+//! (its site, the position it was computed from) did not rise can only
+//! fall, and only to a lowered entry: its new value is the smaller of its
+//! old one and the lower envelope of the lowered entries alone, which
+//! needs neither the unchanged inputs nor a scan of them (a few lowered
+//! entries per line against the 4 × reach inputs of a rescan). Only the
+//! outputs whose site rose or changed without falling (found among the old
+//! outputs within reach of those entries) are rescanned from all their
+//! inputs, as DynamicEDT3D's raise waves are. When obstacles only appear,
+//! no input is read but the lowered entries themselves.
+//!
+//! **Exact, and the batch EDT's answer.** A rescanned line is scanned by
+//! the batch EDT's own kernels (`sweep_row`, Meijster's `envelope`) from
+//! inputs that are all current, over its outputs grown by the reach. Ties
+//! go to the lowest position along each axis, as in the batch EDT: each
+//! output is the least (value, site position) over its inputs, so a
+//! lowered output is the least of its old (value, site) and the lowered
+//! envelope's, the same answer. The map equals an exact batch EDT of the
+//! obstacles, the nearest obstacles included (what the GPU's exact mode
+//! computes), bit for bit.
 //!
 //! **The cache.** `g1` and `g2` are functions of the obstacles the global
 //! EDT holds (its voxels at distance 0). They are kept for the map whose
@@ -540,13 +553,19 @@ where
     let planned: Vec<Plan> = tasks
         .par_iter()
         .with_min_len(MIN_TASKS)
-        .map_init(Vec::new, |found, r| {
+        .map_init(|| (Vec::new(), Scratch::default()), |(found, scratch), r| {
             let ks = &keys[r.clone()];
-            // Each block's masks, looked up once for its 64 lines.
-            let masks: Vec<(&Mask, Option<&Changed>)> = ks.iter().map(|k| (&dirty[k], follow.and_then(|(c, _)| c.get(k)).map(|b| &**b))).collect();
+            // Each block's masks and dirty lines, looked up once for its 64 lines.
+            let masks: Vec<(&Mask, Option<&Changed>, u64)> = ks
+                .iter()
+                .map(|k| {
+                    let m = &dirty[k];
+                    (m, follow.and_then(|(c, _)| c.get(k)).map(|b| &**b), lines_of(m, axis))
+                })
+                .collect();
             let mut plan = Plan::default();
             // Only the lines with a dirty voxel in one of the blocks.
-            let mut lines = masks.iter().fold(0u64, |a, (m, _)| a | lines_of(m, axis));
+            let mut lines = masks.iter().fold(0u64, |a, m| a | m.2);
             while lines != 0 {
                 let l = lines.trailing_zeros() as usize;
                 lines &= lines - 1;
@@ -555,7 +574,7 @@ where
                 (line[b], line[d]) = (ks[0].0[b] * side + u as i32, ks[0].0[d] * side + v as i32);
                 // The line's dirty entries: position, reach, lowered.
                 found.clear();
-                for (k, &(m, ch)) in ks.iter().zip(&masks) {
+                for (k, &(m, ch, _)) in ks.iter().zip(&masks).filter(|(_, m)| m.2 >> l & 1 == 1) {
                     for t in 0..8 {
                         let o = local(axis, u, v, t);
                         if bit(m, o) {
@@ -569,7 +588,7 @@ where
                 let first_lower = plan.lower.len();
                 match follow {
                     None => plan_rescan(&mut plan, line, found, reach),
-                    Some((_, lo)) => plan_follow(&mut plan, view, lo, line, axis, found, reach),
+                    Some((_, lo)) => plan_follow(&mut plan, view, lo, line, axis, found, reach, scratch),
                 }
                 plan.lines.push(LineWork { line, segments: first_segment..plan.segments.len(), lower: first_lower..plan.lower.len() });
             }
@@ -728,12 +747,16 @@ fn plan_rescan(plan: &mut Plan, line: [i32; 3], found: &[(i32, i32, bool)], reac
 /// among the old outputs in reach of those entries, and runs of them less
 /// than twice the reach apart are merged; the lowered entries' reaches,
 /// merged where they overlap, are lowered from those entries alone.
-fn plan_follow<L: Layer, Lo: Lower<L::Value>>(plan: &mut Plan, layer: &L, lo: &Lo, line: [i32; 3], axis: usize, found: &[(i32, i32, bool)], reach: i32) {
+#[allow(clippy::too_many_arguments)]
+fn plan_follow<L: Layer, Lo: Lower<L::Value>>(plan: &mut Plan, layer: &L, lo: &Lo, line: [i32; 3], axis: usize, found: &[(i32, i32, bool)], reach: i32, s: &mut Scratch) {
     // Rose: the old outputs that came from these entries.
-    let rose: Vec<i32> = found.iter().filter(|e| !e.2).map(|e| e.0).collect();
+    let rose = &mut s.rose;
+    rose.clear();
+    rose.extend(found.iter().filter(|e| !e.2).map(|e| e.0));
     let mut run: Option<(i32, i32)> = None;
     let push = |plan: &mut Plan, (a, b): (i32, i32)| plan.segments.push(Segment { line, lo: a + reach, hi: b - reach });
-    for (a, z) in merged(found.iter().filter(|e| !e.2).map(|e| (e.0 - e.1, e.0 + e.1))) {
+    merged(found.iter().filter(|e| !e.2).map(|e| (e.0 - e.1, e.0 + e.1)), &mut s.ranges);
+    for &(a, z) in &s.ranges {
         plan.visited += (z - a + 1) as usize;
         by_block(line, axis, a, (z - a + 1) as usize, |key, o0, stride, range| {
             let block = layer.get(key);
@@ -758,7 +781,8 @@ fn plan_follow<L: Layer, Lo: Lower<L::Value>>(plan: &mut Plan, layer: &L, lo: &L
         push(plan, c);
     }
     // Fell: their reaches, and the entries whose reaches make up each.
-    let ranges = merged(found.iter().filter(|e| e.2).map(|e| (e.0 - e.1, e.0 + e.1)));
+    merged(found.iter().filter(|e| e.2).map(|e| (e.0 - e.1, e.0 + e.1)), &mut s.ranges);
+    let ranges = &s.ranges;
     let (mut r, mut open) = (0, None);
     for e in found.iter().filter(|e| e.2) {
         while ranges[r].1 < e.0 {
@@ -777,18 +801,22 @@ fn plan_follow<L: Layer, Lo: Lower<L::Value>>(plan: &mut Plan, layer: &L, lo: &L
 }
 
 /// The union of intervals, as disjoint ascending intervals (touching ones
-/// joined).
-fn merged(iv: impl Iterator<Item = (i32, i32)>) -> Vec<(i32, i32)> {
-    let mut iv: Vec<(i32, i32)> = iv.collect();
-    iv.sort_unstable();
-    let mut out: Vec<(i32, i32)> = Vec::new();
-    for (a, b) in iv {
-        match out.last_mut() {
-            Some(last) if a <= last.1 + 1 => last.1 = last.1.max(b),
-            _ => out.push((a, b)),
+/// joined), into `out`.
+fn merged(iv: impl Iterator<Item = (i32, i32)>, out: &mut Vec<(i32, i32)>) {
+    out.clear();
+    out.extend(iv);
+    out.sort_unstable();
+    let mut n = 0;
+    for i in 0..out.len() {
+        let (a, b) = out[i];
+        if n > 0 && a <= out[n - 1].1 + 1 {
+            out[n - 1].1 = out[n - 1].1.max(b);
+        } else {
+            out[n] = (a, b);
+            n += 1;
         }
     }
-    out
+    out.truncate(n);
 }
 
 /// `floor(sqrt(v))`, at most `u16::MAX`.
@@ -813,6 +841,9 @@ struct Scratch {
     flags: Vec<bool>,
     off: Vec<[i16; 2]>,
     envelope: EnvelopeScratch,
+    /// Planning: positions of the entries that rose, merged reaches.
+    rose: Vec<i32>,
+    ranges: Vec<(i32, i32)>,
 }
 
 impl Scratch {
@@ -962,3 +993,44 @@ impl Pass<'_> {
 }
 
 const _: () = assert!(BLOCK_SIDE == 8);
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        /// The sparse envelope is the least (value, position) over its
+        /// parabolas at every x of its range, by brute force: ties, equal
+        /// values, parabolas owning no integer, and x far from all of them.
+        #[test]
+        fn sparse_envelope_is_the_least_value_then_position(
+            raw in prop::collection::vec((0i32..40, 0u32..60), 0..12),
+            lo in -10i32..20,
+            len in 0i32..50,
+        ) {
+            let mut items: Vec<(i32, u32)> = raw;
+            items.sort_unstable_by_key(|&(p, _)| p);
+            items.dedup_by_key(|&mut (p, _)| p);
+            let hi = lo + len;
+            let mut sparse = Sparse::default();
+            sparse.build(lo, hi, items.iter().copied());
+            for x in lo..=hi {
+                let want = items
+                    .iter()
+                    .enumerate()
+                    .map(|(i, &(p, f))| (f + (x - p).unsigned_abs().pow(2), p, i))
+                    .min_by_key(|&(v, p, _)| (v, p))
+                    .map(|(v, _, i)| (v, i));
+                prop_assert_eq!(sparse.at(x), want, "x {} items {:?}", x, items);
+            }
+        }
+    }
+
+    #[test]
+    fn merged_joins_overlapping_and_touching_intervals() {
+        let mut out = Vec::new();
+        merged([(5, 9), (0, 2), (3, 4), (20, 25), (8, 12), (14, 14)].into_iter(), &mut out);
+        assert_eq!(out, [(0, 12), (14, 14), (20, 25)]);
+    }
+}
