@@ -198,8 +198,7 @@ fn run_passes(map: &mut EdtMap, pass: &Pass<'_>, cache: &mut SeparableCache, dir
     let SeparableCache { g1, g2, .. } = cache;
     // Pass x: the rows through the obstacles that changed.
     let edt: &EdtMap = map;
-    let value1 = |o: i16| if o == NONE { UNREACHABLE_DIST_SQ } else { (i32::from(o) * i32::from(o)) as u32 };
-    let value2 = |o: [i16; 2]| if o[0] == NONE { UNREACHABLE_DIST_SQ } else { (i32::from(o[0]).pow(2) + i32::from(o[1]).pow(2)) as u32 };
+    let (value1, value2) = (g1_value, g2_value);
     let (dirty1, radii1, _) = drive(&mut Cached { map: g1, none: NONE }, 0, dirty, None::<(&Radii, &Rescan)>, pass, |s, seg, out| pass.row(edt, flips, seg, s, out), value1, |_, _| 0.0);
     // Pass y: the columns through the g1 entries that changed.
     let g1: &FxHashMap<_, _> = g1;
@@ -368,7 +367,7 @@ struct Plan {
 /// How a pass's outputs follow from its inputs, for the outputs lowered
 /// directly by the entries that were lowered.
 trait Lower<V>: Sync {
-    type Entry: Copy + Default;
+    type Entry: Copy;
     /// Squared distance and position along the axis of the entry output
     /// `o` at `q` comes from; `None` for no obstacle.
     fn key(&self, q: i32, o: V) -> Option<(u32, i32)>;
@@ -391,6 +390,16 @@ impl Lower<i16> for Rescan {
     fn make(&self, _: [i32; 3], _: i32, _: i32, _: u32, _: ()) -> i16 {
         NONE
     }
+}
+
+/// Squared distance of a `g1` entry, `UNREACHABLE_DIST_SQ` for none.
+fn g1_value(o: i16) -> u32 {
+    if o == NONE { UNREACHABLE_DIST_SQ } else { (i32::from(o) * i32::from(o)) as u32 }
+}
+
+/// Squared distance of a `g2` entry, `UNREACHABLE_DIST_SQ` for none.
+fn g2_value(o: [i16; 2]) -> u32 {
+    if o[0] == NONE { UNREACHABLE_DIST_SQ } else { (i32::from(o[0]).pow(2) + i32::from(o[1]).pow(2)) as u32 }
 }
 
 /// The entries of a cache layer (`none` where it has no block) at
@@ -422,10 +431,10 @@ struct LowerY<'a> {
 impl Lower<[i16; 2]> for LowerY<'_> {
     type Entry = i16;
     fn key(&self, q: i32, o: [i16; 2]) -> Option<(u32, i32)> {
-        (o[0] != NONE).then(|| ((i32::from(o[0]).pow(2) + i32::from(o[1]).pow(2)) as u32, q + i32::from(o[1])))
+        (o[0] != NONE).then(|| (g2_value(o), q + i32::from(o[1])))
     }
     fn entries(&self, line: [i32; 3], axis: usize, ps: &[i32], out: &mut Vec<(u32, i16)>) {
-        read_entries(self.g1, NONE, line, axis, ps, |o| if o == NONE { UNREACHABLE_DIST_SQ } else { (i32::from(o) * i32::from(o)) as u32 }, out);
+        read_entries(self.g1, NONE, line, axis, ps, g1_value, out);
     }
     fn make(&self, _: [i32; 3], q: i32, p: i32, _: u32, e: i16) -> [i16; 2] {
         [e, (p - q) as i16]
@@ -443,7 +452,7 @@ impl Lower<(u32, VoxelIndex)> for LowerZ<'_> {
         (o.0 != FAR_DIST_SQ).then_some((o.0, o.1 .0[2]))
     }
     fn entries(&self, line: [i32; 3], axis: usize, ps: &[i32], out: &mut Vec<(u32, [i16; 2])>) {
-        read_entries(self.g2, NONE2, line, axis, ps, |o| if o[0] == NONE { UNREACHABLE_DIST_SQ } else { (i32::from(o[0]).pow(2) + i32::from(o[1]).pow(2)) as u32 }, out);
+        read_entries(self.g2, NONE2, line, axis, ps, g2_value, out);
     }
     fn make(&self, line: [i32; 3], _: i32, p: i32, d: u32, e: [i16; 2]) -> (u32, VoxelIndex) {
         (d, VoxelIndex([line[0] + i32::from(e[0]), line[1] + i32::from(e[1]), p]))
@@ -498,12 +507,12 @@ impl Sparse {
         while self.stack.get(self.at + 1).is_some_and(|p| p.2 <= x) {
             self.at += 1;
         }
-        let &(p, f, start, ..) = self.stack.get(self.at)?;
+        let &(p, f, start, _, i) = self.stack.get(self.at)?;
         if start > x {
             return None;
         }
         let d = x - p;
-        Some(((d * d + f).min(i64::from(u32::MAX)) as u32, self.stack[self.at].4))
+        Some(((d * d + f).min(i64::from(u32::MAX)) as u32, i))
     }
 }
 
@@ -870,7 +879,7 @@ impl Scratch {
             for (k, i) in range.enumerate() {
                 let o = offsets(block[o0 + k * stride]);
                 off[i] = o;
-                f[i] = if o[0] == NONE { UNREACHABLE_DIST_SQ } else { (i32::from(o[0]).pow(2) + i32::from(o[1]).pow(2)) as u32 };
+                f[i] = g2_value(o);
             }
         });
     }
