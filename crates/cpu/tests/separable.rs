@@ -104,6 +104,39 @@ fn step(world: &mut World, (kind, a, b, c): (u8, u32, u32, u32)) -> Vec<BlockKey
     blocks
 }
 
+/// Runs `steps` from an empty map at a cutoff of `cutoff_tenths` / 10
+/// voxels, checking the map after each.
+fn check(cutoff_tenths: u32, steps: Vec<(u8, u32, u32, u32)>, clone_at: usize) -> Result<(), TestCaseError> {
+    let lo = OccupancyParams::default().log_odds().expect("default parameters");
+    let mut world = World { lo, occ: OccupancyMap::new(), fixed: StaticMap::new(), set: BTreeSet::new() };
+    let params = GlobalParams { max_distance_m: f64::from(cutoff_tenths) / 10.0, ..Default::default() };
+    let cutoff = params.cutoff(1.0).expect("valid cutoff");
+    let mut backend = CpuBackend::default();
+    let mut map = EdtMap::new();
+    for (i, s) in steps.into_iter().enumerate() {
+        if i == clone_at {
+            // A map the backend has not seen: its cache is rebuilt.
+            map = map.clone();
+        }
+        let blocks = step(&mut world, s);
+        backend.integrate(IntegrateJob { map: &mut map, obstacles: world.obstacles(), cutoff, work: Integration::Changes { blocks: &blocks } }).expect("cpu");
+        let want = reference(&world, cutoff);
+        prop_assert_eq!(map.len(), want.len(), "step {}: blocks", i);
+        for (key, block) in want.iter() {
+            prop_assert!(map.get(key) == Some(block), "step {}: block {:?} differs from the batch EDT", i, key);
+        }
+        for z in LO[2] - 2..LO[2] + DIMS[2] + 2 {
+            for y in LO[1] - 2..LO[1] + DIMS[1] + 2 {
+                for x in LO[0] - 2..LO[0] + DIMS[0] + 2 {
+                    let v = VoxelIndex([x, y, z]);
+                    prop_assert_eq!(map.entry(v).0, brute(&world, v, cutoff.max_dist_sq), "step {}: voxel {:?}", i, v);
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
 proptest! {
     #![proptest_config(ProptestConfig { cases: 48, .. ProptestConfig::default() })]
 
@@ -113,32 +146,17 @@ proptest! {
         steps in prop::collection::vec((any::<u8>(), any::<u32>(), any::<u32>(), any::<u32>()), 1..14),
         clone_at in 0usize..20,
     ) {
-        let lo = OccupancyParams::default().log_odds().expect("default parameters");
-        let mut world = World { lo, occ: OccupancyMap::new(), fixed: StaticMap::new(), set: BTreeSet::new() };
-        let params = GlobalParams { max_distance_m: f64::from(cutoff_tenths) / 10.0, ..Default::default() };
-        let cutoff = params.cutoff(1.0).expect("valid cutoff");
-        let mut backend = CpuBackend::default();
-        let mut map = EdtMap::new();
-        for (i, s) in steps.into_iter().enumerate() {
-            if i == clone_at {
-                // A map the backend has not seen: its cache is rebuilt.
-                map = map.clone();
-            }
-            let blocks = step(&mut world, s);
-            backend.integrate(IntegrateJob { map: &mut map, obstacles: world.obstacles(), cutoff, work: Integration::Changes { blocks: &blocks } }).expect("cpu");
-            let want = reference(&world, cutoff);
-            prop_assert_eq!(map.len(), want.len(), "step {}: blocks", i);
-            for (key, block) in want.iter() {
-                prop_assert!(map.get(key) == Some(block), "step {}: block {:?} differs from the batch EDT", i, key);
-            }
-            for z in LO[2] - 2..LO[2] + DIMS[2] + 2 {
-                for y in LO[1] - 2..LO[1] + DIMS[1] + 2 {
-                    for x in LO[0] - 2..LO[0] + DIMS[0] + 2 {
-                        let v = VoxelIndex([x, y, z]);
-                        prop_assert_eq!(map.entry(v).0, brute(&world, v, cutoff.max_dist_sq), "step {}: voxel {:?}", i, v);
-                    }
-                }
-            }
-        }
+        check(cutoff_tenths, steps, clone_at)?;
+    }
+
+    /// Cutoffs of 8 to 20 voxels: lines long enough that the outputs a
+    /// lowered entry lowers are found by bisection.
+    #[test]
+    fn changes_keep_the_map_exact_at_long_cutoffs(
+        cutoff_tenths in 80u32..200,
+        steps in prop::collection::vec((any::<u8>(), any::<u32>(), any::<u32>(), any::<u32>()), 1..10),
+        clone_at in 0usize..20,
+    ) {
+        check(cutoff_tenths, steps, clone_at)?;
     }
 }

@@ -139,6 +139,10 @@ fn rebuild(map: &mut EdtMap, pass: &Pass<'_>, cache: &mut SeparableCache) {
     run_passes(map, pass, cache, &obstacles, &Dirty::default(), false);
 }
 
+/// Shortest envelope piece whose outputs are found by bisection rather
+/// than read one by one.
+const BISECT: i64 = 12;
+
 /// Fewest blocks or block lines one thread takes: small frames stay on one
 /// thread rather than pay for waking the others.
 const MIN_TASKS: usize = 16;
@@ -227,6 +231,9 @@ fn run_passes(map: &mut EdtMap, pass: &Pass<'_>, cache: &mut SeparableCache, dir
 /// A layer of per-voxel values in blocks, taken out to be written by one
 /// task and put back.
 trait Layer: Sync {
+    /// Whether a pass follows this one (and needs to know how each entry
+    /// changed).
+    const FEEDS_NEXT: bool;
     type Block: Send + Sync;
     type Value: Copy + PartialEq + Send + Sync;
     fn take(&mut self, keys: &[BlockKey]) -> Vec<Box<Self::Block>>;
@@ -244,6 +251,7 @@ struct Cached<'a, T> {
 }
 
 impl<T: Copy + PartialEq + Send + Sync> Layer for Cached<'_, T> {
+    const FEEDS_NEXT: bool = true;
     type Block = [T; BLOCK_VOXELS];
     type Value = T;
     fn take(&mut self, keys: &[BlockKey]) -> Vec<Box<Self::Block>> {
@@ -265,6 +273,7 @@ impl<T: Copy + PartialEq + Send + Sync> Layer for Cached<'_, T> {
 }
 
 impl Layer for EdtMap {
+    const FEEDS_NEXT: bool = false;
     type Block = EdtBlock;
     type Value = (u32, VoxelIndex);
     fn take(&mut self, keys: &[BlockKey]) -> Vec<Box<EdtBlock>> {
@@ -460,21 +469,21 @@ impl Lower<(u32, VoxelIndex)> for LowerZ<'_> {
 }
 
 /// The lower envelope of a few parabolas `(x - p)² + f` at ascending
-/// positions over `lo..=hi`, read at ascending `x`: Meijster's integer
-/// envelope as in [`envelope`], ties to the lowest position.
+/// positions over `lo..=hi`, as pieces: Meijster's integer envelope as in
+/// [`envelope`], ties to the lowest position.
 #[derive(Debug, Default)]
 struct Sparse {
     /// Position, value, first x owned, value there, index among the input.
     stack: Vec<(i64, i64, i64, i64, usize)>,
-    /// The parabola owning the last x read.
-    at: usize,
+    /// The last x.
+    hi: i64,
 }
 
 impl Sparse {
     fn build(&mut self, lo: i32, hi: i32, items: impl Iterator<Item = (i32, u32)>) {
         self.stack.clear();
-        self.at = 0;
         let hi = i64::from(hi);
+        self.hi = hi;
         for (i, (q, f)) in items.enumerate() {
             if f == UNREACHABLE_DIST_SQ {
                 continue;
@@ -500,19 +509,31 @@ impl Sparse {
         }
     }
 
-    /// The envelope at `x` (not below the last `x` read): its value and the
-    /// index of its parabola among the input.
-    fn at(&mut self, x: i32) -> Option<(u32, usize)> {
-        let x = i64::from(x);
-        while self.stack.get(self.at + 1).is_some_and(|p| p.2 <= x) {
-            self.at += 1;
-        }
-        let &(p, f, start, _, i) = self.stack.get(self.at)?;
-        if start > x {
-            return None;
-        }
-        let d = x - p;
-        Some(((d * d + f).min(i64::from(u32::MAX)) as u32, i))
+    /// The envelope's pieces, in order: each parabola's position `p`,
+    /// value `f`, the range `s..=e` of x where it is the envelope (ties to
+    /// the lowest position), and its index among the input.
+    fn pieces(&self) -> impl Iterator<Item = Piece> + '_ {
+        self.stack.iter().enumerate().map(|(k, &(p, f, s, _, i))| {
+            let e = self.stack.get(k + 1).map_or(self.hi, |n| n.2 - 1);
+            Piece { p, f, s, e, index: i }
+        })
+    }
+}
+
+/// One parabola `(x - p)² + f` of a [`Sparse`] envelope, the envelope over
+/// `s..=e`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Piece {
+    p: i64,
+    f: i64,
+    s: i64,
+    e: i64,
+    index: usize,
+}
+
+impl Piece {
+    fn at(&self, x: i64) -> i64 {
+        (x - self.p) * (x - self.p) + self.f
     }
 }
 
@@ -627,7 +648,9 @@ where
             (plan, blocks)
         })
         .collect();
-    // Scan, lower, compare, write.
+    // Lower, scan, compare, write.
+    let cap = i64::from(pass.max) + 1;
+    let stride = [1, 8, 64][axis];
     let stats: Vec<Stats> = work
         .par_iter_mut()
         .with_min_len(MIN_TASKS)
@@ -642,20 +665,95 @@ where
                     if old != new {
                         L::write(block, o, new);
                         mask[o / 64] |= 1 << (o % 64);
-                        let (vo, vn) = (value(old), value(new));
-                        let f = vo.min(vn);
-                        let w = if f > pass.max { 0 } else { pass.roots.floor(pass.max - f) };
-                        let c = changed.get_or_insert_with(|| Box::new(Changed { radius: [0; BLOCK_VOXELS], lowered: [0; 8] }));
-                        c.radius[o] = w;
-                        if vn < vo {
-                            c.lowered[o / 64] |= 1 << (o % 64);
-                        }
                         st.changed += 1;
                         st.sum += amount(old, new);
+                        if L::FEEDS_NEXT {
+                            let (vo, vn) = (value(old), value(new));
+                            let f = vo.min(vn);
+                            let w = if f > pass.max { 0 } else { pass.roots.floor(pass.max - f) };
+                            let c = changed.get_or_insert_with(|| Box::new(Changed { radius: [0; BLOCK_VOXELS], lowered: [0; 8] }));
+                            c.radius[o] = w;
+                            if vn < vo {
+                                c.lowered[o / 64] |= 1 << (o % 64);
+                            }
+                        }
                     }
                 };
                 for lw in &plan.lines {
                     let segments = &plan.segments[lw.segments.clone()];
+                    if let Some((_, lo)) = follow {
+                        // First the outputs the lowered entries lower, from
+                        // the old outputs: the rescans below overwrite
+                        // their own outputs, which this leaves to them.
+                        let rescanned = |q: i64| segments.iter().any(|g| i64::from(g.lo - reach) <= q && q <= i64::from(g.hi + reach));
+                        let o_line = local(axis, lw.line[b].rem_euclid(side) as usize, lw.line[d].rem_euclid(side) as usize, 0);
+                        for &(a, z, ref ps) in &plan.lower[lw.lower.clone()] {
+                            let ps = &plan.entries[ps.clone()];
+                            entries.clear();
+                            lo.entries(lw.line, axis, ps, entries);
+                            sparse.build(a, z, ps.iter().zip(entries.iter()).map(|(&p, &(f, _))| (p, f)));
+                            let (ca, ja) = (i64::from(a.div_euclid(side)), blocks.partition_point(|x| x.0 < a.div_euclid(side)));
+                            // Block and offset of the output at q.
+                            let slot = |q: i64| (ja + (q.div_euclid(i64::from(side)) - ca) as usize, o_line + q.rem_euclid(i64::from(side)) as usize * stride);
+                            // The old output at q's squared distance, capped
+                            // just past the cutoff, and its key.
+                            let old_at = |blocks: &Owned<L::Block>, q: i64| {
+                                let (j, o) = slot(q);
+                                let key = lo.key(q as i32, L::read(&blocks[j].1, o));
+                                (key.map_or(cap, |k| i64::from(k.0).min(cap)), key)
+                            };
+                            for piece in sparse.pieces() {
+                                // Lowers the output at q where the piece
+                                // beats it; whether it lies at or below it.
+                                let lower = |blocks: &mut Owned<L::Block>, q: i64, st: &mut Stats| {
+                                    st.visited += 1;
+                                    let ((v, key), dq) = (old_at(blocks, q), piece.at(q));
+                                    if v < dq {
+                                        return false;
+                                    }
+                                    let (dq, p) = (dq as u32, piece.p as i32);
+                                    if dq <= pass.max && !rescanned(q) && key.is_none_or(|cur| (dq, p) < cur) {
+                                        let (j, o) = slot(q);
+                                        put(blocks, j, o, lo.make(lw.line, q as i32, p, dq, entries[piece.index].1), st);
+                                    }
+                                    true
+                                };
+                                if piece.e - piece.s < BISECT {
+                                    for q in piece.s..=piece.e {
+                                        lower(blocks, q, &mut st);
+                                    }
+                                    continue;
+                                }
+                                // The old outputs less the piece, capped, are
+                                // concave along the line (each old output is a
+                                // least parabola; two parabolas differ by a
+                                // line), so the outputs the piece beats are
+                                // one run: find the peak by bisection and walk
+                                // out from it.
+                                let (mut l, mut h) = (piece.s, piece.e);
+                                while l < h {
+                                    let m = l + (h - l) / 2;
+                                    let gain = |q| old_at(blocks, q).0 - piece.at(q);
+                                    st.visited += 2;
+                                    if gain(m) >= gain(m + 1) {
+                                        h = m;
+                                    } else {
+                                        l = m + 1;
+                                    }
+                                }
+                                if lower(blocks, l, &mut st) {
+                                    let mut q = l - 1;
+                                    while q >= piece.s && lower(blocks, q, &mut st) {
+                                        q -= 1;
+                                    }
+                                    q = l + 1;
+                                    while q <= piece.e && lower(blocks, q, &mut st) {
+                                        q += 1;
+                                    }
+                                }
+                            }
+                        }
+                    }
                     for seg in segments {
                         out.clear();
                         scan(s, *seg, out);
@@ -668,41 +766,6 @@ where
                             }
                             for (k, &new) in out[range].iter().enumerate() {
                                 put(blocks, j, o0 + k * stride, new, &mut st);
-                            }
-                        });
-                    }
-                    let Some((_, lo)) = follow else { continue };
-                    for &(a, z, ref ps) in &plan.lower[lw.lower.clone()] {
-                        let ps = &plan.entries[ps.clone()];
-                        entries.clear();
-                        lo.entries(lw.line, axis, ps, entries);
-                        sparse.build(a, z, ps.iter().zip(entries.iter()).map(|(&p, &(f, _))| (p, f)));
-                        // Outputs rescanned above are final: skip them.
-                        let mut skip = segments.iter().map(|g| (g.lo - reach, g.hi + reach)).filter(|g| g.1 >= a).peekable();
-                        let mut j = blocks.partition_point(|x| x.0 < a.div_euclid(side));
-                        st.visited += (z - a + 1) as usize;
-                        by_block(lw.line, axis, a, (z - a + 1) as usize, |key, o0, stride, range| {
-                            while blocks[j].0 != key.0[axis] {
-                                j += 1;
-                            }
-                            for (k, i) in range.enumerate() {
-                                let q = a + i as i32;
-                                while skip.peek().is_some_and(|g| g.1 < q) {
-                                    skip.next();
-                                }
-                                if skip.peek().is_some_and(|g| g.0 <= q) {
-                                    continue;
-                                }
-                                let Some((dq, at)) = sparse.at(q) else { continue };
-                                if dq > pass.max {
-                                    continue;
-                                }
-                                let p = ps[at];
-                                let o = o0 + k * stride;
-                                let old = L::read(&blocks[j].1, o);
-                                if lo.key(q, old).is_none_or(|cur| (dq, p) < cur) {
-                                    put(blocks, j, o, lo.make(lw.line, q, p, dq, entries[at].1), &mut st);
-                                }
                             }
                         });
                     }
@@ -1024,14 +1087,24 @@ mod tests {
             let hi = lo + len;
             let mut sparse = Sparse::default();
             sparse.build(lo, hi, items.iter().copied());
+            // The pieces, one per x they cover, in order.
+            let mut read = Vec::new();
+            for piece in sparse.pieces() {
+                prop_assert!(piece.s <= piece.e, "empty piece {:?}", piece);
+                read.extend((piece.s..=piece.e).map(|x| (x as i32, (piece.at(x) as u32, piece.index))));
+            }
+            if !read.is_empty() {
+                prop_assert!(read.iter().enumerate().all(|(i, r)| r.0 == lo + i as i32), "pieces cover lo..=hi in order: {:?}", read);
+            }
             for x in lo..=hi {
+                let got = read.iter().find(|r| r.0 == x).map(|r| r.1);
                 let want = items
                     .iter()
                     .enumerate()
                     .map(|(i, &(p, f))| (f + (x - p).unsigned_abs().pow(2), p, i))
                     .min_by_key(|&(v, p, _)| (v, p))
                     .map(|(v, _, i)| (v, i));
-                prop_assert_eq!(sparse.at(x), want, "x {} items {:?}", x, items);
+                prop_assert_eq!(got, want, "x {} items {:?}", x, items);
             }
         }
     }
