@@ -177,23 +177,39 @@ fn bit(m: &Mask, o: usize) -> bool {
     m[o / 64] >> (o % 64) & 1 == 1
 }
 
-/// The lines along `axis` through a block that hold a voxel of `m`: bit
-/// `u + 8 v` for the line at `(u, v)` in the block's other two axes.
-fn lines_of(m: &Mask, axis: usize) -> u64 {
-    // Bit i of the result: byte i of w nonzero.
-    let bytes = |w: u64| (0..8).fold(0u64, |a, i| a | u64::from(w >> (8 * i) & 0xff != 0) << i);
-    // The OR of w's eight bytes.
-    let or_bytes = |mut w: u64| {
-        w |= w >> 32;
-        w |= w >> 16;
-        w |= w >> 8;
-        w & 0xff
-    };
+/// The voxels of `m` on each line along `axis` through a block: entry `u +
+/// 8 v` for the line at `(u, v)` in the block's other two axes, bit `t` for
+/// its voxel `t` along `axis`.
+fn line_bits(m: &Mask, axis: usize) -> [u8; 64] {
+    let mut out = [0u8; 64];
     match axis {
-        0 => (0..8).fold(0, |a, v| a | bytes(m[v]) << (8 * v)),
-        1 => (0..8).fold(0, |a, v| a | or_bytes(m[v]) << (8 * v)),
-        _ => m.iter().fold(0, |a, &w| a | w),
+        // Line (y, z) is byte y of word z.
+        0 => {
+            for (v, w) in m.iter().enumerate() {
+                out[8 * v..8 * v + 8].copy_from_slice(&w.to_le_bytes());
+            }
+        }
+        // Line (x, z): bits x, x + 8, .., x + 56 of word z, gathered into
+        // the top byte by one multiplication.
+        1 => {
+            for (v, &w) in m.iter().enumerate() {
+                for u in 0..8 {
+                    out[u + 8 * v] = ((w >> u & 0x0101_0101_0101_0101).wrapping_mul(0x0102_0408_1020_4080) >> 56) as u8;
+                }
+            }
+        }
+        // Line (x, y): bit x + 8 y of each word z.
+        _ => {
+            for (t, &w) in m.iter().enumerate() {
+                let mut w = w;
+                while w != 0 {
+                    out[w.trailing_zeros() as usize] |= 1 << t;
+                    w &= w - 1;
+                }
+            }
+        }
     }
+    out
 }
 
 /// The three passes from the rows through `dirty` (obstacles flipped where
@@ -578,40 +594,39 @@ where
         }
     }
     // Each task's plan, from the old outputs.
-    let side = BLOCK_SIDE;
+    let (side, stride) = (BLOCK_SIDE, [1, 8, 64][axis]);
     let view: &L = layer;
     let planned: Vec<Plan> = tasks
         .par_iter()
         .with_min_len(MIN_TASKS)
         .map_init(|| (Vec::new(), Scratch::default()), |(found, scratch), r| {
             let ks = &keys[r.clone()];
-            // Each block's masks and dirty lines, looked up once for its 64 lines.
-            let masks: Vec<(&Mask, Option<&Changed>, u64)> = ks
-                .iter()
-                .map(|k| {
-                    let m = &dirty[k];
-                    (m, follow.and_then(|(c, _)| c.get(k)).map(|b| &**b), lines_of(m, axis))
-                })
-                .collect();
+            // Each block's dirty voxels by line and how they changed, looked
+            // up once for its 64 lines.
+            let masks: Vec<([u8; 64], Option<&Changed>)> = ks.iter().map(|k| (line_bits(&dirty[k], axis), follow.and_then(|(c, _)| c.get(k)).map(|b| &**b))).collect();
             let mut plan = Plan::default();
             // Only the lines with a dirty voxel in one of the blocks.
-            let mut lines = masks.iter().fold(0u64, |a, m| a | m.2);
+            let mut lines = 0u64;
+            for (l, _) in masks.iter().flat_map(|m| m.0.iter().enumerate()).filter(|(_, &t)| t != 0) {
+                lines |= 1 << l;
+            }
             while lines != 0 {
                 let l = lines.trailing_zeros() as usize;
                 lines &= lines - 1;
                 let (u, v) = (l % 8, l / 8);
                 let mut line = [0; 3];
                 (line[b], line[d]) = (ks[0].0[b] * side + u as i32, ks[0].0[d] * side + v as i32);
+                let o_line = local(axis, u, v, 0);
                 // The line's dirty entries: position, reach, lowered.
                 found.clear();
-                for (k, &(m, ch, _)) in ks.iter().zip(&masks).filter(|(_, m)| m.2 >> l & 1 == 1) {
-                    for t in 0..8 {
-                        let o = local(axis, u, v, t);
-                        if bit(m, o) {
-                            let p = k.0[axis] * side + t as i32;
-                            let (w, lowered) = ch.map_or((reach, false), |c| (i32::from(c.radius[o]), bit(&c.lowered, o)));
-                            found.push((p, w, lowered));
-                        }
+                for (k, &(ref bits, ch)) in ks.iter().zip(&masks) {
+                    let mut ts = bits[l];
+                    while ts != 0 {
+                        let t = ts.trailing_zeros() as usize;
+                        ts &= ts - 1;
+                        let o = o_line + t * stride;
+                        let (w, lowered) = ch.map_or((reach, false), |c| (i32::from(c.radius[o]), bit(&c.lowered, o)));
+                        found.push((k.0[axis] * side + t as i32, w, lowered));
                     }
                 }
                 let first_segment = plan.segments.len();
@@ -622,14 +637,11 @@ where
                 }
                 plan.lines.push(LineWork { line, segments: first_segment..plan.segments.len(), lower: first_lower..plan.lower.len() });
             }
-            for s in &plan.segments {
-                plan.owned.extend((s.lo - reach).div_euclid(side)..=(s.hi + reach).div_euclid(side));
-            }
-            for &(a, z, _) in &plan.lower {
-                plan.owned.extend(a.div_euclid(side)..=z.div_euclid(side));
-            }
-            plan.owned.sort_unstable();
-            plan.owned.dedup();
+            // The blocks written: those the segments' outputs and the
+            // lowering ranges cross.
+            let spans = plan.segments.iter().map(|s| (s.lo - reach, s.hi + reach)).chain(plan.lower.iter().map(|&(a, z, _)| (a, z)));
+            merged(spans.map(|(a, z)| (a.div_euclid(side), z.div_euclid(side))), &mut scratch.ranges);
+            plan.owned.extend(scratch.ranges.iter().flat_map(|&(a, z)| a..=z));
             plan
         })
         .collect();
@@ -650,7 +662,6 @@ where
         .collect();
     // Lower, scan, compare, write.
     let cap = i64::from(pass.max) + 1;
-    let stride = [1, 8, 64][axis];
     let stats: Vec<Stats> = work
         .par_iter_mut()
         .with_min_len(MIN_TASKS)
@@ -1105,6 +1116,20 @@ mod tests {
                     .min_by_key(|&(v, p, _)| (v, p))
                     .map(|(v, _, i)| (v, i));
                 prop_assert_eq!(got, want, "x {} items {:?}", x, items);
+            }
+        }
+    }
+
+    proptest! {
+        /// Each line's bits are the mask's voxels on that line, by brute
+        /// force, along every axis.
+        #[test]
+        fn line_bits_are_the_voxels_of_each_line(m in prop::array::uniform8(any::<u64>()), axis in 0usize..3) {
+            let bits = line_bits(&m, axis);
+            for l in 0..64 {
+                for t in 0..8 {
+                    prop_assert_eq!(bits[l] >> t & 1 == 1, bit(&m, local(axis, l % 8, l / 8, t)), "axis {} line {} t {}", axis, l, t);
+                }
             }
         }
     }
