@@ -89,18 +89,19 @@ impl Obstacles<'_> {
         state.is_obstacle(self.unknown_as_occupied) || self.fixed.contains(v)
     }
 
-    /// Whether each voxel of block `key` is an obstacle, by offset in the
-    /// block: two hash lookups for the whole block.
-    pub fn block_mask(&self, key: crate::BlockKey) -> [bool; crate::BLOCK_VOXELS] {
-        let mut out = [VoxelState::Unknown.is_obstacle(self.unknown_as_occupied); crate::BLOCK_VOXELS];
+    /// Which voxels of block `key` are obstacles: bit `o % 64` of word `o /
+    /// 64` for the voxel at offset `o`; two hash lookups for the whole block.
+    pub fn block_bits(&self, key: crate::BlockKey) -> [u64; 8] {
+        let unknown = VoxelState::Unknown.is_obstacle(self.unknown_as_occupied);
+        let mut out = [if unknown { u64::MAX } else { 0 }; 8];
         if let Some(b) = self.occupancy.get(key) {
-            for (o, &l) in out.iter_mut().zip(&b.log_odds) {
-                *o = self.log_odds.state(l).is_obstacle(self.unknown_as_occupied);
+            for (w, voxels) in out.iter_mut().zip(b.log_odds.chunks_exact(64)) {
+                *w = voxels.iter().enumerate().fold(0, |a, (i, &l)| a | u64::from(self.log_odds.state(l).is_obstacle(self.unknown_as_occupied)) << i);
             }
         }
         if let Some(b) = self.fixed.get(key) {
-            for (i, o) in out.iter_mut().enumerate() {
-                *o |= b.bits[i / 64] >> (i % 64) & 1 == 1;
+            for (w, f) in out.iter_mut().zip(&b.bits) {
+                *w |= f;
             }
         }
         out
@@ -170,6 +171,15 @@ mod tests {
             obs.fill_row(VoxelIndex([-11, 2, -1]), &mut row);
             for (i, &o) in row.iter().enumerate() {
                 assert_eq!(o, obs.contains(VoxelIndex([-11 + i as i32, 2, -1])), "x = {}", i as i32 - 11);
+            }
+            // Whole blocks as bits, with and without occupancy or fixed
+            // obstacles in them.
+            for key in [VoxelIndex([-9, 2, -1]).block(), VoxelIndex([5, 2, -1]).block(), crate::BlockKey([4, 4, 4])] {
+                let bits = obs.block_bits(key);
+                for o in 0..crate::BLOCK_VOXELS {
+                    let v = VoxelIndex([0, 1, 2].map(|a| key.0[a] * crate::BLOCK_SIDE + [o % 8, o / 8 % 8, o / 64][a] as i32));
+                    assert_eq!(bits[o / 64] >> (o % 64) & 1 == 1, obs.contains(v), "{:?}", v);
+                }
             }
         }
     }

@@ -117,8 +117,13 @@ fn update_in_pool(map: &mut EdtMap, obstacles: &Obstacles<'_>, blocks: &[BlockKe
         .par_iter()
         .with_min_len(MIN_TASKS)
         .filter_map(|&key| {
-            let (now, old) = (obstacles.block_mask(key), edt.get(key));
-            mask_where(|o| old.is_some_and(|b| b.dist_sq[o] == 0) != now[o]).map(|m| (key, m))
+            let mut m = obstacles.block_bits(key);
+            if let Some(b) = edt.get(key) {
+                for (w, d) in m.iter_mut().zip(b.dist_sq.chunks_exact(64)) {
+                    *w ^= d.iter().enumerate().fold(0, |a, (i, &d)| a | u64::from(d == 0) << i);
+                }
+            }
+            m.iter().any(|&w| w != 0).then_some((key, m))
         })
         .collect();
     let report = run_passes(map, &pass, cache, &flips, &flips, true);
@@ -605,6 +610,20 @@ where
             // up once for its 64 lines.
             let masks: Vec<([u8; 64], Option<&Changed>)> = ks.iter().map(|k| (line_bits(&dirty[k], axis), follow.and_then(|(c, _)| c.get(k)).map(|b| &**b))).collect();
             let mut plan = Plan::default();
+            // The old outputs' blocks along the task's line of blocks, as far
+            // as a dirty entry reaches: looked up once for all its lines.
+            let base = ks[0].0[axis] - (reach + side - 1) / side;
+            let column: Vec<Option<&L::Block>> = if follow.is_some() {
+                let mut k = ks[0].0;
+                (base..=ks[ks.len() - 1].0[axis] + (reach + side - 1) / side)
+                    .map(|c| {
+                        k[axis] = c;
+                        view.get(BlockKey(k))
+                    })
+                    .collect()
+            } else {
+                Vec::new()
+            };
             // Only the lines with a dirty voxel in one of the blocks.
             let mut lines = 0u64;
             for (l, _) in masks.iter().flat_map(|m| m.0.iter().enumerate()).filter(|(_, &t)| t != 0) {
@@ -633,7 +652,7 @@ where
                 let first_lower = plan.lower.len();
                 match follow {
                     None => plan_rescan(&mut plan, line, found, reach),
-                    Some((_, lo)) => plan_follow(&mut plan, view, lo, line, axis, found, reach, scratch),
+                    Some((_, lo)) => plan_follow::<L, _>(&mut plan, (&column, base, o_line, stride), lo, line, found, reach),
                 }
                 plan.lines.push(LineWork { line, segments: first_segment..plan.segments.len(), lower: first_lower..plan.lower.len() });
             }
@@ -829,57 +848,79 @@ fn plan_rescan(plan: &mut Plan, line: [i32; 3], found: &[(i32, i32, bool)], reac
 /// nearest entry rose (or changed without falling) are rescanned, found
 /// among the old outputs in reach of those entries, and runs of them less
 /// than twice the reach apart are merged; the lowered entries' reaches,
-/// merged where they overlap, are lowered from those entries alone.
-#[allow(clippy::too_many_arguments)]
-fn plan_follow<L: Layer, Lo: Lower<L::Value>>(plan: &mut Plan, layer: &L, lo: &Lo, line: [i32; 3], axis: usize, found: &[(i32, i32, bool)], reach: i32, s: &mut Scratch) {
-    // Rose: the old outputs that came from these entries.
-    let rose = &mut s.rose;
-    rose.clear();
-    rose.extend(found.iter().filter(|e| !e.2).map(|e| e.0));
+/// merged where they overlap, are lowered from those entries alone. The
+/// old outputs are read from `column`, the blocks along the line from
+/// block coordinate `base`, at offset `o_line + t * stride` for voxel `t`.
+fn plan_follow<L: Layer, Lo: Lower<L::Value>>(
+    plan: &mut Plan,
+    (column, base, o_line, stride): (&[Option<&L::Block>], i32, usize, usize),
+    lo: &Lo,
+    line: [i32; 3],
+    found: &[(i32, i32, bool)],
+    reach: i32,
+) {
+    // Rose: the old outputs that came from these entries. Along a line the
+    // sites of the outputs never decrease (of two parabolas the one further
+    // on wins from some x on), and within an entry's reach no old output is
+    // far, so the outputs from each entry are one run, found by bisection.
+    let site = |q: i32| {
+        let block = column.get(usize::try_from(q.div_euclid(BLOCK_SIDE) - base).ok()?)?.as_ref()?;
+        lo.key(q, L::read(block, o_line + q.rem_euclid(BLOCK_SIDE) as usize * stride)).map(|k| k.1)
+    };
     let mut run: Option<(i32, i32)> = None;
-    let push = |plan: &mut Plan, (a, b): (i32, i32)| plan.segments.push(Segment { line, lo: a + reach, hi: b - reach });
-    merged(found.iter().filter(|e| !e.2).map(|e| (e.0 - e.1, e.0 + e.1)), &mut s.ranges);
-    for &(a, z) in &s.ranges {
-        plan.visited += (z - a + 1) as usize;
-        by_block(line, axis, a, (z - a + 1) as usize, |key, o0, stride, range| {
-            let block = layer.get(key);
-            for (k, i) in range.enumerate() {
-                let q = a + i as i32;
-                let Some(old) = block.map(|b| L::read(b, o0 + k * stride)) else { continue };
-                let from_rose = lo.key(q, old).is_some_and(|(_, s)| rose.binary_search(&s).is_ok());
-                if from_rose {
-                    run = match run {
-                        Some((s, e)) if q - e <= 2 * reach => Some((s, q)),
-                        Some(c) => {
-                            push(plan, c);
-                            Some((q, q))
-                        }
-                        None => Some((q, q)),
-                    };
+    let mut add = |plan: &mut Plan, (q0, q1): (i32, i32)| {
+        run = match run {
+            Some((s, e)) if q0 - e <= 2 * reach => Some((s, e.max(q1))),
+            Some((s, e)) => {
+                plan.segments.push(Segment { line, lo: s + reach, hi: e - reach });
+                Some((q0, q1))
+            }
+            None => Some((q0, q1)),
+        };
+    };
+    for &(p, w, _) in found.iter().filter(|e| !e.2) {
+        // The first output in reach whose site is at least `p`, and the
+        // first past `p`; `None` if an output in reach had no site.
+        let first = |past: bool, visited: &mut usize| {
+            let (mut l, mut h) = (p - w, p + w + 1);
+            while l < h {
+                let m = l + (h - l) / 2;
+                *visited += 1;
+                match site(m)? {
+                    s if s > p || (s == p && !past) => h = m,
+                    _ => l = m + 1,
                 }
             }
-        });
+            Some(l)
+        };
+        match (first(false, &mut plan.visited), first(true, &mut plan.visited)) {
+            (Some(q0), Some(q1)) if q0 < q1 => add(plan, (q0, q1 - 1)),
+            (Some(_), Some(_)) => {}
+            // Not the exact EDT of its inputs: read every output in reach.
+            _ => {
+                plan.visited += (2 * w + 1) as usize;
+                for q in (p - w..=p + w).filter(|&q| site(q) == Some(p)) {
+                    add(plan, (q, q));
+                }
+            }
+        }
     }
-    if let Some(c) = run {
-        push(plan, c);
+    if let Some((s, e)) = run {
+        plan.segments.push(Segment { line, lo: s + reach, hi: e - reach });
     }
-    // Fell: their reaches, and the entries whose reaches make up each.
-    merged(found.iter().filter(|e| e.2).map(|e| (e.0 - e.1, e.0 + e.1)), &mut s.ranges);
-    let ranges = &s.ranges;
-    let (mut r, mut open) = (0, None);
-    for e in found.iter().filter(|e| e.2) {
-        while ranges[r].1 < e.0 {
-            r += 1;
+    // Fell: their reaches, merged where they overlap or touch, each with the
+    // entries that make it up. The entries ascend, so a reach can only
+    // overlap the last merged ones: one pass, merging back.
+    let first = plan.lower.len();
+    for &(p, w, _) in found.iter().filter(|e| e.2) {
+        let n = plan.entries.len();
+        plan.entries.push(p);
+        let mut cur = (p - w, p + w, n..n + 1);
+        while plan.lower.len() > first && plan.lower.last().is_some_and(|last| cur.0 <= last.1 + 1) {
+            let Some(last) = plan.lower.pop() else { break };
+            cur = (cur.0.min(last.0), cur.1.max(last.1), last.2.start..cur.2.end);
         }
-        if open != Some(r) {
-            let n = plan.entries.len();
-            plan.lower.push((ranges[r].0, ranges[r].1, n..n));
-            open = Some(r);
-        }
-        plan.entries.push(e.0);
-        if let Some(last) = plan.lower.last_mut() {
-            last.2.end = plan.entries.len();
-        }
+        plan.lower.push(cur);
     }
 }
 
@@ -924,8 +965,7 @@ struct Scratch {
     flags: Vec<bool>,
     off: Vec<[i16; 2]>,
     envelope: EnvelopeScratch,
-    /// Planning: positions of the entries that rose, merged reaches.
-    rose: Vec<i32>,
+    /// Planning: merged reaches.
     ranges: Vec<(i32, i32)>,
 }
 
