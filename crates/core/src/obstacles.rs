@@ -2,7 +2,7 @@
 //! fixed obstacles the user knows about (forbidden zones, a prior map).
 
 use crate::edt_map::ForbiddenZone;
-use crate::{BlockMap, CoreError, LogOdds, OccupancyMap, VoxelIndex, VoxelState, BLOCK_SIDE};
+use crate::{BlockMap, CoreError, LogOdds, OccupancyMap, VoxelIndex, VoxelState, BLOCK_SIDE, UNOBSERVED};
 
 /// Most blocks a set of fixed obstacles may span (about 200 MB).
 pub const MAX_STATIC_BLOCKS: usize = 1 << 21;
@@ -95,8 +95,11 @@ impl Obstacles<'_> {
         let unknown = VoxelState::Unknown.is_obstacle(self.unknown_as_occupied);
         let mut out = [if unknown { u64::MAX } else { 0 }; 8];
         if let Some(b) = self.occupancy.get(key) {
+            // `LogOdds::state` as one comparison per voxel (UNOBSERVED, -inf,
+            // is never above the threshold), which vectorises.
+            let (occupied, unknown) = (self.log_odds.occupied, self.unknown_as_occupied);
             for (w, voxels) in out.iter_mut().zip(b.log_odds.chunks_exact(64)) {
-                *w = voxels.iter().enumerate().fold(0, |a, (i, &l)| a | u64::from(self.log_odds.state(l).is_obstacle(self.unknown_as_occupied)) << i);
+                *w = voxels.iter().enumerate().fold(0, |a, (i, &l)| a | u64::from(l > occupied || (unknown && l == UNOBSERVED)) << i);
             }
         }
         if let Some(b) = self.fixed.get(key) {
