@@ -22,12 +22,16 @@
 //! (its site, the position it was computed from) did not rise can only
 //! fall, and only to a lowered entry: its new value is the smaller of its
 //! old one and the lower envelope of the lowered entries alone, which
-//! needs neither the unchanged inputs nor a scan of them (a few lowered
-//! entries per line against the 4 × reach inputs of a rescan). Only the
-//! outputs whose site rose or changed without falling (found among the old
-//! outputs within reach of those entries) are rescanned from all their
-//! inputs, as DynamicEDT3D's raise waves are. When obstacles only appear,
-//! no input is read but the lowered entries themselves.
+//! needs neither the unchanged inputs nor a scan of them. Over each piece
+//! of that envelope (one entry's parabola), the old outputs capped past
+//! the cutoff, less the parabola, are concave along the line (a minimum of
+//! linear functions), so the outputs it beats are one run: found by
+//! bisection and walked out from, not read over the entry's whole reach.
+//! Only the outputs whose site rose or changed without falling are
+//! rescanned from all their inputs, as DynamicEDT3D's raise waves are.
+//! Sites never decrease along a line, so the outputs fed by each such
+//! entry are one run too, found by bisecting on the sites. When obstacles
+//! only appear, no input is read but the lowered entries themselves.
 //!
 //! **Exact, and the batch EDT's answer.** A rescanned line is scanned by
 //! the batch EDT's own kernels (`sweep_row`, Meijster's `envelope`) from
@@ -143,10 +147,6 @@ fn rebuild(map: &mut EdtMap, pass: &Pass<'_>, cache: &mut SeparableCache) {
         .collect();
     run_passes(map, pass, cache, &obstacles, &Dirty::default(), false);
 }
-
-/// Shortest envelope piece whose outputs are found by bisection rather
-/// than read one by one.
-const BISECT: i64 = 12;
 
 /// Fewest blocks or block lines one thread takes: small frames stay on one
 /// thread rather than pay for waking the others.
@@ -733,6 +733,7 @@ where
                                 (key.map_or(cap, |k| i64::from(k.0).min(cap)), key)
                             };
                             for piece in sparse.pieces() {
+                                let clear = !segments.iter().any(|g| i64::from(g.lo - reach) <= piece.e && piece.s <= i64::from(g.hi + reach));
                                 // Lowers the output at q where the piece
                                 // beats it; whether it lies at or below it.
                                 let lower = |blocks: &mut Owned<L::Block>, q: i64, st: &mut Stats| {
@@ -742,44 +743,47 @@ where
                                         return false;
                                     }
                                     let (dq, p) = (dq as u32, piece.p as i32);
-                                    if dq <= pass.max && !rescanned(q) && key.is_none_or(|cur| (dq, p) < cur) {
+                                    if dq <= pass.max && (clear || !rescanned(q)) && key.is_none_or(|cur| (dq, p) < cur) {
                                         let (j, o) = slot(q);
                                         put(blocks, j, o, lo.make(lw.line, q as i32, p, dq, entries[piece.index].1), st);
                                     }
                                     true
                                 };
-                                if piece.e - piece.s < BISECT {
-                                    for q in piece.s..=piece.e {
-                                        lower(blocks, q, &mut st);
-                                    }
-                                    continue;
-                                }
                                 // The old outputs less the piece, capped, are
                                 // concave along the line (each old output is a
                                 // least parabola; two parabolas differ by a
                                 // line), so the outputs the piece beats are
-                                // one run: find the peak by bisection and walk
-                                // out from it.
-                                let (mut l, mut h) = (piece.s, piece.e);
-                                while l < h {
-                                    let m = l + (h - l) / 2;
-                                    let gain = |q| old_at(blocks, q).0 - piece.at(q);
-                                    st.visited += 2;
-                                    if gain(m) >= gain(m + 1) {
-                                        h = m;
-                                    } else {
-                                        l = m + 1;
+                                // one run: walk out from the parabola's own
+                                // position when the piece beats it there (as
+                                // it mostly does), else from the peak, found
+                                // by bisection.
+                                let start = piece.p.clamp(piece.s, piece.e);
+                                let l = if lower(blocks, start, &mut st) {
+                                    start
+                                } else {
+                                    let (mut l, mut h) = (piece.s, piece.e);
+                                    while l < h {
+                                        let m = l + (h - l) / 2;
+                                        let gain = |q| old_at(blocks, q).0 - piece.at(q);
+                                        st.visited += 2;
+                                        if gain(m) >= gain(m + 1) {
+                                            h = m;
+                                        } else {
+                                            l = m + 1;
+                                        }
                                     }
+                                    if l == start || !lower(blocks, l, &mut st) {
+                                        continue;
+                                    }
+                                    l
+                                };
+                                let mut q = l - 1;
+                                while q >= piece.s && lower(blocks, q, &mut st) {
+                                    q -= 1;
                                 }
-                                if lower(blocks, l, &mut st) {
-                                    let mut q = l - 1;
-                                    while q >= piece.s && lower(blocks, q, &mut st) {
-                                        q -= 1;
-                                    }
-                                    q = l + 1;
-                                    while q <= piece.e && lower(blocks, q, &mut st) {
-                                        q += 1;
-                                    }
+                                q = l + 1;
+                                while q <= piece.e && lower(blocks, q, &mut st) {
+                                    q += 1;
                                 }
                             }
                         }
