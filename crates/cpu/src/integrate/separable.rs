@@ -25,8 +25,10 @@
 //! needs neither the unchanged inputs nor a scan of them. Over each piece
 //! of that envelope (one entry's parabola), the old outputs capped past
 //! the cutoff, less the parabola, are concave along the line (a minimum of
-//! linear functions), so the outputs it beats are one run: found by
-//! bisection and walked out from, not read over the entry's whole reach.
+//! linear functions), so the outputs it beats are one run, walked out
+//! from the entry's own position (or from the peak, found by bisection,
+//! when the piece does not beat the old output there), not read over the
+//! entry's whole reach.
 //! Only the outputs whose site rose or changed without falling are
 //! rescanned from all their inputs, as DynamicEDT3D's raise waves are.
 //! Sites never decrease along a line, so the outputs fed by each such
