@@ -727,26 +727,27 @@ where
                             let (ca, ja) = (i64::from(a.div_euclid(side)), blocks.partition_point(|x| x.0 < a.div_euclid(side)));
                             // Block and offset of the output at q.
                             let slot = |q: i64| (ja + (q.div_euclid(i64::from(side)) - ca) as usize, o_line + q.rem_euclid(i64::from(side)) as usize * stride);
-                            // The old output at q's squared distance, capped
-                            // just past the cutoff, and its key.
-                            let old_at = |blocks: &Owned<L::Block>, q: i64| {
-                                let (j, o) = slot(q);
+                            // The old output at q (block j, offset o): its
+                            // squared distance capped just past the cutoff,
+                            // and its key.
+                            let old_at = |blocks: &Owned<L::Block>, (j, o): (usize, usize), q: i64| {
                                 let key = lo.key(q as i32, L::read(&blocks[j].1, o));
                                 (key.map_or(cap, |k| i64::from(k.0).min(cap)), key)
                             };
+                            let last = o_line + (side as usize - 1) * stride;
                             for piece in sparse.pieces() {
                                 let clear = !segments.iter().any(|g| i64::from(g.lo - reach) <= piece.e && piece.s <= i64::from(g.hi + reach));
-                                // Lowers the output at q where the piece
-                                // beats it; whether it lies at or below it.
-                                let lower = |blocks: &mut Owned<L::Block>, q: i64, st: &mut Stats| {
+                                // Lowers the output at q (block j, offset o)
+                                // where the piece beats it; whether it lies at
+                                // or below it.
+                                let lower = |blocks: &mut Owned<L::Block>, (j, o): (usize, usize), q: i64, st: &mut Stats| {
                                     st.visited += 1;
-                                    let ((v, key), dq) = (old_at(blocks, q), piece.at(q));
+                                    let ((v, key), dq) = (old_at(blocks, (j, o), q), piece.at(q));
                                     if v < dq {
                                         return false;
                                     }
                                     let (dq, p) = (dq as u32, piece.p as i32);
                                     if dq <= pass.max && (clear || !rescanned(q)) && key.is_none_or(|cur| (dq, p) < cur) {
-                                        let (j, o) = slot(q);
                                         put(blocks, j, o, lo.make(lw.line, q as i32, p, dq, entries[piece.index].1), st);
                                     }
                                     true
@@ -760,13 +761,13 @@ where
                                 // it mostly does), else from the peak, found
                                 // by bisection.
                                 let start = piece.p.clamp(piece.s, piece.e);
-                                let l = if lower(blocks, start, &mut st) {
+                                let l = if lower(blocks, slot(start), start, &mut st) {
                                     start
                                 } else {
                                     let (mut l, mut h) = (piece.s, piece.e);
                                     while l < h {
                                         let m = l + (h - l) / 2;
-                                        let gain = |q| old_at(blocks, q).0 - piece.at(q);
+                                        let gain = |q| old_at(blocks, slot(q), q).0 - piece.at(q);
                                         st.visited += 2;
                                         if gain(m) >= gain(m + 1) {
                                             h = m;
@@ -774,18 +775,27 @@ where
                                             l = m + 1;
                                         }
                                     }
-                                    if l == start || !lower(blocks, l, &mut st) {
+                                    if l == start || !lower(blocks, slot(l), l, &mut st) {
                                         continue;
                                     }
                                     l
                                 };
-                                let mut q = l - 1;
-                                while q >= piece.s && lower(blocks, q, &mut st) {
+                                // Down, then up, stepping through the blocks.
+                                let (mut q, mut at) = (l, slot(l));
+                                while q > piece.s {
+                                    at = if at.1 == o_line { (at.0 - 1, last) } else { (at.0, at.1 - stride) };
                                     q -= 1;
+                                    if !lower(blocks, at, q, &mut st) {
+                                        break;
+                                    }
                                 }
-                                q = l + 1;
-                                while q <= piece.e && lower(blocks, q, &mut st) {
+                                (q, at) = (l, slot(l));
+                                while q < piece.e {
+                                    at = if at.1 == last { (at.0 + 1, o_line) } else { (at.0, at.1 + stride) };
                                     q += 1;
+                                    if !lower(blocks, at, q, &mut st) {
+                                        break;
+                                    }
                                 }
                             }
                         }
