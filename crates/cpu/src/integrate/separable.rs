@@ -690,10 +690,9 @@ where
             || (Scratch::default(), Vec::new(), Vec::new(), Sparse::default()),
             |(s, out, entries, sparse), (plan, blocks)| {
                 let mut st = Stats { visited: plan.visited, ..Stats::default() };
-                // Writes `new` at `o` of block `j` if it differs.
-                let put = |blocks: &mut Owned<L::Block>, j: usize, o: usize, new: L::Value, st: &mut Stats| {
+                // Writes `new` over `old` at `o` of block `j` if it differs.
+                let replace = |blocks: &mut Owned<L::Block>, j: usize, o: usize, old: L::Value, new: L::Value, st: &mut Stats| {
                     let (_, block, mask, changed) = &mut blocks[j];
-                    let old = L::read(block, o);
                     if old != new {
                         L::write(block, o, new);
                         mask[o / 64] |= 1 << (o % 64);
@@ -710,6 +709,11 @@ where
                             }
                         }
                     }
+                };
+                // Writes `new` at `o` of block `j` if it differs.
+                let put = |blocks: &mut Owned<L::Block>, j: usize, o: usize, new: L::Value, st: &mut Stats| {
+                    let old = L::read(&blocks[j].1, o);
+                    replace(blocks, j, o, old, new, st);
                 };
                 for lw in &plan.lines {
                     let segments = &plan.segments[lw.segments.clone()];
@@ -731,8 +735,9 @@ where
                             // squared distance capped just past the cutoff,
                             // and its key.
                             let old_at = |blocks: &Owned<L::Block>, (j, o): (usize, usize), q: i64| {
-                                let key = lo.key(q as i32, L::read(&blocks[j].1, o));
-                                (key.map_or(cap, |k| i64::from(k.0).min(cap)), key)
+                                let old = L::read(&blocks[j].1, o);
+                                let key = lo.key(q as i32, old);
+                                (key.map_or(cap, |k| i64::from(k.0).min(cap)), key, old)
                             };
                             let last = o_line + (side as usize - 1) * stride;
                             for piece in sparse.pieces() {
@@ -742,13 +747,13 @@ where
                                 // or below it.
                                 let lower = |blocks: &mut Owned<L::Block>, (j, o): (usize, usize), q: i64, st: &mut Stats| {
                                     st.visited += 1;
-                                    let ((v, key), dq) = (old_at(blocks, (j, o), q), piece.at(q));
+                                    let ((v, key, old), dq) = (old_at(blocks, (j, o), q), piece.at(q));
                                     if v < dq {
                                         return false;
                                     }
                                     let (dq, p) = (dq as u32, piece.p as i32);
                                     if dq <= pass.max && (clear || !rescanned(q)) && key.is_none_or(|cur| (dq, p) < cur) {
-                                        put(blocks, j, o, lo.make(lw.line, q as i32, p, dq, entries[piece.index].1), st);
+                                        replace(blocks, j, o, old, lo.make(lw.line, q as i32, p, dq, entries[piece.index].1), st);
                                     }
                                     true
                                 };
