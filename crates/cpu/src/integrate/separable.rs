@@ -394,6 +394,9 @@ struct Plan {
     entries: Vec<i32>,
     owned: Vec<i32>,
     visited: usize,
+    /// The task's first dirty block and the last one's coordinate along
+    /// the axis.
+    dirty: (BlockKey, i32),
 }
 
 /// How a pass's outputs follow from its inputs, for the outputs lowered
@@ -403,9 +406,13 @@ trait Lower<V>: Sync {
     /// Squared distance and position along the axis of the entry output
     /// `o` at `q` comes from; `None` for no obstacle.
     fn key(&self, q: i32, o: V) -> Option<(u32, i32)>;
-    /// The entries at `ps` (ascending) on `line` along `axis`, with their
-    /// squared distances (`UNREACHABLE_DIST_SQ` for none), into `out`.
-    fn entries(&self, line: [i32; 3], axis: usize, ps: &[i32], out: &mut Vec<(u32, Self::Entry)>);
+    /// A block of the previous pass's layer.
+    type In: Sync;
+    /// The previous pass's block at `key`.
+    fn input(&self, key: BlockKey) -> Option<&Self::In>;
+    /// The entry at offset `o` of block `b` (none where there is no block)
+    /// with its squared distance, `UNREACHABLE_DIST_SQ` for none.
+    fn entry(&self, b: Option<&Self::In>, o: usize) -> (u32, Self::Entry);
     /// The output at `q` of `line` from entry `e` at `p`, `d` away.
     fn make(&self, line: [i32; 3], q: i32, p: i32, d: u32, e: Self::Entry) -> V;
 }
@@ -415,10 +422,16 @@ struct Rescan;
 
 impl Lower<i16> for Rescan {
     type Entry = ();
+    type In = ();
     fn key(&self, _: i32, _: i16) -> Option<(u32, i32)> {
         None
     }
-    fn entries(&self, _: [i32; 3], _: usize, _: &[i32], _: &mut Vec<(u32, ())>) {}
+    fn input(&self, _: BlockKey) -> Option<&()> {
+        None
+    }
+    fn entry(&self, _: Option<&()>, _: usize) -> (u32, ()) {
+        (UNREACHABLE_DIST_SQ, ())
+    }
     fn make(&self, _: [i32; 3], _: i32, _: i32, _: u32, _: ()) -> i16 {
         NONE
     }
@@ -434,27 +447,6 @@ fn g2_value(o: [i16; 2]) -> u32 {
     if o[0] == NONE { UNREACHABLE_DIST_SQ } else { (i32::from(o[0]).pow(2) + i32::from(o[1]).pow(2)) as u32 }
 }
 
-/// The entries of a cache layer (`none` where it has no block) at
-/// ascending positions `ps` along a line, with their squared distances,
-/// each block looked up once.
-fn read_entries<T: Copy>(layer: &FxHashMap<BlockKey, Box<[T; BLOCK_VOXELS]>>, none: T, line: [i32; 3], axis: usize, ps: &[i32], value: impl Fn(T) -> u32, out: &mut Vec<(u32, T)>) {
-    let mut cur: Option<(BlockKey, Option<&[T; BLOCK_VOXELS]>)> = None;
-    for &p in ps {
-        let v = at_axis(line, axis, p);
-        let key = v.block();
-        let block = match cur {
-            Some((k, b)) if k == key => b,
-            _ => {
-                let b = layer.get(&key).map(|b| &**b);
-                cur = Some((key, b));
-                b
-            }
-        };
-        let e = block.map_or(none, |b| b[v.offset_in_block()]);
-        out.push((value(e), e));
-    }
-}
-
 /// Pass y follows pass x: the nearest entry of a column is a `g1` entry.
 struct LowerY<'a> {
     g1: &'a FxHashMap<BlockKey, Box<G1Block>>,
@@ -462,11 +454,16 @@ struct LowerY<'a> {
 
 impl Lower<[i16; 2]> for LowerY<'_> {
     type Entry = i16;
+    type In = G1Block;
     fn key(&self, q: i32, o: [i16; 2]) -> Option<(u32, i32)> {
         (o[0] != NONE).then(|| (g2_value(o), q + i32::from(o[1])))
     }
-    fn entries(&self, line: [i32; 3], axis: usize, ps: &[i32], out: &mut Vec<(u32, i16)>) {
-        read_entries(self.g1, NONE, line, axis, ps, g1_value, out);
+    fn input(&self, key: BlockKey) -> Option<&G1Block> {
+        self.g1.get(&key).map(|b| &**b)
+    }
+    fn entry(&self, b: Option<&G1Block>, o: usize) -> (u32, i16) {
+        let e = b.map_or(NONE, |b| b[o]);
+        (g1_value(e), e)
     }
     fn make(&self, _: [i32; 3], q: i32, p: i32, _: u32, e: i16) -> [i16; 2] {
         [e, (p - q) as i16]
@@ -480,11 +477,16 @@ struct LowerZ<'a> {
 
 impl Lower<(u32, VoxelIndex)> for LowerZ<'_> {
     type Entry = [i16; 2];
+    type In = G2Block;
     fn key(&self, _: i32, o: (u32, VoxelIndex)) -> Option<(u32, i32)> {
         (o.0 != FAR_DIST_SQ).then_some((o.0, o.1 .0[2]))
     }
-    fn entries(&self, line: [i32; 3], axis: usize, ps: &[i32], out: &mut Vec<(u32, [i16; 2])>) {
-        read_entries(self.g2, NONE2, line, axis, ps, g2_value, out);
+    fn input(&self, key: BlockKey) -> Option<&G2Block> {
+        self.g2.get(&key).map(|b| &**b)
+    }
+    fn entry(&self, b: Option<&G2Block>, o: usize) -> (u32, [i16; 2]) {
+        let e = b.map_or(NONE2, |b| b[o]);
+        (g2_value(e), e)
     }
     fn make(&self, line: [i32; 3], _: i32, p: i32, d: u32, e: [i16; 2]) -> (u32, VoxelIndex) {
         (d, VoxelIndex([line[0] + i32::from(e[0]), line[1] + i32::from(e[1]), p]))
@@ -611,7 +613,7 @@ where
             // Each block's dirty voxels by line and how they changed, looked
             // up once for its 64 lines.
             let masks: Vec<([u8; 64], Option<&Changed>)> = ks.iter().map(|k| (line_bits(&dirty[k], axis), follow.and_then(|(c, _)| c.get(k)).map(|b| &**b))).collect();
-            let mut plan = Plan::default();
+            let mut plan = Plan { dirty: (ks[0], ks[ks.len() - 1].0[axis]), ..Plan::default() };
             // The old outputs' blocks along the task's line of blocks, as far
             // as a dirty entry reaches: looked up once for all its lines.
             let base = ks[0].0[axis] - (reach + side - 1) / side;
@@ -690,6 +692,19 @@ where
             || (Scratch::default(), Vec::new(), Vec::new(), Sparse::default()),
             |(s, out, entries, sparse), (plan, blocks)| {
                 let mut st = Stats { visited: plan.visited, ..Stats::default() };
+                // The previous pass's blocks along the task's dirty blocks,
+                // where the lowered entries lie, looked up once.
+                let (first, last) = plan.dirty;
+                let inputs_base = first.0[axis];
+                let inputs: Vec<Option<&Lo::In>> = follow.map_or_else(Vec::new, |(_, lo)| {
+                    let mut k = first.0;
+                    (inputs_base..=last)
+                        .map(|c| {
+                            k[axis] = c;
+                            lo.input(BlockKey(k))
+                        })
+                        .collect()
+                });
                 // Writes `new` over `old` at `o` of block `j` if it differs.
                 let replace = |blocks: &mut Owned<L::Block>, j: usize, o: usize, old: L::Value, new: L::Value, st: &mut Stats| {
                     let (_, block, mask, changed) = &mut blocks[j];
@@ -726,7 +741,7 @@ where
                         for &(a, z, ref ps) in &plan.lower[lw.lower.clone()] {
                             let ps = &plan.entries[ps.clone()];
                             entries.clear();
-                            lo.entries(lw.line, axis, ps, entries);
+                            entries.extend(ps.iter().map(|&p| lo.entry(inputs.get((p.div_euclid(side) - inputs_base) as usize).copied().flatten(), o_line + p.rem_euclid(side) as usize * stride)));
                             sparse.build(a, z, ps.iter().zip(entries.iter()).map(|(&p, &(f, _))| (p, f)));
                             let (ca, ja) = (i64::from(a.div_euclid(side)), blocks.partition_point(|x| x.0 < a.div_euclid(side)));
                             // Block and offset of the output at q.
