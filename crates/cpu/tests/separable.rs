@@ -5,7 +5,8 @@
 //! nearest obstacles included, and its distances the brute-force ones.
 //! Steps make obstacles appear and vanish, sparse and in walls, inside and
 //! outside earlier windows, and sometimes hand the backend a map it has not
-//! seen (a clone), so the cache is rebuilt from the map.
+//! seen (a clone), so the cache is rebuilt from the map. The blocks the
+//! update reports changed must be exactly those where a voxel changed.
 
 use edtmap_core::region::{Packing, Region};
 use edtmap_core::stages::exact::{recompute_exact, ExactBuffers};
@@ -119,7 +120,12 @@ fn check(cutoff_tenths: u32, steps: Vec<(u8, u32, u32, u32)>, clone_at: usize) -
             map = map.clone();
         }
         let blocks = step(&mut world, s);
-        backend.integrate(IntegrateJob { map: &mut map, obstacles: world.obstacles(), cutoff, work: Integration::Changes { blocks: &blocks } }).expect("cpu");
+        let before = map.clone();
+        let report = backend.integrate(IntegrateJob { map: &mut map, obstacles: world.obstacles(), cutoff, work: Integration::Changes { blocks: &blocks } }).expect("cpu");
+        // The blocks reported changed are those where some voxel changed.
+        let keys: BTreeSet<BlockKey> = before.iter().chain(map.iter()).map(|(k, _)| k).collect();
+        let differ: Vec<BlockKey> = keys.into_iter().filter(|&k| before.get(k) != map.get(k)).collect();
+        prop_assert_eq!(&report.changed_blocks, &differ, "step {}: changed blocks", i);
         let want = reference(&world, cutoff);
         prop_assert_eq!(map.len(), want.len(), "step {}: blocks", i);
         for (key, block) in want.iter() {

@@ -847,8 +847,12 @@ where
     for (r, (_, blocks)) in tasks.iter().zip(work) {
         for (c, block, mask, changed) in blocks {
             let key = key_of(r, c);
-            if let Some(changed) = changed {
+            // Every block with a changed voxel (how each changed is kept
+            // only where a pass follows).
+            if mask.iter().any(|&w| w != 0) {
                 next.insert(key, mask);
+            }
+            if let Some(changed) = changed {
                 next_changed.insert(key, changed);
             }
             back.push((key, block));
