@@ -125,8 +125,8 @@ fn update_in_pool(map: &mut EdtMap, obstacles: &Obstacles<'_>, blocks: &[BlockKe
         .filter_map(|&key| {
             let mut m = obstacles.block_bits(key);
             if let Some(b) = edt.get(key) {
-                for (w, d) in m.iter_mut().zip(b.dist_sq.chunks_exact(64)) {
-                    *w ^= d.iter().enumerate().fold(0, |a, (i, &d)| a | u64::from(d == 0) << i);
+                for (w, o) in m.iter_mut().zip(obstacle_bits(b)) {
+                    *w ^= o;
                 }
             }
             m.iter().any(|&w| w != 0).then_some((key, m))
@@ -145,7 +145,7 @@ fn rebuild(map: &mut EdtMap, pass: &Pass<'_>, cache: &mut SeparableCache) {
         .iter()
         .collect::<Vec<_>>()
         .par_iter()
-        .filter_map(|&(key, block)| mask_where(|o| block.dist_sq[o] == 0).map(|m| (key, m)))
+        .filter_map(|&(key, block)| Some(obstacle_bits(block)).filter(|m| m.iter().any(|&w| w != 0)).map(|m| (key, m)))
         .collect();
     run_passes(map, pass, cache, &obstacles, &Dirty::default(), false);
 }
@@ -171,13 +171,13 @@ struct Changed {
 /// What changed, per block.
 type Radii = FxHashMap<BlockKey, Box<Changed>>;
 
-/// The voxels of a block for which `f(offset)` holds, `None` for none.
-fn mask_where(f: impl Fn(usize) -> bool) -> Option<Mask> {
-    let mut mask = [0u64; 8];
-    for o in (0..BLOCK_VOXELS).filter(|&o| f(o)) {
-        mask[o / 64] |= 1 << (o % 64);
+/// The obstacles of an EDT block: its voxels at distance 0.
+fn obstacle_bits(b: &EdtBlock) -> Mask {
+    let mut m = [0u64; 8];
+    for (w, d) in m.iter_mut().zip(b.dist_sq.chunks_exact(64)) {
+        *w = d.iter().enumerate().fold(0, |a, (i, &d)| a | u64::from(d == 0) << i);
     }
-    mask.iter().any(|&w| w != 0).then_some(mask)
+    m
 }
 
 fn bit(m: &Mask, o: usize) -> bool {
