@@ -22,12 +22,17 @@ impl VoxelIndex {
     /// finite or lies outside the `i32` index range.
     pub fn containing(p: [f64; 3], voxel_size_m: f64) -> Option<VoxelIndex> {
         let mut out = [0i32; 3];
+        const LIMIT: f64 = 2147483648.0; // 2³¹
         for (o, &c) in out.iter_mut().zip(&p) {
-            let v = (c / voxel_size_m).floor();
-            if !v.is_finite() || v < i32::MIN as f64 || v > i32::MAX as f64 {
+            let q = c / voxel_size_m;
+            // floor(q) lies in the i32 range exactly when −2³¹ ≤ q < 2³¹
+            // (false for NaN). Truncation, less one below a negative
+            // fraction, is the floor, without a call to libm's `floor`.
+            if !(-LIMIT..LIMIT).contains(&q) {
                 return None;
             }
-            *o = v as i32;
+            let t = q as i64;
+            *o = (t - i64::from((t as f64) > q)) as i32;
         }
         Some(VoxelIndex(out))
     }
@@ -100,5 +105,34 @@ mod tests {
     fn non_finite_points_have_no_voxel() {
         assert_eq!(VoxelIndex::containing([f64::NAN, 0.0, 0.0], 0.1), None);
         assert_eq!(VoxelIndex::containing([1e12, 0.0, 0.0], 0.1), None);
+        assert_eq!(VoxelIndex::containing([f64::NEG_INFINITY, 0.0, 0.0], 0.1), None);
+    }
+
+    /// The definition with libm's floor: `floor(p / s)` when it is in the
+    /// `i32` range.
+    fn containing_by_floor(p: [f64; 3], s: f64) -> Option<VoxelIndex> {
+        let v = p.map(|c| (c / s).floor());
+        v.iter().all(|v| v.is_finite() && *v >= i32::MIN as f64 && *v <= i32::MAX as f64).then(|| VoxelIndex(v.map(|v| v as i32)))
+    }
+
+    #[test]
+    fn containing_is_the_floor_at_the_edges() {
+        let edges = [0.0, -0.0, 1.0, -1.0, 0.5, -0.5, 1e-300, -1e-300, 2147483647.0, 2147483647.5, 2147483648.0, -2147483648.0, -2147483648.5, -2147483649.0, 4503599627370495.5, -4503599627370495.5, f64::MAX, f64::INFINITY, f64::NAN];
+        for a in edges {
+            let p = [a, -a, a * 0.5];
+            assert_eq!(VoxelIndex::containing(p, 1.0), containing_by_floor(p, 1.0), "{p:?}");
+        }
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig { cases: 5000, rng_seed: proptest::test_runner::RngSeed::Fixed(0x1D5), ..Default::default() })]
+        #[test]
+        fn containing_is_the_floor(p in proptest::array::uniform3(-1e9f64..1e9), k in -3i32..3, s in 0.01f64..1.0) {
+            // Points on voxel faces and near them, and anywhere.
+            let on_face = p.map(|c| (c / s).round() * s + k as f64 * f64::EPSILON * c.abs());
+            for q in [p, on_face] {
+                proptest::prop_assert_eq!(VoxelIndex::containing(q, s), containing_by_floor(q, s));
+            }
+        }
     }
 }

@@ -208,6 +208,19 @@ impl Sensor {
         }
     }
 
+    /// Calls `f` with the point of every return of a checked measurement
+    /// (sensor frame, metres), from the host's threads in any order: a
+    /// depth image's pixels row by row in parallel, other measurements
+    /// through their [`Self::rays`] (kept in `rays`).
+    pub fn par_returns(&self, m: &Measurement, rays: &mut Vec<SensorRay>, f: impl Fn([f64; 3]) + Sync) {
+        use rayon::prelude::*;
+        if let (Sensor::Depth(c), Measurement::Depth(img)) = (self, m) {
+            return c.par_returns(img, f);
+        }
+        self.rays(m, false, rays);
+        rays.par_iter().with_min_len(1024).filter(|r| r.hit).for_each(|r| f(r.dir.map(|c| c as f64 * r.range_m as f64)));
+    }
+
     /// Where point `p` (sensor frame) falls in measurement `m`.
     #[inline]
     pub fn project(&self, m: &Measurement, p: [f32; 3]) -> Projection {

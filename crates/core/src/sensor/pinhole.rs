@@ -2,6 +2,7 @@
 
 use super::{check_range, RangeLimits, SensorRay};
 use crate::CoreError;
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 /// A pinhole depth camera. Optical frame: x right, y down, z forward; pixel
@@ -134,6 +135,25 @@ impl PinholeCamera {
             return None;
         }
         Some(u as usize + self.width as usize * v as usize)
+    }
+
+    /// Calls `f` with the point of every valid return of `image` (camera
+    /// frame, metres): pixel `(u, v)` at depth `d` is
+    /// `((u − cx) / fx · d, (v − cy) / fy · d, d)`. Rows run in parallel;
+    /// the order of the calls is unspecified.
+    pub(super) fn par_returns(&self, image: &DepthImage, f: impl Fn([f64; 3]) + Sync) {
+        let xs: Vec<f64> = (0..self.width).map(|u| (u as f64 - self.cx) / self.fx).collect();
+        (0..self.height).into_par_iter().with_min_len(8).for_each(|v| {
+            let y = (v as f64 - self.cy) / self.fy;
+            let row = self.width as usize * v as usize;
+            for (u, x) in xs.iter().enumerate() {
+                let d = image.depth_m(row + u);
+                if self.range.accepts(d) {
+                    let d = d as f64;
+                    f([x * d, y * d, d]);
+                }
+            }
+        });
     }
 
     /// One ray per pixel (see [`super::Sensor::rays`]).

@@ -7,9 +7,8 @@
 
 use crate::fixed_ray::{prepare_rays, FixedRay};
 use crate::sensor::{Frame, Measurement, Sensor, SensorRay};
-use crate::{Backend, BackendError, CoreError, LocalVolume, Observations, ProjectJob, VoxelIndex, OBS_HIT};
+use crate::{Backend, BackendError, CoreError, LocalVolume, Observations, ProjectJob, OBS_HIT};
 use nalgebra::Vector3;
-use rayon::prelude::*;
 
 /// How a frame's occupancy is built.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -118,16 +117,98 @@ pub fn project_job<'a>(sensor: &'a Sensor, frame: &'a Frame, volume: LocalVolume
 /// (voxels are usually larger than a beam's spacing, so testing only the
 /// beam nearest a voxel's centre would miss a surface crossing it
 /// off-centre; one pass over the returns finds them all).
+///
+/// A return `p` (sensor frame) lies at `(R p + t − corner) / s` in voxels
+/// of the volume; its voxel is that point rounded down.
 pub fn scatter_returns(obs: &Observations, sensor: &Sensor, frame: &Frame, rays: &mut Vec<SensorRay>) {
-    sensor.rays(&frame.measurement, false, rays);
     let vol = *obs.volume();
-    let pose = frame.t_world_sensor;
-    rays.par_iter().with_min_len(1024).filter(|r| r.hit).for_each(|r| {
-        let local = Vector3::new(r.dir[0] as f64, r.dir[1] as f64, r.dir[2] as f64) * r.range_m as f64;
-        let p = pose.transform_point(&local.into());
-        let voxel = VoxelIndex::containing(p.coords.into(), vol.voxel_size_m);
-        if let Some(c) = voxel.and_then(|v| vol.local(v)) {
+    let pose = &frame.t_world_sensor;
+    let inv = 1.0 / vol.voxel_size_m;
+    let rot = pose.rotation.to_rotation_matrix().into_inner() * inv;
+    let origin = (pose.translation.vector - Vector3::from(vol.min_corner_m())) * inv;
+    let dims = vol.dims.map(|n| n as f64);
+    sensor.par_returns(&frame.measurement, rays, |local| {
+        let q = rot * Vector3::from(local) + origin;
+        // Truncation is the floor on [0, n); NaN fails the test.
+        if (0..3).all(|k| q[k] >= 0.0 && q[k] < dims[k]) {
+            let c = [0, 1, 2].map(|k| q[k] as usize);
             obs.mark(c, vol.linear(c), OBS_HIT);
         }
     });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sensor::{DepthData, DepthImage, PinholeCamera, RangeLimits};
+    use crate::VoxelIndex;
+    use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion};
+    use proptest::prelude::*;
+    use proptest::test_runner::RngSeed;
+    use std::collections::HashSet;
+
+    /// Voxels (local linear indices) of the returns, by the world point
+    /// `T (ray(u, v) · d)` through nalgebra's isometry and
+    /// [`VoxelIndex::containing`]: `sure` those of points at least 1e-6
+    /// voxel from every face, `maybe` every voxel a point within that of a
+    /// face may round to.
+    fn oracle(vol: &LocalVolume, cam: &PinholeCamera, depths: &[f32], pose: &Isometry3<f64>) -> (HashSet<usize>, HashSet<usize>) {
+        let (mut sure, mut maybe) = (HashSet::new(), HashSet::new());
+        for (i, &d) in depths.iter().enumerate() {
+            if !cam.range.accepts(d) {
+                continue;
+            }
+            let (u, v) = ((i % cam.width as usize) as u32, (i / cam.width as usize) as u32);
+            let ray = cam.pixel_ray(u, v).map(|c| c * d as f64);
+            let p = pose.transform_point(&Point3::from(ray)).coords / vol.voxel_size_m;
+            let near_face = (0..3).any(|k| (p[k] - p[k].round()).abs() < 1e-6);
+            for dx in [-1e-6, 1e-6] {
+                for dy in [-1e-6, 1e-6] {
+                    for dz in [-1e-6, 1e-6] {
+                        let w = VoxelIndex::containing([p[0] + dx, p[1] + dy, p[2] + dz], 1.0).expect("finite");
+                        if let Some(c) = vol.local(w) {
+                            maybe.insert(vol.linear(c));
+                        }
+                    }
+                }
+            }
+            if !near_face {
+                let w = VoxelIndex::containing(p.into(), 1.0).expect("finite");
+                if let Some(c) = vol.local(w) {
+                    sure.insert(vol.linear(c));
+                }
+            }
+        }
+        (sure, maybe)
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 200, rng_seed: RngSeed::Fixed(0x5CA7), ..ProptestConfig::default() })]
+        /// Every return's voxel is a hit and every hit is a return's voxel,
+        /// against an independent transform of each pixel's point; depths
+        /// land on voxel faces (multiples of the voxel size) as often as not.
+        #[test]
+        fn depth_returns_hit_their_voxels(
+            axis in proptest::array::uniform3(-1.0f64..1.0),
+            angle in -3.2f64..3.2,
+            t in proptest::array::uniform3(-2.0f64..2.0),
+            origin in proptest::array::uniform3(-40i32..0),
+            voxel_size_m in prop_oneof![Just(0.05), Just(0.1), 0.02f64..0.3],
+            depths in proptest::collection::vec(prop_oneof![0.0f32..6.0, (1u32..60).prop_map(|k| k as f32 * 0.1), Just(f32::NAN)], 24 * 16),
+        ) {
+            let cam = PinholeCamera { fx: 20.0, fy: 21.0, cx: 11.5, cy: 7.0, width: 24, height: 16, range: RangeLimits { min_m: 0.2, max_m: 5.0 } };
+            let axis = nalgebra::Vector3::from(axis);
+            let rot = match nalgebra::Unit::try_new(axis, 1e-3) { Some(a) => UnitQuaternion::from_axis_angle(&a, angle), None => UnitQuaternion::identity() };
+            let pose = Isometry3::from_parts(Translation3::from(nalgebra::Vector3::from(t)), rot);
+            let vol = LocalVolume { origin: VoxelIndex([origin[0], origin[1], origin[2] / 2]), dims: [60, 50, 40], voxel_size_m };
+            let frame = Frame { stamp_s: 0.0, t_world_sensor: pose, measurement: Measurement::Depth(DepthImage { width: 24, height: 16, data: DepthData::Metres(depths.clone()) }) };
+            let obs = Observations::new(vol);
+            scatter_returns(&obs, &Sensor::Depth(cam.clone()), &frame, &mut Vec::new());
+            let hits: HashSet<usize> = (0..vol.len()).filter(|&i| obs.get(i) & OBS_HIT != 0).collect();
+            let (sure, maybe) = oracle(&vol, &cam, &depths, &pose);
+            prop_assert!(!maybe.is_empty() || hits.is_empty());
+            prop_assert!(sure.is_subset(&hits), "returns not hit: {:?}", sure.difference(&hits).collect::<Vec<_>>());
+            prop_assert!(hits.is_subset(&maybe), "hits of no return: {:?}", hits.difference(&maybe).collect::<Vec<_>>());
+        }
+    }
 }
