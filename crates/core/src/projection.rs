@@ -17,11 +17,13 @@
 //! those with this function, so the result is this function's, bit for bit.
 
 mod cull;
+mod depth;
 mod lidar;
 
 use crate::sensor::{Measurement, Projection, RangeLimits, Sensor};
 use crate::{LocalVolume, Observations, OBS_MISS};
 use cull::{TileCull, TILE};
+use depth::DepthMiss;
 use lidar::LidarMiss;
 use nalgebra::Isometry3;
 use rayon::prelude::*;
@@ -166,12 +168,24 @@ impl ProjectJob<'_> {
 /// The volume is visited in 8³ tiles; a tile that provably holds no miss
 /// ([`cull`]) is skipped, the others decided voxel by voxel with
 /// [`ProjectJob::is_miss_at`] (a LiDAR's with the same conditions in a
-/// cheaper order, [`lidar`]). The misses are exactly the definition's.
+/// cheaper order, [`lidar`]; a camera's against per-pixel thresholds,
+/// [`depth`], which also decides whole tiles from the depths their pixels
+/// measured). The misses are exactly the definition's.
 pub fn mark_misses(obs: &Observations, job: &ProjectJob<'_>) {
     let geom = job.voxel_to_sensor();
     let lidar = LidarMiss::new(job);
     let bin_free_below_m = lidar.as_ref().map_or(&[][..], |l| l.bin_free_below_m());
-    let Some(cull) = TileCull::new(job, &geom, bin_free_below_m) else {
+    let decide = match (&lidar, DepthMiss::new(job)) {
+        (Some(l), _) => Decide::Lidar(l),
+        (None, Some(d)) => Decide::Depth(d),
+        (None, None) => Decide::Definition(job),
+    };
+    let sup = match &decide {
+        Decide::Lidar(l) => Some(l.free_below_sup()),
+        Decide::Depth(d) => Some(d.free_below_sup()),
+        Decide::Definition(_) => None,
+    };
+    let Some(cull) = TileCull::new(job, &geom, bin_free_below_m, sup) else {
         return;
     };
     let tiles = job.volume.dims.map(|n| n.div_ceil(TILE));
@@ -179,28 +193,89 @@ pub fn mark_misses(obs: &Observations, job: &ProjectJob<'_>) {
         let at = [t % tiles[0], (t / tiles[0]) % tiles[1], t / (tiles[0] * tiles[1])];
         let lo = at.map(|a| a * TILE);
         let hi = [0, 1, 2].map(|k| (lo[k] + TILE).min(job.volume.dims[k]));
-        if cull.may_miss(lo, hi) {
-            mark_tile(obs, job, &geom, lidar.as_ref(), lo, hi);
+        if !cull.may_miss(lo, hi) {
+            return;
+        }
+        match &decide {
+            Decide::Depth(d) => mark_depth_tile(obs, &geom, d, &decide, lo, hi, TILE),
+            _ => mark_tile(obs, &geom, &decide, lo, hi),
         }
     });
 }
 
+/// Smallest edge [`mark_depth_tile`] splits a tile down to, voxels: below
+/// it, deciding a part whole costs about as much as its voxels.
+const SUBTILE: usize = 4;
+
+/// A camera's tile `lo..hi` (edge `edge`): decided whole where its pixels'
+/// depths allow, else in halves along each axis down to [`SUBTILE`], else
+/// voxel by voxel.
+fn mark_depth_tile(obs: &Observations, geom: &VoxelToSensor, d: &DepthMiss<'_>, decide: &Decide<'_, '_>, lo: [usize; 3], hi: [usize; 3], edge: usize) {
+    match d.tile(geom, lo, hi) {
+        depth::Tile::None => {}
+        depth::Tile::All => mark_all(obs, &obs.volume().dims, lo, hi),
+        depth::Tile::Each if edge > SUBTILE => {
+            let half = edge / 2;
+            for part in 0..8 {
+                let sub_lo: [usize; 3] = [0, 1, 2].map(|k| lo[k] + if part >> k & 1 == 1 { half } else { 0 });
+                let sub_hi = [0, 1, 2].map(|k| (sub_lo[k] + half).min(hi[k]));
+                if (0..3).all(|k| sub_lo[k] < sub_hi[k]) {
+                    mark_depth_tile(obs, geom, d, decide, sub_lo, sub_hi, half);
+                }
+            }
+        }
+        depth::Tile::Each => mark_tile(obs, geom, decide, lo, hi),
+    }
+}
+
+// [`mark_tile`] keeps a row's decisions in the bits of a `u32`.
+const _: () = assert!(TILE <= 32);
+
+/// How [`mark_tile`] decides a voxel.
+enum Decide<'a, 'j> {
+    /// A LiDAR's reordered conditions.
+    Lidar(&'a LidarMiss<'j>),
+    /// A camera's per-pixel thresholds.
+    Depth(DepthMiss<'j>),
+    /// [`ProjectJob::is_miss_at`] itself.
+    Definition(&'a ProjectJob<'j>),
+}
+
+/// Marks every voxel of `lo..hi` a miss.
+fn mark_all(obs: &Observations, dims: &[usize; 3], lo: [usize; 3], hi: [usize; 3]) {
+    let [nx, ny, _] = *dims;
+    for z in lo[2]..hi[2] {
+        for y in lo[1]..hi[1] {
+            for x in lo[0]..hi[0] {
+                obs.mark([x, y, z], x + nx * (y + ny * z), OBS_MISS);
+            }
+        }
+    }
+}
+
 /// [`mark_misses`] over the voxels `lo..hi` of one tile.
-fn mark_tile(obs: &Observations, job: &ProjectJob<'_>, geom: &VoxelToSensor, lidar: Option<&LidarMiss<'_>>, lo: [usize; 3], hi: [usize; 3]) {
-    let [nx, ny, _] = job.volume.dims;
+fn mark_tile(obs: &Observations, geom: &VoxelToSensor, decide: &Decide<'_, '_>, lo: [usize; 3], hi: [usize; 3]) {
+    let [nx, ny, _] = obs.volume().dims;
     for z in lo[2]..hi[2] {
         for y in lo[1]..hi[1] {
             let shared = geom.row(y, z);
             let mut ring_hint = 0;
+            // A row's decisions first, its marks after: a camera's
+            // decisions have no branch, so their loads overlap.
+            let mut misses = 0u32;
             for x in lo[0]..hi[0] {
                 let p = geom.point_in_row(&shared, x);
-                let miss = match lidar {
-                    Some(l) => l.is_miss_at(p, &mut ring_hint),
-                    None => job.is_miss_at(p),
+                let miss = match decide {
+                    Decide::Lidar(l) => l.is_miss_at(p, &mut ring_hint),
+                    Decide::Depth(d) => d.is_miss_at(p),
+                    Decide::Definition(job) => job.is_miss_at(p),
                 };
-                if miss {
-                    obs.mark([x, y, z], x + nx * (y + ny * z), OBS_MISS);
-                }
+                misses |= u32::from(miss) << (x - lo[0]);
+            }
+            while misses != 0 {
+                let x = lo[0] + misses.trailing_zeros() as usize;
+                misses &= misses - 1;
+                obs.mark([x, y, z], x + nx * (y + ny * z), OBS_MISS);
             }
         }
     }

@@ -140,12 +140,40 @@ fn lidar_case(rng: &mut Rng) -> Case {
 /// (some no return), from a pixel to the whole image, so whole tiles lie
 /// behind the surfaces their pixels saw.
 fn depth_surfaces_case(rng: &mut Rng) -> Case {
+    let case = depth_case(rng);
+    surfaces(rng, case, 0.05, 1.2)
+}
+
+/// A camera in a room: fine voxels, a larger volume, surfaces from 0.3 to
+/// 4 m, so that whole tiles lie in front of the surfaces (all misses) as
+/// well as behind them.
+fn depth_room_case(rng: &mut Rng) -> Case {
     let mut case = depth_case(rng);
+    let voxel_size_m = [0.05, 0.04, 0.03][rng.below(3) as usize];
+    (case.volume, case.pose) = volume_and_pose(rng, voxel_size_m, [70, 61, 44], PI);
+    if let Sensor::Depth(camera) = &mut case.sensor {
+        camera.range = RangeLimits { min_m: 0.1, max_m: 6.0 };
+    }
+    let (near, far) = (0.3, 4.0);
+    let mut case = surfaces(rng, case, near, far);
+    // Surfaces on voxel faces half the time: tiles of an aligned pose end
+    // where they begin.
+    if rng.below(2) == 0 {
+        if let Measurement::Depth(DepthImage { data: DepthData::Metres(m), .. }) = &mut case.measurement {
+            m.iter_mut().for_each(|d| *d = ((*d as f64 / voxel_size_m).round() * voxel_size_m) as f32);
+        }
+    }
+    case
+}
+
+/// `case` with its image in rectangles, each at one depth in `near..far`
+/// (one in four any range, no return included).
+fn surfaces(rng: &mut Rng, mut case: Case, near: f64, far: f64) -> Case {
     let (Sensor::Depth(camera), Measurement::Depth(image)) = (&case.sensor, &mut case.measurement) else { unreachable!() };
     let (w, h) = (camera.width as usize, camera.height as usize);
     let limits = camera.range;
     let (cols, rows) = [(1, 1), (3, 2), (7, 5), (w, h)][rng.below(4) as usize];
-    let depths: Vec<f32> = (0..cols * rows).map(|_| if rng.below(4) == 0 { self::range(rng, &limits) } else { rng.uniform(0.05, 1.2) as f32 }).collect();
+    let depths: Vec<f32> = (0..cols * rows).map(|_| if rng.below(4) == 0 { self::range(rng, &limits) } else { rng.uniform(near, far) as f32 }).collect();
     let metres: Vec<f32> = (0..w * h).map(|i| depths[(i % w) * cols / w + cols * ((i / w) * rows / h)]).collect();
     image.data = match image.data {
         DepthData::Metres(_) => DepthData::Metres(metres),
@@ -233,6 +261,11 @@ fn culled_depth_projection_is_the_definition() {
 #[test]
 fn culled_depth_projection_facing_surfaces_is_the_definition() {
     check_cases(0x5fac, 150, depth_surfaces_case);
+}
+
+#[test]
+fn culled_depth_projection_in_a_room_is_the_definition() {
+    check_cases(0x400f, 120, depth_room_case);
 }
 
 #[test]

@@ -74,9 +74,10 @@ impl<'a> TileCull<'a> {
     /// The test for `job`, or `None` when no voxel can be a miss (no
     /// return frees anything, or the sensor does not project this
     /// measurement). `bin_free_below_m`: a LiDAR's largest
-    /// [`ProjectJob::free_below_m`] per azimuth bin, over its rings.
-    pub(super) fn new(job: &ProjectJob<'_>, geom: &VoxelToSensor, bin_free_below_m: &'a [f32]) -> Option<Self> {
-        let free_below_m = free_below_sup(job) as f64;
+    /// [`ProjectJob::free_below_m`] per azimuth bin, over its rings;
+    /// `sup`: the largest over the measurement, where the caller has it.
+    pub(super) fn new(job: &ProjectJob<'_>, geom: &VoxelToSensor, bin_free_below_m: &'a [f32], sup: Option<f32>) -> Option<Self> {
+        let free_below_m = sup.unwrap_or_else(|| free_below_sup(job)) as f64;
         // Every range the definition compares is ≥ 0 (depth > 0); the
         // supremum is never NaN (`f32::max` drops NaN thresholds, which free
         // nothing).

@@ -79,6 +79,11 @@ impl<'a> LidarMiss<'a> {
         &self.bin_free_below_m
     }
 
+    /// The largest [`ProjectJob::free_below_m`] of the scan, metres.
+    pub(super) fn free_below_sup(&self) -> f32 {
+        self.free_below_m
+    }
+
     /// [`ProjectJob::is_miss_at`]`(p)`, by sign tests where they are
     /// certain and by [`Self::is_miss_exact`] where they are not. `hint`
     /// is where the search for `p`'s ring starts, and is left at its end:

@@ -11,7 +11,7 @@ mod planar;
 mod pose;
 
 pub use lidar::{LidarScan, SpinningLidar, MAX_RINGS};
-pub use pinhole::{DepthData, DepthImage, PinholeCamera, MAX_IMAGE_PIXELS};
+pub use pinhole::{raw_depth_m, DepthData, DepthImage, PinholeCamera, MAX_IMAGE_PIXELS};
 pub use planar::LaserScan;
 pub use pose::{check_pose, pose_from_matrix, ROTATION_TOLERANCE};
 

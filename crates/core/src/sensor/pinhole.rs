@@ -57,10 +57,7 @@ impl DepthImage {
     pub fn depth_m(&self, i: usize) -> f32 {
         match &self.data {
             DepthData::Metres(d) => d[i],
-            DepthData::U16 { values, metres_per_unit } => match values[i] {
-                0 => f32::NAN,
-                v => v as f32 * metres_per_unit,
-            },
+            DepthData::U16 { values, metres_per_unit } => raw_depth_m(values[i], *metres_per_unit),
         }
     }
 
@@ -69,6 +66,15 @@ impl DepthImage {
             DepthData::Metres(d) => d.len(),
             DepthData::U16 { values, .. } => values.len(),
         }
+    }
+}
+
+/// Depth in metres of a raw 16-bit value, or NaN for 0 (no return).
+#[inline]
+pub fn raw_depth_m(value: u16, metres_per_unit: f32) -> f32 {
+    match value {
+        0 => f32::NAN,
+        v => v as f32 * metres_per_unit,
     }
 }
 
