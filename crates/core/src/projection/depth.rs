@@ -108,7 +108,8 @@ impl<'a> DepthMiss<'a> {
         let u = (fx * p[0] / p[2] + cx + 0.5).floor();
         let v = (fy * p[1] / p[2] + cy + 0.5).floor();
         let outside = (p[2] <= 0.0) | (u < 0.0) | (v < 0.0) | (u >= self.size[0]) | (v >= self.size[1]);
-        let pixel = (u as usize).wrapping_add(self.camera.width as usize * v as usize);
+        // Wrapping: outside the image the casts saturate, and the index is not used.
+        let pixel = (u as usize).wrapping_add((self.camera.width as usize).wrapping_mul(v as usize));
         let i = if outside { self.free_below_m.len() - 1 } else { pixel };
         p[2] < self.free_below_m[i]
     }
