@@ -175,7 +175,8 @@ pub fn mark_misses(obs: &Observations, job: &ProjectJob<'_>) {
     let geom = job.voxel_to_sensor();
     let lidar = LidarMiss::new(job);
     let bin_free_below_m = lidar.as_ref().map_or(&[][..], |l| l.bin_free_below_m());
-    let decide = match (&lidar, DepthMiss::new(job)) {
+    let depth = DepthMiss::new(job);
+    let decide = match (&lidar, &depth) {
         (Some(l), _) => Decide::Lidar(l),
         (None, Some(d)) => Decide::Depth(d),
         (None, None) => Decide::Definition(job),
@@ -197,7 +198,7 @@ pub fn mark_misses(obs: &Observations, job: &ProjectJob<'_>) {
             return;
         }
         match &decide {
-            Decide::Depth(d) => mark_depth_tile(obs, &geom, d, &decide, lo, hi, TILE),
+            Decide::Depth(d) => mark_depth_tile(obs, &geom, d, lo, hi, TILE),
             _ => mark_tile(obs, &geom, &decide, lo, hi),
         }
     });
@@ -210,21 +211,21 @@ const SUBTILE: usize = 4;
 /// A camera's tile `lo..hi` (edge `edge`): decided whole where its pixels'
 /// depths allow, else in halves along each axis down to [`SUBTILE`], else
 /// voxel by voxel.
-fn mark_depth_tile(obs: &Observations, geom: &VoxelToSensor, d: &DepthMiss<'_>, decide: &Decide<'_, '_>, lo: [usize; 3], hi: [usize; 3], edge: usize) {
+fn mark_depth_tile(obs: &Observations, geom: &VoxelToSensor, d: &DepthMiss<'_>, lo: [usize; 3], hi: [usize; 3], edge: usize) {
     match d.tile(geom, lo, hi) {
         depth::Tile::None => {}
-        depth::Tile::All => mark_all(obs, &obs.volume().dims, lo, hi),
+        depth::Tile::All => mark_all(obs, lo, hi),
         depth::Tile::Each if edge > SUBTILE => {
             let half = edge / 2;
             for part in 0..8 {
                 let sub_lo: [usize; 3] = [0, 1, 2].map(|k| lo[k] + if part >> k & 1 == 1 { half } else { 0 });
                 let sub_hi = [0, 1, 2].map(|k| (sub_lo[k] + half).min(hi[k]));
                 if (0..3).all(|k| sub_lo[k] < sub_hi[k]) {
-                    mark_depth_tile(obs, geom, d, decide, sub_lo, sub_hi, half);
+                    mark_depth_tile(obs, geom, d, sub_lo, sub_hi, half);
                 }
             }
         }
-        depth::Tile::Each => mark_tile(obs, geom, decide, lo, hi),
+        depth::Tile::Each => mark_tile(obs, geom, &Decide::Depth(d), lo, hi),
     }
 }
 
@@ -236,14 +237,14 @@ enum Decide<'a, 'j> {
     /// A LiDAR's reordered conditions.
     Lidar(&'a LidarMiss<'j>),
     /// A camera's per-pixel thresholds.
-    Depth(DepthMiss<'j>),
+    Depth(&'a DepthMiss<'j>),
     /// [`ProjectJob::is_miss_at`] itself.
     Definition(&'a ProjectJob<'j>),
 }
 
 /// Marks every voxel of `lo..hi` a miss.
-fn mark_all(obs: &Observations, dims: &[usize; 3], lo: [usize; 3], hi: [usize; 3]) {
-    let [nx, ny, _] = *dims;
+fn mark_all(obs: &Observations, lo: [usize; 3], hi: [usize; 3]) {
+    let [nx, ny, _] = obs.volume().dims;
     for z in lo[2]..hi[2] {
         for y in lo[1]..hi[1] {
             for x in lo[0]..hi[0] {

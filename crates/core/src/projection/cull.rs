@@ -137,13 +137,20 @@ impl<'a> TileCull<'a> {
     /// A sphere in the sensor frame holding every voxel centre of
     /// `lo..hi` as [`VoxelToSensor::point`] rounds it: centre, radius.
     fn sphere(&self, lo: [usize; 3], hi: [usize; 3]) -> ([f64; 3], f64) {
-        let s = self.geom.voxel_size_m;
-        let mid = [0, 1, 2].map(|k| (lo[k] + hi[k]) as f64 * 0.5 * s - self.geom.origin_m[k]);
-        let half = [0, 1, 2].map(|k| (hi[k] - lo[k] - 1) as f64 * 0.5 * s);
-        let c = self.geom.rot.map(|row| dot(&row, &mid));
+        let (c, half) = tile_centre(&self.geom, lo, hi);
         let reach = norm(&half);
-        (c, reach + s + REL_SLACK * (norm(&c) + reach))
+        (c, reach + self.geom.voxel_size_m + REL_SLACK * (norm(&c) + reach))
     }
+}
+
+/// The centre of the voxel centres `lo..hi` in the sensor frame, and their
+/// half extents along the volume's axes, metres (before the rounding of
+/// [`VoxelToSensor::point`]).
+pub(super) fn tile_centre(geom: &VoxelToSensor, lo: [usize; 3], hi: [usize; 3]) -> ([f64; 3], [f64; 3]) {
+    let s = geom.voxel_size_m;
+    let mid = [0, 1, 2].map(|k| (lo[k] + hi[k]) as f64 * 0.5 * s - geom.origin_m[k]);
+    let half = [0, 1, 2].map(|k| (hi[k] - lo[k] - 1) as f64 * 0.5 * s);
+    (geom.rot.map(|row| dot(&row, &mid)), half)
 }
 
 /// The largest range below which [`ProjectJob::is_miss_at`] may call a
@@ -200,6 +207,6 @@ fn dot(a: &[f64; 3], b: &[f64; 3]) -> f64 {
 }
 
 #[inline]
-fn norm(a: &[f64; 3]) -> f64 {
+pub(super) fn norm(a: &[f64; 3]) -> f64 {
     dot(a, a).sqrt()
 }

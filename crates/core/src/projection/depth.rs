@@ -18,6 +18,7 @@
 //! `f32` rounding of [`crate::sensor::PinholeCamera::project`], so a tile
 //! decided whole is decided as the definition decides each of its voxels.
 
+use super::cull::{norm, tile_centre};
 use super::{ProjectJob, VoxelToSensor};
 use crate::sensor::{raw_depth_m, DepthData, DepthImage, Measurement, PinholeCamera, Sensor};
 use rayon::prelude::*;
@@ -123,10 +124,7 @@ impl<'a> DepthMiss<'a> {
     /// `c.z ± Σ|aₖ.z|`; `x / z` is linear-fractional, so over the box (in
     /// front of the camera) it is extreme at the corners.
     pub(super) fn tile(&self, geom: &VoxelToSensor, lo: [usize; 3], hi: [usize; 3]) -> Tile {
-        let s = geom.voxel_size_m;
-        let mid = [0, 1, 2].map(|k| (lo[k] + hi[k]) as f64 * 0.5 * s - geom.origin_m[k]);
-        let half = [0, 1, 2].map(|k| (hi[k] - lo[k] - 1) as f64 * 0.5 * s);
-        let c = geom.rot.map(|row| row[0] * mid[0] + row[1] * mid[1] + row[2] * mid[2]);
+        let (c, half) = tile_centre(geom, lo, hi);
         let slack = 2.0 * REL_SLACK * (norm(&c) + norm(&half));
         let axes = [0, 1, 2].map(|k| [0, 1, 2].map(|i| geom.rot[i][k] * (half[k] + slack)));
         let depth_reach: f64 = axes.iter().map(|a| a[2].abs()).sum();
@@ -162,7 +160,7 @@ impl<'a> DepthMiss<'a> {
     /// by the margins; `None` when the box misses the image.
     fn pixel_box(&self, ratio: [(f64, f64); 2]) -> Option<((f64, f64), (f64, f64))> {
         let cam = self.camera;
-        let [fx, fy, cx, cy] = [cam.fx, cam.fy, cam.cx, cam.cy].map(|v| v as f32 as f64);
+        let [fx, fy, cx, cy] = self.intrinsics.map(f64::from);
         let span = |(lo, hi): (f64, f64), f: f64, k: f64, n: u32| {
             let (lo, hi) = (lo * f + k + 0.5, hi * f + k + 0.5);
             let m = PIXEL_MARGIN + REL_SLACK * (lo.abs().max(hi.abs()) + k.abs() + 1.0);
@@ -242,11 +240,6 @@ fn coarser(below: &Level, w: usize, h: usize) -> Level {
         }
     }
     Level { cell_px, cols, bounds }
-}
-
-#[inline]
-fn norm(a: &[f64; 3]) -> f64 {
-    (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt()
 }
 
 #[cfg(test)]
