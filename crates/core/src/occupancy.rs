@@ -7,6 +7,7 @@
 
 use crate::{BlockKey, CoreError, VoxelIndex, VoxelState, BLOCK_VOXELS};
 use serde::{Deserialize, Serialize};
+use rayon::prelude::*;
 use rustc_hash::FxHashMap as HashMap;
 use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 use std::sync::Arc;
@@ -191,10 +192,16 @@ impl<B: Default + Clone> BlockMap<B> {
 
     /// Takes the blocks at `keys` out of the map (allocating missing ones,
     /// copying shared ones) so they can be updated in parallel; give them
-    /// back with [`Self::restore`].
-    pub fn take(&mut self, keys: &[BlockKey]) -> Vec<(BlockKey, Box<B>)> {
+    /// back with [`Self::restore`]. Missing and shared blocks are made on
+    /// rayon's pool: a new block is new memory, and touching it the first
+    /// time (a page fault per 4 KiB) is most of a large first frame.
+    pub fn take(&mut self, keys: &[BlockKey]) -> Vec<(BlockKey, Box<B>)>
+    where
+        B: Send + Sync,
+    {
         self.stamp.revision += 1;
-        keys.iter().map(|&k| (k, self.blocks.remove(&k).map(|b| Arc::try_unwrap(b).unwrap_or_else(|shared| (*shared).clone())).unwrap_or_default())).collect()
+        let found: Vec<(BlockKey, Option<Arc<Box<B>>>)> = keys.iter().map(|&k| (k, self.blocks.remove(&k))).collect();
+        par_fill(found, |(k, b)| (k, b.map(|b| Arc::try_unwrap(b).unwrap_or_else(|shared| (*shared).clone())).unwrap_or_default()))
     }
 
     /// Puts back blocks taken with [`Self::take`].
@@ -261,6 +268,17 @@ impl OccupancyMap {
     pub fn log_odds(&self, v: VoxelIndex) -> f32 {
         self.get(v.block()).map_or(UNOBSERVED, |b| b.log_odds[v.offset_in_block()])
     }
+}
+
+/// `make` of each item, in order; on rayon's pool when there are enough to
+/// be worth waking it (`make` allocates and fills a block).
+pub fn par_fill<T: Send, U: Send>(items: Vec<T>, make: impl Fn(T) -> U + Sync + Send) -> Vec<U> {
+    /// Fewest blocks one thread makes.
+    const MIN_BLOCKS: usize = 64;
+    if items.len() < 2 * MIN_BLOCKS {
+        return items.into_iter().map(make).collect();
+    }
+    items.into_par_iter().with_min_len(MIN_BLOCKS).map(make).collect()
 }
 
 #[cfg(test)]

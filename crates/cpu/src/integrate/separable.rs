@@ -53,7 +53,7 @@
 
 use crate::edt::envelope::{envelope, sweep_row, EnvelopeScratch, Line};
 use edtmap_core::{
-    BlockKey, BlockMap, Cutoff, EdtBlock, EdtMap, IntegrateReport, MapStamp, Obstacles, VoxelIndex, WaveCounts, BLOCK_SIDE, BLOCK_VOXELS, FAR_DIST_SQ, NO_OBSTACLE,
+    par_fill, BlockKey, BlockMap, Cutoff, EdtBlock, EdtMap, IntegrateReport, MapStamp, Obstacles, VoxelIndex, WaveCounts, BLOCK_SIDE, BLOCK_VOXELS, FAR_DIST_SQ, NO_OBSTACLE,
     NO_SITE, UNREACHABLE_DIST_SQ,
 };
 use rayon::prelude::*;
@@ -278,7 +278,8 @@ impl<T: Copy + PartialEq + Send + Sync> Layer for Cached<'_, T> {
     type Block = [T; BLOCK_VOXELS];
     type Value = T;
     fn take(&mut self, keys: &[BlockKey]) -> Vec<Box<Self::Block>> {
-        keys.iter().map(|k| self.map.remove(k).unwrap_or_else(|| Box::new([self.none; BLOCK_VOXELS]))).collect()
+        let none = self.none;
+        par_fill(keys.iter().map(|k| self.map.remove(k)).collect(), |b| b.unwrap_or_else(|| Box::new([none; BLOCK_VOXELS])))
     }
     fn get(&self, key: BlockKey) -> Option<&Self::Block> {
         self.map.get(&key).map(|b| &**b)
