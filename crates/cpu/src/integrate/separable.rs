@@ -264,6 +264,9 @@ trait Layer: Sync {
     /// Puts blocks back, dropping those left empty.
     fn restore(&mut self, blocks: Vec<(BlockKey, Box<Self::Block>)>);
     fn read(b: &Self::Block, o: usize) -> Self::Value;
+    /// Reads every cache line of `b`, so that a task's blocks are loaded
+    /// together rather than one miss at a time.
+    fn warm(b: &Self::Block);
     fn write(b: &mut Self::Block, o: usize, v: Self::Value);
 }
 
@@ -291,6 +294,11 @@ impl<T: Copy + PartialEq + Send + Sync> Layer for Cached<'_, T> {
     fn read(b: &Self::Block, o: usize) -> T {
         b[o]
     }
+    fn warm(b: &Self::Block) {
+        for v in b.iter().step_by(64 / std::mem::size_of::<T>()) {
+            std::hint::black_box(*v);
+        }
+    }
     fn write(b: &mut Self::Block, o: usize, v: T) {
         b[o] = v;
     }
@@ -312,6 +320,14 @@ impl Layer for EdtMap {
     }
     fn read(b: &EdtBlock, o: usize) -> (u32, VoxelIndex) {
         (b.dist_sq[o], b.nearest[o])
+    }
+    fn warm(b: &EdtBlock) {
+        for v in b.dist_sq.iter().step_by(16) {
+            std::hint::black_box(*v);
+        }
+        for v in b.nearest.iter().step_by(5) {
+            std::hint::black_box(v.0[0]);
+        }
     }
     fn write(b: &mut EdtBlock, o: usize, v: (u32, VoxelIndex)) {
         b.dist_sq[o] = v.0;
@@ -693,6 +709,13 @@ where
             || (Scratch::default(), Vec::new(), Vec::new(), Sparse::default()),
             |(s, out, entries, sparse), (plan, blocks)| {
                 let mut st = Stats { visited: plan.visited, ..Stats::default() };
+                // The task's blocks read in order first: the lowering walks
+                // each line a few outputs at a time, a cache line apart,
+                // and waited on one miss after another (pass z on
+                // 3dmatch-seq01 at 2 m: some 15-20 % of the integration).
+                for b in blocks.iter() {
+                    L::warm(&b.1);
+                }
                 // The previous pass's blocks along the task's dirty blocks,
                 // where the lowered entries lie, looked up once.
                 let (first, last) = plan.dirty;
