@@ -645,6 +645,14 @@ where
             } else {
                 Vec::new()
             };
+            // Where an entry rose, its old outputs are searched by
+            // bisection, a cache miss each: the column read in order first.
+            let rose = |k: &BlockKey, c: Option<&Changed>| dirty[k].iter().zip(c.map_or([0; 8], |c| c.lowered)).any(|(d, l)| d & !l != 0);
+            if ks.iter().zip(&masks).any(|(k, m)| rose(k, m.1)) {
+                for b in column.iter().flatten() {
+                    L::warm(b);
+                }
+            }
             // Only the lines with a dirty voxel in one of the blocks.
             let mut lines = 0u64;
             for (l, _) in masks.iter().flat_map(|m| m.0.iter().enumerate()).filter(|(_, &t)| t != 0) {
@@ -805,7 +813,8 @@ where
                                 // it mostly does), else from the peak, found
                                 // by bisection.
                                 let start = piece.p.clamp(piece.s, piece.e);
-                                let l = if lower(blocks, slot(start), start, &mut st) {
+                                let beats = |blocks: &Owned<L::Block>, q: i64| old_at(blocks, slot(q), q).0 >= piece.at(q);
+                                let l = if beats(blocks, start) {
                                     start
                                 } else {
                                     let (mut l, mut h) = (piece.s, piece.e);
@@ -819,27 +828,32 @@ where
                                             l = m + 1;
                                         }
                                     }
-                                    if l == start || !lower(blocks, slot(l), l, &mut st) {
+                                    if l == start || !beats(blocks, l) {
                                         continue;
                                     }
                                     l
                                 };
-                                // Down, then up, stepping through the blocks.
-                                let (mut q, mut at) = (l, slot(l));
-                                while q > piece.s {
-                                    at = if at.1 == o_line { (at.0 - 1, last) } else { (at.0, at.1 - stride) };
-                                    q -= 1;
-                                    if !lower(blocks, at, q, &mut st) {
+                                // From the peak down, then up, stepping
+                                // through the blocks; `lower` called from
+                                // this one place, where it is inlined.
+                                let (mut q, mut at, mut down) = (l, slot(l), true);
+                                loop {
+                                    let beaten = lower(blocks, at, q, &mut st);
+                                    if down && beaten && q > piece.s {
+                                        at = if at.1 == o_line { (at.0 - 1, last) } else { (at.0, at.1 - stride) };
+                                        q -= 1;
+                                        continue;
+                                    }
+                                    if down {
+                                        (down, q, at) = (false, l, slot(l));
+                                    } else if !beaten {
                                         break;
                                     }
-                                }
-                                (q, at) = (l, slot(l));
-                                while q < piece.e {
+                                    if q >= piece.e {
+                                        break;
+                                    }
                                     at = if at.1 == last { (at.0 + 1, o_line) } else { (at.0, at.1 + stride) };
                                     q += 1;
-                                    if !lower(blocks, at, q, &mut st) {
-                                        break;
-                                    }
                                 }
                             }
                         }
