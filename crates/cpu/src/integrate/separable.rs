@@ -205,18 +205,29 @@ fn line_bits(m: &Mask, axis: usize) -> [u8; 64] {
                 }
             }
         }
-        // Line (x, y): bit x + 8 y of each word z.
+        // Line (x, y): bit x + 8 y of each word z. For each y, the bytes
+        // y of the eight words are an 8 x 8 bit matrix whose transpose
+        // holds the lines (x, y): a fixed cost, where a loop over the set
+        // bits took up to 8 times as long on a full block (pass z's dirty
+        // blocks mostly are).
         _ => {
-            for (t, &w) in m.iter().enumerate() {
-                let mut w = w;
-                while w != 0 {
-                    out[w.trailing_zeros() as usize] |= 1 << t;
-                    w &= w - 1;
-                }
+            for y in 0..8 {
+                let rows = m.iter().enumerate().fold(0u64, |a, (z, &w)| a | (w >> (8 * y) & 0xFF) << (8 * z));
+                out[8 * y..8 * y + 8].copy_from_slice(&transpose_bits(rows).to_le_bytes());
             }
         }
     }
     out
+}
+
+/// The transpose of an 8 x 8 bit matrix held as byte `r` = row `r`, bit
+/// `c` = column `c`: three exchanges of blocks across the diagonal.
+fn transpose_bits(mut x: u64) -> u64 {
+    for (shift, mask) in [(7, 0x00AA_00AA_00AA_00AA), (14, 0x0000_CCCC_0000_CCCC), (28, 0x0000_0000_F0F0_F0F0)] {
+        let t = (x ^ (x >> shift)) & mask;
+        x ^= t ^ (t << shift);
+    }
+    x
 }
 
 /// The three passes from the rows through `dirty` (obstacles flipped where
@@ -236,7 +247,10 @@ fn run_passes(map: &mut EdtMap, pass: &Pass<'_>, cache: &mut SeparableCache, dir
     // Pass z: the lines through the g2 entries that changed, into the map.
     let g2: &FxHashMap<_, _> = g2;
     // The distance, at most the cutoff (FAR included).
-    let truncated = |d: u32| pass.roots.sqrt(d.min(pass.max));
+    // (The table and the cutoff copied in: read through `pass` they were
+    // loaded again after every write of the lowering.)
+    let (exact, max) = (&pass.roots.exact[..], pass.max);
+    let truncated = move |d: u32| root(exact, d.min(max));
     let (changed, _, stats) = drive(map, 2, &dirty2, Some((&radii2, &LowerZ { g2 })), pass, |s, seg, out| pass.depth(g2, seg, s, out), |v: (u32, VoxelIndex)| v.0, |o: (u32, VoxelIndex), n: (u32, VoxelIndex)| {
         (truncated(n.0) - truncated(o.0)).abs()
     });
@@ -341,6 +355,14 @@ struct Stats {
     changed: usize,
     sum: f64,
     visited: usize,
+}
+
+impl Stats {
+    fn add(&mut self, o: Stats) {
+        self.changed += o.changed;
+        self.sum += o.sum;
+        self.visited += o.visited;
+    }
 }
 
 /// The two axes other than `axis`, in order.
@@ -645,14 +667,6 @@ where
             } else {
                 Vec::new()
             };
-            // Where an entry rose, its old outputs are searched by
-            // bisection, a cache miss each: the column read in order first.
-            let rose = |k: &BlockKey, c: Option<&Changed>| dirty[k].iter().zip(c.map_or([0; 8], |c| c.lowered)).any(|(d, l)| d & !l != 0);
-            if ks.iter().zip(&masks).any(|(k, m)| rose(k, m.1)) {
-                for b in column.iter().flatten() {
-                    L::warm(b);
-                }
-            }
             // Only the lines with a dirty voxel in one of the blocks.
             let mut lines = 0u64;
             for (l, _) in masks.iter().flat_map(|m| m.0.iter().enumerate()).filter(|(_, &t)| t != 0) {
@@ -836,9 +850,12 @@ where
                                 // From the peak down, then up, stepping
                                 // through the blocks; `lower` called from
                                 // this one place, where it is inlined.
+                                // Counted apart, in registers rather than
+                                // through memory from one output to the next.
+                                let mut walk = Stats::default();
                                 let (mut q, mut at, mut down) = (l, slot(l), true);
                                 loop {
-                                    let beaten = lower(blocks, at, q, &mut st);
+                                    let beaten = lower(blocks, at, q, &mut walk);
                                     if down && beaten && q > piece.s {
                                         at = if at.1 == o_line { (at.0 - 1, last) } else { (at.0, at.1 - stride) };
                                         q -= 1;
@@ -855,6 +872,7 @@ where
                                     at = if at.1 == last { (at.0 + 1, o_line) } else { (at.0, at.1 + stride) };
                                     q += 1;
                                 }
+                                st.add(walk);
                             }
                         }
                     }
@@ -897,7 +915,10 @@ where
         }
     }
     layer.restore(back);
-    let total = stats.iter().fold(Stats::default(), |a, s| Stats { changed: a.changed + s.changed, sum: a.sum + s.sum, visited: a.visited + s.visited });
+    let total = stats.into_iter().fold(Stats::default(), |mut a, s| {
+        a.add(s);
+        a
+    });
     (next, next_changed, total)
 }
 
@@ -1117,10 +1138,11 @@ impl Roots {
     fn floor(&self, v: u32) -> u16 {
         self.floor.get(v as usize).copied().unwrap_or_else(|| isqrt(v))
     }
+}
 
-    fn sqrt(&self, v: u32) -> f64 {
-        self.exact.get(v as usize).copied().unwrap_or_else(|| f64::from(v).sqrt())
-    }
+/// `sqrt(v)`, from `exact` (the square roots of 0, 1, ..) where it has it.
+fn root(exact: &[f64], v: u32) -> f64 {
+    exact.get(v as usize).copied().unwrap_or_else(|| f64::from(v).sqrt())
 }
 
 fn at_axis(mut c: [i32; 3], axis: usize, t: i32) -> VoxelIndex {
