@@ -828,10 +828,48 @@ where
                                 // by bisection.
                                 let start = piece.p.clamp(piece.s, piece.e);
                                 let beats = |blocks: &Owned<L::Block>, q: i64| old_at(blocks, slot(q), q).0 >= piece.at(q);
-                                let l = if beats(blocks, start) {
+                                let (at_start, key, _) = old_at(blocks, slot(start), start);
+                                let l = if at_start >= piece.at(start) {
                                     start
                                 } else {
+                                    // No piece of this envelope wrote on
+                                    // `s..=e` yet, so the outputs there
+                                    // still lie at or below the parabola
+                                    // of the output at `start`. The piece
+                                    // less that parabola is a line: the
+                                    // piece can only beat outputs where
+                                    // it lies at or below the parabola, a
+                                    // run found by arithmetic alone (none:
+                                    // skip it), and the peak is searched
+                                    // there.
                                     let (mut l, mut h) = (piece.s, piece.e);
+                                    if let Some((d, site)) = key {
+                                        let site = i64::from(site);
+                                        let f = i64::from(d) - (start - site) * (start - site);
+                                        let under = |q: i64| (q - site) * (q - site) + f >= piece.at(q);
+                                        match (under(l), under(h)) {
+                                            (false, false) => {
+                                                continue;
+                                            }
+                                            (false, true) => {
+                                                let (mut a, mut z) = (l, h);
+                                                while a < z {
+                                                    let m = a + (z - a) / 2;
+                                                    (a, z) = if under(m) { (a, m) } else { (m + 1, z) };
+                                                }
+                                                l = a;
+                                            }
+                                            (true, false) => {
+                                                let (mut a, mut z) = (l, h);
+                                                while a < z {
+                                                    let m = a + (z - a + 1) / 2;
+                                                    (a, z) = if under(m) { (m, z) } else { (a, m - 1) };
+                                                }
+                                                h = a;
+                                            }
+                                            (true, true) => {}
+                                        }
+                                    }
                                     while l < h {
                                         let m = l + (h - l) / 2;
                                         let gain = |q| old_at(blocks, slot(q), q).0 - piece.at(q);
@@ -921,6 +959,7 @@ where
     });
     (next, next_changed, total)
 }
+
 
 /// Plans a line of pass x: its dirty voxels, each grown by its reach,
 /// rescanned in segments (those closer than twice the reach merged).
