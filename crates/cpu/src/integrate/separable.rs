@@ -695,7 +695,7 @@ where
                 let first_lower = plan.lower.len();
                 match follow {
                     None => plan_rescan(&mut plan, line, found, reach),
-                    Some((_, lo)) => plan_follow::<L, _>(&mut plan, (&column, base, o_line, stride), lo, line, found, reach),
+                    Some((_, lo)) => plan_follow::<L, _>(&mut plan, (&column, base, o_line, stride), lo, line, found, (reach, pass.max)),
                 }
                 plan.lines.push(LineWork { line, segments: first_segment..plan.segments.len(), lower: first_lower..plan.lower.len() });
             }
@@ -846,29 +846,8 @@ where
                                     if let Some((d, site)) = key {
                                         let site = i64::from(site);
                                         let f = i64::from(d) - (start - site) * (start - site);
-                                        let under = |q: i64| (q - site) * (q - site) + f >= piece.at(q);
-                                        match (under(l), under(h)) {
-                                            (false, false) => {
-                                                continue;
-                                            }
-                                            (false, true) => {
-                                                let (mut a, mut z) = (l, h);
-                                                while a < z {
-                                                    let m = a + (z - a) / 2;
-                                                    (a, z) = if under(m) { (a, m) } else { (m + 1, z) };
-                                                }
-                                                l = a;
-                                            }
-                                            (true, false) => {
-                                                let (mut a, mut z) = (l, h);
-                                                while a < z {
-                                                    let m = a + (z - a + 1) / 2;
-                                                    (a, z) = if under(m) { (m, z) } else { (a, m - 1) };
-                                                }
-                                                h = a;
-                                            }
-                                            (true, true) => {}
-                                        }
+                                        let Some(run) = half_line(l, h, |q| (q - site) * (q - site) + f >= piece.at(q)) else { continue };
+                                        (l, h) = run;
                                     }
                                     while l < h {
                                         let m = l + (h - l) / 2;
@@ -995,16 +974,17 @@ fn plan_follow<L: Layer, Lo: Lower<L::Value>>(
     lo: &Lo,
     line: [i32; 3],
     found: &[(i32, i32, bool)],
-    reach: i32,
+    (reach, max): (i32, u32),
 ) {
     // Rose: the old outputs that came from these entries. Along a line the
     // sites of the outputs never decrease (of two parabolas the one further
     // on wins from some x on), and within an entry's reach no old output is
     // far, so the outputs from each entry are one run, found by bisection.
-    let site = |q: i32| {
+    let key = |q: i32| {
         let block = column.get(usize::try_from(q.div_euclid(BLOCK_SIDE) - base).ok()?)?.as_ref()?;
-        lo.key(q, L::read(block, o_line + q.rem_euclid(BLOCK_SIDE) as usize * stride)).map(|k| k.1)
+        lo.key(q, L::read(block, o_line + q.rem_euclid(BLOCK_SIDE) as usize * stride))
     };
+    let site = |q: i32| key(q).map(|k| k.1);
     let mut run: Option<(i32, i32)> = None;
     let mut add = |plan: &mut Plan, (q0, q1): (i32, i32)| {
         run = match run {
@@ -1017,10 +997,25 @@ fn plan_follow<L: Layer, Lo: Lower<L::Value>>(
         };
     };
     for &(p, w, _) in found.iter().filter(|e| !e.2) {
-        // The first output in reach whose site is at least `p`, and the
-        // first past `p`; `None` if an output in reach had no site.
+        // Where the outputs from `p` can be: the entry's old value is more
+        // than `max - (w + 1)²` (its reach `w` is the floor of the root of
+        // the difference), and the outputs in reach lie at or below the
+        // parabola of the output at `p`, so they came from `p` only where
+        // `p`'s parabola with that least value lies at or below that one,
+        // a run found by arithmetic (none: skip it). The searches below
+        // stay in it.
+        let (mut from, mut to) = (p - w, p + w);
+        if let Some((d, s)) = key(p) {
+            plan.visited += 1;
+            let (pp, s, w) = (i64::from(p), i64::from(s), i64::from(w));
+            let (f, least) = (i64::from(d) - (pp - s) * (pp - s), i64::from(max) + 1 - (w + 1) * (w + 1));
+            let Some(run) = half_line(pp - w, pp + w, |q| (q - s) * (q - s) + f >= (q - pp) * (q - pp) + least) else { continue };
+            (from, to) = (run.0 as i32, run.1 as i32);
+        }
+        // The first output in `from..=to` whose site is at least `p`, and
+        // the first past `p`; `None` if an output there had no site.
         let first = |past: bool, visited: &mut usize| {
-            let (mut l, mut h) = (p - w, p + w + 1);
+            let (mut l, mut h) = (from, to + 1);
             while l < h {
                 let m = l + (h - l) / 2;
                 *visited += 1;
@@ -1059,6 +1054,33 @@ fn plan_follow<L: Layer, Lo: Lower<L::Value>>(
             cur = (cur.0.min(last.0), cur.1.max(last.1), last.2.start..cur.2.end);
         }
         plan.lower.push(cur);
+    }
+}
+
+/// The run of `lo..=hi` where `ok` holds, `ok(q)` being that a line (a
+/// linear function of `q`) is at least 0 at `q`: all of it, none, or the
+/// part on one side of where the line crosses 0, found by bisection on
+/// `ok` alone.
+fn half_line(lo: i64, hi: i64, ok: impl Fn(i64) -> bool) -> Option<(i64, i64)> {
+    match (ok(lo), ok(hi)) {
+        (true, true) => Some((lo, hi)),
+        (false, false) => None,
+        (false, true) => {
+            let (mut a, mut z) = (lo, hi);
+            while a < z {
+                let m = a + (z - a) / 2;
+                (a, z) = if ok(m) { (a, m) } else { (m + 1, z) };
+            }
+            Some((a, hi))
+        }
+        (true, false) => {
+            let (mut a, mut z) = (lo, hi);
+            while a < z {
+                let m = a + (z - a + 1) / 2;
+                (a, z) = if ok(m) { (m, z) } else { (a, m - 1) };
+            }
+            Some((lo, a))
+        }
     }
 }
 
@@ -1310,6 +1332,19 @@ mod tests {
                     prop_assert_eq!(bits[l] >> t & 1 == 1, bit(&m, local(axis, l % 8, l / 8, t)), "axis {} line {} t {}", axis, l, t);
                 }
             }
+        }
+    }
+
+    proptest! {
+        /// The run where a line is at least 0 is every such point of the
+        /// range, whichever way the line goes.
+        #[test]
+        fn half_line_is_where_the_line_is_at_least_zero(slope in -50i64..50, at in -2000i64..2000, lo in -100i64..100, len in 0i64..200) {
+            let hi = lo + len;
+            let ok = |q: i64| slope * q + at >= 0;
+            let want: Vec<i64> = (lo..=hi).filter(|&q| ok(q)).collect();
+            let got: Vec<i64> = half_line(lo, hi, ok).map_or_else(Vec::new, |(a, z)| (a..=z).collect());
+            prop_assert_eq!(got, want);
         }
     }
 
