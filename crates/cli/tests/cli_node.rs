@@ -202,13 +202,15 @@ fn drive(d: &Path, domain: u16, frames: u64, sensor_topic: &str) {
     // The replay's map answers the same queries bit for bit.
     let map = edtmap::load_map(&d.join("replay.edtmap")).expect("replay map");
     let cloud = last_esdf.expect("an ESDF cloud came");
+    let partial;
     let cloud_map = match frame_of(&cloud).expect("the cloud carries a frame's stamp") {
-        k if k == last => map.clone(),
+        k if k == last => &map,
         k => {
             let n = (k + 1).to_string();
             let part = run_in(d, &["run", "--config", "rec.toml", "--dataset", "rec.mcap", "--frames", &n, "--out", "part", "--save", "part.edtmap"], MIN);
             assert_eq!(part.code(), Some(0), "{}", part.stderr);
-            edtmap::load_map(&d.join("part.edtmap")).expect("partial replay map")
+            partial = edtmap::load_map(&d.join("part.edtmap")).expect("partial replay map");
+            &partial
         }
     };
     let values: Vec<f32> = cloud.data.chunks(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
@@ -254,7 +256,7 @@ fn drive(d: &Path, domain: u16, frames: u64, sensor_topic: &str) {
     for p in values.chunks(4) {
         let at = [f64::from(p[0]), f64::from(p[1]), f64::from(p[2])];
         let v = edtmap::VoxelIndex::containing(at, map.voxel_size_m()).expect("finite");
-        let (dist, saturated) = edtmap::cpu::query::voxel_distance(&cloud_map, v, false);
+        let (dist, saturated) = edtmap::cpu::query::voxel_distance(cloud_map, v, false);
         assert!(!saturated && dist as f32 == p[3], "{p:?} vs {dist}");
     }
 }

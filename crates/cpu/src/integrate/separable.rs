@@ -827,7 +827,6 @@ where
                                 // it mostly does), else from the peak, found
                                 // by bisection.
                                 let start = piece.p.clamp(piece.s, piece.e);
-                                let beats = |blocks: &Owned<L::Block>, q: i64| old_at(blocks, slot(q), q).0 >= piece.at(q);
                                 let (at_start, key, _) = old_at(blocks, slot(start), start);
                                 let l = if at_start >= piece.at(start) {
                                     start
@@ -859,16 +858,17 @@ where
                                             l = m + 1;
                                         }
                                     }
-                                    if l == start || !beats(blocks, l) {
+                                    if l == start || old_at(blocks, slot(l), l).0 < piece.at(l) {
                                         continue;
                                     }
                                     l
                                 };
                                 // From the peak down, then up, stepping
-                                // through the blocks; `lower` called from
-                                // this one place, where it is inlined.
-                                // Counted apart, in registers rather than
-                                // through memory from one output to the next.
+                                // through the blocks, with `lower` called
+                                // from this one place (where it is
+                                // inlined) and counting into `walk` (kept
+                                // in registers, not carried through
+                                // memory from one output to the next).
                                 let mut walk = Stats::default();
                                 let (mut q, mut at, mut down) = (l, slot(l), true);
                                 loop {
@@ -938,7 +938,6 @@ where
     });
     (next, next_changed, total)
 }
-
 
 /// Plans a line of pass x: its dirty voxels, each grown by its reach,
 /// rescanned in segments (those closer than twice the reach merged).
