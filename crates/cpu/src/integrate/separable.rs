@@ -275,8 +275,12 @@ trait Layer: Sync {
     type Value: Copy + PartialEq + Send + Sync;
     fn take(&mut self, keys: &[BlockKey]) -> Vec<Box<Self::Block>>;
     fn get(&self, key: BlockKey) -> Option<&Self::Block>;
-    /// Puts blocks back, dropping those left empty.
+    /// Puts blocks back (the caller leaves out those [`Layer::empty`]
+    /// says hold nothing).
     fn restore(&mut self, blocks: Vec<(BlockKey, Box<Self::Block>)>);
+    /// Whether the block holds nothing worth keeping (no value within the
+    /// cutoff).
+    fn empty(&self, b: &Self::Block) -> bool;
     fn read(b: &Self::Block, o: usize) -> Self::Value;
     /// Reads every cache line of `b`, so that a task's blocks are loaded
     /// together rather than one miss at a time.
@@ -302,8 +306,10 @@ impl<T: Copy + PartialEq + Send + Sync> Layer for Cached<'_, T> {
         self.map.get(&key).map(|b| &**b)
     }
     fn restore(&mut self, blocks: Vec<(BlockKey, Box<Self::Block>)>) {
-        let none = self.none;
-        self.map.extend(blocks.into_iter().filter(|(_, b)| b.iter().any(|&t| t != none)));
+        self.map.extend(blocks);
+    }
+    fn empty(&self, b: &Self::Block) -> bool {
+        b.iter().all(|&t| t == self.none)
     }
     fn read(b: &Self::Block, o: usize) -> T {
         b[o]
@@ -328,9 +334,11 @@ impl Layer for EdtMap {
     fn get(&self, key: BlockKey) -> Option<&EdtBlock> {
         EdtMap::get(self, key)
     }
-    fn restore(&mut self, mut blocks: Vec<(BlockKey, Box<EdtBlock>)>) {
-        blocks.retain(|(_, b)| !b.is_far());
+    fn restore(&mut self, blocks: Vec<(BlockKey, Box<EdtBlock>)>) {
         BlockMap::restore(self, blocks);
+    }
+    fn empty(&self, b: &EdtBlock) -> bool {
+        b.is_far()
     }
     fn read(b: &EdtBlock, o: usize) -> (u32, VoxelIndex) {
         (b.dist_sq[o], b.nearest[o])
@@ -724,7 +732,8 @@ where
         .collect();
     // Lower, scan, compare, write.
     let cap = i64::from(pass.max) + 1;
-    let stats: Vec<Stats> = work
+    let view: &L = layer;
+    let stats: Vec<(Stats, Vec<bool>)> = work
         .par_iter_mut()
         .with_min_len(MIN_TASKS)
         .map_init(
@@ -909,16 +918,20 @@ where
                         });
                     }
                 }
-                st
+                // Which blocks to keep, read while they are in this core's
+                // cache (a serial loop over them all took 0.1-0.2 ms).
+                // The plan freed here, on the thread that used it.
+                *plan = Plan::default();
+                (st, blocks.iter().map(|b| !view.empty(&b.1)).collect())
             },
         )
         .collect();
     // Put the blocks back; the changed voxels are the next pass's dirty ones.
-    let mut next = Dirty::default();
-    let mut next_changed = Radii::default();
+    let mut next = Dirty::with_capacity_and_hasher(all.len(), Default::default());
+    let mut next_changed = Radii::with_capacity_and_hasher(if L::FEEDS_NEXT { all.len() } else { 0 }, Default::default());
     let mut back = Vec::with_capacity(all.len());
-    for (r, (_, blocks)) in tasks.iter().zip(work) {
-        for (c, block, mask, changed) in blocks {
+    for ((r, (_, blocks)), (_, keep)) in tasks.iter().zip(work).zip(&stats) {
+        for ((c, block, mask, changed), &keep) in blocks.into_iter().zip(keep) {
             let key = key_of(r, c);
             // Every block with a changed voxel (how each changed is kept
             // only where a pass follows).
@@ -928,11 +941,13 @@ where
             if let Some(changed) = changed {
                 next_changed.insert(key, changed);
             }
-            back.push((key, block));
+            if keep {
+                back.push((key, block));
+            }
         }
     }
     layer.restore(back);
-    let total = stats.into_iter().fold(Stats::default(), |mut a, s| {
+    let total = stats.into_iter().map(|s| s.0).fold(Stats::default(), |mut a, s| {
         a.add(s);
         a
     });
