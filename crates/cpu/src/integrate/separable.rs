@@ -154,6 +154,17 @@ fn rebuild(map: &mut EdtMap, pass: &Pass<'_>, cache: &mut SeparableCache) {
 /// thread rather than pay for waking the others.
 const MIN_TASKS: usize = 16;
 
+/// How many tasks of `n` one thread takes at least: all of them when there
+/// are too few to share, else a few (large loops end unbalanced when
+/// split in pieces of `MIN_TASKS`).
+fn min_len(n: usize) -> usize {
+    if n < 2 * MIN_TASKS {
+        n.max(1)
+    } else {
+        4
+    }
+}
+
 /// One bit per voxel of a block, by offset.
 type Mask = [u64; 8];
 /// Voxels to look at, per block.
@@ -654,7 +665,7 @@ where
     let view: &L = layer;
     let planned: Vec<Plan> = tasks
         .par_iter()
-        .with_min_len(MIN_TASKS)
+        .with_min_len(min_len(tasks.len()))
         .map_init(|| (Vec::new(), Scratch::default()), |(found, scratch), r| {
             let ks = &keys[r.clone()];
             // Each block's dirty voxels by line and how they changed, looked
@@ -735,7 +746,7 @@ where
     let view: &L = layer;
     let stats: Vec<(Stats, Vec<bool>)> = work
         .par_iter_mut()
-        .with_min_len(MIN_TASKS)
+        .with_min_len(min_len(tasks.len()))
         .map_init(
             || (Scratch::default(), Vec::new(), Vec::new(), Sparse::default()),
             |(s, out, entries, sparse), (plan, blocks)| {
