@@ -150,13 +150,14 @@ fn rebuild(map: &mut EdtMap, pass: &Pass<'_>, cache: &mut SeparableCache) {
     run_passes(map, pass, cache, &obstacles, &Dirty::default(), false);
 }
 
-/// Fewest blocks or block lines one thread takes: small frames stay on one
-/// thread rather than pay for waking the others.
+/// Small frames stay on one thread rather than pay for waking the others:
+/// the fewest blocks one thread takes in the flip test, and half the
+/// fewest tasks (lines of blocks) a pass shares out (`min_len`).
 const MIN_TASKS: usize = 16;
 
-/// How many tasks of `n` one thread takes at least: all of them when there
-/// are too few to share, else a few (large loops end unbalanced when
-/// split in pieces of `MIN_TASKS`).
+/// How many of a pass's `n` tasks one thread takes at least: all of them
+/// when there are fewer than `2 * MIN_TASKS`, else a few (large loops end
+/// unbalanced when split in pieces of `MIN_TASKS`).
 fn min_len(n: usize) -> usize {
     if n < 2 * MIN_TASKS {
         n.max(1)
