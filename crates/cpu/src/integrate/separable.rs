@@ -441,6 +441,7 @@ struct LineWork {
     line: [i32; 3],
     segments: Range<usize>,
     lower: Range<usize>,
+    risen: Range<usize>,
 }
 
 /// A task's plan: its lines, their segments, their lowering ranges and the
@@ -451,6 +452,14 @@ struct Plan {
     segments: Vec<Segment>,
     lower: Vec<(i32, i32, Range<usize>)>,
     entries: Vec<i32>,
+    /// The entries that rose (or changed without falling): position and
+    /// the run where their outputs can be, searched in the task's blocks
+    /// once they are warm.
+    risen: Vec<(i32, i32, i32)>,
+    /// Where the rescans of the risen entries' outputs can write: their
+    /// runs joined where less than twice the reach apart, as [`rescans`]
+    /// joins the outputs found in them.
+    spans: Vec<(i32, i32)>,
     owned: Vec<i32>,
     visited: usize,
     /// The task's first dirty block and the last one's coordinate along
@@ -711,17 +720,23 @@ where
                         found.push((k.0[axis] * side + t as i32, w, lowered));
                     }
                 }
-                let first_segment = plan.segments.len();
-                let first_lower = plan.lower.len();
+                let (first_segment, first_lower, first_risen) = (plan.segments.len(), plan.lower.len(), plan.risen.len());
                 match follow {
                     None => plan_rescan(&mut plan, line, found, reach),
-                    Some((_, lo)) => plan_follow::<L, _>(&mut plan, (&column, base, o_line, stride), lo, line, found, (reach, pass.max)),
+                    Some((_, lo)) => {
+                        let key = |q: i32| {
+                            let block = column.get(usize::try_from(q.div_euclid(side) - base).ok()?)?.as_ref()?;
+                            lo.key(q, L::read(block, o_line + q.rem_euclid(side) as usize * stride))
+                        };
+                        plan_follow(&mut plan, key, found, (reach, pass.max));
+                    }
                 }
-                plan.lines.push(LineWork { line, segments: first_segment..plan.segments.len(), lower: first_lower..plan.lower.len() });
+                plan.lines.push(LineWork { line, segments: first_segment..plan.segments.len(), lower: first_lower..plan.lower.len(), risen: first_risen..plan.risen.len() });
             }
-            // The blocks written: those the segments' outputs and the
-            // lowering ranges cross.
-            let spans = plan.segments.iter().map(|s| (s.lo - reach, s.hi + reach)).chain(plan.lower.iter().map(|&(a, z, _)| (a, z)));
+            // The blocks written: those the segments' outputs, the risen
+            // entries' runs (where their outputs to rescan are searched
+            // for, and the rescans write) and the lowering ranges cross.
+            let spans = plan.segments.iter().map(|s| (s.lo - reach, s.hi + reach)).chain(plan.spans.iter().copied()).chain(plan.lower.iter().map(|&(a, z, _)| (a, z)));
             merged(spans.map(|(a, z)| (a.div_euclid(side), z.div_euclid(side))), &mut scratch.ranges);
             plan.owned.extend(scratch.ranges.iter().flat_map(|&(a, z)| a..=z));
             plan
@@ -749,8 +764,8 @@ where
         .par_iter_mut()
         .with_min_len(min_len(tasks.len()))
         .map_init(
-            || (Scratch::default(), Vec::new(), Vec::new(), Sparse::default()),
-            |(s, out, entries, sparse), (plan, blocks)| {
+            || (Scratch::default(), Vec::new(), Vec::new(), Sparse::default(), Vec::new(), Vec::new()),
+            |(s, out, entries, sparse, found, index), (plan, blocks)| {
                 let mut st = Stats { visited: plan.visited, ..Stats::default() };
                 // The task's blocks read in order first: the lowering walks
                 // each line a few outputs at a time, a cache line apart,
@@ -797,14 +812,39 @@ where
                     let old = L::read(&blocks[j].1, o);
                     replace(blocks, j, o, old, new, st);
                 };
+                // Each block's place among the task's blocks, by coordinate
+                // along the axis from the first.
+                let c0 = blocks.first().map_or(0, |x| x.0);
+                index.clear();
+                index.resize(blocks.last().map_or(0, |x| (x.0 - c0 + 1) as usize), usize::MAX);
+                for (j, x) in blocks.iter().enumerate() {
+                    index[(x.0 - c0) as usize] = j;
+                }
                 for lw in &plan.lines {
-                    let segments = &plan.segments[lw.segments.clone()];
+                    let o_line = local(axis, lw.line[b].rem_euclid(side) as usize, lw.line[d].rem_euclid(side) as usize, 0);
+                    // The outputs to rescan: planned (pass x), or those of
+                    // the risen entries, searched for among the old outputs
+                    // now that the blocks are warm (in the planning, the
+                    // same searches were cache misses one after another).
+                    let segments: &[Segment] = match follow {
+                        None => &plan.segments[lw.segments.clone()],
+                        Some((_, lo)) => {
+                            // The old output at q: every one searched lies
+                            // in a risen entry's reach, so in the task's
+                            // blocks.
+                            let key = |q: i32| {
+                                let j = *index.get(usize::try_from(q.div_euclid(side) - c0).ok()?)?;
+                                lo.key(q, L::read(&blocks.get(j)?.1, o_line + q.rem_euclid(side) as usize * stride))
+                            };
+                            st.visited += rescans(key, lw.line, &plan.risen[lw.risen.clone()], reach, found);
+                            found
+                        }
+                    };
                     if let Some((_, lo)) = follow {
                         // First the outputs the lowered entries lower, from
                         // the old outputs: the rescans below overwrite
                         // their own outputs, which this leaves to them.
                         let rescanned = |q: i64| segments.iter().any(|g| i64::from(g.lo - reach) <= q && q <= i64::from(g.hi + reach));
-                        let o_line = local(axis, lw.line[b].rem_euclid(side) as usize, lw.line[d].rem_euclid(side) as usize, 0);
                         for &(a, z, ref ps) in &plan.lower[lw.lower.clone()] {
                             let ps = &plan.entries[ps.clone()];
                             entries.clear();
@@ -987,49 +1027,20 @@ fn plan_rescan(plan: &mut Plan, line: [i32; 3], found: &[(i32, i32, bool)], reac
 }
 
 /// Plans a line of pass y or z from the entries the previous pass changed
-/// (`found`: position, reach, lowered; ascending): the outputs whose
-/// nearest entry rose (or changed without falling) are rescanned, found
-/// among the old outputs in reach of those entries, and runs of them less
-/// than twice the reach apart are merged; the lowered entries' reaches,
-/// merged where they overlap, are lowered from those entries alone. The
-/// old outputs are read from `column`, the blocks along the line from
-/// block coordinate `base`, at offset `o_line + t * stride` for voxel `t`.
-fn plan_follow<L: Layer, Lo: Lower<L::Value>>(
-    plan: &mut Plan,
-    (column, base, o_line, stride): (&[Option<&L::Block>], i32, usize, usize),
-    lo: &Lo,
-    line: [i32; 3],
-    found: &[(i32, i32, bool)],
-    (reach, max): (i32, u32),
-) {
-    // Rose: the old outputs that came from these entries. Along a line the
-    // sites of the outputs never decrease (of two parabolas the one further
-    // on wins from some x on), and within an entry's reach no old output is
-    // far, so the outputs from each entry are one run, found by bisection.
-    let key = |q: i32| {
-        let block = column.get(usize::try_from(q.div_euclid(BLOCK_SIDE) - base).ok()?)?.as_ref()?;
-        lo.key(q, L::read(block, o_line + q.rem_euclid(BLOCK_SIDE) as usize * stride))
-    };
-    let site = |q: i32| key(q).map(|k| k.1);
-    let mut run: Option<(i32, i32)> = None;
-    let mut add = |plan: &mut Plan, (q0, q1): (i32, i32)| {
-        run = match run {
-            Some((s, e)) if q0 - e <= 2 * reach => Some((s, e.max(q1))),
-            Some((s, e)) => {
-                plan.segments.push(Segment { line, lo: s + reach, hi: e - reach });
-                Some((q0, q1))
-            }
-            None => Some((q0, q1)),
-        };
-    };
+/// (`found`: position, reach, lowered; ascending): the entries that rose
+/// (or changed without falling) are kept for [`rescans`], each with where
+/// its outputs can be, and the lowered entries' reaches, merged where they
+/// overlap, are lowered from those entries alone. `key(q)`: the squared
+/// distance and position of the entry the old output at `q` came from.
+fn plan_follow(plan: &mut Plan, key: impl Fn(i32) -> Option<(u32, i32)>, found: &[(i32, i32, bool)], (reach, max): (i32, u32)) {
+    let first_risen = plan.risen.len();
     for &(p, w, _) in found.iter().filter(|e| !e.2) {
         // Where the outputs from `p` can be: the entry's old value is more
         // than `max - (w + 1)²` (its reach `w` is the floor of the root of
         // the difference), and the outputs in reach lie at or below the
         // parabola of the output at `p`, so they came from `p` only where
         // `p`'s parabola with that least value lies at or below that one,
-        // a run found by arithmetic (none: skip it). The searches below
-        // stay in it.
+        // a run found by arithmetic (none: skip it).
         let (mut from, mut to) = (p - w, p + w);
         if let Some((d, s)) = key(p) {
             plan.visited += 1;
@@ -1038,35 +1049,25 @@ fn plan_follow<L: Layer, Lo: Lower<L::Value>>(
             let Some(run) = half_line(pp - w, pp + w, |q| (q - s) * (q - s) + f >= (q - pp) * (q - pp) + least) else { continue };
             (from, to) = (run.0 as i32, run.1 as i32);
         }
-        // The first output in `from..=to` whose site is at least `p`, and
-        // the first past `p`; `None` if an output there had no site.
-        let first = |past: bool, visited: &mut usize| {
-            let (mut l, mut h) = (from, to + 1);
-            while l < h {
-                let m = l + (h - l) / 2;
-                *visited += 1;
-                match site(m)? {
-                    s if s > p || (s == p && !past) => h = m,
-                    _ => l = m + 1,
-                }
-            }
-            Some(l)
-        };
-        match (first(false, &mut plan.visited), first(true, &mut plan.visited)) {
-            (Some(q0), Some(q1)) if q0 < q1 => add(plan, (q0, q1 - 1)),
-            (Some(_), Some(_)) => {}
-            // Not the exact EDT of its inputs: read every output in reach.
-            _ => {
-                plan.visited += (2 * w + 1) as usize;
-                for q in (p - w..=p + w).filter(|&q| site(q) == Some(p)) {
-                    add(plan, (q, q));
-                }
-            }
+        plan.risen.push((p, from, to));
+    }
+    // Two outputs found in these runs, less than twice the reach apart,
+    // are rescanned as one segment, so are the outputs between them: the
+    // runs joined likewise cover it.
+    let at = plan.spans.len();
+    plan.spans.extend(plan.risen[first_risen..].iter().map(|&(_, a, z)| (a, z)));
+    plan.spans[at..].sort_unstable();
+    let mut n = at;
+    for i in at..plan.spans.len() {
+        let (a, z) = plan.spans[i];
+        if n > at && a - plan.spans[n - 1].1 <= 2 * reach {
+            plan.spans[n - 1].1 = plan.spans[n - 1].1.max(z);
+        } else {
+            plan.spans[n] = (a, z);
+            n += 1;
         }
     }
-    if let Some((s, e)) = run {
-        plan.segments.push(Segment { line, lo: s + reach, hi: e - reach });
-    }
+    plan.spans.truncate(n);
     // Fell: their reaches, merged where they overlap or touch, each with the
     // entries that make it up. The entries ascend, so a reach can only
     // overlap the last merged ones: one pass, merging back.
@@ -1081,6 +1082,81 @@ fn plan_follow<L: Layer, Lo: Lower<L::Value>>(
         }
         plan.lower.push(cur);
     }
+}
+
+/// The segments of a line of pass y or z to rescan, into `out`: the outputs
+/// whose nearest entry is one of `risen` (position and the run where its
+/// outputs can be, from [`plan_follow`]; ascending), found among
+/// the old outputs (`key(q)` as there), runs less than twice the reach
+/// apart merged. Returns how many outputs it read.
+fn rescans(key: impl Fn(i32) -> Option<(u32, i32)>, line: [i32; 3], risen: &[(i32, i32, i32)], reach: i32, out: &mut Vec<Segment>) -> usize {
+    out.clear();
+    let mut visited = 0;
+    // Along a line the sites of the outputs never decrease (of two
+    // parabolas the one further on wins from some x on), and within an
+    // entry's reach no old output is far, so the outputs from each entry
+    // are one run, found by bisection.
+    let site = |q: i32| key(q).map(|k| k.1);
+    let mut run: Option<(i32, i32)> = None;
+    let mut add = |out: &mut Vec<Segment>, (q0, q1): (i32, i32)| {
+        run = match run {
+            Some((s, e)) if q0 - e <= 2 * reach => Some((s, e.max(q1))),
+            Some((s, e)) => {
+                out.push(Segment { line, lo: s + reach, hi: e - reach });
+                Some((q0, q1))
+            }
+            None => Some((q0, q1)),
+        };
+    };
+    for &(p, from, to) in risen {
+        // The outputs from `p`, `q0..q1`: from the first output in
+        // `from..=to` whose site is at least `p` to the first past `p`,
+        // by one bisection until it meets an output from `p`, then one on
+        // each side of it; `None` if an output read had no site.
+        let from_p = |visited: &mut usize| {
+            let (mut l, mut h) = (from, to + 1);
+            while l < h {
+                let m = l + (h - l) / 2;
+                *visited += 1;
+                match site(m)? {
+                    s if s < p => l = m + 1,
+                    s if s > p => h = m,
+                    _ => {
+                        let (mut q0, mut z) = (l, m);
+                        while q0 < z {
+                            let c = q0 + (z - q0) / 2;
+                            *visited += 1;
+                            (q0, z) = if site(c)? >= p { (q0, c) } else { (c + 1, z) };
+                        }
+                        let (mut q1, mut z) = (m + 1, h);
+                        while q1 < z {
+                            let c = q1 + (z - q1) / 2;
+                            *visited += 1;
+                            (q1, z) = if site(c)? > p { (q1, c) } else { (c + 1, z) };
+                        }
+                        return Some((q0, q1));
+                    }
+                }
+            }
+            Some((l, l))
+        };
+        match from_p(&mut visited) {
+            Some((q0, q1)) if q0 < q1 => add(out, (q0, q1 - 1)),
+            Some(_) => {}
+            // Not the exact EDT of its inputs: read every output where
+            // those from `p` can be.
+            None => {
+                visited += (to - from + 1) as usize;
+                for q in (from..=to).filter(|&q| site(q) == Some(p)) {
+                    add(out, (q, q));
+                }
+            }
+        }
+    }
+    if let Some((s, e)) = run {
+        out.push(Segment { line, lo: s + reach, hi: e - reach });
+    }
+    visited
 }
 
 /// The run of `lo..=hi` where `ok` holds, `ok(q)` being that a line (a
