@@ -10,8 +10,15 @@ use edtmap_sim::{Scene, SceneName, SceneOptions};
 use std::path::PathBuf;
 
 fn setup(scene: &str) -> (Scene, Sensor, MapperParams) {
+    setup_with(scene, |_| {})
+}
+
+/// As [`setup`], with the shipped config edited first.
+fn setup_with(scene: &str, edit: impl Fn(&mut Config)) -> (Scene, Sensor, MapperParams) {
     let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(format!("../../configs/{scene}.toml"));
-    let (sensor, params) = Config::load(&path).expect("shipped config").mapper_params().expect("valid config");
+    let mut config = Config::load(&path).expect("shipped config");
+    edit(&mut config);
+    let (sensor, params) = config.mapper_params().expect("valid config");
     let scene = Scene::new(scene.parse::<SceneName>().expect("name"), &SceneOptions::default()).expect("scene");
     (scene, sensor, params)
 }
@@ -19,7 +26,11 @@ fn setup(scene: &str) -> (Scene, Sensor, MapperParams) {
 /// Runs `frames` frames (every `step`-th) and returns the mapper and the
 /// worst global RMS and max error seen after any frame.
 fn run(scene_name: &str, frames: usize, step: usize, edit: impl Fn(&mut MapperParams)) -> (Mapper, f64, f64) {
-    let (scene, sensor, mut params) = setup(scene_name);
+    run_on(setup(scene_name), frames, step, edit)
+}
+
+/// As [`run`], on a scene already set up.
+fn run_on((scene, sensor, mut params): (Scene, Sensor, MapperParams), frames: usize, step: usize, edit: impl Fn(&mut MapperParams)) -> (Mapper, f64, f64) {
     edit(&mut params);
     let mut mapper = Mapper::new(sensor.clone(), params).expect("mapper");
     let (mut rms, mut max) = (0.0f64, 0.0f64);
@@ -45,19 +56,9 @@ fn exact_at_a_long_reach() {
     // entry rose are rescanned in runs joined up to twice that apart,
     // across blocks that nothing else in the frame touches (the fourth
     // frame of `uav_pillars` at 0.05 m once wrote past the blocks taken).
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../configs/uav_pillars.toml");
-    let mut config = Config::load(&path).expect("shipped config");
-    config.occupancy.voxel_size_m = 0.05;
-    let (sensor, mut params) = config.mapper_params().expect("valid config");
-    params.global.mode = IntegrationMode::Exact;
-    let scene = Scene::new(SceneName::UavPillars, &SceneOptions::default()).expect("scene");
-    let mut mapper = Mapper::new(sensor.clone(), params).expect("mapper");
-    for i in 0..5 {
-        mapper.integrate_frame(&scene.frame(&sensor, i).expect("frame")).expect("integrate");
-        let region = edt_extent(mapper.map()).expect("some EDT");
-        let e = edt_errors(mapper.map(), &region).expect("errors");
-        assert_eq!((e.rms_m, e.max_m), (0.0, 0.0), "frame {i}");
-    }
+    let fine = setup_with("uav_pillars", |c| c.occupancy.voxel_size_m = 0.05);
+    let (_, rms, max) = run_on(fine, 5, 1, |p| p.global.mode = IntegrationMode::Exact);
+    assert_eq!((rms, max), (0.0, 0.0));
 }
 
 #[test]

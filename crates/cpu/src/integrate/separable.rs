@@ -765,7 +765,7 @@ where
         .with_min_len(min_len(tasks.len()))
         .map_init(
             || (Scratch::default(), Vec::new(), Vec::new(), Sparse::default(), Vec::new(), Vec::new()),
-            |(s, out, entries, sparse, found, index), (plan, blocks)| {
+            |(s, out, entries, sparse, rescan, index), (plan, blocks)| {
                 let mut st = Stats { visited: plan.visited, ..Stats::default() };
                 // The task's blocks read in order first: the lowering walks
                 // each line a few outputs at a time, a cache line apart,
@@ -813,12 +813,15 @@ where
                     replace(blocks, j, o, old, new, st);
                 };
                 // Each block's place among the task's blocks, by coordinate
-                // along the axis from the first.
+                // along the axis from the first (for the risen entries'
+                // searches, so not in pass x).
                 let c0 = blocks.first().map_or(0, |x| x.0);
                 index.clear();
-                index.resize(blocks.last().map_or(0, |x| (x.0 - c0 + 1) as usize), usize::MAX);
-                for (j, x) in blocks.iter().enumerate() {
-                    index[(x.0 - c0) as usize] = j;
+                if follow.is_some() {
+                    index.resize(blocks.last().map_or(0, |x| (x.0 - c0 + 1) as usize), usize::MAX);
+                    for (j, x) in blocks.iter().enumerate() {
+                        index[(x.0 - c0) as usize] = j;
+                    }
                 }
                 for lw in &plan.lines {
                     let o_line = local(axis, lw.line[b].rem_euclid(side) as usize, lw.line[d].rem_euclid(side) as usize, 0);
@@ -836,8 +839,8 @@ where
                                 let j = *index.get(usize::try_from(q.div_euclid(side) - c0).ok()?)?;
                                 lo.key(q, L::read(&blocks.get(j)?.1, o_line + q.rem_euclid(side) as usize * stride))
                             };
-                            st.visited += rescans(key, lw.line, &plan.risen[lw.risen.clone()], reach, found);
-                            found
+                            st.visited += rescans(key, lw.line, &plan.risen[lw.risen.clone()], reach, rescan);
+                            rescan
                         }
                     };
                     if let Some((_, lo)) = follow {
@@ -1056,18 +1059,7 @@ fn plan_follow(plan: &mut Plan, key: impl Fn(i32) -> Option<(u32, i32)>, found: 
     // runs joined likewise cover it.
     let at = plan.spans.len();
     plan.spans.extend(plan.risen[first_risen..].iter().map(|&(_, a, z)| (a, z)));
-    plan.spans[at..].sort_unstable();
-    let mut n = at;
-    for i in at..plan.spans.len() {
-        let (a, z) = plan.spans[i];
-        if n > at && a - plan.spans[n - 1].1 <= 2 * reach {
-            plan.spans[n - 1].1 = plan.spans[n - 1].1.max(z);
-        } else {
-            plan.spans[n] = (a, z);
-            n += 1;
-        }
-    }
-    plan.spans.truncate(n);
+    join_within(&mut plan.spans, at, 2 * reach);
     // Fell: their reaches, merged where they overlap or touch, each with the
     // entries that make it up. The entries ascend, so a reach can only
     // overlap the last merged ones: one pass, merging back.
@@ -1191,18 +1183,24 @@ fn half_line(lo: i64, hi: i64, ok: impl Fn(i64) -> bool) -> Option<(i64, i64)> {
 fn merged(iv: impl Iterator<Item = (i32, i32)>, out: &mut Vec<(i32, i32)>) {
     out.clear();
     out.extend(iv);
-    out.sort_unstable();
-    let mut n = 0;
-    for i in 0..out.len() {
-        let (a, b) = out[i];
-        if n > 0 && a <= out[n - 1].1 + 1 {
-            out[n - 1].1 = out[n - 1].1.max(b);
+    join_within(out, 0, 1);
+}
+
+/// Sorts the intervals of `v` from `from` on and joins those less than
+/// `gap` apart (`gap` 1: overlapping or touching), in place.
+fn join_within(v: &mut Vec<(i32, i32)>, from: usize, gap: i32) {
+    v[from..].sort_unstable();
+    let mut n = from;
+    for i in from..v.len() {
+        let (a, b) = v[i];
+        if n > from && a - v[n - 1].1 <= gap {
+            v[n - 1].1 = v[n - 1].1.max(b);
         } else {
-            out[n] = (a, b);
+            v[n] = (a, b);
             n += 1;
         }
     }
-    out.truncate(n);
+    v.truncate(n);
 }
 
 /// `floor(sqrt(v))`, at most `u16::MAX`.
