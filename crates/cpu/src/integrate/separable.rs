@@ -152,14 +152,18 @@ fn rebuild(map: &mut EdtMap, pass: &Pass<'_>, cache: &mut SeparableCache) {
 
 /// Small frames stay on one thread rather than pay for waking the others:
 /// the fewest blocks one thread takes in the flip test, and half the
-/// fewest tasks (lines of blocks) a pass shares out (`min_len`).
+/// fewest tasks (lines of blocks) or dirty blocks a pass shares out
+/// (`min_len`).
 const MIN_TASKS: usize = 16;
 
-/// How many of a pass's `n` tasks one thread takes at least: all of them
-/// when there are fewer than `2 * MIN_TASKS`, else a few (large loops end
-/// unbalanced when split in pieces of `MIN_TASKS`).
-fn min_len(n: usize) -> usize {
-    if n < 2 * MIN_TASKS {
+/// How many of a pass's `n` tasks (lines of blocks, with `blocks` dirty
+/// blocks among them) one thread takes at least: all of them when there
+/// are fewer than `2 * MIN_TASKS` of both, else a few (large loops end
+/// unbalanced when split in pieces of `MIN_TASKS`). Counting the blocks
+/// too shares out a pass of few but long lines: pass x of 3dmatch-seq01
+/// at 2 m has some 30 tasks of 16 µs each.
+fn min_len(n: usize, blocks: usize) -> usize {
+    if n < 2 * MIN_TASKS && blocks < 2 * MIN_TASKS {
         n.max(1)
     } else {
         4
@@ -675,7 +679,7 @@ where
     let view: &L = layer;
     let planned: Vec<Plan> = tasks
         .par_iter()
-        .with_min_len(min_len(tasks.len()))
+        .with_min_len(min_len(tasks.len(), keys.len()))
         .map_init(|| (Vec::new(), Scratch::default()), |(found, scratch), r| {
             let ks = &keys[r.clone()];
             // Each block's dirty voxels by line and how they changed, looked
@@ -762,7 +766,7 @@ where
     let view: &L = layer;
     let stats: Vec<(Stats, Vec<bool>)> = work
         .par_iter_mut()
-        .with_min_len(min_len(tasks.len()))
+        .with_min_len(min_len(tasks.len(), keys.len()))
         .map_init(
             || (Scratch::default(), Vec::new(), Vec::new(), Sparse::default(), Vec::new(), Vec::new()),
             |(s, out, entries, sparse, rescan, index), (plan, blocks)| {
