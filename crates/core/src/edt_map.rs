@@ -1,8 +1,8 @@
 //! The global EDT: per voxel, the squared distance to the nearest obstacle
-//! and that obstacle's full world index, in the same 8³ blocks as the
+//! and the offset to that obstacle, in the same 8³ blocks as the
 //! occupancy (paper §IV-C), plus the parameters of its integration.
 
-use crate::{BlockMap, CoreError, VoxelIndex, BLOCK_VOXELS};
+use crate::{BlockKey, BlockMap, CoreError, VoxelIndex, BLOCK_VOXELS};
 use serde::{Deserialize, Serialize};
 
 /// Squared distance of a voxel with no obstacle within the cutoff.
@@ -15,19 +15,28 @@ pub const NO_OBSTACLE: VoxelIndex = VoxelIndex([i32::MIN; 3]);
 /// configuration).
 pub const DEFAULT_MAX_DISTANCE_M: f64 = 2.0;
 
+/// Offset to the nearest obstacle of a voxel with no obstacle within the
+/// cutoff.
+pub const NO_OFFSET: [i16; 3] = [i16::MIN; 3];
+
 /// One 8³ block of the global EDT, voxels at [`VoxelIndex::offset_in_block`].
+///
+/// The nearest obstacle is kept as its offset from the voxel, six bytes
+/// rather than a twelve-byte world index: within the cutoff (at most
+/// 10 000 voxels, [`GlobalParams::cutoff`]) every component fits an `i16`.
 #[derive(Debug, Clone, PartialEq)]
 #[repr(C)]
 pub struct EdtBlock {
     /// Squared distance in voxel units, [`FAR_DIST_SQ`] beyond the cutoff.
     pub dist_sq: [u32; BLOCK_VOXELS],
-    /// World index of the nearest obstacle, [`NO_OBSTACLE`] beyond the cutoff.
-    pub nearest: [VoxelIndex; BLOCK_VOXELS],
+    /// Nearest obstacle less the voxel's own index, [`NO_OFFSET`] beyond
+    /// the cutoff.
+    pub to_nearest: [[i16; 3]; BLOCK_VOXELS],
 }
 
 impl Default for EdtBlock {
     fn default() -> Self {
-        EdtBlock { dist_sq: [FAR_DIST_SQ; BLOCK_VOXELS], nearest: [NO_OBSTACLE; BLOCK_VOXELS] }
+        EdtBlock { dist_sq: [FAR_DIST_SQ; BLOCK_VOXELS], to_nearest: [NO_OFFSET; BLOCK_VOXELS] }
     }
 }
 
@@ -36,6 +45,77 @@ impl EdtBlock {
     pub fn is_far(&self) -> bool {
         self.dist_sq.iter().all(|&d| d == FAR_DIST_SQ)
     }
+
+    /// World index of the nearest obstacle of the voxel at `offset` of the
+    /// block at `key`, [`NO_OBSTACLE`] beyond the cutoff.
+    #[inline]
+    pub fn nearest(&self, key: BlockKey, offset: usize) -> VoxelIndex {
+        from_offset(key.voxel(offset), self.to_nearest[offset])
+    }
+
+    /// Squared distance and nearest obstacle of the voxel at `offset` of
+    /// the block at `key`.
+    #[inline]
+    pub fn entry(&self, key: BlockKey, offset: usize) -> (u32, VoxelIndex) {
+        (self.dist_sq[offset], self.nearest(key, offset))
+    }
+
+    /// Sets the voxel at `offset` of the block at `key`; fails, changing
+    /// nothing, where `nearest` lies more than `i16::MAX` voxels from it on
+    /// some axis (no obstacle within a cutoff does).
+    pub fn set(&mut self, key: BlockKey, offset: usize, dist_sq: u32, nearest: VoxelIndex) -> Result<(), OffsetTooFar> {
+        self.to_nearest[offset] = to_offset(key.voxel(offset), nearest)?;
+        self.dist_sq[offset] = dist_sq;
+        Ok(())
+    }
+
+    /// Sets the voxel at `offset` of the block at `key` to an entry that a
+    /// backend computed within a cutoff, whose obstacle therefore lies
+    /// within the offsets' range. (One beyond it would be a backend's bug:
+    /// it is caught in debug builds and stored as no obstacle.)
+    #[inline]
+    pub fn put(&mut self, key: BlockKey, offset: usize, dist_sq: u32, nearest: VoxelIndex) {
+        if self.set(key, offset, dist_sq, nearest).is_err() {
+            debug_assert!(false, "{:?}", OffsetTooFar { voxel: key.voxel(offset), nearest });
+            (self.dist_sq[offset], self.to_nearest[offset]) = (FAR_DIST_SQ, NO_OFFSET);
+        }
+    }
+}
+
+/// An obstacle too far from a voxel for [`EdtBlock`]'s offsets.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+#[error("obstacle {:?} lies more than 32767 voxels from voxel {:?} on some axis", .nearest.0, .voxel.0)]
+pub struct OffsetTooFar {
+    /// The voxel.
+    pub voxel: VoxelIndex,
+    /// Its obstacle.
+    pub nearest: VoxelIndex,
+}
+
+/// The offset from `v` to `nearest` ([`NO_OFFSET`] for [`NO_OBSTACLE`]).
+#[inline]
+pub fn to_offset(v: VoxelIndex, nearest: VoxelIndex) -> Result<[i16; 3], OffsetTooFar> {
+    if nearest == NO_OBSTACLE {
+        return Ok(NO_OFFSET);
+    }
+    let mut out = [0i16; 3];
+    for a in 0..3 {
+        out[a] = i64::from(nearest.0[a])
+            .checked_sub(i64::from(v.0[a]))
+            .and_then(|d| i16::try_from(d).ok())
+            .filter(|&d| d != i16::MIN)
+            .ok_or(OffsetTooFar { voxel: v, nearest })?;
+    }
+    Ok(out)
+}
+
+/// The obstacle at offset `o` from `v` ([`NO_OBSTACLE`] for [`NO_OFFSET`]).
+#[inline]
+pub fn from_offset(v: VoxelIndex, o: [i16; 3]) -> VoxelIndex {
+    if o[0] == i16::MIN {
+        return NO_OBSTACLE;
+    }
+    VoxelIndex([0, 1, 2].map(|a| v.0[a].wrapping_add(i32::from(o[a]))))
 }
 
 /// The global EDT: unbounded, blocks allocated where some voxel has an
@@ -48,7 +128,7 @@ impl EdtMap {
         match self.get(v.block()) {
             Some(b) => {
                 let i = v.offset_in_block();
-                (b.dist_sq[i], b.nearest[i])
+                (b.dist_sq[i], from_offset(v, b.to_nearest[i]))
             }
             None => (FAR_DIST_SQ, NO_OBSTACLE),
         }
@@ -236,5 +316,36 @@ mod tests {
         assert!(p.cutoff(5.0).is_err());
         let bad = GlobalParams { max_distance_m: f64::NAN, ..Default::default() };
         assert!(bad.cutoff(0.1).expect_err("NaN cutoff").to_string().contains("max_distance_m"));
+    }
+
+    #[test]
+    fn offsets_hold_every_obstacle_within_the_largest_cutoff() {
+        // About the largest cutoff a GlobalParams allows: the offsets
+        // round-trip, one voxel further on an axis than an i16 holds is
+        // refused, and nothing is written.
+        let reach = GlobalParams { max_distance_m: 9_999.0, ..Default::default() }.cutoff(1.0).expect("largest").reach;
+        assert_eq!(reach, 9_999);
+        let key = BlockKey([1_000_000, -1, -7_000]);
+        let mut b = EdtBlock::default();
+        for offset in [0, 7, 63, 511] {
+            let v = key.voxel(offset);
+            for d in [[0, 0, 0], [reach, -reach, 1], [-reach, 3, reach], [-32767, 32767, 0]] {
+                let n = VoxelIndex([0, 1, 2].map(|a| v.0[a] + d[a]));
+                b.set(key, offset, 5, n).expect("within range");
+                assert_eq!(b.entry(key, offset), (5, n), "{offset} {d:?}");
+            }
+            let far = VoxelIndex([v.0[0] - 32768, v.0[1], v.0[2]]);
+            let err = b.set(key, offset, 9, far).expect_err("one past an i16");
+            assert_eq!(err, OffsetTooFar { voxel: v, nearest: far });
+            assert_eq!(b.dist_sq[offset], 5, "a refused entry changes nothing");
+            b.set(key, offset, FAR_DIST_SQ, NO_OBSTACLE).expect("none");
+            assert_eq!(b.entry(key, offset), (FAR_DIST_SQ, NO_OBSTACLE));
+        }
+        assert!(b.is_far());
+        let mut map = EdtMap::new();
+        let v = key.voxel(100);
+        map.get_or_insert(key).set(key, 100, 2, VoxelIndex([v.0[0] + 1, v.0[1] - 1, v.0[2]])).expect("near");
+        assert_eq!(map.entry(v), (2, VoxelIndex([v.0[0] + 1, v.0[1] - 1, v.0[2]])));
+        assert_eq!(map.entry(key.voxel(101)), (FAR_DIST_SQ, NO_OBSTACLE));
     }
 }

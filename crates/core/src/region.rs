@@ -204,10 +204,10 @@ pub fn read_region_except(map: &EdtMap, p: &Packing, keep: Option<&Region>, old:
                 if x < skip.start {
                     end = end.min(skip.start);
                 }
-                let block = map.get(v.block());
+                let (key, block) = (v.block(), map.get(v.block()));
                 let base = v.offset_in_block();
                 for k in 0..end - x {
-                    old[y * nx + x + k] = block.map_or(FAR, |b| p.pack(b.dist_sq[base + k], b.nearest[base + k]));
+                    old[y * nx + x + k] = block.map_or(FAR, |b| p.pack(b.dist_sq[base + k], b.nearest(key, base + k)));
                 }
                 x = end;
             }
@@ -301,8 +301,7 @@ pub fn write_back_where(
     taken.par_iter_mut().zip(per_block.par_iter()).for_each(|((key, block), &(k, _, _))| {
         for_region_voxels(p, *key, |i, offset| {
             let (d, o) = p.unpack(cur(k, i, offset));
-            block.dist_sq[offset] = d;
-            block.nearest[offset] = o;
+            block.put(*key, offset, d, o);
         });
     });
     taken.retain(|(_, b)| !b.is_far());

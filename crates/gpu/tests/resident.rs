@@ -16,8 +16,8 @@ use edtmap_cpu::CpuBackend;
 use edtmap_sim::conformance::IntegrationWorld;
 
 /// Every block of `map`, sorted, as comparable rows.
-fn rows(map: &EdtMap) -> Vec<(BlockKey, Vec<u32>, Vec<VoxelIndex>)> {
-    let mut rows: Vec<_> = map.iter().map(|(k, b)| (k, b.dist_sq.to_vec(), b.nearest.to_vec())).collect();
+fn rows(map: &EdtMap) -> Vec<(BlockKey, Vec<u32>, Vec<[i16; 3]>)> {
+    let mut rows: Vec<_> = map.iter().map(|(k, b)| (k, b.dist_sq.to_vec(), b.to_nearest.to_vec())).collect();
     rows.sort_by_key(|r| r.0 .0);
     rows
 }
@@ -81,8 +81,7 @@ fn values_the_pool_cannot_encode_are_rewritten_as_the_definition_says() {
     let odd = [(window.world([3, 4, 2]), 3, [1, 0, 0]), (window.world([9, 2, 5]), 1, [700, 0, 0]), (window.world([0, 0, 0]), 0, [0, 0, 0])];
     for (v, dist_sq, off) in odd {
         let block = start.get_or_insert(v.block());
-        block.dist_sq[v.offset_in_block()] = dist_sq;
-        block.nearest[v.offset_in_block()] = VoxelIndex([0, 1, 2].map(|a| v.0[a] + off[a]));
+        block.set(v.block(), v.offset_in_block(), dist_sq, VoxelIndex([0, 1, 2].map(|a| v.0[a] + off[a]))).expect("within the offsets' range");
     }
     let (mut host_map, mut gpu_map) = (start.clone(), start);
     let region = Region::bounding(&blocks).expect("blocks").grown(stage.cutoff().reach);

@@ -113,10 +113,9 @@ fn random_map(seed: u64, blocks: usize) -> MapContents {
             let nearest = [0, 1, 2].map(|a| v.0[a].checked_add(d[a]));
             match nearest {
                 [Some(x), Some(y), Some(z)] if dist_sq <= cutoff.max_dist_sq && rng.random_bool(0.6) => {
-                    block.dist_sq[offset] = dist_sq;
-                    block.nearest[offset] = VoxelIndex([x, y, z]);
+                    block.set(key, offset, dist_sq, VoxelIndex([x, y, z])).expect("within the reach");
                 }
-                _ => (block.dist_sq[offset], block.nearest[offset]) = (FAR_DIST_SQ, NO_OBSTACLE),
+                _ => block.set(key, offset, FAR_DIST_SQ, NO_OBSTACLE).expect("none"),
             }
         }
     }
@@ -368,7 +367,7 @@ fn edt_entry_that_disagrees_with_its_obstacle_is_corrupt() {
     let key = BlockKey([1, -2, 3]);
     let block = map.edt.get_or_insert(key);
     let v = key.voxel(0);
-    (block.dist_sq[0], block.nearest[0]) = (5, VoxelIndex([v.0[0] + 1, v.0[1] - 2, v.0[2]]));
+    block.set(key, 0, 5, VoxelIndex([v.0[0] + 1, v.0[1] - 2, v.0[2]])).expect("near");
     let original = encode_map(&map).expect("valid");
     let edt = sections_at(&original) + 8 + 8;
     let dist_at = edt + 12;
@@ -385,6 +384,23 @@ fn edt_entry_that_disagrees_with_its_obstacle_is_corrupt() {
     // The writer refuses the same inconsistency.
     map.edt.get_or_insert(key).dist_sq[0] = 4;
     assert!(matches!(encode_map(&map), Err(MapFileError::Corrupt(_))));
+}
+
+#[test]
+fn edt_entry_whose_obstacle_is_out_of_the_offsets_range_is_corrupt() {
+    // The map holds each nearest obstacle as an i16 offset from its voxel;
+    // a file naming one farther away on an axis is refused, not wrapped.
+    let mut map = empty_map();
+    let key = BlockKey([1, -2, 3]);
+    let v = key.voxel(0);
+    map.edt.get_or_insert(key).set(key, 0, 1, VoxelIndex([v.0[0] + 1, v.0[1], v.0[2]])).expect("near");
+    let original = encode_map(&map).expect("valid");
+    let nearest_at = sections_at(&original) + 8 + 8 + 12 + 4 * BLOCK_VOXELS;
+    let mut bytes = original.clone();
+    bytes[nearest_at..nearest_at + 4].copy_from_slice(&(v.0[0] + 40_000).to_le_bytes());
+    fix_crc(&mut bytes);
+    let err = decode_err(&bytes);
+    assert!(matches!(&err, MapFileError::Corrupt(m) if m.contains("more than 32767 voxels from voxel [8, -16, 24]")), "{err}");
 }
 
 #[test]

@@ -153,7 +153,7 @@ impl LazyRegion {
         for offset in 0..BLOCK_VOXELS {
             let v = VoxelIndex([first[0] + (offset & 7) as i32, first[1] + ((offset >> 3) & 7) as i32, first[2] + (offset >> 6) as i32]);
             let value = match block {
-                Some(bl) if bl.dist_sq[offset] != FAR_DIST_SQ && p.region.local(v).is_some() => p.pack(bl.dist_sq[offset], bl.nearest[offset]),
+                Some(bl) if bl.dist_sq[offset] != FAR_DIST_SQ && p.region.local(v).is_some() => p.pack(bl.dist_sq[offset], bl.nearest(key, offset)),
                 _ => FAR,
             };
             let i = b * BLOCK_VOXELS + offset;
@@ -190,10 +190,11 @@ impl LazyRegion {
 pub fn block_bounds(map: &EdtMap, key: BlockKey) -> Option<SrcBounds> {
     let block = map.get(key)?;
     let mut out: Option<SrcBounds> = None;
-    for (d, n) in block.dist_sq.iter().zip(&block.nearest) {
+    for (offset, d) in block.dist_sq.iter().enumerate() {
         if *d == FAR_DIST_SQ {
             continue;
         }
+        let n = block.nearest(key, offset);
         let (lo, hi) = out.get_or_insert((n.0, n.0));
         for a in 0..3 {
             lo[a] = lo[a].min(n.0[a]);

@@ -53,7 +53,7 @@
 
 use crate::edt::envelope::{envelope, sweep_row, EnvelopeScratch, Line};
 use edtmap_core::{
-    par_fill, BlockKey, BlockMap, Cutoff, EdtBlock, EdtMap, IntegrateReport, MapStamp, Obstacles, VoxelIndex, WaveCounts, BLOCK_SIDE, BLOCK_VOXELS, FAR_DIST_SQ, NO_OBSTACLE,
+    par_fill, BlockKey, BlockMap, Cutoff, EdtBlock, EdtMap, IntegrateReport, MapStamp, Obstacles, VoxelIndex, WaveCounts, BLOCK_SIDE, BLOCK_VOXELS, FAR_DIST_SQ, NO_OFFSET,
     NO_SITE, UNREACHABLE_DIST_SQ,
 };
 use rayon::prelude::*;
@@ -69,6 +69,9 @@ const NONE2: [i16; 2] = [NONE, NONE];
 type G1Block = [i16; BLOCK_VOXELS];
 /// `g2` of one block: offsets along x and y to the slice's nearest obstacle.
 type G2Block = [[i16; 2]; BLOCK_VOXELS];
+/// An entry of the global EDT (pass z's output): squared distance and the
+/// offset to the nearest obstacle, as [`EdtBlock`] holds them.
+type Out = (u32, [i16; 3]);
 
 /// The first two passes of the separable EDT of the global map, kept
 /// between frames.
@@ -267,7 +270,7 @@ fn run_passes(map: &mut EdtMap, pass: &Pass<'_>, cache: &mut SeparableCache, dir
     // loaded again after every write of the lowering.)
     let (exact, max) = (&pass.roots.exact[..], pass.max);
     let truncated = move |d: u32| root(exact, d.min(max));
-    let (changed, _, stats) = drive(map, 2, &dirty2, Some((&radii2, &LowerZ { g2 })), pass, |s, seg, out| pass.depth(g2, seg, s, out), |v: (u32, VoxelIndex)| v.0, |o: (u32, VoxelIndex), n: (u32, VoxelIndex)| {
+    let (changed, _, stats) = drive(map, 2, &dirty2, Some((&radii2, &LowerZ { g2 })), pass, |s, seg, out| pass.depth(g2, seg, s, out), |v: Out| v.0, |o: Out, n: Out| {
         (truncated(n.0) - truncated(o.0)).abs()
     });
     let mut changed_blocks: Vec<BlockKey> = changed.into_keys().collect();
@@ -343,7 +346,7 @@ impl<T: Copy + PartialEq + Send + Sync> Layer for Cached<'_, T> {
 impl Layer for EdtMap {
     const FEEDS_NEXT: bool = false;
     type Block = EdtBlock;
-    type Value = (u32, VoxelIndex);
+    type Value = Out;
     fn take(&mut self, keys: &[BlockKey]) -> Vec<Box<EdtBlock>> {
         BlockMap::take(self, keys).into_iter().map(|(_, b)| b).collect()
     }
@@ -356,20 +359,20 @@ impl Layer for EdtMap {
     fn empty(&self, b: &EdtBlock) -> bool {
         b.is_far()
     }
-    fn read(b: &EdtBlock, o: usize) -> (u32, VoxelIndex) {
-        (b.dist_sq[o], b.nearest[o])
+    fn read(b: &EdtBlock, o: usize) -> Out {
+        (b.dist_sq[o], b.to_nearest[o])
     }
     fn warm(b: &EdtBlock) {
         for v in b.dist_sq.iter().step_by(16) {
             std::hint::black_box(*v);
         }
-        for v in b.nearest.iter().step_by(5) {
-            std::hint::black_box(v.0[0]);
+        for v in b.to_nearest.iter().step_by(10) {
+            std::hint::black_box(v[0]);
         }
     }
-    fn write(b: &mut EdtBlock, o: usize, v: (u32, VoxelIndex)) {
+    fn write(b: &mut EdtBlock, o: usize, v: Out) {
         b.dist_sq[o] = v.0;
-        b.nearest[o] = v.1;
+        b.to_nearest[o] = v.1;
     }
 }
 
@@ -547,11 +550,11 @@ struct LowerZ<'a> {
     g2: &'a FxHashMap<BlockKey, Box<G2Block>>,
 }
 
-impl Lower<(u32, VoxelIndex)> for LowerZ<'_> {
+impl Lower<Out> for LowerZ<'_> {
     type Entry = [i16; 2];
     type In = G2Block;
-    fn key(&self, _: i32, o: (u32, VoxelIndex)) -> Option<(u32, i32)> {
-        (o.0 != FAR_DIST_SQ).then_some((o.0, o.1 .0[2]))
+    fn key(&self, q: i32, o: Out) -> Option<(u32, i32)> {
+        (o.0 != FAR_DIST_SQ).then(|| (o.0, q + i32::from(o.1[2])))
     }
     fn input(&self, key: BlockKey) -> Option<&G2Block> {
         self.g2.get(&key).map(|b| &**b)
@@ -560,8 +563,8 @@ impl Lower<(u32, VoxelIndex)> for LowerZ<'_> {
         let e = b.map_or(NONE2, |b| b[o]);
         (g2_value(e), e)
     }
-    fn make(&self, line: [i32; 3], _: i32, p: i32, d: u32, e: [i16; 2]) -> (u32, VoxelIndex) {
-        (d, VoxelIndex([line[0] + i32::from(e[0]), line[1] + i32::from(e[1]), p]))
+    fn make(&self, _: [i32; 3], q: i32, p: i32, d: u32, e: [i16; 2]) -> Out {
+        (d, [e[0], e[1], (p - q) as i16])
     }
 }
 
@@ -1362,7 +1365,7 @@ impl Pass<'_> {
 
     /// Pass z on line `line` from `lo - reach` to `hi + reach`: distances
     /// and nearest obstacles, from `g2`.
-    fn depth(&self, g2: &FxHashMap<BlockKey, Box<G2Block>>, Segment { line, lo, hi }: Segment, s: &mut Scratch, out: &mut Vec<(u32, VoxelIndex)>) {
+    fn depth(&self, g2: &FxHashMap<BlockKey, Box<G2Block>>, Segment { line, lo, hi }: Segment, s: &mut Scratch, out: &mut Vec<Out>) {
         let r = self.reach;
         let base = lo - 2 * r;
         let n = (hi + 2 * r - base + 1) as usize;
@@ -1371,10 +1374,10 @@ impl Pass<'_> {
         s.scan();
         for i in r as usize..n - r as usize {
             out.push(if s.out_f[i] == UNREACHABLE_DIST_SQ || s.out_f[i] > self.max {
-                (FAR_DIST_SQ, NO_OBSTACLE)
+                (FAR_DIST_SQ, NO_OFFSET)
             } else {
                 let p = s.out_site[i] as usize;
-                (s.out_f[i], VoxelIndex([line[0] + i32::from(s.off[p][0]), line[1] + i32::from(s.off[p][1]), base + p as i32]))
+                (s.out_f[i], [s.off[p][0], s.off[p][1], (p as i32 - i as i32) as i16])
             });
         }
     }

@@ -115,7 +115,7 @@ fn scan_blocks(map: &EdtMap, window: &LocalVolume, batch: &EdtField, p: &Packing
             };
             scan_block_voxels(&mut ch, b, key, cover, buf, |ch, v, offset| {
                 let old = buf.old[b * BLOCK_VOXELS + offset].load(Relaxed);
-                let src_in_window = (old != FAR).then(|| w.local(stored.nearest[offset]).map(|l| w.linear(l))).flatten();
+                let src_in_window = (old != FAR).then(|| w.local(stored.nearest(key, offset)).map(|l| w.linear(l))).flatten();
                 let vanished = src_in_window.is_some_and(|s| dist[s] != 0);
                 ch.raised += usize::from(vanished);
                 let valid = if vanished { FAR } else { old };
@@ -322,7 +322,7 @@ fn write_back_blocks(map: &mut EdtMap, p: &Packing, cover: &Cover, buf: &mut Laz
     let per_block: Vec<(usize, f64)> = taken
         .par_iter_mut()
         .zip(dirty)
-        .map(|((_, block), &b)| {
+        .map(|((key, block), &b)| {
             let (mut changed, mut sum) = (0, 0.0);
             for offset in 0..BLOCK_VOXELS {
                 let i = b * BLOCK_VOXELS + offset;
@@ -331,8 +331,7 @@ fn write_back_blocks(map: &mut EdtMap, p: &Packing, cover: &Cover, buf: &mut Laz
                     changed += 1;
                     sum += (truncated(n) - truncated(o)).abs();
                     let (d, src) = p.unpack(n);
-                    block.dist_sq[offset] = d;
-                    block.nearest[offset] = src;
+                    block.put(*key, offset, d, src);
                 }
             }
             (changed, sum)

@@ -71,7 +71,7 @@ fn check_log_odds(map: &OccupancyMap) -> Result<(), MapFileError> {
 fn check_edt(map: &EdtMap, cutoff: Cutoff) -> Result<(), MapFileError> {
     for (key, block) in sorted(map) {
         for i in 0..BLOCK_VOXELS {
-            let (d, nearest, v) = (block.dist_sq[i], block.nearest[i], key.voxel(i));
+            let (d, nearest, v) = (block.dist_sq[i], block.nearest(key, i), key.voxel(i));
             let problem = if d == FAR_DIST_SQ {
                 (nearest != NO_OBSTACLE).then(|| format!("is beyond the cutoff but names a nearest obstacle {:?}", nearest.0))
             } else if d > cutoff.max_dist_sq {

@@ -66,7 +66,7 @@ fn write_section<B: Payload, W: Write>(out: &mut W, map: &BlockMap<B>) -> io::Re
     for (key, block) in blocks {
         record.clear();
         put_key(key, &mut record);
-        block.put(&mut record);
+        block.put(key, &mut record);
         out.write_all(&record)?;
     }
     Ok(())

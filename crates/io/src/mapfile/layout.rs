@@ -33,53 +33,54 @@ pub(super) trait Payload: Default + Clone {
     const SECTION: &'static str;
     /// Bytes of one block's payload (the key not included).
     const LEN: usize;
-    /// Appends the payload to `out`.
-    fn put(&self, out: &mut Vec<u8>);
-    /// Reads the payload from `bytes`, exactly [`Self::LEN`] long.
-    fn get(&mut self, bytes: &[u8]);
+    /// Appends the payload of the block at `key` to `out`.
+    fn put(&self, key: BlockKey, out: &mut Vec<u8>);
+    /// Reads the payload of the block at `key` from `bytes`, exactly
+    /// [`Self::LEN`] long; fails with what it cannot hold.
+    fn get(&mut self, key: BlockKey, bytes: &[u8]) -> Result<(), String>;
 }
 
 impl Payload for OccupancyBlock {
     const SECTION: &'static str = "occupancy";
     const LEN: usize = 4 * BLOCK_VOXELS;
-    fn put(&self, out: &mut Vec<u8>) {
+    fn put(&self, _: BlockKey, out: &mut Vec<u8>) {
         self.log_odds.iter().for_each(|v| out.extend_from_slice(&v.to_bits().to_le_bytes()));
     }
-    fn get(&mut self, bytes: &[u8]) {
+    fn get(&mut self, _: BlockKey, bytes: &[u8]) -> Result<(), String> {
         for (v, c) in self.log_odds.iter_mut().zip(bytes.chunks_exact(4)) {
             *v = f32::from_bits(le_u32(c));
         }
+        Ok(())
     }
 }
 
 impl Payload for EdtBlock {
     const SECTION: &'static str = "EDT";
     const LEN: usize = 4 * BLOCK_VOXELS + 12 * BLOCK_VOXELS;
-    fn put(&self, out: &mut Vec<u8>) {
+    fn put(&self, key: BlockKey, out: &mut Vec<u8>) {
         self.dist_sq.iter().for_each(|d| out.extend_from_slice(&d.to_le_bytes()));
-        self.nearest.iter().for_each(|n| put_triple(n.0, out));
+        (0..BLOCK_VOXELS).for_each(|i| put_triple(self.nearest(key, i).0, out));
     }
-    fn get(&mut self, bytes: &[u8]) {
+    fn get(&mut self, key: BlockKey, bytes: &[u8]) -> Result<(), String> {
         let (dist, nearest) = bytes.split_at(4 * BLOCK_VOXELS);
-        for (d, c) in self.dist_sq.iter_mut().zip(dist.chunks_exact(4)) {
-            *d = le_u32(c);
+        for (i, (d, n)) in dist.chunks_exact(4).zip(nearest.chunks_exact(12)).enumerate() {
+            self.set(key, i, le_u32(d), VoxelIndex(get_triple(n))).map_err(|e| format!("an EDT voxel's nearest {e}"))?;
         }
-        for (n, c) in self.nearest.iter_mut().zip(nearest.chunks_exact(12)) {
-            *n = VoxelIndex(get_triple(c));
-        }
+        Ok(())
     }
 }
 
 impl Payload for StaticBlock {
     const SECTION: &'static str = "fixed";
     const LEN: usize = 64;
-    fn put(&self, out: &mut Vec<u8>) {
+    fn put(&self, _: BlockKey, out: &mut Vec<u8>) {
         self.bits.iter().for_each(|w| out.extend_from_slice(&w.to_le_bytes()));
     }
-    fn get(&mut self, bytes: &[u8]) {
+    fn get(&mut self, _: BlockKey, bytes: &[u8]) -> Result<(), String> {
         for (w, c) in self.bits.iter_mut().zip(bytes.chunks_exact(8)) {
             *w = u64::from_le_bytes([c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7]]);
         }
+        Ok(())
     }
 }
 
