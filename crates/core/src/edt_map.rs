@@ -21,14 +21,13 @@ pub const NO_OFFSET: [i16; 3] = [i16::MIN; 3];
 
 /// One 8³ block of the global EDT, voxels at [`VoxelIndex::offset_in_block`].
 ///
-/// The nearest obstacle is kept as its offset from the voxel, six bytes
-/// rather than a twelve-byte world index: within the cutoff (at most
-/// 10 000 voxels, [`GlobalParams::cutoff`]) every component fits an `i16`.
+/// Each voxel keeps only the offset from it to its nearest obstacle, six
+/// bytes: its squared distance follows from it, and within the cutoff (at
+/// most 10 000 voxels, [`GlobalParams::cutoff`]) every component fits an
+/// `i16`. A distance that disagrees with its obstacle cannot be stored.
 #[derive(Debug, Clone, PartialEq)]
 #[repr(C)]
 pub struct EdtBlock {
-    /// Squared distance in voxel units, [`FAR_DIST_SQ`] beyond the cutoff.
-    pub dist_sq: [u32; BLOCK_VOXELS],
     /// Nearest obstacle less the voxel's own index, [`NO_OFFSET`] beyond
     /// the cutoff.
     pub to_nearest: [[i16; 3]; BLOCK_VOXELS],
@@ -36,14 +35,21 @@ pub struct EdtBlock {
 
 impl Default for EdtBlock {
     fn default() -> Self {
-        EdtBlock { dist_sq: [FAR_DIST_SQ; BLOCK_VOXELS], to_nearest: [NO_OFFSET; BLOCK_VOXELS] }
+        EdtBlock { to_nearest: [NO_OFFSET; BLOCK_VOXELS] }
     }
 }
 
 impl EdtBlock {
     /// Whether no voxel of the block has an obstacle within the cutoff.
     pub fn is_far(&self) -> bool {
-        self.dist_sq.iter().all(|&d| d == FAR_DIST_SQ)
+        self.to_nearest.iter().all(|o| o[0] == i16::MIN)
+    }
+
+    /// Squared distance of the voxel at `offset`, voxels², [`FAR_DIST_SQ`]
+    /// beyond the cutoff.
+    #[inline]
+    pub fn dist_sq(&self, offset: usize) -> u32 {
+        offset_dist_sq(self.to_nearest[offset])
     }
 
     /// World index of the nearest obstacle of the voxel at `offset` of the
@@ -57,56 +63,94 @@ impl EdtBlock {
     /// the block at `key`.
     #[inline]
     pub fn entry(&self, key: BlockKey, offset: usize) -> (u32, VoxelIndex) {
-        (self.dist_sq[offset], self.nearest(key, offset))
+        (self.dist_sq(offset), self.nearest(key, offset))
     }
 
     /// Sets the voxel at `offset` of the block at `key`; fails, changing
     /// nothing, where `nearest` lies more than `i16::MAX` voxels from it on
-    /// some axis (no obstacle within a cutoff does).
-    pub fn set(&mut self, key: BlockKey, offset: usize, dist_sq: u32, nearest: VoxelIndex) -> Result<(), OffsetTooFar> {
-        self.to_nearest[offset] = to_offset(key.voxel(offset), nearest)?;
-        self.dist_sq[offset] = dist_sq;
+    /// some axis (no obstacle within a cutoff does) or `dist_sq` is not its
+    /// squared distance ([`FAR_DIST_SQ`] with [`NO_OBSTACLE`]).
+    pub fn set(&mut self, key: BlockKey, offset: usize, dist_sq: u32, nearest: VoxelIndex) -> Result<(), EntryError> {
+        let voxel = key.voxel(offset);
+        let o = to_offset(voxel, nearest).ok_or(EntryError::TooFar { voxel, nearest })?;
+        if offset_dist_sq(o) != dist_sq {
+            return Err(EntryError::Mismatch { voxel, dist_sq, nearest });
+        }
+        self.to_nearest[offset] = o;
         Ok(())
     }
 
     /// Sets the voxel at `offset` of the block at `key` to an entry that a
-    /// backend computed within a cutoff, whose obstacle therefore lies
-    /// within the offsets' range. (One beyond it would be a backend's bug:
-    /// it is caught in debug builds and stored as no obstacle.)
+    /// backend computed within a cutoff: its obstacle lies within the
+    /// offsets' range, its distance is the obstacle's. (Any other would be
+    /// a backend's bug: caught in debug builds, stored as no obstacle.)
     #[inline]
     pub fn put(&mut self, key: BlockKey, offset: usize, dist_sq: u32, nearest: VoxelIndex) {
-        if self.set(key, offset, dist_sq, nearest).is_err() {
-            debug_assert!(false, "{:?}", OffsetTooFar { voxel: key.voxel(offset), nearest });
-            (self.dist_sq[offset], self.to_nearest[offset]) = (FAR_DIST_SQ, NO_OFFSET);
+        if let Err(e) = self.set(key, offset, dist_sq, nearest) {
+            debug_assert!(false, "{e}");
+            self.to_nearest[offset] = NO_OFFSET;
         }
     }
 }
 
-/// An obstacle too far from a voxel for [`EdtBlock`]'s offsets.
+/// An entry [`EdtBlock`] cannot hold.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
-#[error("obstacle {:?} lies more than 32767 voxels from voxel {:?} on some axis", .nearest.0, .voxel.0)]
-pub struct OffsetTooFar {
-    /// The voxel.
-    pub voxel: VoxelIndex,
-    /// Its obstacle.
-    pub nearest: VoxelIndex,
+pub enum EntryError {
+    /// The obstacle is more than `i16::MAX` voxels away on some axis.
+    #[error("voxel {:?}: its nearest obstacle {:?} lies more than 32767 voxels away on some axis", .voxel.0, .nearest.0)]
+    TooFar {
+        /// The voxel.
+        voxel: VoxelIndex,
+        /// Its obstacle.
+        nearest: VoxelIndex,
+    },
+    /// The squared distance is not the obstacle's.
+    #[error("voxel {:?} {}", .voxel.0, mismatch(*.dist_sq, *.nearest, *.voxel))]
+    Mismatch {
+        /// The voxel.
+        voxel: VoxelIndex,
+        /// The squared distance given.
+        dist_sq: u32,
+        /// The obstacle given.
+        nearest: VoxelIndex,
+    },
 }
 
-/// The offset from `v` to `nearest` ([`NO_OFFSET`] for [`NO_OBSTACLE`]).
+/// How `dist_sq` disagrees with `nearest` as seen from `voxel`.
+fn mismatch(dist_sq: u32, nearest: VoxelIndex, voxel: VoxelIndex) -> String {
+    if dist_sq == FAR_DIST_SQ {
+        format!("is beyond the cutoff but names a nearest obstacle {:?}", nearest.0)
+    } else if nearest == NO_OBSTACLE {
+        format!("holds dist_sq {dist_sq} but names no nearest obstacle")
+    } else {
+        let actual: u64 = (0..3).map(|a| (i64::from(voxel.0[a]) - i64::from(nearest.0[a])).unsigned_abs().pow(2)).sum();
+        format!("holds dist_sq {dist_sq} but its nearest obstacle {:?} lies at dist_sq {actual}", nearest.0)
+    }
+}
+
+/// The squared length of offset `o`, [`FAR_DIST_SQ`] for [`NO_OFFSET`]
+/// (at most 3 · 32767², below it).
 #[inline]
-pub fn to_offset(v: VoxelIndex, nearest: VoxelIndex) -> Result<[i16; 3], OffsetTooFar> {
+pub fn offset_dist_sq(o: [i16; 3]) -> u32 {
+    if o[0] == i16::MIN {
+        return FAR_DIST_SQ;
+    }
+    o.iter().map(|&c| (i32::from(c) * i32::from(c)) as u32).sum()
+}
+
+/// The offset from `v` to `nearest` ([`NO_OFFSET`] for [`NO_OBSTACLE`]),
+/// `None` where a component does not fit an `i16` (or is its least value,
+/// which marks no obstacle).
+#[inline]
+pub fn to_offset(v: VoxelIndex, nearest: VoxelIndex) -> Option<[i16; 3]> {
     if nearest == NO_OBSTACLE {
-        return Ok(NO_OFFSET);
+        return Some(NO_OFFSET);
     }
     let mut out = [0i16; 3];
     for a in 0..3 {
-        out[a] = i64::from(nearest.0[a])
-            .checked_sub(i64::from(v.0[a]))
-            .and_then(|d| i16::try_from(d).ok())
-            .filter(|&d| d != i16::MIN)
-            .ok_or(OffsetTooFar { voxel: v, nearest })?;
+        out[a] = i16::try_from(i64::from(nearest.0[a]) - i64::from(v.0[a])).ok().filter(|&d| d != i16::MIN)?;
     }
-    Ok(out)
+    Some(out)
 }
 
 /// The obstacle at offset `o` from `v` ([`NO_OBSTACLE`] for [`NO_OFFSET`]).
@@ -127,8 +171,8 @@ impl EdtMap {
     pub fn entry(&self, v: VoxelIndex) -> (u32, VoxelIndex) {
         match self.get(v.block()) {
             Some(b) => {
-                let i = v.offset_in_block();
-                (b.dist_sq[i], from_offset(v, b.to_nearest[i]))
+                let o = b.to_nearest[v.offset_in_block()];
+                (offset_dist_sq(o), from_offset(v, o))
             }
             None => (FAR_DIST_SQ, NO_OBSTACLE),
         }
@@ -321,23 +365,29 @@ mod tests {
     #[test]
     fn offsets_hold_every_obstacle_within_the_largest_cutoff() {
         // About the largest cutoff a GlobalParams allows: the offsets
-        // round-trip, one voxel further on an axis than an i16 holds is
-        // refused, and nothing is written.
+        // round-trip with their distances, one voxel further on an axis
+        // than an i16 holds is refused, and so is a distance that is not
+        // the obstacle's; a refused entry changes nothing.
         let reach = GlobalParams { max_distance_m: 9_999.0, ..Default::default() }.cutoff(1.0).expect("largest").reach;
         assert_eq!(reach, 9_999);
         let key = BlockKey([1_000_000, -1, -7_000]);
         let mut b = EdtBlock::default();
         for offset in [0, 7, 63, 511] {
             let v = key.voxel(offset);
-            for d in [[0, 0, 0], [reach, -reach, 1], [-reach, 3, reach], [-32767, 32767, 0]] {
+            for d in [[0, 0, 0], [reach, -reach, 1], [-reach, 3, reach], [-32767, 32767, 32767]] {
                 let n = VoxelIndex([0, 1, 2].map(|a| v.0[a] + d[a]));
-                b.set(key, offset, 5, n).expect("within range");
-                assert_eq!(b.entry(key, offset), (5, n), "{offset} {d:?}");
+                let dist_sq = d.iter().map(|&c| (i64::from(c) * i64::from(c)) as u32).sum();
+                b.set(key, offset, dist_sq, n).expect("within range");
+                assert_eq!(b.entry(key, offset), (dist_sq, n), "{offset} {d:?}");
             }
             let far = VoxelIndex([v.0[0] - 32768, v.0[1], v.0[2]]);
-            let err = b.set(key, offset, 9, far).expect_err("one past an i16");
-            assert_eq!(err, OffsetTooFar { voxel: v, nearest: far });
-            assert_eq!(b.dist_sq[offset], 5, "a refused entry changes nothing");
+            assert_eq!(b.set(key, offset, 32768 * 32768, far), Err(EntryError::TooFar { voxel: v, nearest: far }));
+            let near = VoxelIndex([v.0[0] + 1, v.0[1], v.0[2]]);
+            for (d, n) in [(2, near), (FAR_DIST_SQ, near), (0, NO_OBSTACLE)] {
+                let err = b.set(key, offset, d, n).expect_err("mismatch");
+                assert_eq!(err, EntryError::Mismatch { voxel: v, dist_sq: d, nearest: n });
+            }
+            assert_eq!(b.to_nearest[offset], [-32767, 32767, 32767], "refused entries changed nothing");
             b.set(key, offset, FAR_DIST_SQ, NO_OBSTACLE).expect("none");
             assert_eq!(b.entry(key, offset), (FAR_DIST_SQ, NO_OBSTACLE));
         }
@@ -347,5 +397,6 @@ mod tests {
         map.get_or_insert(key).set(key, 100, 2, VoxelIndex([v.0[0] + 1, v.0[1] - 1, v.0[2]])).expect("near");
         assert_eq!(map.entry(v), (2, VoxelIndex([v.0[0] + 1, v.0[1] - 1, v.0[2]])));
         assert_eq!(map.entry(key.voxel(101)), (FAR_DIST_SQ, NO_OBSTACLE));
+        assert!(!map.get(key).expect("made").is_far());
     }
 }

@@ -207,7 +207,7 @@ pub fn read_region_except(map: &EdtMap, p: &Packing, keep: Option<&Region>, old:
                 let (key, block) = (v.block(), map.get(v.block()));
                 let base = v.offset_in_block();
                 for k in 0..end - x {
-                    old[y * nx + x + k] = block.map_or(FAR, |b| p.pack(b.dist_sq[base + k], b.nearest(key, base + k)));
+                    old[y * nx + x + k] = block.map_or(FAR, |b| p.pack(b.dist_sq(base + k), b.nearest(key, base + k)));
                 }
                 x = end;
             }

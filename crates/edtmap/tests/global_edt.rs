@@ -81,7 +81,7 @@ fn save_and_load_round_trip_bit_identical() {
     let loaded = load_map(&path).expect("load");
     let blocks = |m: &GlobalMap| {
         let mut occ: Vec<_> = m.occupancy().iter().map(|(k, b)| (k, b.log_odds.map(f32::to_bits))).collect();
-        let mut edt: Vec<_> = m.edt().iter().map(|(k, b)| (k, b.dist_sq, b.to_nearest)).collect();
+        let mut edt: Vec<_> = m.edt().iter().map(|(k, b)| (k, b.to_nearest)).collect();
         occ.sort_by_key(|b| b.0);
         edt.sort_by_key(|b| b.0);
         (occ, edt)

@@ -154,8 +154,8 @@ fn maps_do_not_depend_on_thread_count() {
             }
             let mut blocks: Vec<_> = m.map().occupancy().iter().map(|(k, b)| (k, b.log_odds.map(f32::to_bits))).collect();
             blocks.sort_by_key(|(k, _)| *k);
-            let mut edt: Vec<_> = m.map().edt().iter().map(|(k, b)| (k, b.dist_sq, b.to_nearest)).collect();
-            edt.sort_by_key(|(k, _, _)| *k);
+            let mut edt: Vec<_> = m.map().edt().iter().map(|(k, b)| (k, b.to_nearest)).collect();
+            edt.sort_by_key(|(k, _)| *k);
             (blocks, edt, m.local_edt().dist_sq_vox().to_vec())
         })
     };

@@ -258,7 +258,7 @@ impl GpuExact {
             .iter()
             .map(|&key| {
                 let block = map.get(key);
-                (0..BLOCK_VOXELS).map(|off| block.map_or(FAR, |b| p.pack(b.dist_sq[off], b.nearest(key, off)))).collect()
+                (0..BLOCK_VOXELS).map(|off| block.map_or(FAR, |b| p.pack(b.dist_sq(off), b.nearest(key, off)))).collect()
             })
             .collect();
         let cur = |k: usize, _: usize, off: usize| decode(p, candidates[k].voxel(off), values[k * BLOCK_VOXELS + off]);
@@ -309,7 +309,7 @@ impl GpuExact {
             self.upload.clear();
             for &(_, key) in &fresh[run..end] {
                 match map.get(key) {
-                    Some(b) => self.upload.extend((0..BLOCK_VOXELS).map(|off| encode(key.voxel(off), b.dist_sq[off], b.nearest(key, off), max, reach))),
+                    Some(b) => self.upload.extend((0..BLOCK_VOXELS).map(|off| encode(key.voxel(off), b.dist_sq(off), b.nearest(key, off), max, reach))),
                     None => self.upload.extend(std::iter::repeat_n(ENC_FAR, BLOCK_VOXELS)),
                 }
             }

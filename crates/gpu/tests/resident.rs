@@ -16,8 +16,8 @@ use edtmap_cpu::CpuBackend;
 use edtmap_sim::conformance::IntegrationWorld;
 
 /// Every block of `map`, sorted, as comparable rows.
-fn rows(map: &EdtMap) -> Vec<(BlockKey, Vec<u32>, Vec<[i16; 3]>)> {
-    let mut rows: Vec<_> = map.iter().map(|(k, b)| (k, b.dist_sq.to_vec(), b.to_nearest.to_vec())).collect();
+fn rows(map: &EdtMap) -> Vec<(BlockKey, Vec<[i16; 3]>)> {
+    let mut rows: Vec<_> = map.iter().map(|(k, b)| (k, b.to_nearest.to_vec())).collect();
     rows.sort_by_key(|r| r.0 .0);
     rows
 }
@@ -65,9 +65,9 @@ fn resident_pool_gives_the_cpu_map_frame_after_frame() {
     }
 }
 
-/// A map whose stored values the pool cannot encode as offsets (a
-/// distance that is not its obstacle's, an obstacle beyond the reach) is
-/// rewritten as the host-side definition does (`recompute_exact` on the
+/// A map whose stored values are not the EDT of its obstacles (an
+/// obstacle that is not one, one beyond the reach, which the pool cannot
+/// encode) is rewritten as the host-side definition does (`recompute_exact` on the
 /// CPU's batch EDT: the region recomputed, written where it differs).
 #[test]
 fn values_the_pool_cannot_encode_are_rewritten_as_the_definition_says() {
@@ -78,7 +78,7 @@ fn values_the_pool_cannot_encode_are_rewritten_as_the_definition_says() {
     let blocks = window.region().blocks();
     let mut start = EdtMap::new();
     stage.update(&mut CpuBackend::default(), &mut start, world.obstacles(), &blocks).expect("cpu");
-    let odd = [(window.world([3, 4, 2]), 3, [1, 0, 0]), (window.world([9, 2, 5]), 1, [700, 0, 0]), (window.world([0, 0, 0]), 0, [0, 0, 0])];
+    let odd = [(window.world([3, 4, 2]), 3, [1, 1, -1]), (window.world([9, 2, 5]), 490_000, [700, 0, 0]), (window.world([0, 0, 0]), 0, [0, 0, 0])];
     for (v, dist_sq, off) in odd {
         let block = start.get_or_insert(v.block());
         block.set(v.block(), v.offset_in_block(), dist_sq, VoxelIndex([0, 1, 2].map(|a| v.0[a] + off[a]))).expect("within the offsets' range");

@@ -381,9 +381,14 @@ fn edt_entry_that_disagrees_with_its_obstacle_is_corrupt() {
     fix_crc(&mut bytes);
     assert!(matches!(decode_err(&bytes), MapFileError::Corrupt(m) if m.contains("beyond the cutoff")));
     assert_eq!(edt + EDT_RECORD + 8 + 4, original.len(), "one EDT block, no fixed block");
-    // The writer refuses the same inconsistency.
-    map.edt.get_or_insert(key).dist_sq[0] = 4;
-    assert!(matches!(encode_map(&map), Err(MapFileError::Corrupt(_))));
+    // The map cannot hold the same inconsistency; the writer refuses an
+    // entry beyond the cutoff.
+    let block = map.edt.get_or_insert(key);
+    assert!(block.set(key, 0, 4, VoxelIndex([v.0[0] + 1, v.0[1] - 2, v.0[2]])).is_err());
+    let cutoff = map.global_params.cutoff(map.voxel_size_m).expect("valid");
+    let beyond = (cutoff.reach + 1) as i32;
+    block.set(key, 0, (beyond * beyond) as u32, VoxelIndex([v.0[0] + beyond, v.0[1], v.0[2]])).expect("in range");
+    assert!(matches!(encode_map(&map), Err(MapFileError::Corrupt(m)) if m.contains("beyond the cutoff")));
 }
 
 #[test]
@@ -400,7 +405,7 @@ fn edt_entry_whose_obstacle_is_out_of_the_offsets_range_is_corrupt() {
     bytes[nearest_at..nearest_at + 4].copy_from_slice(&(v.0[0] + 40_000).to_le_bytes());
     fix_crc(&mut bytes);
     let err = decode_err(&bytes);
-    assert!(matches!(&err, MapFileError::Corrupt(m) if m.contains("more than 32767 voxels from voxel [8, -16, 24]")), "{err}");
+    assert!(matches!(&err, MapFileError::Corrupt(m) if m.contains("EDT voxel [8, -16, 24]: its nearest obstacle") && m.contains("more than 32767 voxels away")), "{err}");
 }
 
 #[test]

@@ -9,7 +9,7 @@
 //! full each frame and the cost follows the change.
 
 use edtmap_core::region::{Packing, Region, FAR};
-use edtmap_core::{BlockKey, EdtMap, VoxelIndex, BLOCK_SIDE, BLOCK_VOXELS, FAR_DIST_SQ};
+use edtmap_core::{BlockKey, EdtMap, VoxelIndex, BLOCK_SIDE, BLOCK_VOXELS, NO_OFFSET};
 use rayon::prelude::*;
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, Ordering::Acquire, Ordering::Relaxed, Ordering::Release};
@@ -153,7 +153,7 @@ impl LazyRegion {
         for offset in 0..BLOCK_VOXELS {
             let v = VoxelIndex([first[0] + (offset & 7) as i32, first[1] + ((offset >> 3) & 7) as i32, first[2] + (offset >> 6) as i32]);
             let value = match block {
-                Some(bl) if bl.dist_sq[offset] != FAR_DIST_SQ && p.region.local(v).is_some() => p.pack(bl.dist_sq[offset], bl.nearest(key, offset)),
+                Some(bl) if bl.to_nearest[offset] != NO_OFFSET && p.region.local(v).is_some() => p.pack(bl.dist_sq(offset), bl.nearest(key, offset)),
                 _ => FAR,
             };
             let i = b * BLOCK_VOXELS + offset;
@@ -190,8 +190,8 @@ impl LazyRegion {
 pub fn block_bounds(map: &EdtMap, key: BlockKey) -> Option<SrcBounds> {
     let block = map.get(key)?;
     let mut out: Option<SrcBounds> = None;
-    for (offset, d) in block.dist_sq.iter().enumerate() {
-        if *d == FAR_DIST_SQ {
+    for (offset, o) in block.to_nearest.iter().enumerate() {
+        if *o == NO_OFFSET {
             continue;
         }
         let n = block.nearest(key, offset);

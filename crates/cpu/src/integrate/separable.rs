@@ -193,8 +193,8 @@ type Radii = FxHashMap<BlockKey, Box<Changed>>;
 /// The obstacles of an EDT block: its voxels at distance 0.
 fn obstacle_bits(b: &EdtBlock) -> Mask {
     let mut m = [0u64; 8];
-    for (w, d) in m.iter_mut().zip(b.dist_sq.chunks_exact(64)) {
-        *w = d.iter().enumerate().fold(0, |a, (i, &d)| a | u64::from(d == 0) << i);
+    for (w, d) in m.iter_mut().zip(b.to_nearest.chunks_exact(64)) {
+        *w = d.iter().enumerate().fold(0, |a, (i, &d)| a | u64::from(d == [0; 3]) << i);
     }
     m
 }
@@ -360,18 +360,14 @@ impl Layer for EdtMap {
         b.is_far()
     }
     fn read(b: &EdtBlock, o: usize) -> Out {
-        (b.dist_sq[o], b.to_nearest[o])
+        (b.dist_sq(o), b.to_nearest[o])
     }
     fn warm(b: &EdtBlock) {
-        for v in b.dist_sq.iter().step_by(16) {
-            std::hint::black_box(*v);
-        }
         for v in b.to_nearest.iter().step_by(10) {
             std::hint::black_box(v[0]);
         }
     }
     fn write(b: &mut EdtBlock, o: usize, v: Out) {
-        b.dist_sq[o] = v.0;
         b.to_nearest[o] = v.1;
     }
 }
@@ -1332,7 +1328,7 @@ impl Pass<'_> {
         by_block(line, 0, base, n, |key, o0, _, range| {
             let (block, flip) = (edt.get(key), flips.get(&key));
             for (k, i) in range.enumerate() {
-                let was = block.is_some_and(|b| b.dist_sq[o0 + k] == 0);
+                let was = block.is_some_and(|b| b.to_nearest[o0 + k] == [0; 3]);
                 flags[i] = was != flip.is_some_and(|m| bit(m, o0 + k));
             }
         });

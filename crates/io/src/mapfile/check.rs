@@ -3,7 +3,7 @@
 
 use edtmap_core::{
     check_voxel_size, BlockKey, BlockMap, CoreError, Cutoff, EdtMap, GlobalMap, GlobalParams, OccupancyMap, OccupancyParams,
-    BLOCK_SIDE, BLOCK_VOXELS, FAR_DIST_SQ, NO_OBSTACLE,
+    BLOCK_SIDE, BLOCK_VOXELS, FAR_DIST_SQ,
 };
 
 use super::layout::Payload;
@@ -66,23 +66,15 @@ fn check_log_odds(map: &OccupancyMap) -> Result<(), MapFileError> {
     Ok(())
 }
 
-/// An EDT entry is beyond the cutoff with no obstacle, or within it with
-/// the squared distance to the obstacle it names.
+/// Every EDT entry lies within the cutoff or beyond it. (That its
+/// distance is its obstacle's, or far with none, the block itself keeps:
+/// the reader refuses any other as it reads it.)
 fn check_edt(map: &EdtMap, cutoff: Cutoff) -> Result<(), MapFileError> {
     for (key, block) in sorted(map) {
         for i in 0..BLOCK_VOXELS {
-            let (d, nearest, v) = (block.dist_sq[i], block.nearest(key, i), key.voxel(i));
-            let problem = if d == FAR_DIST_SQ {
-                (nearest != NO_OBSTACLE).then(|| format!("is beyond the cutoff but names a nearest obstacle {:?}", nearest.0))
-            } else if d > cutoff.max_dist_sq {
-                Some(format!("holds dist_sq {d}, beyond the cutoff's {}", cutoff.max_dist_sq))
-            } else {
-                let actual: u128 = (0..3).map(|a| u128::from((i64::from(v.0[a]) - i64::from(nearest.0[a])).unsigned_abs()).pow(2)).sum();
-                (actual != u128::from(d))
-                    .then(|| format!("holds dist_sq {d} but its nearest obstacle {:?} lies at dist_sq {actual}", nearest.0))
-            };
-            if let Some(p) = problem {
-                return Err(MapFileError::Corrupt(format!("EDT voxel {:?} {p}", v.0)));
+            let d = block.dist_sq(i);
+            if d != FAR_DIST_SQ && d > cutoff.max_dist_sq {
+                return Err(MapFileError::Corrupt(format!("EDT voxel {:?} holds dist_sq {d}, beyond the cutoff's {}", key.voxel(i).0, cutoff.max_dist_sq)));
             }
         }
     }

@@ -58,13 +58,13 @@ impl Payload for EdtBlock {
     const SECTION: &'static str = "EDT";
     const LEN: usize = 4 * BLOCK_VOXELS + 12 * BLOCK_VOXELS;
     fn put(&self, key: BlockKey, out: &mut Vec<u8>) {
-        self.dist_sq.iter().for_each(|d| out.extend_from_slice(&d.to_le_bytes()));
+        (0..BLOCK_VOXELS).for_each(|i| out.extend_from_slice(&self.dist_sq(i).to_le_bytes()));
         (0..BLOCK_VOXELS).for_each(|i| put_triple(self.nearest(key, i).0, out));
     }
     fn get(&mut self, key: BlockKey, bytes: &[u8]) -> Result<(), String> {
         let (dist, nearest) = bytes.split_at(4 * BLOCK_VOXELS);
         for (i, (d, n)) in dist.chunks_exact(4).zip(nearest.chunks_exact(12)).enumerate() {
-            self.set(key, i, le_u32(d), VoxelIndex(get_triple(n))).map_err(|e| format!("an EDT voxel's nearest {e}"))?;
+            self.set(key, i, le_u32(d), VoxelIndex(get_triple(n))).map_err(|e| format!("EDT {e}"))?;
         }
         Ok(())
     }
