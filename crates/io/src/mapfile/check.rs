@@ -44,15 +44,16 @@ fn sorted<B: Default>(map: &BlockMap<B>) -> Vec<(BlockKey, &B)> {
 
 /// Every key's voxels must have `i32` indices.
 fn check_keys<B: Payload>(map: &BlockMap<B>) -> Result<(), MapFileError> {
-    let outside = |key: &BlockKey| key.0.iter().any(|&c| !(MIN_KEY..=MAX_KEY).contains(&c));
-    match sorted(map).into_iter().find(|(key, _)| outside(key)) {
-        Some((key, _)) => Err(MapFileError::Corrupt(format!(
-            "block key {:?} in the {} section lies outside the voxel index range",
-            key.0,
-            B::SECTION
-        ))),
-        None => Ok(()),
+    sorted(map).into_iter().try_for_each(|(key, _)| check_key::<B>(key))
+}
+
+/// A key's voxels must have `i32` indices (checked by the reader before
+/// it decodes the block, whose voxels it may need).
+pub(super) fn check_key<B: Payload>(key: BlockKey) -> Result<(), MapFileError> {
+    if key.0.iter().any(|&c| !(MIN_KEY..=MAX_KEY).contains(&c)) {
+        return Err(MapFileError::Corrupt(format!("block key {:?} in the {} section lies outside the voxel index range", key.0, B::SECTION)));
     }
+    Ok(())
 }
 
 /// A log-odds is finite or [`edtmap_core::UNOBSERVED`] (−∞).

@@ -92,6 +92,7 @@ fn read_section<B: Payload>(cur: &mut Cursor<'_>) -> Result<BlockMap<B>, MapFile
             return Err(MapFileError::Corrupt(format!("{what} {:?} after {:?} in the {} section", key.0, p.0, B::SECTION)));
         }
         previous = Some(key);
+        check::check_key::<B>(key)?;
         map.get_or_insert(key).get(key, cur.take(B::LEN, "a block")?).map_err(MapFileError::Corrupt)?;
     }
     Ok(map)
