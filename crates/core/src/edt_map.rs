@@ -131,7 +131,7 @@ fn mismatch(dist_sq: u32, nearest: VoxelIndex, voxel: VoxelIndex) -> String {
 /// The squared length of offset `o`, [`FAR_DIST_SQ`] for [`NO_OFFSET`]
 /// (at most 3 · 32767², below it).
 #[inline]
-pub fn offset_dist_sq(o: [i16; 3]) -> u32 {
+fn offset_dist_sq(o: [i16; 3]) -> u32 {
     if o[0] == i16::MIN {
         return FAR_DIST_SQ;
     }
@@ -142,7 +142,7 @@ pub fn offset_dist_sq(o: [i16; 3]) -> u32 {
 /// `None` where a component does not fit an `i16` (or is its least value,
 /// which marks no obstacle).
 #[inline]
-pub fn to_offset(v: VoxelIndex, nearest: VoxelIndex) -> Option<[i16; 3]> {
+fn to_offset(v: VoxelIndex, nearest: VoxelIndex) -> Option<[i16; 3]> {
     if nearest == NO_OBSTACLE {
         return Some(NO_OFFSET);
     }
@@ -155,7 +155,7 @@ pub fn to_offset(v: VoxelIndex, nearest: VoxelIndex) -> Option<[i16; 3]> {
 
 /// The obstacle at offset `o` from `v` ([`NO_OBSTACLE`] for [`NO_OFFSET`]).
 #[inline]
-pub fn from_offset(v: VoxelIndex, o: [i16; 3]) -> VoxelIndex {
+fn from_offset(v: VoxelIndex, o: [i16; 3]) -> VoxelIndex {
     if o[0] == i16::MIN {
         return NO_OBSTACLE;
     }

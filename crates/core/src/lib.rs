@@ -52,8 +52,7 @@ pub use edt::{dist_sq_to_vox, EdtField, EdtParams, NO_SITE, UNREACHABLE_DIST_SQ}
 pub use error::CoreError;
 pub use fixed_ray::{cast_fixed, fixed_scale, prepare_rays, setup_ray, walk, FixedRay};
 pub use edt_map::{
-    from_offset, offset_dist_sq, to_offset, Connectivity, Cutoff, EdtBlock, EdtMap, ForbiddenZone, GlobalParams, EntryError, IntegrationMode, DEFAULT_MAX_DISTANCE_M, FAR_DIST_SQ, NO_OBSTACLE,
-    NO_OFFSET,
+    Connectivity, Cutoff, EdtBlock, EdtMap, EntryError, ForbiddenZone, GlobalParams, IntegrationMode, DEFAULT_MAX_DISTANCE_M, FAR_DIST_SQ, NO_OBSTACLE, NO_OFFSET,
 };
 pub use global_map::GlobalMap;
 pub use grid::Grid3;
