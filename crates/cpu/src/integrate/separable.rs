@@ -262,10 +262,10 @@ fn run_passes(map: &mut EdtMap, pass: &Pass<'_>, cache: &mut SeparableCache, dir
     // Pass x: the rows through the obstacles that changed.
     let edt: &EdtMap = map;
     let (value1, value2) = (g1_value, g2_value);
-    let (dirty1, radii1, _) = drive(&mut Cached { map: g1, none: NONE }, 0, dirty, None::<(&Radii, &Rescan)>, pass, |s, seg, out| pass.row(edt, flips, seg, s, out), value1, |_, _| 0.0, plans1);
+    let (dirty1, radii1, _) = drive(&mut Cached { map: g1, none: NONE }, 0, dirty, None::<(&Radii, &Rescan)>, pass, |s, seg, _, out| pass.row(edt, flips, seg, s, out), value1, |_, _| 0.0, plans1);
     // Pass y: the columns through the g1 entries that changed.
     let g1: &FxHashMap<_, _> = g1;
-    let (dirty2, radii2, _) = drive(&mut Cached { map: g2, none: NONE2 }, 1, &dirty1, Some((&radii1, &LowerY { g1 })), pass, |s, seg, out| pass.column(g1, seg, s, out), value2, |_, _| 0.0, plans2);
+    let (dirty2, radii2, _) = drive(&mut Cached { map: g2, none: NONE2 }, 1, &dirty1, Some((&radii1, &LowerY { g1 })), pass, |s, seg, col, out| pass.column(g1, col, seg, s, out), value2, |_, _| 0.0, plans2);
     if !last {
         return IntegrateReport::default();
     }
@@ -276,7 +276,7 @@ fn run_passes(map: &mut EdtMap, pass: &Pass<'_>, cache: &mut SeparableCache, dir
     // loaded again after every write of the lowering.)
     let (exact, max) = (&pass.roots.exact[..], pass.max);
     let truncated = move |d: u32| root(exact, d.min(max));
-    let (changed, _, stats) = drive(map, 2, &dirty2, Some((&radii2, &LowerZ { g2 })), pass, |s, seg, out| pass.depth(g2, seg, s, out), |v: Out| v.0, |o: Out, n: Out| {
+    let (changed, _, stats) = drive(map, 2, &dirty2, Some((&radii2, &LowerZ { g2 })), pass, |s, seg, col, out| pass.depth(g2, col, seg, s, out), |v: Out| v.0, |o: Out, n: Out| {
         (truncated(n.0) - truncated(o.0)).abs()
     }, plans3);
     let mut changed_blocks: Vec<BlockKey> = changed.into_keys().collect();
@@ -684,7 +684,7 @@ fn drive<L: Layer, Lo: Lower<L::Value>>(
     dirty: &Dirty,
     follow: Option<(&Radii, &Lo)>,
     pass: &Pass<'_>,
-    scan: impl Fn(&mut Scratch, Segment, &mut Vec<L::Value>) + Sync,
+    scan: impl for<'x> Fn(&mut Scratch, Segment, Column<'x, Lo::In>, &mut Vec<L::Value>) + Sync,
     value: impl Fn(L::Value) -> u32 + Sync,
     amount: impl Fn(L::Value, L::Value) -> f64 + Sync,
     plans: &mut Vec<Plan>,
@@ -807,19 +807,26 @@ where
                 for b in blocks.iter() {
                     L::warm(&b.1);
                 }
-                // The previous pass's blocks along the task's dirty blocks,
-                // where the lowered entries lie, looked up once.
+                // The previous pass's blocks along the task's line of blocks
+                // from `from` to `to`, looked up once: along its dirty
+                // blocks, where the lowered entries lie, and, once a line
+                // is rescanned, along its blocks grown by the reach, where
+                // the rescans read.
                 let (first, last) = plan.dirty;
+                let column = |from: i32, to: i32| -> Vec<Option<&Lo::In>> {
+                    follow.map_or_else(Vec::new, |(_, lo)| {
+                        let mut k = first.0;
+                        (from..=to)
+                            .map(|c| {
+                                k[axis] = c;
+                                lo.input(BlockKey(k))
+                            })
+                            .collect()
+                    })
+                };
                 let inputs_base = first.0[axis];
-                let inputs: Vec<Option<&Lo::In>> = follow.map_or_else(Vec::new, |(_, lo)| {
-                    let mut k = first.0;
-                    (inputs_base..=last)
-                        .map(|c| {
-                            k[axis] = c;
-                            lo.input(BlockKey(k))
-                        })
-                        .collect()
-                });
+                let inputs = column(inputs_base, last);
+                let mut wide: Option<(i32, Vec<Option<&Lo::In>>)> = None;
                 // Writes `new` over `old` at `o` of block `j` if it differs.
                 let replace = |blocks: &mut Owned<L::Block>, j: usize, o: usize, old: L::Value, new: L::Value, st: &mut Stats| {
                     let (_, block, mask, changed) = &mut blocks[j];
@@ -990,9 +997,15 @@ where
                             }
                         }
                     }
+                    if !segments.is_empty() && wide.is_none() {
+                        let grow = (reach + side - 1) / side;
+                        let (from, to) = (blocks.first().map_or(0, |x| x.0) - grow, blocks.last().map_or(0, |x| x.0) + grow);
+                        wide = Some((from, column(from, to)));
+                    }
+                    let col = wide.as_ref().map_or(Column { base: 0, blocks: &[] }, |(base, v)| Column { base: *base, blocks: v });
                     for seg in segments {
                         out.clear();
-                        scan(s, *seg, out);
+                        scan(s, *seg, col, out);
                         let first = seg.lo - reach;
                         st.visited += out.len();
                         let mut j = blocks.partition_point(|x| x.0 < first.div_euclid(side));
@@ -1246,6 +1259,30 @@ fn isqrt(v: u32) -> u16 {
     r.min(u64::from(u16::MAX)) as u16
 }
 
+/// The blocks of a layer along one line of blocks, from `base` on (the
+/// coordinate along the line's axis).
+#[derive(Debug)]
+struct Column<'a, B> {
+    base: i32,
+    blocks: &'a [Option<&'a B>],
+}
+
+impl<B> Clone for Column<'_, B> {
+    fn clone(&self) -> Self {
+        *self
+    }
+}
+
+impl<B> Copy for Column<'_, B> {}
+
+impl<'a, B> Column<'a, B> {
+    /// The block at `c` along the axis (`None` for none), `None` outside
+    /// the column.
+    fn at(&self, c: i32) -> Option<Option<&'a B>> {
+        usize::try_from(c - self.base).ok().and_then(|i| self.blocks.get(i).copied())
+    }
+}
+
 /// Working memory of one thread.
 #[derive(Debug, Default)]
 struct Scratch {
@@ -1268,16 +1305,16 @@ impl Scratch {
         }
     }
 
-    /// Reads `self.f.len()` entries of `layer` along `axis` from `base` on
-    /// `line` into `off` (as offsets along x and y) and `f` (their
+    /// Reads `self.f.len()` entries of `layer` (its blocks from `col` where
+    /// it has them) along `axis` from `base` on `line` into `off` (as offsets along x and y) and `f` (their
     /// squared distances, none for none).
-    fn gather<T: Copy>(&mut self, layer: &FxHashMap<BlockKey, Box<[T; BLOCK_VOXELS]>>, line: [i32; 3], axis: usize, base: i32, offsets: impl Fn(T) -> [i16; 2]) {
+    fn gather<T: Copy>(&mut self, layer: &FxHashMap<BlockKey, Box<[T; BLOCK_VOXELS]>>, col: Column<'_, [T; BLOCK_VOXELS]>, line: [i32; 3], axis: usize, base: i32, offsets: impl Fn(T) -> [i16; 2]) {
         let n = self.f.len();
         self.off.clear();
         self.off.resize(n, NONE2);
         let (f, off) = (&mut self.f, &mut self.off);
         by_block(line, axis, base, n, |key, o0, stride, range| {
-            let Some(block) = layer.get(&key) else {
+            let Some(block) = col.at(key.0[axis]).unwrap_or_else(|| layer.get(&key).map(|b| &**b)) else {
                 f[range].fill(UNREACHABLE_DIST_SQ);
                 return;
             };
@@ -1370,12 +1407,12 @@ impl Pass<'_> {
 
     /// Pass y on column `line` from `lo - reach` to `hi + reach`: offsets
     /// to the slice's nearest obstacle, from `g1`.
-    fn column(&self, g1: &FxHashMap<BlockKey, Box<G1Block>>, Segment { line, lo, hi }: Segment, s: &mut Scratch, out: &mut Vec<[i16; 2]>) {
+    fn column(&self, g1: &FxHashMap<BlockKey, Box<G1Block>>, col: Column<'_, G1Block>, Segment { line, lo, hi }: Segment, s: &mut Scratch, out: &mut Vec<[i16; 2]>) {
         let r = self.reach;
         let base = lo - 2 * r;
         let n = (hi + 2 * r - base + 1) as usize;
         s.reset(n);
-        s.gather(g1, line, 1, base, |o| [o, 0]);
+        s.gather(g1, col, line, 1, base, |o| [o, 0]);
         s.scan();
         for i in r as usize..n - r as usize {
             out.push(if s.out_f[i] == UNREACHABLE_DIST_SQ || s.out_f[i] > self.max {
@@ -1389,12 +1426,12 @@ impl Pass<'_> {
 
     /// Pass z on line `line` from `lo - reach` to `hi + reach`: distances
     /// and nearest obstacles, from `g2`.
-    fn depth(&self, g2: &FxHashMap<BlockKey, Box<G2Block>>, Segment { line, lo, hi }: Segment, s: &mut Scratch, out: &mut Vec<Out>) {
+    fn depth(&self, g2: &FxHashMap<BlockKey, Box<G2Block>>, col: Column<'_, G2Block>, Segment { line, lo, hi }: Segment, s: &mut Scratch, out: &mut Vec<Out>) {
         let r = self.reach;
         let base = lo - 2 * r;
         let n = (hi + 2 * r - base + 1) as usize;
         s.reset(n);
-        s.gather(g2, line, 2, base, |o| o);
+        s.gather(g2, col, line, 2, base, |o| o);
         s.scan();
         for i in r as usize..n - r as usize {
             out.push(if s.out_f[i] == UNREACHABLE_DIST_SQ || s.out_f[i] > self.max {
