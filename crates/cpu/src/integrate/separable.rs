@@ -83,17 +83,17 @@ pub struct SeparableCache {
     valid_for: Option<(MapStamp, Cutoff)>,
     /// Square roots up to the last cutoff's squared distance.
     roots: Option<Roots>,
-    /// Each pass's task plans, kept between frames so that their lists
-    /// are cleared rather than grown again from nothing (a plan gets one
-    /// push per dirty entry).
-    plans: [Vec<Plan>; 3],
+    /// The task plans, kept from pass to pass and frame to frame so that
+    /// their lists are cleared rather than grown again from nothing (a
+    /// plan gets one push per dirty entry).
+    plans: Vec<Plan>,
 }
 
 impl SeparableCache {
     /// Bytes held.
     pub fn bytes(&self) -> usize {
         let per = |n: usize, b: usize| n * (b + std::mem::size_of::<BlockKey>() + 16);
-        per(self.g1.len(), std::mem::size_of::<G1Block>()) + per(self.g2.len(), std::mem::size_of::<G2Block>()) + self.plans.iter().flatten().map(Plan::bytes).sum::<usize>()
+        per(self.g1.len(), std::mem::size_of::<G1Block>()) + per(self.g2.len(), std::mem::size_of::<G2Block>()) + self.plans.iter().map(Plan::bytes).sum::<usize>()
     }
 
     /// Forgets everything (the next update rebuilds from the map).
@@ -258,14 +258,13 @@ fn transpose_bits(mut x: u64) -> u64 {
 /// `flips` says); the last, into `map`, only when `last`.
 fn run_passes(map: &mut EdtMap, pass: &Pass<'_>, cache: &mut SeparableCache, dirty: &Dirty, flips: &Dirty, last: bool) -> IntegrateReport {
     let SeparableCache { g1, g2, plans, .. } = cache;
-    let [plans1, plans2, plans3] = plans;
     // Pass x: the rows through the obstacles that changed.
     let edt: &EdtMap = map;
     let (value1, value2) = (g1_value, g2_value);
-    let (dirty1, radii1, _) = drive(&mut Cached { map: g1, none: NONE }, 0, dirty, None::<(&Radii, &Rescan)>, pass, |s, seg, _, out| pass.row(edt, flips, seg, s, out), value1, |_, _| 0.0, plans1);
+    let (dirty1, radii1, _) = drive(&mut Cached { map: g1, none: NONE }, 0, dirty, None::<(&Radii, &Rescan)>, pass, |s, seg, _, out| pass.row(edt, flips, seg, s, out), value1, |_, _| 0.0, plans);
     // Pass y: the columns through the g1 entries that changed.
     let g1: &FxHashMap<_, _> = g1;
-    let (dirty2, radii2, _) = drive(&mut Cached { map: g2, none: NONE2 }, 1, &dirty1, Some((&radii1, &LowerY { g1 })), pass, |s, seg, col, out| pass.column(g1, col, seg, s, out), value2, |_, _| 0.0, plans2);
+    let (dirty2, radii2, _) = drive(&mut Cached { map: g2, none: NONE2 }, 1, &dirty1, Some((&radii1, &LowerY { g1 })), pass, |s, seg, col, out| pass.column(g1, col, seg, s, out), value2, |_, _| 0.0, plans);
     if !last {
         return IntegrateReport::default();
     }
@@ -278,7 +277,7 @@ fn run_passes(map: &mut EdtMap, pass: &Pass<'_>, cache: &mut SeparableCache, dir
     let truncated = move |d: u32| root(exact, d.min(max));
     let (changed, _, stats) = drive(map, 2, &dirty2, Some((&radii2, &LowerZ { g2 })), pass, |s, seg, col, out| pass.depth(g2, col, seg, s, out), |v: Out| v.0, |o: Out, n: Out| {
         (truncated(n.0) - truncated(o.0)).abs()
-    }, plans3);
+    }, plans);
     let mut changed_blocks: Vec<BlockKey> = changed.into_keys().collect();
     changed_blocks.sort_unstable();
     IntegrateReport {
@@ -475,6 +474,11 @@ struct Plan {
     /// the axis.
     dirty: (BlockKey, i32),
 }
+
+/// The most bytes a pass's plans keep for the next pass: more (a large
+/// frame's), and each is freed once its task is done, as the work's other
+/// memory is being made.
+const PLANS_KEPT: usize = 4 << 20;
 
 impl Plan {
     /// Empties the plan for a task whose first dirty block is `first` and
@@ -789,11 +793,12 @@ where
     let all: Vec<BlockKey> = tasks.iter().zip(planned.iter()).flat_map(|(r, p)| p.owned.iter().map(move |&c| key_of(r, c))).collect();
     let mut taken = layer.take(&all).into_iter();
     let mut work: Vec<Owned<L::Block>> = planned.iter().map(|plan| plan.owned.iter().map(|&c| (c, taken.next().expect("one block per key"), [0u64; 8], None)).collect()).collect();
+    let keep = planned.iter().map(Plan::bytes).sum::<usize>() <= PLANS_KEPT;
     // Lower, scan, compare, write.
     let cap = i64::from(pass.max) + 1;
     let view: &L = layer;
     let stats: Vec<(Stats, Vec<bool>)> = planned
-        .par_iter()
+        .par_iter_mut()
         .zip(&mut work)
         .with_min_len(min_len(tasks.len(), keys.len()))
         .map_init(
@@ -1019,6 +1024,9 @@ where
                         });
                     }
                 }
+                if !keep {
+                    *plan = Plan::default();
+                }
                 // Which blocks to keep, read while they are in this core's
                 // cache (a serial loop over them all took 0.1-0.2 ms).
                 (st, blocks.iter().map(|b| !view.empty(&b.1)).collect())
@@ -1046,6 +1054,9 @@ where
         }
     }
     layer.restore(back);
+    if !keep {
+        *plans = Vec::new();
+    }
     let total = stats.into_iter().map(|s| s.0).fold(Stats::default(), |mut a, s| {
         a.add(s);
         a
