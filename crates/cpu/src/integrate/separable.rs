@@ -86,14 +86,14 @@ pub struct SeparableCache {
     /// The task plans, kept from pass to pass and frame to frame so that
     /// their lists are cleared rather than grown again from nothing (a
     /// plan gets one push per dirty entry).
-    plans: Vec<Plan>,
+    plans: Plans,
 }
 
 impl SeparableCache {
     /// Bytes held.
     pub fn bytes(&self) -> usize {
         let per = |n: usize, b: usize| n * (b + std::mem::size_of::<BlockKey>() + 16);
-        per(self.g1.len(), std::mem::size_of::<G1Block>()) + per(self.g2.len(), std::mem::size_of::<G2Block>()) + self.plans.iter().map(Plan::bytes).sum::<usize>()
+        per(self.g1.len(), std::mem::size_of::<G1Block>()) + per(self.g2.len(), std::mem::size_of::<G2Block>()) + self.plans.bytes()
     }
 
     /// Forgets everything (the next update rebuilds from the map).
@@ -156,6 +156,8 @@ fn rebuild(map: &mut EdtMap, pass: &Pass<'_>, cache: &mut SeparableCache) {
         .filter_map(|&(key, block)| Some(obstacle_bits(block)).filter(|m| m.iter().any(|&w| w != 0)).map(|m| (key, m)))
         .collect();
     run_passes(map, pass, cache, &obstacles, &Dirty::default(), false);
+    // A whole map's plans are not a frame's.
+    cache.plans = Plans::default();
 }
 
 /// Small frames stay on one thread rather than pay for waking the others:
@@ -278,6 +280,7 @@ fn run_passes(map: &mut EdtMap, pass: &Pass<'_>, cache: &mut SeparableCache, dir
     let (changed, _, stats) = drive(map, 2, &dirty2, Some((&radii2, &LowerZ { g2 })), pass, |s, seg, col, out| pass.depth(g2, col, seg, s, out), |v: Out| v.0, |o: Out, n: Out| {
         (truncated(n.0) - truncated(o.0)).abs()
     }, plans);
+    plans.end_frame();
     let mut changed_blocks: Vec<BlockKey> = changed.into_keys().collect();
     changed_blocks.sort_unstable();
     IntegrateReport {
@@ -475,10 +478,41 @@ struct Plan {
     dirty: (BlockKey, i32),
 }
 
-/// The most bytes a pass's plans keep for the next pass: more (a large
-/// frame's), and each is freed once its task is done, as the work's other
-/// memory is being made.
-const PLANS_KEPT: usize = 4 << 20;
+/// The most bytes the plans keep between frames (3dmatch-seq01 at 2 m
+/// keeps some 4 MiB, `uav_pillars` at 0.05 m 6-16 MiB).
+const PLANS_KEPT: usize = 64 << 20;
+
+/// The plans of a frame's passes, in one list (a pass uses its first
+/// ones).
+#[derive(Debug, Default)]
+struct Plans {
+    list: Vec<Plan>,
+}
+
+impl Plans {
+    /// The first `n` plans, for a pass of `n` tasks.
+    fn take(&mut self, n: usize) -> &mut [Plan] {
+        if self.list.len() < n {
+            self.list.resize_with(n, Plan::default);
+        }
+        &mut self.list[..n]
+    }
+
+    /// Frees every plan if together they hold over [`PLANS_KEPT`] (a
+    /// huge frame's), else keeps them all: freeing only the room a frame
+    /// did not use made the next frame grow it again (3dmatch-seq01 at 2
+    /// m lost most of what keeping gains).
+    fn end_frame(&mut self) {
+        if self.bytes() > PLANS_KEPT {
+            *self = Plans::default();
+        }
+    }
+
+    /// Bytes held.
+    fn bytes(&self) -> usize {
+        self.list.iter().map(Plan::bytes).sum()
+    }
+}
 
 impl Plan {
     /// Empties the plan for a task whose first dirty block is `first` and
@@ -691,7 +725,7 @@ fn drive<L: Layer, Lo: Lower<L::Value>>(
     scan: impl for<'x> Fn(&mut Scratch, Segment, Column<'x, Lo::In>, &mut Vec<L::Value>) + Sync,
     value: impl Fn(L::Value) -> u32 + Sync,
     amount: impl Fn(L::Value, L::Value) -> f64 + Sync,
-    plans: &mut Vec<Plan>,
+    plans: &mut Plans,
 ) -> (Dirty, Radii, Stats)
 where
     L::Block: Send,
@@ -712,10 +746,7 @@ where
     // Each task's plan, from the old outputs.
     let (side, stride) = (BLOCK_SIDE, [1, 8, 64][axis]);
     let view: &L = layer;
-    if plans.len() < tasks.len() {
-        plans.resize_with(tasks.len(), Plan::default);
-    }
-    let planned = &mut plans[..tasks.len()];
+    let planned = plans.take(tasks.len());
     planned
         .par_iter_mut()
         .zip(&tasks)
@@ -793,12 +824,11 @@ where
     let all: Vec<BlockKey> = tasks.iter().zip(planned.iter()).flat_map(|(r, p)| p.owned.iter().map(move |&c| key_of(r, c))).collect();
     let mut taken = layer.take(&all).into_iter();
     let mut work: Vec<Owned<L::Block>> = planned.iter().map(|plan| plan.owned.iter().map(|&c| (c, taken.next().expect("one block per key"), [0u64; 8], None)).collect()).collect();
-    let keep = planned.iter().map(Plan::bytes).sum::<usize>() <= PLANS_KEPT;
     // Lower, scan, compare, write.
     let cap = i64::from(pass.max) + 1;
     let view: &L = layer;
     let stats: Vec<(Stats, Vec<bool>)> = planned
-        .par_iter_mut()
+        .par_iter()
         .zip(&mut work)
         .with_min_len(min_len(tasks.len(), keys.len()))
         .map_init(
@@ -1024,9 +1054,6 @@ where
                         });
                     }
                 }
-                if !keep {
-                    *plan = Plan::default();
-                }
                 // Which blocks to keep, read while they are in this core's
                 // cache (a serial loop over them all took 0.1-0.2 ms).
                 (st, blocks.iter().map(|b| !view.empty(&b.1)).collect())
@@ -1054,9 +1081,6 @@ where
         }
     }
     layer.restore(back);
-    if !keep {
-        *plans = Vec::new();
-    }
     let total = stats.into_iter().map(|s| s.0).fold(Stats::default(), |mut a, s| {
         a.add(s);
         a
