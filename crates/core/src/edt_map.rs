@@ -147,8 +147,8 @@ fn to_offset(v: VoxelIndex, nearest: VoxelIndex) -> Option<[i16; 3]> {
         return Some(NO_OFFSET);
     }
     let mut out = [0i16; 3];
-    for a in 0..3 {
-        out[a] = i16::try_from(i64::from(nearest.0[a]) - i64::from(v.0[a])).ok().filter(|&d| d != i16::MIN)?;
+    for ((o, &n), &at) in out.iter_mut().zip(&nearest.0).zip(&v.0) {
+        *o = i16::try_from(i64::from(n) - i64::from(at)).ok().filter(|&d| d != i16::MIN)?;
     }
     Some(out)
 }

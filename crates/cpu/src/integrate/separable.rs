@@ -83,17 +83,17 @@ pub struct SeparableCache {
     valid_for: Option<(MapStamp, Cutoff)>,
     /// Square roots up to the last cutoff's squared distance.
     roots: Option<Roots>,
-    /// The task plans, kept from pass to pass and frame to frame so that
-    /// their lists are cleared rather than grown again from nothing (a
-    /// plan gets one push per dirty entry).
-    plans: Plans,
+    /// Each pass's task plans, kept from frame to frame so that their
+    /// lists are cleared rather than grown again from nothing (a plan gets
+    /// one push per dirty entry).
+    plans: [Plans; 3],
 }
 
 impl SeparableCache {
     /// Bytes held.
     pub fn bytes(&self) -> usize {
         let per = |n: usize, b: usize| n * (b + std::mem::size_of::<BlockKey>() + 16);
-        per(self.g1.len(), std::mem::size_of::<G1Block>()) + per(self.g2.len(), std::mem::size_of::<G2Block>()) + self.plans.bytes()
+        per(self.g1.len(), std::mem::size_of::<G1Block>()) + per(self.g2.len(), std::mem::size_of::<G2Block>()) + self.plans.iter().map(Plans::bytes).sum::<usize>()
     }
 
     /// Forgets everything (the next update rebuilds from the map).
@@ -157,7 +157,7 @@ fn rebuild(map: &mut EdtMap, pass: &Pass<'_>, cache: &mut SeparableCache) {
         .collect();
     run_passes(map, pass, cache, &obstacles, &Dirty::default(), false);
     // A whole map's plans are not a frame's.
-    cache.plans = Plans::default();
+    cache.plans = Default::default();
 }
 
 /// Small frames stay on one thread rather than pay for waking the others:
@@ -260,13 +260,14 @@ fn transpose_bits(mut x: u64) -> u64 {
 /// `flips` says); the last, into `map`, only when `last`.
 fn run_passes(map: &mut EdtMap, pass: &Pass<'_>, cache: &mut SeparableCache, dirty: &Dirty, flips: &Dirty, last: bool) -> IntegrateReport {
     let SeparableCache { g1, g2, plans, .. } = cache;
+    let [plans1, plans2, plans3] = plans;
     // Pass x: the rows through the obstacles that changed.
     let edt: &EdtMap = map;
     let (value1, value2) = (g1_value, g2_value);
-    let (dirty1, radii1, _) = drive(&mut Cached { map: g1, none: NONE }, 0, dirty, None::<(&Radii, &Rescan)>, pass, |s, seg, _, out| pass.row(edt, flips, seg, s, out), value1, |_, _| 0.0, plans);
+    let (dirty1, radii1, _) = drive(&mut Cached { map: g1, none: NONE }, 0, dirty, None::<(&Radii, &Rescan)>, pass, |s, seg, _, out| pass.row(edt, flips, seg, s, out), value1, |_, _| 0.0, plans1);
     // Pass y: the columns through the g1 entries that changed.
     let g1: &FxHashMap<_, _> = g1;
-    let (dirty2, radii2, _) = drive(&mut Cached { map: g2, none: NONE2 }, 1, &dirty1, Some((&radii1, &LowerY { g1 })), pass, |s, seg, col, out| pass.column(g1, col, seg, s, out), value2, |_, _| 0.0, plans);
+    let (dirty2, radii2, _) = drive(&mut Cached { map: g2, none: NONE2 }, 1, &dirty1, Some((&radii1, &LowerY { g1 })), pass, |s, seg, col, out| pass.column(g1, col, seg, s, out), value2, |_, _| 0.0, plans2);
     if !last {
         return IntegrateReport::default();
     }
@@ -279,8 +280,10 @@ fn run_passes(map: &mut EdtMap, pass: &Pass<'_>, cache: &mut SeparableCache, dir
     let truncated = move |d: u32| root(exact, d.min(max));
     let (changed, _, stats) = drive(map, 2, &dirty2, Some((&radii2, &LowerZ { g2 })), pass, |s, seg, col, out| pass.depth(g2, col, seg, s, out), |v: Out| v.0, |o: Out, n: Out| {
         (truncated(n.0) - truncated(o.0)).abs()
-    }, plans);
-    plans.end_frame();
+    }, plans3);
+    for p in [plans1, plans2, plans3] {
+        p.end_frame();
+    }
     let mut changed_blocks: Vec<BlockKey> = changed.into_keys().collect();
     changed_blocks.sort_unstable();
     IntegrateReport {
@@ -478,12 +481,13 @@ struct Plan {
     dirty: (BlockKey, i32),
 }
 
-/// The most bytes the plans keep between frames (3dmatch-seq01 at 2 m
-/// keeps some 4 MiB, `uav_pillars` at 0.05 m 6-16 MiB).
-const PLANS_KEPT: usize = 64 << 20;
+/// The most bytes a pass's plans keep between frames: pass z's hold some 4
+/// MiB on 3dmatch-seq01 at 2 m (kept), 6-16 MiB on `uav_pillars` at 0.05 m
+/// (kept where under this; its peak RSS 109 -> 115 MB, 125 MB with no
+/// limit).
+const PLANS_KEPT: usize = 8 << 20;
 
-/// The plans of a frame's passes, in one list (a pass uses its first
-/// ones).
+/// The plans of a pass (a frame uses the first ones).
 #[derive(Debug, Default)]
 struct Plans {
     list: Vec<Plan>,
@@ -498,10 +502,10 @@ impl Plans {
         &mut self.list[..n]
     }
 
-    /// Frees every plan if together they hold over [`PLANS_KEPT`] (a
-    /// huge frame's), else keeps them all: freeing only the room a frame
-    /// did not use made the next frame grow it again (3dmatch-seq01 at 2
-    /// m lost most of what keeping gains).
+    /// Frees every plan if together they hold over [`PLANS_KEPT`], else
+    /// keeps them all: freeing only the room a frame did not use made the
+    /// next frame grow it again (3dmatch-seq01 at 2 m lost most of what
+    /// keeping gains).
     fn end_frame(&mut self) {
         if self.bytes() > PLANS_KEPT {
             *self = Plans::default();
