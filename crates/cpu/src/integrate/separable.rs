@@ -83,17 +83,13 @@ pub struct SeparableCache {
     valid_for: Option<(MapStamp, Cutoff)>,
     /// Square roots up to the last cutoff's squared distance.
     roots: Option<Roots>,
-    /// Each pass's task plans, kept from frame to frame so that their
-    /// lists are cleared rather than grown again from nothing (a plan gets
-    /// one push per dirty entry).
-    plans: [Plans; 3],
 }
 
 impl SeparableCache {
     /// Bytes held.
     pub fn bytes(&self) -> usize {
         let per = |n: usize, b: usize| n * (b + std::mem::size_of::<BlockKey>() + 16);
-        per(self.g1.len(), std::mem::size_of::<G1Block>()) + per(self.g2.len(), std::mem::size_of::<G2Block>()) + self.plans.iter().map(Plans::bytes).sum::<usize>()
+        per(self.g1.len(), std::mem::size_of::<G1Block>()) + per(self.g2.len(), std::mem::size_of::<G2Block>())
     }
 
     /// Forgets everything (the next update rebuilds from the map).
@@ -101,7 +97,6 @@ impl SeparableCache {
         self.g1.clear();
         self.g2.clear();
         self.valid_for = None;
-        self.plans = Default::default();
     }
 }
 
@@ -156,8 +151,6 @@ fn rebuild(map: &mut EdtMap, pass: &Pass<'_>, cache: &mut SeparableCache) {
         .filter_map(|&(key, block)| Some(obstacle_bits(block)).filter(|m| m.iter().any(|&w| w != 0)).map(|m| (key, m)))
         .collect();
     run_passes(map, pass, cache, &obstacles, &Dirty::default(), false);
-    // A whole map's plans are not a frame's.
-    cache.plans = Default::default();
 }
 
 /// Small frames stay on one thread rather than pay for waking the others:
@@ -259,15 +252,14 @@ fn transpose_bits(mut x: u64) -> u64 {
 /// The three passes from the rows through `dirty` (obstacles flipped where
 /// `flips` says); the last, into `map`, only when `last`.
 fn run_passes(map: &mut EdtMap, pass: &Pass<'_>, cache: &mut SeparableCache, dirty: &Dirty, flips: &Dirty, last: bool) -> IntegrateReport {
-    let SeparableCache { g1, g2, plans, .. } = cache;
-    let [plans1, plans2, plans3] = plans;
+    let SeparableCache { g1, g2, .. } = cache;
     // Pass x: the rows through the obstacles that changed.
     let edt: &EdtMap = map;
     let (value1, value2) = (g1_value, g2_value);
-    let (dirty1, radii1, _) = drive(&mut Cached { map: g1, none: NONE }, 0, dirty, None::<(&Radii, &Rescan)>, pass, |s, seg, _, out| pass.row(edt, flips, seg, s, out), value1, |_, _| 0.0, plans1);
+    let (dirty1, radii1, _) = drive(&mut Cached { map: g1, none: NONE }, 0, dirty, None::<(&Radii, &Rescan)>, pass, |s, seg, _, out| pass.row(edt, flips, seg, s, out), value1, |_, _| 0.0);
     // Pass y: the columns through the g1 entries that changed.
     let g1: &FxHashMap<_, _> = g1;
-    let (dirty2, radii2, _) = drive(&mut Cached { map: g2, none: NONE2 }, 1, &dirty1, Some((&radii1, &LowerY { g1 })), pass, |s, seg, col, out| pass.column(g1, col, seg, s, out), value2, |_, _| 0.0, plans2);
+    let (dirty2, radii2, _) = drive(&mut Cached { map: g2, none: NONE2 }, 1, &dirty1, Some((&radii1, &LowerY { g1 })), pass, |s, seg, col, out| pass.column(g1, col, seg, s, out), value2, |_, _| 0.0);
     if !last {
         return IntegrateReport::default();
     }
@@ -280,10 +272,7 @@ fn run_passes(map: &mut EdtMap, pass: &Pass<'_>, cache: &mut SeparableCache, dir
     let truncated = move |d: u32| root(exact, d.min(max));
     let (changed, _, stats) = drive(map, 2, &dirty2, Some((&radii2, &LowerZ { g2 })), pass, |s, seg, col, out| pass.depth(g2, col, seg, s, out), |v: Out| v.0, |o: Out, n: Out| {
         (truncated(n.0) - truncated(o.0)).abs()
-    }, plans3);
-    for p in [plans1, plans2, plans3] {
-        p.end_frame();
-    }
+    });
     let mut changed_blocks: Vec<BlockKey> = changed.into_keys().collect();
     changed_blocks.sort_unstable();
     IntegrateReport {
@@ -481,68 +470,6 @@ struct Plan {
     dirty: (BlockKey, i32),
 }
 
-/// The most bytes a pass's plans keep between frames: pass z's hold some 4
-/// MiB on 3dmatch-seq01 at 2 m (kept), 6-16 MiB on `uav_pillars` at 0.05 m
-/// (kept where under this; its peak RSS 109 -> 115 MB, 125 MB with no
-/// limit).
-const PLANS_KEPT: usize = 8 << 20;
-
-/// The plans of a pass (a frame uses the first ones).
-#[derive(Debug, Default)]
-struct Plans {
-    list: Vec<Plan>,
-}
-
-impl Plans {
-    /// The first `n` plans, for a pass of `n` tasks.
-    fn take(&mut self, n: usize) -> &mut [Plan] {
-        if self.list.len() < n {
-            self.list.resize_with(n, Plan::default);
-        }
-        &mut self.list[..n]
-    }
-
-    /// Frees every plan if together they hold over [`PLANS_KEPT`], else
-    /// keeps them all: freeing only the room a frame did not use made the
-    /// next frame grow it again (3dmatch-seq01 at 2 m lost most of what
-    /// keeping gains).
-    fn end_frame(&mut self) {
-        if self.bytes() > PLANS_KEPT {
-            *self = Plans::default();
-        }
-    }
-
-    /// Bytes held.
-    fn bytes(&self) -> usize {
-        self.list.iter().map(Plan::bytes).sum()
-    }
-}
-
-impl Plan {
-    /// Empties the plan for a task whose first dirty block is `first` and
-    /// whose last one lies at `last` along the axis, keeping its lists'
-    /// room.
-    fn reset(&mut self, first: BlockKey, last: i32) {
-        self.lines.clear();
-        self.segments.clear();
-        self.lower.clear();
-        self.entries.clear();
-        self.risen.clear();
-        self.spans.clear();
-        self.owned.clear();
-        self.visited = 0;
-        self.dirty = (first, last);
-    }
-
-    /// Bytes its lists hold.
-    fn bytes(&self) -> usize {
-        fn held<T>(v: &Vec<T>) -> usize {
-            v.capacity() * std::mem::size_of::<T>()
-        }
-        held(&self.lines) + held(&self.segments) + held(&self.lower) + held(&self.entries) + held(&self.risen) + held(&self.spans) + held(&self.owned)
-    }
-}
-
 /// How a pass's outputs follow from its inputs, for the outputs lowered
 /// directly by the entries that were lowered.
 trait Lower<V>: Sync {
@@ -729,7 +656,6 @@ fn drive<L: Layer, Lo: Lower<L::Value>>(
     scan: impl for<'x> Fn(&mut Scratch, Segment, Column<'x, Lo::In>, &mut Vec<L::Value>) + Sync,
     value: impl Fn(L::Value) -> u32 + Sync,
     amount: impl Fn(L::Value, L::Value) -> f64 + Sync,
-    plans: &mut Plans,
 ) -> (Dirty, Radii, Stats)
 where
     L::Block: Send,
@@ -750,17 +676,15 @@ where
     // Each task's plan, from the old outputs.
     let (side, stride) = (BLOCK_SIDE, [1, 8, 64][axis]);
     let view: &L = layer;
-    let planned = plans.take(tasks.len());
-    planned
-        .par_iter_mut()
-        .zip(&tasks)
+    let planned: Vec<Plan> = tasks
+        .par_iter()
         .with_min_len(min_len(tasks.len(), keys.len()))
-        .for_each_init(|| (Vec::new(), Scratch::default()), |(found, scratch), (plan, r)| {
+        .map_init(|| (Vec::new(), Scratch::default()), |(found, scratch), r| {
             let ks = &keys[r.clone()];
             // Each block's dirty voxels by line and how they changed, looked
             // up once for its 64 lines.
             let masks: Vec<([u8; 64], Option<&Changed>)> = ks.iter().map(|k| (line_bits(&dirty[k], axis), follow.and_then(|(c, _)| c.get(k)).map(|b| &**b))).collect();
-            plan.reset(ks[0], ks[ks.len() - 1].0[axis]);
+            let mut plan = Plan { dirty: (ks[0], ks[ks.len() - 1].0[axis]), ..Plan::default() };
             // The old outputs' blocks along the task's line of blocks, as far
             // as a dirty entry reaches: looked up once for all its lines.
             let base = ks[0].0[axis] - (reach + side - 1) / side;
@@ -801,13 +725,13 @@ where
                 }
                 let (first_segment, first_lower, first_risen) = (plan.segments.len(), plan.lower.len(), plan.risen.len());
                 match follow {
-                    None => plan_rescan(plan, line, found, reach),
+                    None => plan_rescan(&mut plan, line, found, reach),
                     Some((_, lo)) => {
                         let key = |q: i32| {
                             let block = column.get(usize::try_from(q.div_euclid(side) - base).ok()?)?.as_ref()?;
                             lo.key(q, L::read(block, o_line + q.rem_euclid(side) as usize * stride))
                         };
-                        plan_follow(plan, key, found, (reach, pass.max));
+                        plan_follow(&mut plan, key, found, (reach, pass.max));
                     }
                 }
                 plan.lines.push(LineWork { line, segments: first_segment..plan.segments.len(), lower: first_lower..plan.lower.len(), risen: first_risen..plan.risen.len() });
@@ -818,22 +742,29 @@ where
             let spans = plan.segments.iter().map(|s| (s.lo - reach, s.hi + reach)).chain(plan.spans.iter().copied()).chain(plan.lower.iter().map(|&(a, z, _)| (a, z)));
             merged(spans.map(|(a, z)| (a.div_euclid(side), z.div_euclid(side))), &mut scratch.ranges);
             plan.owned.extend(scratch.ranges.iter().flat_map(|&(a, z)| a..=z));
-        });
+            plan
+        })
+        .collect();
     // Take every task's blocks out of the layer.
     let key_of = |r: &Range<usize>, c: i32| {
         let mut k = keys[r.start].0;
         k[axis] = c;
         BlockKey(k)
     };
-    let all: Vec<BlockKey> = tasks.iter().zip(planned.iter()).flat_map(|(r, p)| p.owned.iter().map(move |&c| key_of(r, c))).collect();
+    let all: Vec<BlockKey> = tasks.iter().zip(&planned).flat_map(|(r, p)| p.owned.iter().map(move |&c| key_of(r, c))).collect();
     let mut taken = layer.take(&all).into_iter();
-    let mut work: Vec<Owned<L::Block>> = planned.iter().map(|plan| plan.owned.iter().map(|&c| (c, taken.next().expect("one block per key"), [0u64; 8], None)).collect()).collect();
+    let mut work: Vec<(Plan, Owned<L::Block>)> = planned
+        .into_iter()
+        .map(|plan| {
+            let blocks = plan.owned.iter().map(|&c| (c, taken.next().expect("one block per key"), [0u64; 8], None)).collect();
+            (plan, blocks)
+        })
+        .collect();
     // Lower, scan, compare, write.
     let cap = i64::from(pass.max) + 1;
     let view: &L = layer;
-    let stats: Vec<(Stats, Vec<bool>)> = planned
-        .par_iter()
-        .zip(&mut work)
+    let stats: Vec<(Stats, Vec<bool>)> = work
+        .par_iter_mut()
         .with_min_len(min_len(tasks.len(), keys.len()))
         .map_init(
             || (Scratch::default(), Vec::new(), Vec::new(), Sparse::default(), Vec::new(), Vec::new()),
@@ -1060,6 +991,8 @@ where
                 }
                 // Which blocks to keep, read while they are in this core's
                 // cache (a serial loop over them all took 0.1-0.2 ms).
+                // The plan freed here, on the thread that used it.
+                *plan = Plan::default();
                 (st, blocks.iter().map(|b| !view.empty(&b.1)).collect())
             },
         )
@@ -1068,7 +1001,7 @@ where
     let mut next = Dirty::with_capacity_and_hasher(all.len(), Default::default());
     let mut next_changed = Radii::with_capacity_and_hasher(if L::FEEDS_NEXT { all.len() } else { 0 }, Default::default());
     let mut back = Vec::with_capacity(all.len());
-    for ((r, blocks), (_, keep)) in tasks.iter().zip(work).zip(&stats) {
+    for ((r, (_, blocks)), (_, keep)) in tasks.iter().zip(work).zip(&stats) {
         for ((c, block, mask, changed), &keep) in blocks.into_iter().zip(keep) {
             let key = key_of(r, c);
             // Every block with a changed voxel (how each changed is kept
