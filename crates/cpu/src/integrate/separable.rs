@@ -704,6 +704,16 @@ where
             for (l, _) in masks.iter().flat_map(|m| m.0.iter().enumerate()).filter(|(_, &t)| t != 0) {
                 lines |= 1 << l;
             }
+            // The lists sized once (a line each, at most an entry per dirty
+            // voxel) rather than grown by doubling.
+            let dirty_voxels: usize = ks.iter().map(|k| dirty[k].iter().map(|w| w.count_ones() as usize).sum::<usize>()).sum();
+            plan.lines.reserve(lines.count_ones() as usize);
+            if follow.is_some() {
+                plan.entries.reserve(dirty_voxels);
+                plan.lower.reserve(lines.count_ones() as usize);
+            } else {
+                plan.segments.reserve(lines.count_ones() as usize);
+            }
             while lines != 0 {
                 let l = lines.trailing_zeros() as usize;
                 lines &= lines - 1;
