@@ -706,10 +706,9 @@ where
             }
             // The lists sized once (a line each, at most an entry per dirty
             // voxel) rather than grown by doubling.
-            let dirty_voxels: usize = ks.iter().map(|k| dirty[k].iter().map(|w| w.count_ones() as usize).sum::<usize>()).sum();
             plan.lines.reserve(lines.count_ones() as usize);
             if follow.is_some() {
-                plan.entries.reserve(dirty_voxels);
+                plan.entries.reserve(masks.iter().flat_map(|m| m.0).map(|t| t.count_ones() as usize).sum());
                 plan.lower.reserve(lines.count_ones() as usize);
             } else {
                 plan.segments.reserve(lines.count_ones() as usize);
@@ -738,7 +737,7 @@ where
                     None => plan_rescan(&mut plan, line, found, reach),
                     Some((_, lo)) => {
                         let key = |q: i32| {
-                            let block = column.get(usize::try_from(q.div_euclid(side) - base).ok()?)?.as_ref()?;
+                            let block = Column { base, blocks: &column }.at(q.div_euclid(side))??;
                             lo.key(q, L::read(block, o_line + q.rem_euclid(side) as usize * stride))
                         };
                         plan_follow(&mut plan, key, found, (reach, pass.max));
@@ -804,8 +803,8 @@ where
                             .collect()
                     })
                 };
-                let inputs_base = first.0[axis];
-                let inputs = column(inputs_base, last);
+                let inputs = column(first.0[axis], last);
+                let inputs = Column { base: first.0[axis], blocks: &inputs };
                 let mut wide: Option<(i32, Vec<Option<&Lo::In>>)> = None;
                 // Writes `new` over `old` at `o` of block `j` if it differs.
                 let replace = |blocks: &mut Owned<L::Block>, j: usize, o: usize, old: L::Value, new: L::Value, st: &mut Stats| {
@@ -871,7 +870,7 @@ where
                         for &(a, z, ref ps) in &plan.lower[lw.lower.clone()] {
                             let ps = &plan.entries[ps.clone()];
                             entries.clear();
-                            entries.extend(ps.iter().map(|&p| lo.entry(inputs.get((p.div_euclid(side) - inputs_base) as usize).copied().flatten(), o_line + p.rem_euclid(side) as usize * stride)));
+                            entries.extend(ps.iter().map(|&p| lo.entry(inputs.at(p.div_euclid(side)).flatten(), o_line + p.rem_euclid(side) as usize * stride)));
                             sparse.build(a, z, ps.iter().zip(entries.iter()).map(|(&p, &(f, _))| (p, f)));
                             let (ca, ja) = (i64::from(a.div_euclid(side)), blocks.partition_point(|x| x.0 < a.div_euclid(side)));
                             // Block and offset of the output at q.
@@ -1288,8 +1287,9 @@ impl Scratch {
     }
 
     /// Reads `self.f.len()` entries of `layer` (its blocks from `col` where
-    /// it has them) along `axis` from `base` on `line` into `off` (as offsets along x and y) and `f` (their
-    /// squared distances, none for none).
+    /// it has them) along `axis` from `base` on `line` into `off` (as
+    /// offsets along x and y) and `f` (their squared distances, none for
+    /// none).
     fn gather<T: Copy>(&mut self, layer: &FxHashMap<BlockKey, Box<[T; BLOCK_VOXELS]>>, col: Column<'_, [T; BLOCK_VOXELS]>, line: [i32; 3], axis: usize, base: i32, offsets: impl Fn(T) -> [i16; 2]) {
         let n = self.f.len();
         self.off.clear();
