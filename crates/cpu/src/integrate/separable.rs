@@ -301,9 +301,6 @@ trait Layer: Sync {
     /// cutoff).
     fn empty(&self, b: &Self::Block) -> bool;
     fn read(b: &Self::Block, o: usize) -> Self::Value;
-    /// Reads every cache line of `b`, so that a task's blocks are loaded
-    /// together rather than one miss at a time.
-    fn warm(b: &Self::Block);
     fn write(b: &mut Self::Block, o: usize, v: Self::Value);
 }
 
@@ -333,11 +330,6 @@ impl<T: Copy + PartialEq + Send + Sync> Layer for Cached<'_, T> {
     fn read(b: &Self::Block, o: usize) -> T {
         b[o]
     }
-    fn warm(b: &Self::Block) {
-        for v in b.iter().step_by(64 / std::mem::size_of::<T>()) {
-            prefetch(v);
-        }
-    }
     fn write(b: &mut Self::Block, o: usize, v: T) {
         b[o] = v;
     }
@@ -362,28 +354,28 @@ impl Layer for EdtMap {
     fn read(b: &EdtBlock, o: usize) -> Out {
         (b.dist_sq(o), b.to_nearest[o])
     }
-    fn warm(b: &EdtBlock) {
-        for v in b.to_nearest.iter().step_by(10) {
-            prefetch(v);
-        }
-    }
     fn write(b: &mut EdtBlock, o: usize, v: Out) {
         b.to_nearest[o] = v.1;
     }
 }
 
-/// Asks for the cache line holding `v` without waiting for it.
+/// Asks for every cache line of `b` without waiting for them, so that a
+/// task's blocks are loaded together rather than one miss at a time.
 #[inline]
-fn prefetch<T>(v: &T) {
+fn warm<T>(b: &T) {
     #[cfg(target_arch = "x86_64")]
     {
         use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-        // SAFETY: a prefetch reads nothing the program sees and cannot
-        // fault; SSE is part of every x86-64.
-        unsafe { _mm_prefetch::<_MM_HINT_T0>(std::ptr::from_ref(v).cast()) };
+        let p: *const i8 = std::ptr::from_ref(b).cast();
+        for i in (0..std::mem::size_of::<T>()).step_by(64) {
+            // SAFETY: a prefetch reads nothing the program sees and cannot
+            // fault (the address is inside `b` anyway); SSE is part of
+            // every x86-64.
+            unsafe { _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(i)) };
+        }
     }
     #[cfg(not(target_arch = "x86_64"))]
-    std::hint::black_box(v);
+    std::hint::black_box(b);
 }
 
 /// What one pass changed.
@@ -798,7 +790,7 @@ where
                 // and waited on one miss after another (pass z on
                 // 3dmatch-seq01 at 2 m: some 15-20 % of the integration).
                 for b in blocks.iter() {
-                    L::warm(&b.1);
+                    warm(&*b.1);
                 }
                 // The previous pass's blocks along the task's line of blocks
                 // from `from` to `to`, looked up once: along its dirty
