@@ -23,6 +23,7 @@
 //! paper's uncoalesced baseline, kept for the benchmarks.
 #![warn(missing_docs)]
 
+mod awake;
 mod backend;
 pub mod edt;
 pub mod integrate;
