@@ -694,6 +694,9 @@ where
             // Each block's dirty voxels by line and how they changed, looked
             // up once for its 64 lines.
             let masks: Vec<([u8; 64], Option<&Changed>)> = ks.iter().map(|k| (line_bits(&dirty[k], axis), follow.and_then(|(c, _)| c.get(k)).map(|b| &**b))).collect();
+            for c in masks.iter().filter_map(|m| m.1) {
+                warm(c);
+            }
             let mut plan = Plan { dirty: (ks[0], ks[ks.len() - 1].0[axis]), ..Plan::default() };
             // The old outputs' blocks along the task's line of blocks, as far
             // as a dirty entry reaches: looked up once for all its lines.
