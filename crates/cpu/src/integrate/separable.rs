@@ -139,7 +139,8 @@ fn update_in_pool(map: &mut EdtMap, obstacles: &Obstacles<'_>, blocks: &[BlockKe
             m.iter().any(|&w| w != 0).then_some((key, m))
         })
         .collect();
-    let report = run_passes(map, &pass, cache, &flips, &flips, true);
+    let dirty = flips.iter().map(|(&k, &m)| (k, m, None)).collect();
+    let report = run_passes(map, &pass, cache, dirty, &flips, true);
     cache.valid_for = Some((map.stamp(), cutoff));
     cache.roots = Some(roots);
     report
@@ -148,13 +149,13 @@ fn update_in_pool(map: &mut EdtMap, obstacles: &Obstacles<'_>, blocks: &[BlockKe
 /// Rebuilds `g1` and `g2` from the map's obstacles (its voxels at distance 0).
 fn rebuild(map: &mut EdtMap, pass: &Pass<'_>, cache: &mut SeparableCache) {
     cache.forget();
-    let obstacles: Dirty = map
+    let obstacles: Work = map
         .iter()
         .collect::<Vec<_>>()
         .par_iter()
-        .filter_map(|&(key, block)| Some(obstacle_bits(block)).filter(|m| m.iter().any(|&w| w != 0)).map(|m| (key, m)))
+        .filter_map(|&(key, block)| Some(obstacle_bits(block)).filter(|m| m.iter().any(|&w| w != 0)).map(|m| (key, m, None)))
         .collect();
-    run_passes(map, pass, cache, &obstacles, &Dirty::default(), false);
+    run_passes(map, pass, cache, obstacles, &Dirty::default(), false);
 }
 
 /// Small frames stay on one thread rather than pay for waking the others:
@@ -191,8 +192,10 @@ struct Changed {
     lowered: Mask,
 }
 
-/// What changed, per block.
-type Radii = FxHashMap<BlockKey, Box<Changed>>;
+/// The blocks a pass looks at: key, voxels, and how they changed (after
+/// pass x or y). Handed from one pass to the next as a list, which the
+/// next sorts by its lines: no look-up by key.
+type Work = Vec<(BlockKey, Mask, Option<Box<Changed>>)>;
 
 /// The obstacles of an EDT block: its voxels at distance 0.
 fn obstacle_bits(b: &EdtBlock) -> Mask {
@@ -255,15 +258,15 @@ fn transpose_bits(mut x: u64) -> u64 {
 
 /// The three passes from the rows through `dirty` (obstacles flipped where
 /// `flips` says); the last, into `map`, only when `last`.
-fn run_passes(map: &mut EdtMap, pass: &Pass<'_>, cache: &mut SeparableCache, dirty: &Dirty, flips: &Dirty, last: bool) -> IntegrateReport {
+fn run_passes(map: &mut EdtMap, pass: &Pass<'_>, cache: &mut SeparableCache, dirty: Work, flips: &Dirty, last: bool) -> IntegrateReport {
     let SeparableCache { g1, g2, .. } = cache;
     // Pass x: the rows through the obstacles that changed.
     let edt: &EdtMap = map;
     let (value1, value2) = (g1_value, g2_value);
-    let (dirty1, radii1, _) = drive(&mut Cached { map: g1, none: NONE }, 0, dirty, None::<(&Radii, &Rescan)>, pass, |s, seg, _, out| pass.row(edt, flips, seg, s, out), value1, |_, _| 0.0);
+    let (dirty1, _) = drive(&mut Cached { map: g1, none: NONE }, 0, dirty, None::<&Rescan>, pass, |s, seg, _, out| pass.row(edt, flips, seg, s, out), value1, |_, _| 0.0);
     // Pass y: the columns through the g1 entries that changed.
     let g1: &FxHashMap<_, _> = g1;
-    let (dirty2, radii2, _) = drive(&mut Cached { map: g2, none: NONE2 }, 1, &dirty1, Some((&radii1, &LowerY { g1 })), pass, |s, seg, col, out| pass.column(g1, col, seg, s, out), value2, |_, _| 0.0);
+    let (dirty2, _) = drive(&mut Cached { map: g2, none: NONE2 }, 1, dirty1, Some(&LowerY { g1 }), pass, |s, seg, col, out| pass.column(g1, col, seg, s, out), value2, |_, _| 0.0);
     if !last {
         return IntegrateReport::default();
     }
@@ -274,10 +277,10 @@ fn run_passes(map: &mut EdtMap, pass: &Pass<'_>, cache: &mut SeparableCache, dir
     // loaded again after every write of the lowering.)
     let (exact, max) = (&pass.roots.exact[..], pass.max);
     let truncated = move |d: u32| root(exact, d.min(max));
-    let (changed, _, stats) = drive(map, 2, &dirty2, Some((&radii2, &LowerZ { g2 })), pass, |s, seg, col, out| pass.depth(g2, col, seg, s, out), |v: Out| v.0, |o: Out, n: Out| {
+    let (changed, stats) = drive(map, 2, dirty2, Some(&LowerZ { g2 }), pass, |s, seg, col, out| pass.depth(g2, col, seg, s, out), |v: Out| v.0, |o: Out, n: Out| {
         (truncated(n.0) - truncated(o.0)).abs()
     });
-    let mut changed_blocks: Vec<BlockKey> = changed.into_keys().collect();
+    let mut changed_blocks: Vec<BlockKey> = changed.into_iter().map(|c| c.0).collect();
     changed_blocks.sort_unstable();
     IntegrateReport {
         voxels_changed: stats.changed,
@@ -649,32 +652,33 @@ impl Piece {
 ///
 /// Without `follow` (pass x) each line is rescanned over its dirty voxels
 /// grown by the reach. With it, each dirty entry is one the previous pass
-/// changed, and `follow.0` says how (how far it can matter, whether it was
-/// lowered): the outputs whose nearest entry rose or changed are rescanned
+/// changed, and its block's [`Changed`] in `dirty` says how (how far it
+/// can matter, whether it was lowered): the outputs whose nearest entry rose or changed are rescanned
 /// (found among the old outputs), and the others are lowered directly by
 /// the lower envelope of the lowered entries alone, without reading the
 /// unchanged inputs. Each task owns one line of blocks of `layer` along
 /// `axis`, so it writes them directly. Returns the voxels whose value
-/// changed, as masks, how they changed, and what changed (`amount` of each).
+/// changed, as masks with how they changed (the next pass's `dirty`), and
+/// what changed (`amount` of each).
 #[allow(clippy::too_many_arguments)]
 fn drive<L: Layer, Lo: Lower<L::Value>>(
     layer: &mut L,
     axis: usize,
-    dirty: &Dirty,
-    follow: Option<(&Radii, &Lo)>,
+    mut dirty: Work,
+    follow: Option<&Lo>,
     pass: &Pass<'_>,
     scan: impl for<'x> Fn(&mut Scratch, Segment, Column<'x, Lo::In>, &mut Vec<L::Value>) + Sync,
     value: impl Fn(L::Value) -> u32 + Sync,
     amount: impl Fn(L::Value, L::Value) -> f64 + Sync,
-) -> (Dirty, Radii, Stats)
+) -> (Work, Stats)
 where
     L::Block: Send,
 {
     let reach = pass.reach;
     // Tasks: lines of blocks along `axis`, each with its dirty blocks in order.
-    let mut keys: Vec<BlockKey> = dirty.keys().copied().collect();
     let [b, d] = others(axis);
-    keys.sort_unstable_by_key(|k| (k.0[b], k.0[d], k.0[axis]));
+    dirty.sort_unstable_by_key(|e| (e.0 .0[b], e.0 .0[d], e.0 .0[axis]));
+    let keys: Vec<BlockKey> = dirty.iter().map(|e| e.0).collect();
     let mut tasks: Vec<Range<usize>> = Vec::new();
     let mut start = 0;
     for i in 1..=keys.len() {
@@ -693,7 +697,7 @@ where
             let ks = &keys[r.clone()];
             // Each block's dirty voxels by line and how they changed, looked
             // up once for its 64 lines.
-            let masks: Vec<([u8; 64], Option<&Changed>)> = ks.iter().map(|k| (line_bits(&dirty[k], axis), follow.and_then(|(c, _)| c.get(k)).map(|b| &**b))).collect();
+            let masks: Vec<([u8; 64], Option<&Changed>)> = dirty[r.clone()].iter().map(|e| (line_bits(&e.1, axis), e.2.as_deref())).collect();
             for c in masks.iter().filter_map(|m| m.1) {
                 warm(c);
             }
@@ -748,7 +752,7 @@ where
                 let (first_segment, first_lower, first_risen) = (plan.segments.len(), plan.lower.len(), plan.risen.len());
                 match follow {
                     None => plan_rescan(&mut plan, line, found, reach),
-                    Some((_, lo)) => {
+                    Some(lo) => {
                         let key = |q: i32| {
                             let block = Column { base, blocks: &column }.at(q.div_euclid(side))??;
                             lo.key(q, L::read(block, o_line + q.rem_euclid(side) as usize * stride))
@@ -806,7 +810,7 @@ where
                 // the rescans read.
                 let (first, last) = plan.dirty;
                 let column = |from: i32, to: i32| -> Vec<Option<&Lo::In>> {
-                    follow.map_or_else(Vec::new, |(_, lo)| {
+                    follow.map_or_else(Vec::new, |lo| {
                         let mut k = first.0;
                         (from..=to)
                             .map(|c| {
@@ -863,7 +867,7 @@ where
                     // same searches were cache misses one after another).
                     let segments: &[Segment] = match follow {
                         None => &plan.segments[lw.segments.clone()],
-                        Some((_, lo)) => {
+                        Some(lo) => {
                             // The old output at q: every one searched lies
                             // in a risen entry's reach, so in the task's
                             // blocks.
@@ -875,7 +879,7 @@ where
                             rescan
                         }
                     };
-                    if let Some((_, lo)) = follow {
+                    if let Some(lo) = follow {
                         // First the outputs the lowered entries lower, from
                         // the old outputs: the rescans below overwrite
                         // their own outputs, which this leaves to them.
@@ -1020,8 +1024,8 @@ where
         )
         .collect();
     // Put the blocks back; the changed voxels are the next pass's dirty ones.
-    let mut next = Dirty::with_capacity_and_hasher(all.len(), Default::default());
-    let mut next_changed = Radii::with_capacity_and_hasher(if L::FEEDS_NEXT { all.len() } else { 0 }, Default::default());
+    drop(dirty);
+    let mut next = Work::with_capacity(all.len());
     let mut back = Vec::with_capacity(all.len());
     for ((r, (_, blocks)), (_, keep)) in tasks.iter().zip(work).zip(&stats) {
         for ((c, block, mask, changed), &keep) in blocks.into_iter().zip(keep) {
@@ -1029,10 +1033,7 @@ where
             // Every block with a changed voxel (how each changed is kept
             // only where a pass follows).
             if mask.iter().any(|&w| w != 0) {
-                next.insert(key, mask);
-            }
-            if let Some(changed) = changed {
-                next_changed.insert(key, changed);
+                next.push((key, mask, changed));
             }
             if keep {
                 back.push((key, block));
@@ -1044,7 +1045,7 @@ where
         a.add(s);
         a
     });
-    (next, next_changed, total)
+    (next, total)
 }
 
 /// Plans a line of pass x: its dirty voxels, each grown by its reach,
