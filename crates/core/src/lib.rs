@@ -60,6 +60,6 @@ pub use memory::MemoryBudget;
 pub use obstacles::{Obstacles, StaticBlock, StaticMap, MAX_STATIC_BLOCKS};
 pub use index::{BlockKey, VoxelIndex, BLOCK_SIDE, BLOCK_VOXELS};
 pub use projection::{decide_uncertain, mark_misses, ProjectJob, VoxelToSensor, PROJ_MISS, PROJ_NOT_MISS, PROJ_UNCERTAIN};
-pub use occupancy::{par_fill, BlockMap, MapStamp, LogOdds, OccupancyBlock, OccupancyMap, OccupancyParams, OBS_HIT, OBS_MISS, OBS_NONE, UNOBSERVED};
+pub use occupancy::{par_fill, BlockMap, MapStamp, SharedBlock, LogOdds, OccupancyBlock, OccupancyMap, OccupancyParams, OBS_HIT, OBS_MISS, OBS_NONE, UNOBSERVED};
 pub use volume::{check_voxel_size, LocalVolume, VolumeParams};
 pub use state::VoxelState;

