@@ -199,15 +199,13 @@ impl<B: Default + Clone> BlockMap<B> {
     where
         B: Send + Sync,
     {
-        self.stamp.revision += 1;
-        let found: Vec<(BlockKey, Option<Arc<Box<B>>>)> = keys.iter().map(|&k| (k, self.blocks.remove(&k))).collect();
-        par_fill(found, |(k, b)| (k, b.map(|b| Arc::try_unwrap(b).unwrap_or_else(|shared| (*shared).clone())).unwrap_or_default()))
+        let found: Vec<(BlockKey, Option<SharedBlock<B>>)> = keys.iter().copied().zip(self.take_shared(keys)).collect();
+        par_fill(found, |(k, b)| (k, SharedBlock::into_owned(b)))
     }
 
     /// Puts back blocks taken with [`Self::take`].
     pub fn restore(&mut self, blocks: Vec<(BlockKey, Box<B>)>) {
-        self.stamp.revision += 1;
-        self.blocks.extend(blocks.into_iter().map(|(k, b)| (k, Arc::new(b))));
+        self.restore_shared(blocks.into_iter().map(|(k, b)| (k, SharedBlock::new(b))).collect());
     }
 
     /// Takes the blocks at `keys` out of the map as they are stored (`None`

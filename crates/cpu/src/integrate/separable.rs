@@ -149,7 +149,7 @@ fn update_in_pool(map: &mut EdtMap, obstacles: &Obstacles<'_>, blocks: &[BlockKe
 /// Rebuilds `g1` and `g2` from the map's obstacles (its voxels at distance 0).
 fn rebuild(map: &mut EdtMap, pass: &Pass<'_>, cache: &mut SeparableCache) {
     cache.forget();
-    let obstacles: Work = map
+    let obstacles: Marked = map
         .iter()
         .collect::<Vec<_>>()
         .par_iter()
@@ -195,7 +195,7 @@ struct Changed {
 /// The blocks a pass looks at: key, voxels, and how they changed (after
 /// pass x or y). Handed from one pass to the next as a list, which the
 /// next sorts by its lines: no look-up by key.
-type Work = Vec<(BlockKey, Mask, Option<Box<Changed>>)>;
+type Marked = Vec<(BlockKey, Mask, Option<Box<Changed>>)>;
 
 /// The obstacles of an EDT block: its voxels at distance 0.
 fn obstacle_bits(b: &EdtBlock) -> Mask {
@@ -258,7 +258,7 @@ fn transpose_bits(mut x: u64) -> u64 {
 
 /// The three passes from the rows through `dirty` (obstacles flipped where
 /// `flips` says); the last, into `map`, only when `last`.
-fn run_passes(map: &mut EdtMap, pass: &Pass<'_>, cache: &mut SeparableCache, dirty: Work, flips: &Dirty, last: bool) -> IntegrateReport {
+fn run_passes(map: &mut EdtMap, pass: &Pass<'_>, cache: &mut SeparableCache, dirty: Marked, flips: &Dirty, last: bool) -> IntegrateReport {
     let SeparableCache { g1, g2, .. } = cache;
     // Pass x: the rows through the obstacles that changed.
     let edt: &EdtMap = map;
@@ -679,8 +679,9 @@ impl Piece {
 /// Without `follow` (pass x) each line is rescanned over its dirty voxels
 /// grown by the reach. With it, each dirty entry is one the previous pass
 /// changed, and its block's [`Changed`] in `dirty` says how (how far it
-/// can matter, whether it was lowered): the outputs whose nearest entry rose or changed are rescanned
-/// (found among the old outputs), and the others are lowered directly by
+/// can matter, whether it was lowered): the outputs whose nearest entry
+/// rose or changed are rescanned (found among the old outputs), and the
+/// others are lowered directly by
 /// the lower envelope of the lowered entries alone, without reading the
 /// unchanged inputs. Each task owns one line of blocks of `layer` along
 /// `axis`, so it writes them directly. Returns the voxels whose value
@@ -690,13 +691,13 @@ impl Piece {
 fn drive<L: Layer, Lo: Lower<L::Value>>(
     layer: &mut L,
     axis: usize,
-    mut dirty: Work,
+    mut dirty: Marked,
     follow: Option<&Lo>,
     pass: &Pass<'_>,
     scan: impl for<'x> Fn(&mut Scratch, Segment, Column<'x, Lo::In>, &mut Vec<L::Value>) + Sync,
     value: impl Fn(L::Value) -> u32 + Sync,
     amount: impl Fn(L::Value, L::Value) -> f64 + Sync,
-) -> (Work, Stats)
+) -> (Marked, Stats)
 where
     L::Block: Send,
 {
@@ -827,10 +828,10 @@ where
                 // The task's blocks made writable here, on its thread.
                 let mut owned: Owned<L::Block> = plan.owned.iter().zip(slots.iter_mut()).map(|(&c, t)| (c, view.own(t.take().expect("one block per key")), [0u64; 8], None)).collect();
                 let blocks = &mut owned;
-                // The task's blocks read in order first: the lowering walks
-                // each line a few outputs at a time, a cache line apart,
-                // and waited on one miss after another (pass z on
-                // 3dmatch-seq01 at 2 m: some 15-20 % of the integration).
+                // The task's blocks asked for first: the lowering walks each
+                // line a few outputs at a time, a cache line apart, and
+                // waited on one miss after another (pass z on 3dmatch-seq01
+                // at 2 m: some 15-20 % of the integration).
                 for b in blocks.iter() {
                     warm(&*b.1);
                 }
@@ -1057,9 +1058,8 @@ where
         .collect();
     // Put the blocks back; the changed voxels are the next pass's dirty ones.
     drop(dirty);
-    let mut next = Work::with_capacity(all.len());
-    let mut back = Vec::with_capacity(all.len());
-    drop(work);
+    let mut next = Marked::with_capacity(stats.iter().flat_map(|s| &s.1).filter(|e| e.2.iter().any(|&w| w != 0)).count());
+    let mut back = Vec::with_capacity(stats.iter().flat_map(|s| &s.1).filter(|e| e.1.is_some()).count());
     let mut total = Stats::default();
     for (r, (st, blocks)) in tasks.iter().zip(stats) {
         total.add(st);
