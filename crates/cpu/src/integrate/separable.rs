@@ -794,7 +794,10 @@ where
                 let mut line = [0; 3];
                 (line[b], line[d]) = (ks[0].0[b] * side + u as i32, ks[0].0[d] * side + v as i32);
                 let o_line = local(axis, u, v, 0);
-                // The line's dirty entries: position, reach, lowered.
+                let (first_segment, first_lower, first_risen) = (plan.segments.len(), plan.lower.len(), plan.risen.len());
+                // The line's dirty entries: position, reach, lowered; the
+                // lowered ones of passes y and z go straight to their
+                // lowering ranges (in ascending order, as they must).
                 found.clear();
                 for (k, &(ref bits, ch)) in ks.iter().zip(&masks) {
                     let mut ts = bits[l];
@@ -803,10 +806,14 @@ where
                         ts &= ts - 1;
                         let o = o_line + t * stride;
                         let (w, lowered) = ch.map_or((reach, false), |c| (i32::from(c.radius[o]), bit(&c.lowered, o)));
-                        found.push((k.0[axis] * side + t as i32, w, lowered));
+                        let p = k.0[axis] * side + t as i32;
+                        if lowered {
+                            plan_lowered(&mut plan, first_lower, p, w);
+                        } else {
+                            found.push((p, w, lowered));
+                        }
                     }
                 }
-                let (first_segment, first_lower, first_risen) = (plan.segments.len(), plan.lower.len(), plan.risen.len());
                 match follow {
                     None => plan_rescan(&mut plan, line, found, reach),
                     Some(lo) => {
@@ -1130,14 +1137,13 @@ fn plan_rescan(plan: &mut Plan, line: [i32; 3], found: &[(i32, i32, bool)], reac
 }
 
 /// Plans a line of pass y or z from the entries the previous pass changed
-/// (`found`: position, reach, lowered; ascending): the entries that rose
-/// (or changed without falling) are kept for [`rescans`], each with where
-/// its outputs can be, and the lowered entries' reaches, merged where they
-/// overlap, are lowered from those entries alone. `key(q)`: the squared
-/// distance and position of the entry the old output at `q` came from.
+/// without lowering them (`found`: position, reach; ascending): each is
+/// kept for [`rescans`] with where its outputs can be. `key(q)`: the
+/// squared distance and position of the entry the old output at `q` came
+/// from.
 fn plan_follow(plan: &mut Plan, key: impl Fn(i32) -> Option<(u32, i32)>, found: &[(i32, i32, bool)], (reach, max): (i32, u32)) {
     let first_risen = plan.risen.len();
-    for &(p, w, _) in found.iter().filter(|e| !e.2) {
+    for &(p, w, _) in found {
         // Where the outputs from `p` can be: the entry's old value is more
         // than `max - (w + 1)²` (its reach `w` is the floor of the root of
         // the difference), and the outputs in reach lie at or below the
@@ -1160,19 +1166,30 @@ fn plan_follow(plan: &mut Plan, key: impl Fn(i32) -> Option<(u32, i32)>, found: 
     let at = plan.spans.len();
     plan.spans.extend(plan.risen[first_risen..].iter().map(|&(_, a, z)| (a, z)));
     join_within(&mut plan.spans, at, 2 * reach);
-    // Fell: their reaches, merged where they overlap or touch, each with the
-    // entries that make it up. The entries ascend, so a reach can only
-    // overlap the last merged ones: one pass, merging back.
-    let first = plan.lower.len();
-    for &(p, w, _) in found.iter().filter(|e| e.2) {
-        let n = plan.entries.len();
-        plan.entries.push(p);
-        let mut cur = (p - w, p + w, n..n + 1);
-        while plan.lower.len() > first && plan.lower.last().is_some_and(|last| cur.0 <= last.1 + 1) {
-            let Some(last) = plan.lower.pop() else { break };
-            cur = (cur.0.min(last.0), cur.1.max(last.1), last.2.start..cur.2.end);
+}
+
+/// Plans a lowered entry of pass y or z at `p`, of reach `w`: its reach
+/// joins the line's lowering ranges (from `first` on), merged where they
+/// overlap or touch, each with the entries that make it up. The entries
+/// come in ascending order, so a reach can only overlap the last merged
+/// ones: merged back, mostly into the last one alone, in place.
+fn plan_lowered(plan: &mut Plan, first: usize, p: i32, w: i32) {
+    let n = plan.entries.len();
+    plan.entries.push(p);
+    let (a, z) = (p - w, p + w);
+    match plan.lower[first..].last_mut() {
+        Some(last) if a >= last.0 && a <= last.1 + 1 => {
+            last.1 = last.1.max(z);
+            last.2.end = n + 1;
         }
-        plan.lower.push(cur);
+        _ => {
+            let mut cur = (a, z, n..n + 1);
+            while plan.lower.len() > first && plan.lower.last().is_some_and(|last| cur.0 <= last.1 + 1) {
+                let Some(last) = plan.lower.pop() else { break };
+                cur = (cur.0.min(last.0), cur.1.max(last.1), last.2.start..cur.2.end);
+            }
+            plan.lower.push(cur);
+        }
     }
 }
 
