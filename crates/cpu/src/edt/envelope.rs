@@ -184,10 +184,11 @@ mod tests {
 
     #[test]
     fn envelope_matches_brute_force_on_small_lines() {
-        // Every line of length up to 6 over the values {0, 1, 4, 9, inf}.
-        let vals = [0, 1, 4, 9, UNREACHABLE_DIST_SQ];
+        // Every line of length up to 7 over the values {0, 1, 2, 4, 9, inf}
+        // (2 makes crossings between integers and ties at them).
+        let vals = [0, 1, 2, 4, 9, UNREACHABLE_DIST_SQ];
         let mut s = EnvelopeScratch::default();
-        for n in 1..=6usize {
+        for n in 1..=7usize {
             for code in 0..vals.len().pow(n as u32) {
                 let f: Vec<u32> =
                     (0..n).map(|i| vals[code / vals.len().pow(i as u32) % vals.len()]).collect();
@@ -200,6 +201,9 @@ mod tests {
                     if d != UNREACHABLE_DIST_SQ {
                         let p = p as usize;
                         assert_eq!(d, (x.abs_diff(p).pow(2)) as u32 + f[p], "line {f:?} x {x}");
+                        // Ties keep the leftmost parabola.
+                        let first = (0..n).find(|&i| f[i] != UNREACHABLE_DIST_SQ && x.abs_diff(i).pow(2) as u32 + f[i] == d);
+                        assert_eq!(Some(p), first, "line {f:?} x {x}: ties go to the lowest position");
                     }
                 }
             }
