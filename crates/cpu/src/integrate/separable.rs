@@ -466,12 +466,16 @@ fn local(axis: usize, u: usize, v: usize, t: usize) -> usize {
 type Owned<B> = Vec<(i32, Box<B>, Mask, Option<Box<Changed>>)>;
 
 /// One segment of a line: its first voxel's coordinates (the `axis`
-/// coordinate unused) and the changes it covers, `lo..=hi` along `axis`.
+/// coordinate unused) and the changes it covers, `lo..=hi` along `axis`
+/// (its outputs `lo - reach ..= hi + reach`), and how far its inputs reach
+/// past its outputs on each side (the reach, or less where passes y and z
+/// know that no input further away can be nearest).
 #[derive(Debug, Clone, Copy)]
 struct Segment {
     line: [i32; 3],
     lo: i32,
     hi: i32,
+    margin: (i32, i32),
 }
 
 /// The work of one line: outputs to recompute from all their inputs
@@ -944,7 +948,24 @@ where
                                 let j = *index.get(usize::try_from(q.div_euclid(side) - c0).ok()?)?;
                                 lo.key(q, L::read(&blocks.get(j)?.1, o_line + q.rem_euclid(side) as usize * stride))
                             };
-                            st.visited += rescans(key, lw.line, &plan.risen[lw.risen.clone()], reach, rescan);
+                            // How far from output q the inputs reach that
+                            // can be nearest to it, q's old nearest input
+                            // at p: output q is at most `u = (q - p)² + f`,
+                            // `f` the input at p now (risen entries lie in
+                            // the dirty blocks), so no input further than
+                            // `floor(sqrt(u))` is nearest to it, nor ties
+                            // with what is. Most inputs of a rescan were the
+                            // reach on each side of its few outputs.
+                            let bound = |p: i32, q: i32| {
+                                let (f, _) = lo.entry(inputs.at(p.div_euclid(side)).flatten(), o_line + p.rem_euclid(side) as usize * stride);
+                                // (Capped at the cutoff: an output beyond it
+                                // is far whichever input is nearest; so
+                                // capped, `q -+ bound(p, q)` only grows
+                                // with q.)
+                                let u = (u64::from(f) + u64::from((q - p).unsigned_abs()).pow(2)).min(u64::from(pass.max));
+                                i32::from(pass.roots.floor(u as u32)).min(reach)
+                            };
+                            st.visited += rescans(key, bound, lw.line, &plan.risen[lw.risen.clone()], reach, rescan);
                             rescan
                         }
                     };
@@ -1122,7 +1143,7 @@ fn plan_rescan(plan: &mut Plan, line: [i32; 3], found: &[(i32, i32, bool)], reac
     // (last dirty position, lowest and highest output).
     let mut cur: Option<(i32, i32, i32)> = None;
     // A segment's outputs as `lo - reach ..= hi + reach`.
-    let segment = |(_, a, b): (i32, i32, i32)| Segment { line, lo: a + reach, hi: b - reach };
+    let segment = |(_, a, b): (i32, i32, i32)| Segment { line, lo: a + reach, hi: b - reach, margin: (reach, reach) };
     for &(p, w, _) in found {
         cur = match cur {
             Some((last, a, b)) if p - last <= 2 * reach + 1 => Some((p, a.min(p - w), b.max(p + w))),
@@ -1198,7 +1219,7 @@ fn plan_lowered(plan: &mut Plan, first: usize, p: i32, w: i32) {
 /// outputs can be, from [`plan_follow`]; ascending), found among
 /// the old outputs (`key(q)` as there), runs less than twice the reach
 /// apart merged. Returns how many outputs it read.
-fn rescans(key: impl Fn(i32) -> Option<(u32, i32)>, line: [i32; 3], risen: &[(i32, i32, i32)], reach: i32, out: &mut Vec<Segment>) -> usize {
+fn rescans(key: impl Fn(i32) -> Option<(u32, i32)>, bound: impl Fn(i32, i32) -> i32, line: [i32; 3], risen: &[(i32, i32, i32)], reach: i32, out: &mut Vec<Segment>) -> usize {
     out.clear();
     let mut visited = 0;
     // Along a line the sites of the outputs never decrease (of two
@@ -1206,15 +1227,27 @@ fn rescans(key: impl Fn(i32) -> Option<(u32, i32)>, line: [i32; 3], risen: &[(i3
     // entry's reach no old output is far, so the outputs from each entry
     // are one run, found by bisection.
     let site = |q: i32| key(q).map(|k| k.1);
-    let mut run: Option<(i32, i32)> = None;
-    let mut add = |out: &mut Vec<Segment>, (q0, q1): (i32, i32)| {
+    // The run being joined: its first and last outputs, and how far its
+    // inputs reach before the first and past the last. The outputs from
+    // `p`, `q0..=q1`, reach no further than `bound(p, q0)` before `q0` and
+    // `bound(p, q1)` past `q1` (`q -+ bound(p, q)` only grows with q);
+    // the outputs between two runs, whose nearest input did not rise,
+    // are given the whole reach.
+    let mut run: Option<(i32, i32, i32, i32)> = None;
+    let segment = |(s, e, l, r): (i32, i32, i32, i32)| Segment { line, lo: s + reach, hi: e - reach, margin: (l.clamp(0, reach), r.clamp(0, reach)) };
+    let mut add = |out: &mut Vec<Segment>, (q0, q1, b0, b1): (i32, i32, i32, i32)| {
         run = match run {
-            Some((s, e)) if q0 - e <= 2 * reach => Some((s, e.max(q1))),
-            Some((s, e)) => {
-                out.push(Segment { line, lo: s + reach, hi: e - reach });
-                Some((q0, q1))
+            Some((s, e, l, r)) if q0 - e <= 2 * reach => {
+                let gap = q0 > e + 1;
+                let l = l.max(b0 - (q0 - s)).max(if gap { reach - (e + 1 - s) } else { 0 });
+                let r = b1.max(r - (q1 - e)).max(if gap { reach - (q1 - q0 + 1) } else { 0 });
+                Some((s, q1.max(e), l, r))
             }
-            None => Some((q0, q1)),
+            Some(cur) => {
+                out.push(segment(cur));
+                Some((q0, q1, b0, b1))
+            }
+            None => Some((q0, q1, b0, b1)),
         };
     };
     for &(p, from, to) in risen {
@@ -1250,20 +1283,20 @@ fn rescans(key: impl Fn(i32) -> Option<(u32, i32)>, line: [i32; 3], risen: &[(i3
             Some((l, l))
         };
         match from_p(&mut visited) {
-            Some((q0, q1)) if q0 < q1 => add(out, (q0, q1 - 1)),
+            Some((q0, q1)) if q0 < q1 => add(out, (q0, q1 - 1, bound(p, q0), bound(p, q1 - 1))),
             Some(_) => {}
             // Not the exact EDT of its inputs: read every output where
             // those from `p` can be.
             None => {
                 visited += (to - from + 1) as usize;
                 for q in (from..=to).filter(|&q| site(q) == Some(p)) {
-                    add(out, (q, q));
+                    add(out, (q, q, bound(p, q), bound(p, q)));
                 }
             }
         }
     }
-    if let Some((s, e)) = run {
-        out.push(Segment { line, lo: s + reach, hi: e - reach });
+    if let Some(cur) = run {
+        out.push(segment(cur));
     }
     visited
 }
@@ -1457,7 +1490,7 @@ impl Pass<'_> {
     /// Pass x on row `line` from `lo - reach` to `hi + reach`: the offset
     /// to the nearest obstacle, the map's obstacles flipped where `flips`
     /// says.
-    fn row(&self, edt: &EdtMap, flips: &Dirty, Segment { line, lo, hi }: Segment, s: &mut Scratch, out: &mut Vec<i16>) {
+    fn row(&self, edt: &EdtMap, flips: &Dirty, Segment { line, lo, hi, .. }: Segment, s: &mut Scratch, out: &mut Vec<i16>) {
         let r = self.reach;
         let base = lo - 2 * r;
         let n = (hi + 2 * r - base + 1) as usize;
@@ -1481,14 +1514,14 @@ impl Pass<'_> {
 
     /// Pass y on column `line` from `lo - reach` to `hi + reach`: offsets
     /// to the slice's nearest obstacle, from `g1`.
-    fn column(&self, g1: &FxHashMap<BlockKey, Box<G1Block>>, col: Column<'_, G1Block>, Segment { line, lo, hi }: Segment, s: &mut Scratch, out: &mut Vec<[i16; 2]>) {
+    fn column(&self, g1: &FxHashMap<BlockKey, Box<G1Block>>, col: Column<'_, G1Block>, Segment { line, lo, hi, margin }: Segment, s: &mut Scratch, out: &mut Vec<[i16; 2]>) {
         let r = self.reach;
-        let base = lo - 2 * r;
-        let n = (hi + 2 * r - base + 1) as usize;
+        let base = lo - r - margin.0;
+        let n = (hi + r + margin.1 - base + 1) as usize;
         s.reset(n);
         s.gather(g1, col, line, 1, base, |o| [o, 0]);
         s.scan();
-        for i in r as usize..n - r as usize {
+        for i in margin.0 as usize..n - margin.1 as usize {
             out.push(if s.out_f[i] == UNREACHABLE_DIST_SQ || s.out_f[i] > self.max {
                 NONE2
             } else {
@@ -1500,14 +1533,14 @@ impl Pass<'_> {
 
     /// Pass z on line `line` from `lo - reach` to `hi + reach`: distances
     /// and nearest obstacles, from `g2`.
-    fn depth(&self, g2: &FxHashMap<BlockKey, Box<G2Block>>, col: Column<'_, G2Block>, Segment { line, lo, hi }: Segment, s: &mut Scratch, out: &mut Vec<Out>) {
+    fn depth(&self, g2: &FxHashMap<BlockKey, Box<G2Block>>, col: Column<'_, G2Block>, Segment { line, lo, hi, margin }: Segment, s: &mut Scratch, out: &mut Vec<Out>) {
         let r = self.reach;
-        let base = lo - 2 * r;
-        let n = (hi + 2 * r - base + 1) as usize;
+        let base = lo - r - margin.0;
+        let n = (hi + r + margin.1 - base + 1) as usize;
         s.reset(n);
         s.gather(g2, col, line, 2, base, |o| o);
         s.scan();
-        for i in r as usize..n - r as usize {
+        for i in margin.0 as usize..n - margin.1 as usize {
             out.push(if s.out_f[i] == UNREACHABLE_DIST_SQ || s.out_f[i] > self.max {
                 (FAR_DIST_SQ, NO_OFFSET)
             } else {
