@@ -133,8 +133,8 @@ fn update_in_pool(map: &mut EdtMap, obstacles: &Obstacles<'_>, blocks: &[BlockKe
         .filter_map(|&key| {
             let mut m = obstacles.block_bits(key);
             if let Some(b) = g1.get(&key) {
-                for (w, row) in m.iter_mut().zip(b.chunks_exact(64)) {
-                    *w ^= row.iter().enumerate().fold(0, |a, (i, &d)| a | u64::from(d == 0) << i);
+                for (w, o) in m.iter_mut().zip(mask_where(b, |&d| d == 0)) {
+                    *w ^= o;
                 }
             }
             m.iter().any(|&w| w != 0).then_some((key, m))
@@ -198,13 +198,20 @@ struct Changed {
 /// next sorts by its lines: no look-up by key.
 type Marked = Vec<(BlockKey, Mask, Option<Box<Changed>>)>;
 
-/// The obstacles of an EDT block: its voxels at distance 0.
-fn obstacle_bits(b: &EdtBlock) -> Mask {
+/// The voxels of a block's values `v` (by offset) where `hit` holds, 64
+/// to a word (the test inlined, so it vectorises).
+#[inline]
+fn mask_where<T>(v: &[T; BLOCK_VOXELS], hit: impl Fn(&T) -> bool) -> Mask {
     let mut m = [0u64; 8];
-    for (w, d) in m.iter_mut().zip(b.to_nearest.chunks_exact(64)) {
-        *w = d.iter().enumerate().fold(0, |a, (i, &d)| a | u64::from(d == [0; 3]) << i);
+    for (w, d) in m.iter_mut().zip(v.chunks_exact(64)) {
+        *w = d.iter().enumerate().fold(0, |a, (i, d)| a | u64::from(hit(d)) << i);
     }
     m
+}
+
+/// The obstacles of an EDT block: its voxels at distance 0.
+fn obstacle_bits(b: &EdtBlock) -> Mask {
+    mask_where(&b.to_nearest, |d| *d == [0; 3])
 }
 
 fn bit(m: &Mask, o: usize) -> bool {
@@ -479,6 +486,15 @@ struct Segment {
     margin: (i32, i32),
 }
 
+impl Segment {
+    /// The first input and the number of inputs of a scan of this
+    /// segment: its outputs grown by its margins.
+    fn inputs(&self, reach: i32) -> (i32, usize) {
+        let base = self.lo - reach - self.margin.0;
+        (base, (self.hi + reach + self.margin.1 - base + 1) as usize)
+    }
+}
+
 /// The work of one line: outputs to recompute from all their inputs
 /// (`segments`, outputs `lo - reach ..= hi + reach`), then outputs to lower
 /// from the entries that were lowered (`lower`: outputs `a..=b` and the
@@ -615,7 +631,7 @@ impl Lower<Out> for LowerZ<'_> {
 /// Built over the reals, as Felzenszwalb and Huttenlocher's envelope is,
 /// with each crossing kept as a fraction and crossings compared by
 /// cross-multiplying: no division while building (each one waited on the
-/// last, 12 % of the exact integration on 3dmatch-seq01 at 2 m). Only the
+/// last: about 11 % of the exact integration on 3dmatch-seq01 at 2 m). Only the
 /// pieces' integer ends are divided out, independently of each other.
 #[derive(Debug, Default)]
 struct Sparse {
@@ -800,9 +816,10 @@ where
                 (line[b], line[d]) = (ks[0].0[b] * side + u as i32, ks[0].0[d] * side + v as i32);
                 let o_line = local(axis, u, v, 0);
                 let (first_segment, first_lower, first_risen) = (plan.segments.len(), plan.lower.len(), plan.risen.len());
-                // The line's dirty entries: position, reach, lowered; the
-                // lowered ones of passes y and z go straight to their
-                // lowering ranges (in ascending order, as they must).
+                // The line's dirty entries, position and reach: the lowered
+                // ones of passes y and z go straight to their lowering
+                // ranges (in ascending order, as they must), the others to
+                // `found`.
                 found.clear();
                 for (k, &(ref bits, ch)) in ks.iter().zip(&masks) {
                     let mut ts = bits[l];
@@ -815,7 +832,7 @@ where
                         if lowered {
                             plan_lowered(&mut plan, first_lower, p, w);
                         } else {
-                            found.push((p, w, lowered));
+                            found.push((p, w));
                         }
                     }
                 }
@@ -957,14 +974,15 @@ where
                             // `floor(sqrt(u))` is nearest to it, nor ties
                             // with what is. Most inputs of a rescan were the
                             // reach on each side of its few outputs.
-                            let bound = |p: i32, q: i32| {
+                            let bound = |p: i32, qs: [i32; 2]| {
                                 let (f, _) = lo.entry(inputs.at(p.div_euclid(side)).flatten(), o_line + p.rem_euclid(side) as usize * stride);
                                 // (Capped at the cutoff: an output beyond it
                                 // is far whichever input is nearest; so
-                                // capped, `q -+ bound(p, q)` only grows
-                                // with q.)
-                                let u = (u64::from(f) + u64::from((q - p).unsigned_abs()).pow(2)).min(u64::from(pass.max));
-                                i32::from(pass.roots.floor(u as u32)).min(reach)
+                                // capped, `q -+ bound` only grows with q.)
+                                qs.map(|q| {
+                                    let u = (u64::from(f) + u64::from((q - p).unsigned_abs()).pow(2)).min(u64::from(pass.max));
+                                    i32::from(pass.roots.floor(u as u32)).min(reach)
+                                })
                             };
                             st.visited += rescans(key, bound, lw.line, &plan.risen[lw.risen.clone()], reach, rescan);
                             rescan
@@ -1140,12 +1158,12 @@ where
 
 /// Plans a line of pass x: its dirty voxels, each grown by its reach,
 /// rescanned in segments (those closer than twice the reach merged).
-fn plan_rescan(plan: &mut Plan, line: [i32; 3], found: &[(i32, i32, bool)], reach: i32) {
+fn plan_rescan(plan: &mut Plan, line: [i32; 3], found: &[(i32, i32)], reach: i32) {
     // (last dirty position, lowest and highest output).
     let mut cur: Option<(i32, i32, i32)> = None;
     // A segment's outputs as `lo - reach ..= hi + reach`.
     let segment = |(_, a, b): (i32, i32, i32)| Segment { line, lo: a + reach, hi: b - reach, margin: (reach, reach) };
-    for &(p, w, _) in found {
+    for &(p, w) in found {
         cur = match cur {
             Some((last, a, b)) if p - last <= 2 * reach + 1 => Some((p, a.min(p - w), b.max(p + w))),
             Some(c) => {
@@ -1163,9 +1181,9 @@ fn plan_rescan(plan: &mut Plan, line: [i32; 3], found: &[(i32, i32, bool)], reac
 /// kept for [`rescans`] with where its outputs can be. `key(q)`: the
 /// squared distance and position of the entry the old output at `q` came
 /// from.
-fn plan_follow(plan: &mut Plan, key: impl Fn(i32) -> Option<(u32, i32)>, found: &[(i32, i32, bool)], (reach, max): (i32, u32)) {
+fn plan_follow(plan: &mut Plan, key: impl Fn(i32) -> Option<(u32, i32)>, found: &[(i32, i32)], (reach, max): (i32, u32)) {
     let first_risen = plan.risen.len();
-    for &(p, w, _) in found {
+    for &(p, w) in found {
         // Where the outputs from `p` can be: the entry's old value is more
         // than `max - (w + 1)²` (its reach `w` is the floor of the root of
         // the difference), and the outputs in reach lie at or below the
@@ -1220,7 +1238,7 @@ fn plan_lowered(plan: &mut Plan, first: usize, p: i32, w: i32) {
 /// outputs can be, from [`plan_follow`]; ascending), found among
 /// the old outputs (`key(q)` as there), runs less than twice the reach
 /// apart merged. Returns how many outputs it read.
-fn rescans(key: impl Fn(i32) -> Option<(u32, i32)>, bound: impl Fn(i32, i32) -> i32, line: [i32; 3], risen: &[(i32, i32, i32)], reach: i32, out: &mut Vec<Segment>) -> usize {
+fn rescans(key: impl Fn(i32) -> Option<(u32, i32)>, bound: impl Fn(i32, [i32; 2]) -> [i32; 2], line: [i32; 3], risen: &[(i32, i32, i32)], reach: i32, out: &mut Vec<Segment>) -> usize {
     out.clear();
     let mut visited = 0;
     // Along a line the sites of the outputs never decrease (of two
@@ -1230,13 +1248,13 @@ fn rescans(key: impl Fn(i32) -> Option<(u32, i32)>, bound: impl Fn(i32, i32) -> 
     let site = |q: i32| key(q).map(|k| k.1);
     // The run being joined: its first and last outputs, and how far its
     // inputs reach before the first and past the last. The outputs from
-    // `p`, `q0..=q1`, reach no further than `bound(p, q0)` before `q0` and
-    // `bound(p, q1)` past `q1` (`q -+ bound(p, q)` only grows with q);
+    // `p`, `q0..=q1`, reach no further than `bound(p, [q0, q1])` before
+    // `q0` and past `q1` (`q -+` its bound only grows with q);
     // the outputs between two runs, whose nearest input did not rise,
     // are given the whole reach.
     let mut run: Option<(i32, i32, i32, i32)> = None;
     let segment = |(s, e, l, r): (i32, i32, i32, i32)| Segment { line, lo: s + reach, hi: e - reach, margin: (l.clamp(0, reach), r.clamp(0, reach)) };
-    let mut add = |out: &mut Vec<Segment>, (q0, q1, b0, b1): (i32, i32, i32, i32)| {
+    let mut add = |out: &mut Vec<Segment>, (q0, q1): (i32, i32), [b0, b1]: [i32; 2]| {
         run = match run {
             Some((s, e, l, r)) if q0 - e <= 2 * reach => {
                 let gap = q0 > e + 1;
@@ -1284,14 +1302,14 @@ fn rescans(key: impl Fn(i32) -> Option<(u32, i32)>, bound: impl Fn(i32, i32) -> 
             Some((l, l))
         };
         match from_p(&mut visited) {
-            Some((q0, q1)) if q0 < q1 => add(out, (q0, q1 - 1, bound(p, q0), bound(p, q1 - 1))),
+            Some((q0, q1)) if q0 < q1 => add(out, (q0, q1 - 1), bound(p, [q0, q1 - 1])),
             Some(_) => {}
             // Not the exact EDT of its inputs: read every output where
             // those from `p` can be.
             None => {
                 visited += (to - from + 1) as usize;
                 for q in (from..=to).filter(|&q| site(q) == Some(p)) {
-                    add(out, (q, q, bound(p, q), bound(p, q)));
+                    add(out, (q, q), bound(p, [q, q]));
                 }
             }
         }
@@ -1491,10 +1509,9 @@ impl Pass<'_> {
     /// Pass x on row `line` from `lo - reach` to `hi + reach`: the offset
     /// to the nearest obstacle, the map's obstacles flipped where `flips`
     /// says.
-    fn row(&self, edt: &EdtMap, flips: &Dirty, Segment { line, lo, hi, .. }: Segment, s: &mut Scratch, out: &mut Vec<i16>) {
-        let r = self.reach;
-        let base = lo - 2 * r;
-        let n = (hi + 2 * r - base + 1) as usize;
+    fn row(&self, edt: &EdtMap, flips: &Dirty, seg: Segment, s: &mut Scratch, out: &mut Vec<i16>) {
+        let (line, margin) = (seg.line, seg.margin);
+        let (base, n) = seg.inputs(self.reach);
         s.flags.clear();
         s.flags.resize(n, false);
         let flags = &mut s.flags;
@@ -1508,17 +1525,16 @@ impl Pass<'_> {
         s.reset(n);
         let flags = &s.flags;
         sweep_row(|i| flags[i], 0, &mut s.out_f, &mut s.out_site);
-        for i in r as usize..n - r as usize {
+        for i in margin.0 as usize..n - margin.1 as usize {
             out.push(if s.out_site[i] == NO_SITE || s.out_f[i] > self.max { NONE } else { (s.out_site[i] as i32 - i as i32) as i16 });
         }
     }
 
     /// Pass y on column `line` from `lo - reach` to `hi + reach`: offsets
     /// to the slice's nearest obstacle, from `g1`.
-    fn column(&self, g1: &FxHashMap<BlockKey, Box<G1Block>>, col: Column<'_, G1Block>, Segment { line, lo, hi, margin }: Segment, s: &mut Scratch, out: &mut Vec<[i16; 2]>) {
-        let r = self.reach;
-        let base = lo - r - margin.0;
-        let n = (hi + r + margin.1 - base + 1) as usize;
+    fn column(&self, g1: &FxHashMap<BlockKey, Box<G1Block>>, col: Column<'_, G1Block>, seg: Segment, s: &mut Scratch, out: &mut Vec<[i16; 2]>) {
+        let (line, margin) = (seg.line, seg.margin);
+        let (base, n) = seg.inputs(self.reach);
         s.reset(n);
         s.gather(g1, col, line, 1, base, |o| [o, 0]);
         s.scan();
@@ -1534,10 +1550,9 @@ impl Pass<'_> {
 
     /// Pass z on line `line` from `lo - reach` to `hi + reach`: distances
     /// and nearest obstacles, from `g2`.
-    fn depth(&self, g2: &FxHashMap<BlockKey, Box<G2Block>>, col: Column<'_, G2Block>, Segment { line, lo, hi, margin }: Segment, s: &mut Scratch, out: &mut Vec<Out>) {
-        let r = self.reach;
-        let base = lo - r - margin.0;
-        let n = (hi + r + margin.1 - base + 1) as usize;
+    fn depth(&self, g2: &FxHashMap<BlockKey, Box<G2Block>>, col: Column<'_, G2Block>, seg: Segment, s: &mut Scratch, out: &mut Vec<Out>) {
+        let (line, margin) = (seg.line, seg.margin);
+        let (base, n) = seg.inputs(self.reach);
         s.reset(n);
         s.gather(g2, col, line, 2, base, |o| o);
         s.scan();
