@@ -781,9 +781,12 @@ where
             }
             let mut plan = Plan { dirty: (ks[0], ks[ks.len() - 1].0[axis]), ..Plan::default() };
             // The old outputs' blocks along the task's line of blocks, as far
-            // as a dirty entry reaches: looked up once for all its lines.
+            // as a dirty entry reaches: looked up once for all its lines,
+            // and only once an entry rose (most tasks of a frame only have
+            // lowered entries, which need no old output here).
             let base = ks[0].0[axis] - (reach + side - 1) / side;
-            let column: Vec<Option<&L::Block>> = if follow.is_some() {
+            let mut column: Option<Vec<Option<&L::Block>>> = None;
+            let look_up = || {
                 let mut k = ks[0].0;
                 (base..=ks[ks.len() - 1].0[axis] + (reach + side - 1) / side)
                     .map(|c| {
@@ -791,8 +794,6 @@ where
                         view.get(BlockKey(k))
                     })
                     .collect()
-            } else {
-                Vec::new()
             };
             // Only the lines with a dirty voxel in one of the blocks.
             let mut lines = 0u64;
@@ -838,9 +839,11 @@ where
                 }
                 match follow {
                     None => plan_rescan(&mut plan, line, found, reach),
+                    Some(_) if found.is_empty() => {}
                     Some(lo) => {
+                        let column = column.get_or_insert_with(look_up);
                         let key = |q: i32| {
-                            let block = Column { base, blocks: &column }.at(q.div_euclid(side))??;
+                            let block = Column { base, blocks: column }.at(q.div_euclid(side))??;
                             lo.key(q, L::read(block, o_line + q.rem_euclid(side) as usize * stride))
                         };
                         plan_follow(&mut plan, key, found, (reach, pass.max));
