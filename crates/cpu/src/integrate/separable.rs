@@ -795,16 +795,20 @@ where
                     })
                     .collect()
             };
-            // Only the lines with a dirty voxel in one of the blocks.
-            let mut lines = 0u64;
-            for (l, _) in masks.iter().flat_map(|m| m.0.iter().enumerate()).filter(|(_, &t)| t != 0) {
-                lines |= 1 << l;
+            // Only the lines with a dirty voxel in one of the blocks (their
+            // lines' bits joined, then one bit per line, without a branch).
+            let mut any = [0u8; 64];
+            for m in &masks {
+                for (a, &t) in any.iter_mut().zip(&m.0) {
+                    *a |= t;
+                }
             }
+            let mut lines = any.iter().enumerate().fold(0u64, |a, (l, &t)| a | u64::from(t != 0) << l);
             // The lists sized once (a line each, at most an entry per dirty
             // voxel) rather than grown by doubling.
             plan.lines.reserve(lines.count_ones() as usize);
             if follow.is_some() {
-                plan.entries.reserve(masks.iter().flat_map(|m| m.0).map(|t| t.count_ones() as usize).sum());
+                plan.entries.reserve(dirty[r.clone()].iter().flat_map(|e| e.1).map(|w| w.count_ones() as usize).sum());
                 plan.lower.reserve(lines.count_ones() as usize);
             } else {
                 plan.segments.reserve(lines.count_ones() as usize);
