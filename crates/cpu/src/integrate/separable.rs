@@ -51,7 +51,7 @@
 //! something else, loaded from a file) they are rebuilt from its obstacles
 //! before the frame, in the same passes.
 
-use crate::awake::awake;
+use crate::awake::{awake, share_out};
 use crate::edt::envelope::{envelope, sweep_row, EnvelopeScratch, Line};
 use edtmap_core::{
     BlockKey, BlockMap, Cutoff, EdtBlock, EdtMap, IntegrateReport, MapStamp, Obstacles, SharedBlock, VoxelIndex, WaveCounts, BLOCK_SIDE, BLOCK_VOXELS, FAR_DIST_SQ, NO_OFFSET,
@@ -768,10 +768,7 @@ where
     // Each task's plan, from the old outputs.
     let (side, stride) = (BLOCK_SIDE, [1, 8, 64][axis]);
     let view: &L = layer;
-    let planned: Vec<Plan> = tasks
-        .par_iter()
-        .with_min_len(min_len(tasks.len(), keys.len()))
-        .map_init(|| (Vec::new(), Scratch::default()), |(found, scratch), r| {
+    let planned: Vec<Plan> = share_out(tasks.clone(), min_len(tasks.len(), keys.len()) < tasks.len(), || (Vec::new(), Scratch::default()), |(found, scratch), r| {
             let ks = &keys[r.clone()];
             // Each block's dirty voxels by line and how they changed, looked
             // up once for its 64 lines.
@@ -862,8 +859,7 @@ where
             merged(spans.map(|(a, z)| (a.div_euclid(side), z.div_euclid(side))), &mut scratch.ranges);
             plan.owned.extend(scratch.ranges.iter().flat_map(|&(a, z)| a..=z));
             plan
-        })
-        .collect();
+        });
     // Take every task's blocks out of the layer.
     let key_of = |r: &Range<usize>, c: i32| {
         let mut k = keys[r.start].0;
@@ -884,10 +880,9 @@ where
     let cap = i64::from(pass.max) + 1;
     let view: &L = layer;
     type Written<L> = Vec<(i32, Option<<L as Layer>::Back>, Mask, Option<Box<Changed>>)>;
-    let stats: Vec<(Stats, Written<L>)> = work
-        .par_iter_mut()
-        .with_min_len(min_len(tasks.len(), keys.len()))
-        .map_init(
+    let stats: Vec<(Stats, Written<L>)> = share_out(
+            work,
+            min_len(tasks.len(), keys.len()) < tasks.len(),
             || (Scratch::default(), Vec::new(), Vec::new(), Sparse::default(), Vec::new(), Vec::new()),
             |(s, out, entries, sparse, rescan, index), (plan, slots)| {
                 let mut st = Stats { visited: plan.visited, ..Stats::default() };
@@ -1135,11 +1130,10 @@ where
                 // cache, and those to keep made ready to put back (a serial
                 // loop over them all took 0.1-0.2 ms). The plan and the
                 // blocks not kept freed here, on the thread that used them.
-                *plan = Plan::default();
+                drop(plan);
                 (st, owned.into_iter().map(|(c, b, mask, changed)| (c, (!view.empty(&b)).then(|| L::give(b)), mask, changed)).collect())
             },
-        )
-        .collect();
+        );
     // Put the blocks back; the changed voxels are the next pass's dirty ones.
     drop(dirty);
     let mut next = Marked::with_capacity(stats.iter().flat_map(|s| &s.1).filter(|e| e.2.iter().any(|&w| w != 0)).count());
