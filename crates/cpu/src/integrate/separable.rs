@@ -127,19 +127,18 @@ fn update_in_pool(map: &mut EdtMap, obstacles: &Obstacles<'_>, blocks: &[BlockKe
     // one mask per block. The map's obstacles are its `g1` entries at 0
     // (a third of the bytes of its EDT blocks, and compared 16 at a time).
     let g1 = &cache.g1;
-    let flips: Dirty = blocks
-        .par_iter()
-        .with_min_len(MIN_TASKS)
-        .filter_map(|&key| {
-            let mut m = obstacles.block_bits(key);
-            if let Some(b) = g1.get(&key) {
-                for (w, o) in m.iter_mut().zip(mask_where(b, |&d| d == 0)) {
-                    *w ^= o;
-                }
+    let flips: Dirty = share_out(blocks.to_vec(), blocks.len() >= 2 * MIN_TASKS, || (), |(), key| {
+        let mut m = obstacles.block_bits(key);
+        if let Some(b) = g1.get(&key) {
+            for (w, o) in m.iter_mut().zip(mask_where(b, |&d| d == 0)) {
+                *w ^= o;
             }
-            m.iter().any(|&w| w != 0).then_some((key, m))
-        })
-        .collect();
+        }
+        m.iter().any(|&w| w != 0).then_some((key, m))
+    })
+    .into_iter()
+    .flatten()
+    .collect();
     let dirty = flips.iter().map(|(&k, &m)| (k, m, None)).collect();
     let report = run_passes(map, &pass, cache, dirty, &flips, true);
     cache.valid_for = Some((map.stamp(), cutoff));
