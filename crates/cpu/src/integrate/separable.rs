@@ -159,23 +159,17 @@ fn rebuild(map: &mut EdtMap, pass: &Pass<'_>, cache: &mut SeparableCache) {
 }
 
 /// Small frames stay on one thread rather than pay for waking the others:
-/// the fewest blocks one thread takes in the flip test, and half the
-/// fewest tasks (lines of blocks) or dirty blocks a pass shares out
-/// (`min_len`).
+/// half the fewest blocks the flip test, and the fewest tasks (lines of
+/// blocks) or dirty blocks a pass, shares out among threads ([`shared`]).
 const MIN_TASKS: usize = 16;
 
-/// How many of a pass's `n` tasks (lines of blocks, with `blocks` dirty
-/// blocks among them) one thread takes at least: all of them when there
-/// are fewer than `2 * MIN_TASKS` of both, else a few (large loops end
-/// unbalanced when split in pieces of `MIN_TASKS`). Counting the blocks
-/// too shares out a pass of few but long lines: pass x of 3dmatch-seq01
-/// at 2 m has some 30 tasks of 16 µs each.
-fn min_len(n: usize, blocks: usize) -> usize {
-    if n < 2 * MIN_TASKS && blocks < 2 * MIN_TASKS {
-        n.max(1)
-    } else {
-        4
-    }
+/// Whether a pass of `n` tasks (lines of blocks, with `blocks` dirty
+/// blocks among them) is shared out among threads ([`share_out`]): not
+/// when there are fewer than `2 * MIN_TASKS` of both, nor four tasks or
+/// fewer. Counting the blocks too shares out a pass of few but long
+/// lines: pass x of 3dmatch-seq01 at 2 m has some 30 tasks of 16 µs each.
+fn shared(n: usize, blocks: usize) -> bool {
+    (n >= 2 * MIN_TASKS || blocks >= 2 * MIN_TASKS) && n > 4
 }
 
 /// One bit per voxel of a block, by offset.
@@ -767,7 +761,7 @@ where
     // Each task's plan, from the old outputs.
     let (side, stride) = (BLOCK_SIDE, [1, 8, 64][axis]);
     let view: &L = layer;
-    let planned: Vec<Plan> = share_out(tasks.clone(), min_len(tasks.len(), keys.len()) < tasks.len(), || (Vec::new(), Scratch::default()), |(found, scratch), r| {
+    let planned: Vec<Plan> = share_out(tasks.clone(), shared(tasks.len(), keys.len()), || (Vec::new(), Scratch::default()), |(found, scratch), r| {
             let ks = &keys[r.clone()];
             // Each block's dirty voxels by line and how they changed, looked
             // up once for its 64 lines.
@@ -881,7 +875,7 @@ where
     type Written<L> = Vec<(i32, Option<<L as Layer>::Back>, Mask, Option<Box<Changed>>)>;
     let stats: Vec<(Stats, Written<L>)> = share_out(
             work,
-            min_len(tasks.len(), keys.len()) < tasks.len(),
+            shared(tasks.len(), keys.len()),
             || (Scratch::default(), Vec::new(), Vec::new(), Sparse::default(), Vec::new(), Vec::new()),
             |(s, out, entries, sparse, rescan, index), (plan, slots)| {
                 let mut st = Stats { visited: plan.visited, ..Stats::default() };
