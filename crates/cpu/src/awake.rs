@@ -70,7 +70,12 @@ pub(crate) fn awake<R: Send>(f: impl FnOnce() -> R + Send) -> R {
 /// sleep in rayon's wait (a wake-up takes longer than an item).
 pub(crate) fn share_out<I: Send, T: Send, S>(items: Vec<I>, parallel: bool, init: impl Fn() -> S + Sync, f: impl Fn(&mut S, I) -> T + Sync) -> Vec<T> {
     let n = items.len();
-    let threads = if parallel { rayon::current_num_threads().clamp(1, n.max(1)) } else { 1 };
+    // (Runs' bounds are packed in 32 bits each.)
+    let threads = if parallel && u32::try_from(n).is_ok() { rayon::current_num_threads().min(n) } else { 1 };
+    if threads <= 1 {
+        let mut state = init();
+        return items.into_iter().map(|i| f(&mut state, i)).collect();
+    }
     let slots: Vec<Mutex<Option<I>>> = items.into_iter().map(|i| Mutex::new(Some(i))).collect();
     // Each run's first and end, packed in one word: `first << 32 | end`.
     let runs: Vec<AtomicU64> = (0..threads).map(|t| AtomicU64::new(((n * t / threads) as u64) << 32 | (n * (t + 1) / threads) as u64)).collect();
@@ -95,11 +100,21 @@ pub(crate) fn share_out<I: Send, T: Send, S>(items: Vec<I>, parallel: bool, init
         let v = runs[r].load(Ordering::Acquire);
         (v & 0xFFFF_FFFF).saturating_sub(v >> 32)
     };
+    // The last item of the run with the most left, none when all are done.
+    let steal = || loop {
+        let r = (0..threads).max_by_key(|&r| left(r))?;
+        if left(r) == 0 {
+            return None;
+        }
+        if let Some(i) = take(r, true) {
+            return Some(i);
+        }
+    };
     let run = |own: usize| {
         let mut state = init();
         let mut mine = Vec::new();
         loop {
-            let next = take(own, false).or_else(|| (0..threads).max_by_key(|&r| left(r)).and_then(|r| take(r, true)));
+            let next = take(own, false).or_else(steal);
             let Some(i) = next else { break };
             let item = slots[i].lock().unwrap_or_else(PoisonError::into_inner).take();
             if let Some(item) = item {
