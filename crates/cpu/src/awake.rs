@@ -68,15 +68,16 @@ pub(crate) fn awake<R: Send>(f: impl FnOnce() -> R + Send) -> R {
 /// from its own cache (handing items out in turn across threads was 10 %
 /// slower). The calling thread spins for the others' last items rather than
 /// sleep in rayon's wait (a wake-up takes longer than an item).
-pub(crate) fn share_out<I: Send, T: Send, S>(items: Vec<I>, parallel: bool, init: impl Fn() -> S + Sync, f: impl Fn(&mut S, I) -> T + Sync) -> Vec<T> {
+pub(crate) fn share_out<I: Send, T: Send, S>(items: impl IntoIterator<IntoIter: ExactSizeIterator<Item = I>>, parallel: bool, init: impl Fn() -> S + Sync, f: impl Fn(&mut S, I) -> T + Sync) -> Vec<T> {
+    let items = items.into_iter();
     let n = items.len();
     // (Runs' bounds are packed in 32 bits each.)
     let threads = if parallel && u32::try_from(n).is_ok() { rayon::current_num_threads().min(n) } else { 1 };
     if threads <= 1 {
         let mut state = init();
-        return items.into_iter().map(|i| f(&mut state, i)).collect();
+        return items.map(|i| f(&mut state, i)).collect();
     }
-    let slots: Vec<Mutex<Option<I>>> = items.into_iter().map(|i| Mutex::new(Some(i))).collect();
+    let slots: Vec<Mutex<Option<I>>> = items.map(|i| Mutex::new(Some(i))).collect();
     // Each run's first and end, packed in one word: `first << 32 | end`.
     let runs: Vec<AtomicU64> = (0..threads).map(|t| AtomicU64::new(((n * t / threads) as u64) << 32 | (n * (t + 1) / threads) as u64)).collect();
     let results = Mutex::new(Vec::with_capacity(n));

@@ -127,7 +127,7 @@ fn update_in_pool(map: &mut EdtMap, obstacles: &Obstacles<'_>, blocks: &[BlockKe
     // one mask per block. The map's obstacles are its `g1` entries at 0
     // (a third of the bytes of its EDT blocks, and compared 16 at a time).
     let g1 = &cache.g1;
-    let flips: Dirty = share_out(blocks.to_vec(), blocks.len() >= 2 * MIN_TASKS, || (), |(), key| {
+    let flips: Dirty = share_out(blocks.iter().copied(), blocks.len() >= 2 * MIN_TASKS, || (), |(), key| {
         let mut m = obstacles.block_bits(key);
         if let Some(b) = g1.get(&key) {
             for (w, o) in m.iter_mut().zip(mask_where(b, |&d| d == 0)) {
@@ -761,7 +761,7 @@ where
     // Each task's plan, from the old outputs.
     let (side, stride) = (BLOCK_SIDE, [1, 8, 64][axis]);
     let view: &L = layer;
-    let planned: Vec<Plan> = share_out(tasks.clone(), shared(tasks.len(), keys.len()), || (Vec::new(), Scratch::default()), |(found, scratch), r| {
+    let planned: Vec<Plan> = share_out(&tasks, shared(tasks.len(), keys.len()), || (Vec::new(), Scratch::default()), |(found, scratch), r| {
             let ks = &keys[r.clone()];
             // Each block's dirty voxels by line and how they changed, looked
             // up once for its 64 lines.
