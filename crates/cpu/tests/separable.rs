@@ -6,12 +6,14 @@
 //! Steps make obstacles appear and vanish, sparse and in walls, inside and
 //! outside earlier windows, and sometimes hand the backend a map it has not
 //! seen (a clone), so the cache is rebuilt from the map. The blocks the
-//! update reports changed must be exactly those where a voxel changed.
+//! update reports changed must be exactly those where a voxel changed, and
+//! the voxels it counts and their change in distance those found by
+//! comparing the maps.
 
 use edtmap_core::region::{Packing, Region};
 use edtmap_core::stages::exact::{recompute_exact, ExactBuffers};
 use edtmap_core::{
-    Backend, BlockKey, Cutoff, EdtMap, GlobalParams, IntegrateJob, Integration, LogOdds, Obstacles, OccupancyMap, OccupancyParams, StaticMap, VoxelIndex, FAR_DIST_SQ,
+    Backend, BlockKey, Cutoff, EdtMap, GlobalParams, IntegrateJob, Integration, LogOdds, Obstacles, OccupancyMap, OccupancyParams, StaticMap, VoxelIndex, BLOCK_VOXELS, FAR_DIST_SQ, NO_OFFSET,
 };
 use edtmap_cpu::CpuBackend;
 use proptest::prelude::*;
@@ -126,6 +128,26 @@ fn check(cutoff_tenths: u32, steps: Vec<(u8, u32, u32, u32)>, clone_at: usize) -
         let keys: BTreeSet<BlockKey> = before.iter().chain(map.iter()).map(|(k, _)| k).collect();
         let differ: Vec<BlockKey> = keys.into_iter().filter(|&k| before.get(k) != map.get(k)).collect();
         prop_assert_eq!(&report.changed_blocks, &differ, "step {}: changed blocks", i);
+        // The voxels reported changed (distance or nearest obstacle), and
+        // the sum of their distances' changes, distances capped at the
+        // cutoff (the paper's change score, eq. 6, before the mean).
+        let capped = |o: [i16; 3]| {
+            let d = if o == NO_OFFSET { f64::INFINITY } else { o.iter().map(|&c| f64::from(c).powi(2)).sum() };
+            d.min(f64::from(cutoff.max_dist_sq)).sqrt()
+        };
+        let (mut changed, mut sum) = (0, 0.0);
+        for &k in &differ {
+            for o in 0..BLOCK_VOXELS {
+                let at = |m: &EdtMap| m.get(k).map_or(NO_OFFSET, |b| b.to_nearest[o]);
+                let (was, now) = (at(&before), at(&map));
+                if was != now {
+                    changed += 1;
+                    sum += (capped(now) - capped(was)).abs();
+                }
+            }
+        }
+        prop_assert_eq!(report.voxels_changed, changed, "step {}: voxels changed", i);
+        prop_assert!((report.change_sum_vox - sum).abs() <= 1e-9 * sum.max(1.0), "step {}: change sum {} against {}", i, report.change_sum_vox, sum);
         let want = reference(&world, cutoff);
         prop_assert_eq!(map.len(), want.len(), "step {}: blocks", i);
         for (key, block) in want.iter() {
