@@ -144,7 +144,7 @@ pub fn clip_segment(a: [f64; 3], b: [f64; 3], dims: [usize; 3]) -> Option<(f64, 
 /// the truncation of a positive `x` is its floor, and `x` less its floor
 /// is exact.
 fn round_clamped(x: f64, max: u64) -> u64 {
-    if !(x > 0.0) {
+    if x <= 0.0 {
         return 0;
     }
     if x >= max as f64 {

@@ -230,6 +230,10 @@ impl<B: Default + Clone> BlockMap<B> {
 
 /// A block as a [`BlockMap`] stores it (shared with the map's clones, if
 /// any), out of the map: [`BlockMap::take_shared`].
+// The box inside the `Arc` is on purpose: a block no clone shares comes
+// out of it as the same `Box`, where an `Arc<B>` would copy its kilobytes
+// out by value (`into_owned`, once per block written per pass).
+#[allow(clippy::redundant_allocation)]
 #[derive(Debug)]
 pub struct SharedBlock<B>(Arc<Box<B>>);
 
