@@ -252,17 +252,18 @@ def exercise(node):
         each output at its own rate, and a sample the node's writer sent
         before it had matched this reader is gone (the outputs are volatile;
         matching is seen from each side at its own time)."""
-        deadline = time.monotonic() + timeout_s
         next_frame = time.monotonic() + 0.25
-        while not pred():
-            now = time.monotonic()
-            if now >= deadline:
-                pytest.fail(f"timed out after {timeout_s} s waiting for {what} ({len(sent)} frames sent)")
-            node.check_alive()
-            if now >= next_frame:
+
+        def streaming():
+            nonlocal next_frame
+            if pred():
+                return True
+            if time.monotonic() >= next_frame:
                 send_frame()
-                next_frame = now + 0.25
-            time.sleep(0.02)
+                next_frame = time.monotonic() + 0.25
+            return False
+
+        wait_until(node, what, streaming, timeout_s)
 
     deadline = time.monotonic() + 30
     while state["frames"] < FRAMES:

@@ -103,8 +103,8 @@ pub(crate) fn share_out<I: Send, T: Send, S>(items: impl IntoIterator<IntoIter: 
     };
     // The last item of the run with the most left, none when all are done.
     let steal = || loop {
-        let r = (0..threads).max_by_key(|&r| left(r))?;
-        if left(r) == 0 {
+        let (r, most) = (0..threads).map(|r| (r, left(r))).max_by_key(|&(_, n)| n)?;
+        if most == 0 {
             return None;
         }
         if let Some(i) = take(r, true) {
