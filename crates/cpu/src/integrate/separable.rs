@@ -909,6 +909,17 @@ where
                 let inputs = column(first.0[axis], last);
                 let inputs = Column { base: first.0[axis], blocks: &inputs };
                 let mut wide: Option<(i32, Vec<Option<&Lo::In>>)> = None;
+                // Keeps how the entry at `o` changed, for the next pass.
+                let note = |changed: &mut Option<Box<Changed>>, o: usize, old: L::Value, new: L::Value| {
+                    let (vo, vn) = (value(old), value(new));
+                    let f = vo.min(vn);
+                    let w = if f > pass.max { 0 } else { pass.roots.floor(pass.max - f) };
+                    let c = changed.get_or_insert_with(|| Box::new(Changed { radius: [0; BLOCK_VOXELS], lowered: [0; 8] }));
+                    c.radius[o] = w;
+                    if vn < vo {
+                        c.lowered[o / 64] |= 1 << (o % 64);
+                    }
+                };
                 // Writes `new` over `old` at `o` of block `j` if it differs.
                 let replace = |blocks: &mut Owned<L::Block>, j: usize, o: usize, old: L::Value, new: L::Value, st: &mut Stats| {
                     let (_, block, mask, changed) = &mut blocks[j];
@@ -918,14 +929,7 @@ where
                         st.changed += 1;
                         st.sum += amount(old, new);
                         if L::FEEDS_NEXT {
-                            let (vo, vn) = (value(old), value(new));
-                            let f = vo.min(vn);
-                            let w = if f > pass.max { 0 } else { pass.roots.floor(pass.max - f) };
-                            let c = changed.get_or_insert_with(|| Box::new(Changed { radius: [0; BLOCK_VOXELS], lowered: [0; 8] }));
-                            c.radius[o] = w;
-                            if vn < vo {
-                                c.lowered[o / 64] |= 1 << (o % 64);
-                            }
+                            note(changed, o, old, new);
                         }
                     }
                 };
@@ -1004,24 +1008,8 @@ where
                                 let key = lo.key(q as i32, old);
                                 (key.map_or(cap, |k| i64::from(k.0).min(cap)), key, old)
                             };
-                            let last = o_line + (side as usize - 1) * stride;
                             for piece in sparse.pieces() {
                                 let clear = !segments.iter().any(|g| i64::from(g.lo - reach) <= piece.e && piece.s <= i64::from(g.hi + reach));
-                                // Lowers the output at q (block j, offset o)
-                                // where the piece beats it; whether it lies at
-                                // or below it.
-                                let lower = |blocks: &mut Owned<L::Block>, (j, o): (usize, usize), q: i64, st: &mut Stats| {
-                                    st.visited += 1;
-                                    let ((v, key, old), dq) = (old_at(blocks, (j, o), q), piece.at(q));
-                                    if v < dq {
-                                        return false;
-                                    }
-                                    let (dq, p) = (dq as u32, piece.p as i32);
-                                    if dq <= pass.max && (clear || !rescanned(q)) && key.is_none_or(|cur| (dq, p) < cur) {
-                                        replace(blocks, j, o, old, lo.make(lw.line, q as i32, p, dq, entries[piece.index].1), st);
-                                    }
-                                    true
-                                };
                                 // The old outputs less the piece, capped, are
                                 // concave along the line (each old output is a
                                 // least parabola; two parabolas differ by a
@@ -1067,33 +1055,11 @@ where
                                     }
                                     l
                                 };
-                                // From the peak down, then up, stepping
-                                // through the blocks, with `lower` called
-                                // from this one place (where it is
-                                // inlined) and counting into `walk` (kept
-                                // in registers, not carried through
-                                // memory from one output to the next).
-                                let mut walk = Stats::default();
-                                let (mut q, mut at, mut down) = (l, slot(l), true);
-                                loop {
-                                    let beaten = lower(blocks, at, q, &mut walk);
-                                    if down && beaten && q > piece.s {
-                                        at = if at.1 == o_line { (at.0 - 1, last) } else { (at.0, at.1 - stride) };
-                                        q -= 1;
-                                        continue;
-                                    }
-                                    if down {
-                                        (down, q, at) = (false, l, slot(l));
-                                    } else if !beaten {
-                                        break;
-                                    }
-                                    if q >= piece.e {
-                                        break;
-                                    }
-                                    at = if at.1 == last { (at.0 + 1, o_line) } else { (at.0, at.1 + stride) };
-                                    q += 1;
-                                }
-                                st.add(walk);
+                                // From the peak down, then up.
+                                let entry = entries[piece.index].1;
+                                let make = |q: i32, d: u32| lo.make(lw.line, q, piece.p as i32, d, entry);
+                                let keep = |q: i64| clear || !rescanned(q);
+                                st.add(walk::<L, Lo>(blocks, lo, &piece, l, (ja, ca), (o_line, stride), (cap, pass.max), keep, make, &amount, &note));
                             }
                         }
                     }
@@ -1148,6 +1114,109 @@ where
     }
     layer.restore(back);
     (next, total)
+}
+
+/// Walks a lowering piece over the outputs it beats, down from `peak` (an
+/// output it beats) to the first it does not beat or the piece's start,
+/// then up from `peak + 1` likewise to its end, and writes those it
+/// lowers: where `keep` (no rescan writes it), and the piece's value is
+/// within the cutoff and less than the old output's, or equal from a
+/// lower site (`make(q, value)`: the new output at `q`). Each of the
+/// task's blocks is looked up once per stretch along it, not per output,
+/// and what changed is counted in registers: in pass z on 3dmatch-seq01
+/// this walk is most of the integration. `(ja, ca)`: the place among the
+/// task's blocks of one block along the line and its coordinate along the
+/// axis; `(o_line, stride)`: the line's offset in a block and the stride
+/// along the axis; `(cap, max)`: the cap of old values and the cutoff's
+/// squared distance.
+#[allow(clippy::too_many_arguments)]
+#[inline(never)]
+fn walk<L: Layer, Lo: Lower<L::Value>>(
+    blocks: &mut Owned<L::Block>,
+    lo: &Lo,
+    piece: &Piece,
+    peak: i64,
+    (ja, ca): (usize, i64),
+    (o_line, stride): (usize, usize),
+    (cap, max): (i64, u32),
+    keep: impl Fn(i64) -> bool,
+    make: impl Fn(i32, u32) -> L::Value,
+    amount: impl Fn(L::Value, L::Value) -> f64,
+    note: impl Fn(&mut Option<Box<Changed>>, usize, L::Value, L::Value),
+) -> Stats {
+    let side = BLOCK_SIDE as i64;
+    let mut st = Stats::default();
+    let p = piece.p as i32;
+    // The output at `q`, offset `o` of `block`: whether the piece lies at
+    // or below it, and if so, the output lowered where it should be.
+    // (A macro: as a closure it was not inlined, a call per output.)
+    macro_rules! step {
+        ($entry:expr, $o:expr, $q:expr) => {{
+            let ((_, block, mask, how), o, q) = ($entry, $o, $q);
+            st.visited += 1;
+            let old = L::read(block, o);
+            let key = lo.key(q as i32, old);
+            let dq = piece.at(q);
+            if key.map_or(cap, |k| i64::from(k.0).min(cap)) < dq {
+                false
+            } else {
+                let dq = dq as u32;
+                if dq <= max && keep(q) && key.is_none_or(|cur| (dq, p) < cur) {
+                    // Nearer, as near from a lower site, or where the old
+                    // output is far: never the old output again.
+                    let new = make(q as i32, dq);
+                    debug_assert!(new != old);
+                    L::write(block, o, new);
+                    mask[o / 64] |= 1 << (o % 64);
+                    st.changed += 1;
+                    st.sum += amount(old, new);
+                    if L::FEEDS_NEXT {
+                        note(how, o, old, new);
+                    }
+                }
+                true
+            }
+        }};
+    }
+    let slot = |q: i64| ja + (q.div_euclid(side) - ca) as usize;
+    let mut q = peak;
+    'down: loop {
+        let entry = &mut blocks[slot(q)];
+        let stop = (q.div_euclid(side) * side).max(piece.s);
+        let mut o = o_line + q.rem_euclid(side) as usize * stride;
+        loop {
+            if !step!(&mut *entry, o, q) {
+                break 'down;
+            }
+            if q <= stop {
+                break;
+            }
+            q -= 1;
+            o -= stride;
+        }
+        if q <= piece.s {
+            break;
+        }
+        q -= 1;
+    }
+    q = peak + 1;
+    'up: while q <= piece.e {
+        let entry = &mut blocks[slot(q)];
+        let stop = (q.div_euclid(side) * side + side - 1).min(piece.e);
+        let mut o = o_line + q.rem_euclid(side) as usize * stride;
+        loop {
+            if !step!(&mut *entry, o, q) {
+                break 'up;
+            }
+            if q >= stop {
+                break;
+            }
+            q += 1;
+            o += stride;
+        }
+        q += 1;
+    }
+    st
 }
 
 /// Plans a line of pass x: its dirty voxels, each grown by its reach,
