@@ -1164,6 +1164,9 @@ fn walk<L: Layer, Lo: Lower<L::Value>>(
                 if dq <= max && keep(q) && key.is_none_or(|cur| (dq, p) < cur) {
                     // Nearer, as near from a lower site, or where the old
                     // output is far: never the old output again.
+                    // (The task's `replace`, written out: shared through
+                    // an inlined function, 3dmatch-seq01 at 2 m measured
+                    // 3-4 % slower.)
                     let new = make(q as i32, dq);
                     debug_assert!(new != old);
                     L::write(block, o, new);
