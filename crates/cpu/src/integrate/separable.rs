@@ -500,13 +500,17 @@ struct LineWork {
     risen: Range<usize>,
 }
 
+/// A lowering range of a line, `a..=z`, and its entries' place among the
+/// plan's entries.
+type Lowering = (i32, i32, Range<usize>);
+
 /// A task's plan: its lines, their segments, their lowering ranges and the
 /// positions of the lowered entries, and the blocks they write.
 #[derive(Debug, Default)]
 struct Plan {
     lines: Vec<LineWork>,
     segments: Vec<Segment>,
-    lower: Vec<(i32, i32, Range<usize>)>,
+    lower: Vec<Lowering>,
     entries: Vec<i32>,
     /// The entries that rose (or changed without falling): position and
     /// the run where their outputs can be, searched in the task's blocks
@@ -991,77 +995,7 @@ where
                         // First the outputs the lowered entries lower, from
                         // the old outputs: the rescans below overwrite
                         // their own outputs, which this leaves to them.
-                        let rescanned = |q: i64| segments.iter().any(|g| i64::from(g.lo - reach) <= q && q <= i64::from(g.hi + reach));
-                        for &(a, z, ref ps) in &plan.lower[lw.lower.clone()] {
-                            let ps = &plan.entries[ps.clone()];
-                            entries.clear();
-                            entries.extend(ps.iter().map(|&p| lo.entry(inputs.at(p.div_euclid(side)).flatten(), o_line + p.rem_euclid(side) as usize * stride)));
-                            sparse.build(a, z, ps.iter().zip(entries.iter()).map(|(&p, &(f, _))| (p, f)));
-                            let (ca, ja) = (i64::from(a.div_euclid(side)), blocks.partition_point(|x| x.0 < a.div_euclid(side)));
-                            // Block and offset of the output at q.
-                            let slot = |q: i64| (ja + (q.div_euclid(i64::from(side)) - ca) as usize, o_line + q.rem_euclid(i64::from(side)) as usize * stride);
-                            // The old output at q (block j, offset o): its
-                            // squared distance capped just past the cutoff,
-                            // and its key.
-                            let old_at = |blocks: &Owned<L::Block>, (j, o): (usize, usize), q: i64| {
-                                let old = L::read(&blocks[j].1, o);
-                                let key = lo.key(q as i32, old);
-                                (key.map_or(cap, |k| i64::from(k.0).min(cap)), key, old)
-                            };
-                            for piece in sparse.pieces() {
-                                let clear = !segments.iter().any(|g| i64::from(g.lo - reach) <= piece.e && piece.s <= i64::from(g.hi + reach));
-                                // The old outputs less the piece, capped, are
-                                // concave along the line (each old output is a
-                                // least parabola; two parabolas differ by a
-                                // line), so the outputs the piece beats are
-                                // one run: walk out from the parabola's own
-                                // position when the piece beats it there (as
-                                // it mostly does), else from the peak, found
-                                // by bisection.
-                                let start = piece.p.clamp(piece.s, piece.e);
-                                let (at_start, key, _) = old_at(blocks, slot(start), start);
-                                let l = if at_start >= piece.at(start) {
-                                    start
-                                } else {
-                                    // No piece of this envelope wrote on
-                                    // `s..=e` yet, so the outputs there
-                                    // still lie at or below the parabola
-                                    // of the output at `start`. The piece
-                                    // less that parabola is a line: the
-                                    // piece can only beat outputs where
-                                    // it lies at or below the parabola, a
-                                    // run found by arithmetic alone (none:
-                                    // skip it), and the peak is searched
-                                    // there.
-                                    let (mut l, mut h) = (piece.s, piece.e);
-                                    if let Some((d, site)) = key {
-                                        let site = i64::from(site);
-                                        let f = i64::from(d) - (start - site) * (start - site);
-                                        let Some(run) = half_line(l, h, |q| (q - site) * (q - site) + f >= piece.at(q)) else { continue };
-                                        (l, h) = run;
-                                    }
-                                    while l < h {
-                                        let m = l + (h - l) / 2;
-                                        let gain = |q| old_at(blocks, slot(q), q).0 - piece.at(q);
-                                        st.visited += 2;
-                                        if gain(m) >= gain(m + 1) {
-                                            h = m;
-                                        } else {
-                                            l = m + 1;
-                                        }
-                                    }
-                                    if l == start || old_at(blocks, slot(l), l).0 < piece.at(l) {
-                                        continue;
-                                    }
-                                    l
-                                };
-                                // From the peak down, then up.
-                                let entry = entries[piece.index].1;
-                                let make = |q: i32, d: u32| lo.make(lw.line, q, piece.p as i32, d, entry);
-                                let keep = |q: i64| clear || !rescanned(q);
-                                st.add(walk::<L, Lo>(blocks, lo, &piece, l, (ja, ca), (o_line, stride), (cap, pass.max), keep, make, &amount, &note));
-                            }
-                        }
+                        st.add(lower_line::<L, Lo, _, _>(blocks, lo, inputs, (&plan.lower[lw.lower.clone()], &plan.entries), lw.line, (o_line, stride), (segments, reach), (cap, pass.max), (entries, sparse), &amount, &note));
                     }
                     if !segments.is_empty() && wide.is_none() {
                         let grow = (reach + side - 1) / side;
@@ -1114,6 +1048,99 @@ where
     }
     layer.restore(back);
     (next, total)
+}
+
+/// Lowers the outputs of a line of pass y or z from its lowered entries
+/// (`ranges`: each lowering range with its entries' positions among
+/// `positions`): the lower envelope of each range's entries, and each of
+/// its pieces walked over the old outputs it beats ([`walk`]), but not
+/// over the outputs a rescan (`segments`, grown by `reach`) writes. A
+/// function of its own, like the walk, rather than part of the task's
+/// closure. `inputs`: the previous pass's blocks along the task's dirty
+/// blocks; `(o_line, stride)`, `(cap, max)`: as for [`walk`]; `entries`,
+/// `sparse`: the thread's working memory.
+#[allow(clippy::too_many_arguments)]
+#[inline(never)]
+fn lower_line<L: Layer, Lo: Lower<L::Value>, A: Fn(L::Value, L::Value) -> f64, N: Fn(&mut Option<Box<Changed>>, usize, L::Value, L::Value)>(
+    blocks: &mut Owned<L::Block>,
+    lo: &Lo,
+    inputs: Column<'_, Lo::In>,
+    (ranges, positions): (&[Lowering], &[i32]),
+    line: [i32; 3],
+    (o_line, stride): (usize, usize),
+    (segments, reach): (&[Segment], i32),
+    (cap, max): (i64, u32),
+    (entries, sparse): (&mut Vec<(u32, Lo::Entry)>, &mut Sparse),
+    amount: &A,
+    note: &N,
+) -> Stats {
+    let side = BLOCK_SIDE;
+    let mut st = Stats::default();
+    let rescanned = |q: i64| segments.iter().any(|g| i64::from(g.lo - reach) <= q && q <= i64::from(g.hi + reach));
+    for &(a, z, ref ps) in ranges {
+        let ps = &positions[ps.clone()];
+        entries.clear();
+        entries.extend(ps.iter().map(|&p| lo.entry(inputs.at(p.div_euclid(side)).flatten(), o_line + p.rem_euclid(side) as usize * stride)));
+        sparse.build(a, z, ps.iter().zip(entries.iter()).map(|(&p, &(f, _))| (p, f)));
+        let (ca, ja) = (i64::from(a.div_euclid(side)), blocks.partition_point(|x| x.0 < a.div_euclid(side)));
+        // Block and offset of the output at q.
+        let slot = |q: i64| (ja + (q.div_euclid(i64::from(side)) - ca) as usize, o_line + q.rem_euclid(i64::from(side)) as usize * stride);
+        // The old output at q (block j, offset o): its squared distance
+        // capped just past the cutoff, and its key.
+        let old_at = |blocks: &Owned<L::Block>, (j, o): (usize, usize), q: i64| {
+            let old = L::read(&blocks[j].1, o);
+            let key = lo.key(q as i32, old);
+            (key.map_or(cap, |k| i64::from(k.0).min(cap)), key, old)
+        };
+        for piece in sparse.pieces() {
+            let clear = !segments.iter().any(|g| i64::from(g.lo - reach) <= piece.e && piece.s <= i64::from(g.hi + reach));
+            // The old outputs less the piece, capped, are concave along
+            // the line (each old output is a least parabola; two
+            // parabolas differ by a line), so the outputs the piece beats
+            // are one run: walk out from the parabola's own position when
+            // the piece beats it there (as it mostly does), else from the
+            // peak, found by bisection.
+            let start = piece.p.clamp(piece.s, piece.e);
+            let (at_start, key, _) = old_at(blocks, slot(start), start);
+            let l = if at_start >= piece.at(start) {
+                start
+            } else {
+                // No piece of this envelope wrote on `s..=e` yet, so the
+                // outputs there still lie at or below the parabola of the
+                // output at `start`. The piece less that parabola is a
+                // line: the piece can only beat outputs where it lies at
+                // or below the parabola, a run found by arithmetic alone
+                // (none: skip it), and the peak is searched there.
+                let (mut l, mut h) = (piece.s, piece.e);
+                if let Some((d, site)) = key {
+                    let site = i64::from(site);
+                    let f = i64::from(d) - (start - site) * (start - site);
+                    let Some(run) = half_line(l, h, |q| (q - site) * (q - site) + f >= piece.at(q)) else { continue };
+                    (l, h) = run;
+                }
+                while l < h {
+                    let m = l + (h - l) / 2;
+                    let gain = |q| old_at(blocks, slot(q), q).0 - piece.at(q);
+                    st.visited += 2;
+                    if gain(m) >= gain(m + 1) {
+                        h = m;
+                    } else {
+                        l = m + 1;
+                    }
+                }
+                if l == start || old_at(blocks, slot(l), l).0 < piece.at(l) {
+                    continue;
+                }
+                l
+            };
+            // From the peak down, then up.
+            let entry = entries[piece.index].1;
+            let make = |q: i32, d: u32| lo.make(line, q, piece.p as i32, d, entry);
+            let keep = |q: i64| clear || !rescanned(q);
+            st.add(walk::<L, Lo>(blocks, lo, &piece, l, (ja, ca), (o_line, stride), (cap, max), keep, make, amount, note));
+        }
+    }
+    st
 }
 
 /// Walks a lowering piece over the outputs it beats, down from `peak` (an
