@@ -29,6 +29,12 @@ impl Kernel {
 
     /// Compiles `entry` of `module` with bind groups of `layouts`.
     pub(crate) fn with_layouts(ctx: &GpuContext, module: &wgpu::ShaderModule, layouts: &[&wgpu::BindGroupLayout], entry: &str) -> Self {
+        Self::specialised(ctx, module, layouts, entry, &[])
+    }
+
+    /// Compiles `entry` of `module` with bind groups of `layouts` and the
+    /// shader's overridable constants set to `constants`.
+    pub(crate) fn specialised(ctx: &GpuContext, module: &wgpu::ShaderModule, layouts: &[&wgpu::BindGroupLayout], entry: &str, constants: &[(&str, f64)]) -> Self {
         let layouts: Vec<Option<&wgpu::BindGroupLayout>> = layouts.iter().map(|&l| Some(l)).collect();
         let pipeline_layout = ctx.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some(entry),
@@ -40,7 +46,7 @@ impl Kernel {
             layout: Some(&pipeline_layout),
             module,
             entry_point: Some(entry),
-            compilation_options: Default::default(),
+            compilation_options: wgpu::PipelineCompilationOptions { constants, ..Default::default() },
             cache: None,
         });
         Kernel { pipeline, counters: ctx.counter_handle() }

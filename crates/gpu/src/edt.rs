@@ -25,6 +25,26 @@ struct Params {
     count: u32,
     aux: u32,
     total: u32,
+    /// The grid's origin within its first block, when the scan along x
+    /// reads resident blocks ([`Mask::Blocks`]).
+    o8: [u32; 4],
+    /// The grid's blocks along x and y.
+    nb: [u32; 4],
+}
+
+/// Bytes of [`Params`].
+const PARAMS_BYTES: u64 = std::mem::size_of::<Params>() as u64;
+
+/// Where the batch EDT's obstacles come from.
+#[derive(Debug, Clone, Copy)]
+pub(crate) enum Mask<'a> {
+    /// The grid's own bits, uploaded (one bit per voxel).
+    Bits(&'a Grid3<bool>),
+    /// Blocks resident on the device (`obstacles.rs`): a grid of `dims`
+    /// voxels whose first voxel is at `o8` within its first block, and
+    /// per block of the grid its slot in `pool` (`slots`, x fastest,
+    /// `nb` blocks per axis), or `EMPTY` / `FULL`.
+    Blocks { dims: [usize; 3], o8: [u32; 3], nb: [u32; 3], pool: &'a wgpu::Buffer, slots: &'a wgpu::Buffer },
 }
 
 /// The batch EDT kernels and their buffers, kept across calls: buffers are
@@ -33,6 +53,8 @@ struct Params {
 pub struct GpuEdt {
     ctx: GpuContext,
     scan_x: Kernel,
+    /// `scan_x` reading resident blocks ([`Mask::Blocks`]).
+    scan_x_blocks: Kernel,
     transpose: Kernel,
     scan: Kernel,
     layout: wgpu::BindGroupLayout,
@@ -53,6 +75,9 @@ struct Buffers {
     mask: wgpu::Buffer,
     /// Where the last scan leaves the pairs (`dst` of `b_to_a`).
     a: wgpu::Buffer,
+    /// The other pair buffer, and Meijster's stack.
+    b: wgpu::Buffer,
+    stack: wgpu::Buffer,
     /// For reading the pairs back, made on the first [`GpuEdt::run`].
     staging: Option<wgpu::Buffer>,
     /// src = A, dst = B, and the reverse (A is the other ping-pong buffer).
@@ -69,17 +94,19 @@ impl GpuEdt {
                 source: wgpu::ShaderSource::Wgsl(include_str!("edt.wgsl").into()),
             });
             let storage = |binding, read_only| crate::dispatch::storage_entry(binding, read_only);
-            let entries = [crate::dispatch::uniform_entry(0, true), storage(1, true), storage(2, true), storage(3, false), storage(4, false)];
+            let entries = [crate::dispatch::uniform_entry(0, true), storage(1, true), storage(2, true), storage(3, false), storage(4, false), storage(5, true)];
             let layout = ctx.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
                 label: Some("edt"),
                 entries: &entries,
             });
-            let slot_bytes = u64::from(ctx.limits().min_uniform_buffer_offset_alignment).max(16);
+            // A power of two at least the alignment and the parameters.
+            let slot_bytes = u64::from(ctx.limits().min_uniform_buffer_offset_alignment).max(PARAMS_BYTES.next_power_of_two());
             let params = ctx.buffer("edt params", slot_bytes * SLOTS as u64, wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST);
             let kernel = |entry| Kernel::new(ctx, &module, &layout, entry);
             GpuEdt {
                 ctx: ctx.clone(),
                 scan_x: kernel("scan_x"),
+                scan_x_blocks: Kernel::specialised(ctx, &module, &[&layout], "scan_x", &[("FROM_BLOCKS", 1.0)]),
                 transpose: kernel("transpose"),
                 scan: kernel("scan"),
                 layout,
@@ -125,7 +152,16 @@ impl GpuEdt {
     /// ([`edtmap_core::NO_SITE`] where there is none), for a later stage
     /// to read there.
     pub(crate) fn encode(&mut self, mask: &Grid3<bool>, enc: &mut wgpu::CommandEncoder) -> Result<(), BackendError> {
-        let dims = mask.dims();
+        self.encode_mask(Mask::Bits(mask), enc)
+    }
+
+    /// [`Self::encode`] with the obstacles from `mask`: uploaded bits or
+    /// blocks already on the device, which then upload nothing.
+    pub(crate) fn encode_mask(&mut self, mask: Mask<'_>, enc: &mut wgpu::CommandEncoder) -> Result<(), BackendError> {
+        let dims = match mask {
+            Mask::Bits(bits) => bits.dims(),
+            Mask::Blocks { dims, .. } => dims,
+        };
         let n = EdtField::check_dims(dims)?;
         let diag_sq: u64 = dims.iter().map(|&d| (d as u64 - 1).pow(2)).sum();
         if diag_sq >= MAX_DIAG_SQ {
@@ -135,27 +171,45 @@ impl GpuEdt {
         let bufs = self.bufs.as_ref().ok_or_else(|| BackendError::Device("buffers missing".into()))?;
         let [nx, ny, nz] = dims.map(|d| d as u32);
         let total = n as u32;
+        let (o8, nb) = match mask {
+            Mask::Bits(_) => ([0; 4], [0; 4]),
+            Mask::Blocks { o8, nb, .. } => ([o8[0], o8[1], o8[2], 0], [nb[0], nb[1], nb[2], 0]),
+        };
         let slots: [Params; SLOTS] = [
-            Params { len: nx, count: ny * nz, aux: nz, total },
+            Params { len: nx, count: ny * nz, aux: nz, total, o8, nb },
             Params { len: ny, count: nz * nx, ..Params::default() },
             Params { len: nz, count: nx * ny, ..Params::default() },
             Params { len: nz, count: nx * ny, ..Params::default() },
         ];
         for (k, p) in slots.iter().enumerate() {
             let at = k * self.slot_bytes as usize;
-            self.packed[at..at + 16].copy_from_slice(bytemuck::bytes_of(p));
+            self.packed[at..at + PARAMS_BYTES as usize].copy_from_slice(bytemuck::bytes_of(p));
         }
-        pack_bits(mask.as_slice(), &mut self.bits);
-        let (packed, bits) = (&self.packed, &self.bits);
+        if let Mask::Bits(bits) = mask {
+            pack_bits(bits.as_slice(), &mut self.bits);
+        }
+        let packed = &self.packed;
         self.ctx.scoped(|| {
             let q = &self.ctx.queue;
             q.write_buffer(&self.params, 0, packed);
-            q.write_buffer(&bufs.mask, 0, bytemuck::cast_slice(bits));
+            // The scan along x reads the uploaded bits, or the pool in
+            // place of them with the grid's slot table.
+            let from_blocks;
+            let (scan_x, first) = match mask {
+                Mask::Bits(_) => {
+                    q.write_buffer(&bufs.mask, 0, bytemuck::cast_slice(&self.bits));
+                    (&self.scan_x, &bufs.a_to_b)
+                }
+                Mask::Blocks { pool, slots, .. } => {
+                    from_blocks = self.group([pool, &bufs.a, &bufs.b, &bufs.stack, slots]);
+                    (&self.scan_x_blocks, &from_blocks)
+                }
+            };
             let mut pass = self.ctx.pass(enc, "edt");
             let offset = |k: usize| (k as u64 * self.slot_bytes) as u32;
-            // x straight from the mask bits into B as [z x y]; y from B into
+            // x straight from the obstacles into B as [z x y]; y from B into
             // A; A transposed into B as [x y z]; z from B into A.
-            self.scan_x.dispatch_at(&mut pass, &bufs.a_to_b, offset(0), groups_1d(u64::from(ny * nz)));
+            scan_x.dispatch_at(&mut pass, first, offset(0), groups_1d(u64::from(ny * nz)));
             self.scan.dispatch_at(&mut pass, &bufs.b_to_a, offset(1), groups_1d(u64::from(nz * nx)));
             let tiles = u64::from(nx * ny).div_ceil(16);
             let t_groups = [nz.div_ceil(16), tiles.min(65535) as u32, tiles.div_ceil(65535) as u32];
@@ -186,17 +240,23 @@ impl GpuEdt {
             let a = buffer("edt A", 8 * n64, storage | wgpu::BufferUsages::COPY_SRC);
             let b = buffer("edt B", 8 * n64, storage);
             let stack = buffer("edt stack", 8 * n64, storage);
-            let group = |src: &wgpu::Buffer, dst: &wgpu::Buffer| {
-                let params = wgpu::BufferBinding { buffer: &self.params, offset: 0, size: wgpu::BufferSize::new(16) };
-                let mut resources = vec![wgpu::BindingResource::Buffer(params)];
-                resources.extend([&mask, src, dst, &stack].map(|b| b.as_entire_binding()));
-                self.ctx.bind_group("edt", &self.layout, &resources)
-            };
-            let (a_to_b, b_to_a) = (group(&a, &b), group(&b, &a));
-            Buffers { voxels: n, mask, a, staging: None, a_to_b, b_to_a }
+            // The slot table is not read when the mask is the grid's bits.
+            let (a_to_b, b_to_a) = (self.group([&mask, &a, &b, &stack, &mask]), self.group([&mask, &b, &a, &stack, &mask]));
+            Buffers { voxels: n, mask, a, b, stack, staging: None, a_to_b, b_to_a }
         })?;
         self.bufs = Some(bufs);
         Ok(())
+    }
+}
+
+impl GpuEdt {
+    /// A bind group of the kernels' layout: the parameters, then `buffers`
+    /// at bindings 1 to 5 (mask, src, dst, stack, slots).
+    fn group(&self, buffers: [&wgpu::Buffer; 5]) -> wgpu::BindGroup {
+        let params = wgpu::BufferBinding { buffer: &self.params, offset: 0, size: wgpu::BufferSize::new(PARAMS_BYTES) };
+        let mut resources = vec![wgpu::BindingResource::Buffer(params)];
+        resources.extend(buffers.map(|b| b.as_entire_binding()));
+        self.ctx.bind_group("edt", &self.layout, &resources)
     }
 }
 

@@ -30,6 +30,11 @@ struct Params {
     aux: u32,
     // Voxels in the grid.
     total: u32,
+    // scan_x from resident blocks (FROM_BLOCKS): the grid's origin within
+    // its first block (0..7 per axis).
+    o8: vec4<u32>,
+    // The grid's blocks along x and y (x fastest in `slots`).
+    nb: vec4<u32>,
 }
 
 @group(0) @binding(0) var<uniform> P: Params;
@@ -37,6 +42,44 @@ struct Params {
 @group(0) @binding(2) var<storage, read> src: array<vec2<u32>>;
 @group(0) @binding(3) var<storage, read_write> dst: array<vec2<u32>>;
 @group(0) @binding(4) var<storage, read_write> stack: array<vec2<i32>>;
+// With FROM_BLOCKS: the pool slot of each of the grid's blocks, EMPTY for a
+// block with no obstacle, FULL for one of obstacles only; `mask` is then
+// the pool, 16 words per slot, voxel o = x + 8 (y + 8 z) of a block at
+// bit o % 32 of word o / 32.
+@group(0) @binding(5) var<storage, read> slots: array<u32>;
+
+const EMPTY: u32 = 0xffffffffu;
+const FULL: u32 = 0xfffffffeu;
+
+// Whether scan_x reads resident blocks (its second pipeline, `edt.rs`)
+// rather than the grid's own bits.
+override FROM_BLOCKS: bool = false;
+
+// The obstacle bits of the x line (y, z) from voxel x (linear index i)
+// to the end of the word that holds it: the bits, voxel x lowest, and how
+// many voxels they cover (to the end of a 32-bit word of the grid's own
+// bits, or of a block's row of 8).
+fn bits_from(x: u32, i: u32, y: u32, z: u32) -> vec2<u32> {
+    if (!FROM_BLOCKS) {
+        return vec2<u32>(mask[i >> 5u] >> (i & 31u), 32u - (i & 31u));
+    }
+    let gx = x + P.o8.x;
+    return vec2<u32>(block_row(gx >> 3u, y, z) >> (gx & 7u), 8u - (gx & 7u));
+}
+
+// The 8 bits of the row of block column `bx` that holds the x line (y, z).
+fn block_row(bx: u32, y: u32, z: u32) -> u32 {
+    let g = vec2<u32>(y, z) + P.o8.yz;
+    let slot = slots[bx + P.nb.x * ((g.x >> 3u) + P.nb.y * (g.y >> 3u))];
+    if (slot == EMPTY) {
+        return 0u;
+    }
+    if (slot == FULL) {
+        return 0xffu;
+    }
+    let o = ((g.x & 7u) << 3u) | ((g.y & 7u) << 6u);
+    return (mask[slot * 16u + (o >> 5u)] >> (o & 31u)) & 0xffu;
+}
 
 // One invocation per item over a 2D grid of workgroups (a 1D dispatch is
 // limited to 65535 workgroups).
@@ -67,22 +110,28 @@ fn scan_x(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: v
     let first = z + nz * n * y;
     // Forward: the nearest obstacle at or before x, parked in dst.
     var left = INF;
-    for (var x = 0u; x < n; x++) {
-        let i = base + x;
-        if (((mask[i >> 5u] >> (i & 31u)) & 1u) != 0u) {
-            left = x;
+    var x = 0u;
+    while (x < n) {
+        let run = bits_from(x, base + x, y, z);
+        var bits = run.x;
+        let end = min(n, x + run.y);
+        for (; x < end; x++) {
+            if ((bits & 1u) != 0u) {
+                left = x;
+            }
+            bits >>= 1u;
+            dst[first + nz * x] = vec2<u32>(left, 0u);
         }
-        dst[first + nz * x] = vec2<u32>(left, 0u);
     }
-    // Backward: against the nearest one after x.
+    // Backward: against the nearest one after x. Voxel x is an obstacle
+    // when the forward pass found itself as the nearest before it.
     var right = INF;
     for (var k = n; k > 0u; k--) {
         let x = k - 1u;
-        let i = base + x;
-        if (((mask[i >> 5u] >> (i & 31u)) & 1u) != 0u) {
+        let lo = dst[first + nz * x].x;
+        if (lo == x) {
             right = x;
         }
-        let lo = dst[first + nz * x].x;
         var p = INF;
         if (lo != INF && (right == INF || x - lo <= right - x)) {
             p = lo;

@@ -3,9 +3,10 @@
 //!
 //! The device keeps a pool of the global EDT's blocks, resident between
 //! frames while the map's stamp says nothing else changed it. A frame
-//! uploads the source box's obstacles (one bit per voxel), the blocks of
-//! its region the pool does not hold yet and a table of the region's pool
-//! slots; the batch EDT, the comparison with the old values and the list
+//! uploads the source box's obstacle blocks the device does not hold with
+//! their current bits (`obstacles.rs`; before, a bit per source voxel
+//! every frame), the blocks of its region the pool does not hold yet and
+//! tables of their slots; the batch EDT, the comparison with the old values and the list
 //! of changed blocks stay on the device, and only the changed blocks come
 //! back (2 KiB each), for the host to write into its map. Before, the
 //! whole source box's EDT came back, 8 bytes per voxel.
@@ -15,13 +16,13 @@
 //! A frame is one dispatch after the batch EDT's and two round trips: the
 //! list of changed blocks, then their values.
 
-use std::collections::HashMap;
-
 use crate::context::GpuContext;
 use crate::dispatch::{groups_1d, storage_entry, uniform_entry, Kernel, GROUP};
-use crate::edt::{copy_words, GpuEdt};
-use edtmap_core::region::{fill_mask, write_back_where, Packing, WriteBack, FAR};
-use edtmap_core::{BackendError, BlockKey, EdtMap, Grid3, MapStamp, Obstacles, VoxelIndex, BLOCK_VOXELS, NO_OBSTACLE};
+use crate::edt::{copy_words, GpuEdt, Mask};
+use crate::obstacles::ResidentObstacles;
+use crate::pool::Pool;
+use edtmap_core::region::{write_back_where, Packing, WriteBack, FAR};
+use edtmap_core::{BackendError, BlockKey, EdtMap, MapStamp, Obstacles, VoxelIndex, BLOCK_VOXELS, NO_OBSTACLE};
 
 /// The largest reach, voxels, a value's 10-bit offsets hold.
 const MAX_REACH: i32 = 511;
@@ -59,8 +60,8 @@ pub(crate) struct GpuExact {
     ctrl: wgpu::Buffer,
     pool: Option<Pool>,
     frame_bufs: Option<FrameBuffers>,
-    /// The source box's obstacles, as uploaded.
-    mask: Grid3<bool>,
+    /// The source boxes' obstacles, resident.
+    obstacles: ResidentObstacles,
     /// The map's stamp after this integration last wrote it.
     seen: Option<MapStamp>,
     /// Frames run, for the pool's least-recently-used order.
@@ -72,18 +73,6 @@ pub(crate) struct GpuExact {
     /// Values of the blocks being uploaded, and the region's slot table.
     upload: Vec<u32>,
     slot_table: Vec<u32>,
-}
-
-/// The resident blocks: `slots` pool blocks on the device and which map
-/// block each holds.
-#[derive(Debug)]
-struct Pool {
-    buffer: wgpu::Buffer,
-    slots: usize,
-    table: HashMap<BlockKey, u32>,
-    /// Per slot: the block it holds and the frame it was last used in.
-    owner: Vec<Option<(BlockKey, u64)>>,
-    free: Vec<u32>,
 }
 
 /// Per-frame buffers, sized for regions of up to `blocks` blocks.
@@ -119,7 +108,7 @@ impl GpuExact {
                 ctrl,
                 pool: None,
                 frame_bufs: None,
-                mask: Grid3::default(),
+                obstacles: ResidentObstacles::new(ctx),
                 seen: None,
                 frame: 0,
                 max_slots: usize::MAX,
@@ -134,6 +123,7 @@ impl GpuExact {
     /// what it holds.
     pub(crate) fn limit_pool(&mut self, blocks: usize) {
         self.max_slots = blocks.max(1);
+        self.obstacles.limit(blocks);
         self.pool = None;
         self.seen = None;
     }
@@ -159,6 +149,7 @@ impl GpuExact {
             Ok(_) => self.seen = Some(map.stamp()),
             Err(_) => {
                 self.pool = None;
+                self.obstacles.forget();
                 self.seen = None;
             }
         }
@@ -182,7 +173,7 @@ impl GpuExact {
         }
         self.ensure_buffers(nb)?;
         self.assign_slots(map, &keys, p)?;
-        fill_mask(obstacles, &p.source, &mut self.mask)?;
+        let placed = self.obstacles.place(obstacles, &p.source, self.frame)?;
 
         let first = keys[0].first_voxel().0;
         let o8 = [0, 1, 2].map(|a| (p.region.origin[a] - first[a]) as u32);
@@ -194,7 +185,8 @@ impl GpuExact {
             blocks: [nb3[0], nb3[1], nb3[2], nb as u32],
         };
         let mut enc = self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("exact") });
-        edt.encode(&self.mask, &mut enc)?;
+        let (obstacle_pool, obstacle_slots) = self.obstacles.buffers().ok_or_else(|| BackendError::Device("obstacle blocks missing".into()))?;
+        edt.encode_mask(Mask::Blocks { dims: p.source.dims, o8: placed.o8, nb: placed.nb, pool: obstacle_pool, slots: obstacle_slots }, &mut enc)?;
         let pairs = edt.output().ok_or_else(|| BackendError::Device("EDT buffers missing".into()))?;
         let pool = self.pool.as_ref().ok_or_else(|| BackendError::Device("pool missing".into()))?;
         let bufs = self.frame_bufs.as_ref().ok_or_else(|| BackendError::Device("buffers missing".into()))?;
@@ -289,33 +281,16 @@ impl GpuExact {
         }
         let mut fresh: Vec<(u32, BlockKey)> = Vec::with_capacity(missing.len());
         for i in missing {
-            let slot = pool.free.pop().ok_or_else(|| BackendError::Device("pool slots exhausted".into()))?;
-            pool.table.insert(keys[i], slot);
-            pool.owner[slot as usize] = Some((keys[i], frame));
+            let slot = pool.take(keys[i], frame)?;
             self.slot_table[i] = slot;
             fresh.push((slot, keys[i]));
         }
-        // Runs of consecutive slots go up in one write.
         fresh.sort_unstable_by_key(|f| f.0);
-        let reach = p.cutoff.reach;
-        let max = p.cutoff.max_dist_sq;
-        let q = &self.ctx.queue;
-        let mut run = 0;
-        while run < fresh.len() {
-            let mut end = run + 1;
-            while end < fresh.len() && fresh[end].0 == fresh[end - 1].0 + 1 {
-                end += 1;
-            }
-            self.upload.clear();
-            for &(_, key) in &fresh[run..end] {
-                match map.get(key) {
-                    Some(b) => self.upload.extend((0..BLOCK_VOXELS).map(|off| encode(key.voxel(off), b.dist_sq(off), b.nearest(key, off), max, reach))),
-                    None => self.upload.extend(std::iter::repeat_n(ENC_FAR, BLOCK_VOXELS)),
-                }
-            }
-            q.write_buffer(&pool.buffer, u64::from(fresh[run].0) * BLOCK_BYTES, bytemuck::cast_slice(&self.upload));
-            run = end;
-        }
+        let (reach, max) = (p.cutoff.reach, p.cutoff.max_dist_sq);
+        pool.write(&self.ctx, &fresh, &mut self.upload, |key, out| match map.get(key) {
+            Some(b) => out.extend((0..BLOCK_VOXELS).map(|off| encode(key.voxel(off), b.dist_sq(off), b.nearest(key, off), max, reach))),
+            None => out.extend(std::iter::repeat_n(ENC_FAR, BLOCK_VOXELS)),
+        });
         Ok(())
     }
 
@@ -327,11 +302,7 @@ impl GpuExact {
             let max = self.ctx.limits().max_storage_buffer_binding_size.min(self.ctx.limits().max_buffer_size);
             let slots = slots.min((max / BLOCK_BYTES) as usize).min(self.max_slots).max(nb);
             self.pool = None;
-            self.ctx.check_buffer("the exact integration's block pool", slots as u64 * BLOCK_BYTES)?;
-            let buffer = self.ctx.scoped(|| {
-                self.ctx.buffer("exact pool", slots as u64 * BLOCK_BYTES, wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC)
-            })?;
-            self.pool = Some(Pool { buffer, slots, table: HashMap::new(), owner: vec![None; slots], free: (0..slots as u32).rev().collect() });
+            self.pool = Some(Pool::new(&self.ctx, "the exact integration's block pool", slots, BLOCK_BYTES)?);
         }
         if self.frame_bufs.as_ref().is_none_or(|f| f.blocks < nb) {
             self.frame_bufs = None;
@@ -352,28 +323,6 @@ impl GpuExact {
             self.frame_bufs = Some(bufs);
         }
         Ok(())
-    }
-}
-
-impl Pool {
-    /// Forgets every resident block.
-    fn clear(&mut self) {
-        self.table.clear();
-        self.owner.iter_mut().for_each(|o| *o = None);
-        self.free = (0..self.slots as u32).rev().collect();
-    }
-
-    /// Frees at least `n` slots not used in `frame`, least recently used
-    /// first.
-    fn evict(&mut self, n: usize, frame: u64) {
-        let mut used: Vec<(u64, u32)> = self.owner.iter().enumerate().filter_map(|(s, o)| o.filter(|o| o.1 < frame).map(|o| (o.1, s as u32))).collect();
-        used.sort_unstable();
-        for &(_, slot) in used.iter().take(n) {
-            if let Some((key, _)) = self.owner[slot as usize].take() {
-                self.table.remove(&key);
-            }
-            self.free.push(slot);
-        }
     }
 }
 

@@ -14,6 +14,8 @@ mod dispatch;
 mod edt;
 mod exact;
 mod integrate;
+mod obstacles;
+mod pool;
 mod project;
 mod raycast;
 
@@ -68,10 +70,11 @@ impl GpuBackend {
     }
 
     /// Caps the blocks of the global EDT the exact integration keeps
-    /// resident on the device (2 KiB each) at `blocks`, for a device with
-    /// little memory to spare; a frame's region always fits, and the
-    /// blocks least recently used make way. By default the pool grows to
-    /// twice the largest region seen, within the device's buffer limit.
+    /// resident on the device (2 KiB each) at `blocks`, and its obstacle
+    /// blocks (64 bytes each) too, for a device with little memory to
+    /// spare; a frame's region always fits, and the blocks least recently
+    /// used make way. By default each pool grows to twice the largest
+    /// region (or source box) seen, within the device's buffer limit.
     pub fn limit_resident_blocks(&mut self, blocks: usize) {
         self.exact.limit_pool(blocks);
     }

@@ -8,6 +8,8 @@
 
 mod common;
 
+use std::collections::HashMap;
+
 use edtmap_core::region::{Packing, Region};
 use edtmap_core::stages::exact::{recompute_exact, ExactBuffers};
 use edtmap_core::stages::IntegrationStage;
@@ -65,6 +67,37 @@ fn resident_pool_gives_the_cpu_map_frame_after_frame() {
     }
 }
 
+/// Unknown voxels as obstacles: blocks the map lacks are obstacles only
+/// (the device's `FULL` entry, no slot), observed blocks mixed; the map
+/// still the CPU's, frame after frame. The maps start as the EDT of a box
+/// around every window (the unknown space outside the windows is
+/// obstacles from the start: an update takes the obstacles to change only
+/// in the blocks it is given).
+#[test]
+fn unknown_as_occupied_gives_the_cpu_map() {
+    let Some(mut gpu) = common::gpu_or_skip("resident pool") else { return };
+    for seed in 0..3u64 {
+        let stage = stage(3 + seed);
+        let mut world = IntegrationWorld::new(40 + seed);
+        let mut cpu = CpuBackend::default();
+        let mut cpu_map = EdtMap::new();
+        let around = Region { origin: [-48, -40, -40], dims: [96, 80, 80] };
+        let obstacles = edtmap_core::Obstacles { unknown_as_occupied: true, ..world.obstacles() };
+        stage.recompute(&mut cpu, &mut cpu_map, obstacles, &around).expect("cpu");
+        let mut gpu_map = cpu_map.clone();
+        for step in 0..8 {
+            let at = format!("seed {seed}, step {step}");
+            let (window, _) = world.step();
+            let blocks = window.region().blocks();
+            let obstacles = edtmap_core::Obstacles { unknown_as_occupied: true, ..world.obstacles() };
+            let want = stage.update(&mut cpu, &mut cpu_map, obstacles, &blocks).expect("cpu");
+            let got = stage.update(&mut gpu, &mut gpu_map, obstacles, &blocks).unwrap_or_else(|e| panic!("{at}: {e}"));
+            same_report(&got, &want, &at);
+            assert!(rows(&gpu_map) == rows(&cpu_map), "{at}: maps differ");
+        }
+    }
+}
+
 /// A map whose stored values are not the EDT of its obstacles (an
 /// obstacle that is not one, one beyond the reach, which the pool cannot
 /// encode) is rewritten as the host-side definition does (`recompute_exact` on the
@@ -93,13 +126,15 @@ fn values_the_pool_cannot_encode_are_rewritten_as_the_definition_says() {
     assert!(rows(&gpu_map) == rows(&host_map), "maps differ");
 }
 
-/// Traffic of one exact frame with the pool warm: the source box's mask
-/// (a bit per voxel) and the slot table up, no block (all resident); the
-/// changed-block list and only the changed blocks (2 KiB each) down; the
+/// Traffic of one exact frame with the pools warm: up, the two slot tables
+/// (4 bytes per region block, 4 per source block) and the obstacle blocks
+/// whose bits the device does not hold yet (64 bytes each; blocks with no
+/// obstacle or nothing else take none), no EDT block (all resident); down,
+/// the changed-block list and only the changed blocks (2 KiB each); the
 /// batch EDT's four dispatches and one more, in two submissions (one when
 /// nothing changed).
 #[test]
-fn a_warm_frame_moves_the_mask_and_the_changed_blocks() {
+fn a_warm_frame_moves_only_changed_blocks() {
     let Some(mut gpu) = common::gpu_or_skip("resident pool") else { return };
     let stage = stage(5);
     let cutoff = stage.cutoff();
@@ -109,23 +144,46 @@ fn a_warm_frame_moves_the_mask_and_the_changed_blocks() {
     let all = Region { origin: [-32, -24, -24], dims: [64, 48, 48] };
     let blocks = all.blocks();
     stage.update(&mut gpu, &mut map, world.obstacles(), &blocks).expect("gpu");
-    let mut checked = 0;
+    // The bits of each block the device was last sent, as the test counts
+    // them: a block goes up when its bits differ from these.
+    let mut sent: HashMap<BlockKey, [u64; 8]> = HashMap::new();
+    let mut obstacle_blocks_up = |source: Region, obstacles: &edtmap_core::Obstacles<'_>| {
+        let mut up = 0;
+        for key in source.blocks() {
+            let bits = obstacles.block_bits(key);
+            if bits.iter().all(|&w| w == 0) || bits.iter().all(|&w| w == u64::MAX) {
+                continue;
+            }
+            if sent.insert(key, bits) != Some(bits) {
+                up += 1;
+            }
+        }
+        up
+    };
+    obstacle_blocks_up(Region::bounding(&blocks).expect("blocks").grown(cutoff.reach).grown(cutoff.reach), &world.obstacles());
+    let (mut checked, mut moved) = (0, 0);
     for step in 0..10 {
         let (window, _) = world.step();
         let blocks = window.region().blocks();
         let region = Region::bounding(&blocks).expect("blocks").grown(cutoff.reach);
         let nb = region.blocks().len() as u64;
-        let source = region.grown(cutoff.reach).len() as u64;
+        let source = region.grown(cutoff.reach);
         let before = gpu.device_counters().expect("counters");
         let report = stage.update(&mut gpu, &mut map, world.obstacles(), &blocks).expect("gpu");
         let d = gpu.device_counters().expect("counters").since(before);
         let changed = report.changed_blocks.len() as u64;
         assert_eq!(d.downloaded_bytes, 16 + 4 * nb + 2048 * changed, "step {step}: {d:?}");
-        let (mask, table) = (4 * source.div_ceil(32), 4 * nb);
-        assert!(d.uploaded_bytes >= mask + table && d.uploaded_bytes <= mask + table + 4 * 256 + 64, "step {step}: {d:?}, mask {mask}, table {table}");
+        let obstacle_blocks = obstacle_blocks_up(source, &world.obstacles());
+        let tables = 4 * nb + 4 * source.blocks().len() as u64;
+        let (least, params) = (tables + 64 * obstacle_blocks, 4 * 256 + 64);
+        assert!(d.uploaded_bytes >= least && d.uploaded_bytes <= least + params, "step {step}: {d:?}, tables {tables}, obstacle blocks {obstacle_blocks}");
+        // Against the mask it replaces, a bit per source voxel.
+        assert!(d.uploaded_bytes < 4 * (source.len() as u64).div_ceil(32), "step {step}: {d:?}");
+        moved += usize::from(obstacle_blocks > 0);
         assert_eq!(d.dispatches, 5, "step {step}");
         assert_eq!(d.submissions, if changed > 0 { 2 } else { 1 }, "step {step}");
         checked += usize::from(changed > 0);
     }
     assert!(checked >= 5, "too few frames changed anything");
+    assert!(moved >= 5, "too few frames moved an obstacle block");
 }

@@ -1,0 +1,82 @@
+//! A pool of map blocks resident on the device: a buffer of fixed-size
+//! slots, which block each slot holds and when it was last used, so that
+//! a frame uploads only the blocks the device does not hold yet. The exact
+//! integration keeps the global EDT's blocks in one (`exact.rs`) and the
+//! obstacles of its source boxes in another (`obstacles.rs`).
+
+use std::collections::HashMap;
+
+use crate::context::GpuContext;
+use edtmap_core::{BackendError, BlockKey};
+
+/// The resident blocks: `slots` blocks of `block_bytes` on the device and
+/// which map block each holds.
+#[derive(Debug)]
+pub(crate) struct Pool {
+    pub(crate) buffer: wgpu::Buffer,
+    pub(crate) slots: usize,
+    block_bytes: u64,
+    pub(crate) table: HashMap<BlockKey, u32>,
+    /// Per slot: the block it holds and the frame it was last used in.
+    pub(crate) owner: Vec<Option<(BlockKey, u64)>>,
+    pub(crate) free: Vec<u32>,
+}
+
+impl Pool {
+    /// An empty pool of `slots` slots of `block_bytes`, refused with the
+    /// numbers when its buffer is over the device's limit.
+    pub(crate) fn new(ctx: &GpuContext, what: &'static str, slots: usize, block_bytes: u64) -> Result<Self, BackendError> {
+        let bytes = slots as u64 * block_bytes;
+        ctx.check_buffer(what, bytes)?;
+        let usage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC;
+        let buffer = ctx.scoped(|| ctx.buffer(what, bytes, usage))?;
+        Ok(Pool { buffer, slots, block_bytes, table: HashMap::new(), owner: vec![None; slots], free: (0..slots as u32).rev().collect() })
+    }
+
+    /// Forgets every resident block.
+    pub(crate) fn clear(&mut self) {
+        self.table.clear();
+        self.owner.iter_mut().for_each(|o| *o = None);
+        self.free = (0..self.slots as u32).rev().collect();
+    }
+
+    /// Frees at least `n` slots not used in `frame`, least recently used
+    /// first.
+    pub(crate) fn evict(&mut self, n: usize, frame: u64) {
+        let mut used: Vec<(u64, u32)> = self.owner.iter().enumerate().filter_map(|(s, o)| o.filter(|o| o.1 < frame).map(|o| (o.1, s as u32))).collect();
+        used.sort_unstable();
+        for &(_, slot) in used.iter().take(n) {
+            if let Some((key, _)) = self.owner[slot as usize].take() {
+                self.table.remove(&key);
+            }
+            self.free.push(slot);
+        }
+    }
+
+    /// Takes a free slot for `key`, used in `frame`.
+    pub(crate) fn take(&mut self, key: BlockKey, frame: u64) -> Result<u32, BackendError> {
+        let slot = self.free.pop().ok_or_else(|| BackendError::Device("pool slots exhausted".into()))?;
+        self.table.insert(key, slot);
+        self.owner[slot as usize] = Some((key, frame));
+        Ok(slot)
+    }
+
+    /// Uploads blocks into their slots: `fresh` holds (slot, item) sorted
+    /// by slot, `fill` appends an item's words; runs of consecutive slots
+    /// go up in one write, through `scratch`.
+    pub(crate) fn write<T: Copy>(&self, ctx: &GpuContext, fresh: &[(u32, T)], scratch: &mut Vec<u32>, mut fill: impl FnMut(T, &mut Vec<u32>)) {
+        let mut run = 0;
+        while run < fresh.len() {
+            let mut end = run + 1;
+            while end < fresh.len() && fresh[end].0 == fresh[end - 1].0 + 1 {
+                end += 1;
+            }
+            scratch.clear();
+            for &(_, item) in &fresh[run..end] {
+                fill(item, scratch);
+            }
+            ctx.queue.write_buffer(&self.buffer, u64::from(fresh[run].0) * self.block_bytes, bytemuck::cast_slice(scratch));
+            run = end;
+        }
+    }
+}
