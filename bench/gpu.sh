@@ -39,7 +39,9 @@
 #      Then the shared recordings (3dmatch-seq01 with configs/3dmatch.toml,
 #      velodyne-pair with configs/velodyne.toml; from $EDTMAP_DATA, default
 #      ../shared/data, skipped with a note when missing), whole. Each table
-#      also has the device traffic per frame (up and down MB, dispatches,
+#      also has the device traffic per frame (up and down MB; "× floor",
+#      up and down over the frame's sensor data plus its changed EDT blocks
+#      at 2 KiB each, the least a resident pipeline moves; dispatches,
 #      submissions), the device memory held after the last frame and the
 #      device time per stage (timestamp queries; medians).
 #   5. Checks that the maps saved (--save) by the cpu and gpu runs of every
@@ -204,15 +206,15 @@ for run in "${runs[@]}"; do
     read -r -a extra <<<"$args"
     echo "### $title (edtmap run $args): median ms per frame"
     echo
-    echo "| backend (device) | local volume | ogm | batch_edt | integrate | total | up MB | down MB | dispatches | submits | device MB | device ms ogm / edt / int |"
-    echo "|---|---|---|---|---|---|---|---|---|---|---|---|"
+    echo "| backend (device) | local volume | ogm | batch_edt | integrate | total | up MB | down MB | × floor | dispatches | submits | device MB | device ms ogm / edt / int |"
+    echo "|---|---|---|---|---|---|---|---|---|---|---|---|---|"
     for b in "${backends[@]}"; do
         dir="$out/run_${tag}_$b"
         rm -f "$out/map_${tag}_$b.edtmap"
         if ! "$edtmap" run "${extra[@]}" --backend "$b" --out "$dir" --save "$out/map_${tag}_$b.edtmap" >/dev/null 2>"$dir.log"; then
             # The CPU must always work; a GPU may refuse a size over its limits.
             if [ "$b" = cpu ]; then echo "edtmap run $args --backend cpu failed:" >&2; cat "$dir.log" >&2; exit 1; fi
-            echo "| $b | not run: $(grep -o 'edtmap: error: .*' "$dir.log" | head -1 | cut -c16-) | | | | | | | | | | |"
+            echo "| $b | not run: $(grep -o 'edtmap: error: .*' "$dir.log" | head -1 | cut -c16-) | | | | | | | | | | | |"
             continue
         fi
         python3 - "$dir/report.json" <<'PY'
@@ -224,7 +226,13 @@ stages = " | ".join(f"{s[k]['median']:.1f}" for k in ("ogm_ms", "batch_edt_ms", 
 # Per-frame device traffic (medians); a CPU run has none.
 mb = lambda k: f"{s[k]['median'] / 1e6:.2f}" if k in s else "–"
 count = lambda k: f"{s[k]['median']:.0f}" if k in s else "–"
-device = f"{mb('gpu_uploaded_bytes')} | {mb('gpu_downloaded_bytes')} | {count('gpu_dispatches')} | {count('gpu_submissions')}"
+# The traffic over its floor: the frame's sensor data plus its changed EDT
+# blocks (2 KiB each, as the device holds them), the median over frames.
+def over_floor():
+    ratios = sorted((f["gpu_uploaded_bytes"] + f["gpu_downloaded_bytes"]) / (f["sensor_bytes"] + 2048 * f["edt_changed_blocks"])
+                    for f in r["frames"] if "gpu_uploaded_bytes" in f and f["sensor_bytes"] + f["edt_changed_blocks"] > 0)
+    return f"{ratios[len(ratios) // 2]:.2f}" if ratios else "–"
+device = f"{mb('gpu_uploaded_bytes')} | {mb('gpu_downloaded_bytes')} | {over_floor()} | {count('gpu_dispatches')} | {count('gpu_submissions')}"
 # Device memory held after the last frame.
 held = r["frames"][-1].get("gpu_memory_bytes") if r.get("frames") else None
 device += f" | {held / 1e6:.1f}" if held else " | –"

@@ -346,7 +346,7 @@ fn frame_record(index: usize, frame: &Frame, stats: &FrameStats, occupancy_block
         voxels_updated: stats.voxels_updated,
         voxels_changed: stats.voxels_changed,
         changed_blocks: stats.changed_blocks.len(),
-        global: global_fields(stats, occupancy_blocks),
+        global: [global_fields(stats, occupancy_blocks), vec![("sensor_bytes", frame.measurement.bytes() as f64)]].concat(),
         ..Default::default()
     }
 }
@@ -488,6 +488,7 @@ fn global_fields(s: &FrameStats, occupancy_blocks: usize) -> Vec<(&'static str, 
     let mapped_voxels = (occupancy_blocks * edtmap::BLOCK_VOXELS).max(1);
     vec![
         ("edt_voxels_changed", s.edt_voxels_changed as f64),
+        ("edt_changed_blocks", s.edt_changed_blocks as f64),
         ("change_score_m", s.change_score_m),
         ("map_blocks", s.map_blocks as f64),
         ("map_bytes", s.map_bytes as f64),

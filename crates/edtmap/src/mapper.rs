@@ -69,6 +69,8 @@ pub struct FrameStats {
     pub changed_blocks: Vec<BlockKey>,
     /// Global EDT voxels whose distance or nearest obstacle changed.
     pub edt_voxels_changed: usize,
+    /// Global EDT blocks holding such a voxel.
+    pub edt_changed_blocks: usize,
     /// The paper's change score V (eq. 6): the mean over the mapped voxels
     /// of |Δ distance|, metres, distances truncated at the cutoff.
     pub change_score_m: f64,
@@ -226,6 +228,7 @@ impl<B: Backend> Mapper<B> {
             voxels_changed: fused.voxels_changed,
             changed_blocks: fused.changed_blocks,
             edt_voxels_changed: merged.voxels_changed,
+            edt_changed_blocks: merged.changed_blocks.len(),
             change_score_m: merged.change_sum_vox * self.params.voxel_size_m / mapped_voxels as f64,
             integrate_region_voxels: merged.region_voxels,
             waves: merged.waves,

@@ -20,15 +20,17 @@ use crate::context::GpuContext;
 use crate::dispatch::{groups_1d, storage_entry, uniform_entry, Kernel, GROUP};
 use crate::edt::{copy_words, GpuEdt, Mask};
 use crate::obstacles::ResidentObstacles;
-use crate::pool::Pool;
+use crate::pool::{runs, Pool};
 use edtmap_core::region::{write_back_where, Packing, WriteBack, FAR};
 use edtmap_core::{BackendError, BlockKey, EdtMap, MapStamp, Obstacles, VoxelIndex, BLOCK_VOXELS, NO_OBSTACLE};
 
 /// The largest reach, voxels, a value's 10-bit offsets hold.
 const MAX_REACH: i32 = 511;
 
-/// A voxel with no obstacle within the cutoff (`FAR` in the shader).
-const ENC_FAR: u32 = u32::MAX;
+/// A voxel with no obstacle within the cutoff (`FAR` in the shader): 0,
+/// which no offset's word is (each axis's biased offset is 1 to 1023), so
+/// that a block the map lacks is cleared on the device, not uploaded.
+const ENC_FAR: u32 = 0;
 
 /// A host value the encoding cannot hold (its distance is not its offset's
 /// length): never equal to a new value, so the voxel is rewritten.
@@ -73,6 +75,8 @@ pub(crate) struct GpuExact {
     /// Values of the blocks being uploaded, and the region's slot table.
     upload: Vec<u32>,
     slot_table: Vec<u32>,
+    /// Slots given this frame to blocks the map lacks, to clear, sorted.
+    cleared: Vec<u32>,
 }
 
 /// Per-frame buffers, sized for regions of up to `blocks` blocks.
@@ -115,6 +119,7 @@ impl GpuExact {
                 job_blocks: 0,
                 upload: Vec::new(),
                 slot_table: Vec::new(),
+                cleared: Vec::new(),
             }
         })
     }
@@ -185,6 +190,11 @@ impl GpuExact {
             blocks: [nb3[0], nb3[1], nb3[2], nb as u32],
         };
         let mut enc = self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("exact") });
+        if let Some(pool) = &self.pool {
+            for (first, len) in runs(&self.cleared) {
+                enc.clear_buffer(&pool.buffer, u64::from(first) * BLOCK_BYTES, Some(u64::from(len) * BLOCK_BYTES));
+            }
+        }
         let (obstacle_pool, obstacle_slots) = self.obstacles.buffers().ok_or_else(|| BackendError::Device("obstacle blocks missing".into()))?;
         edt.encode_mask(Mask::Blocks { dims: p.source.dims, o8: placed.o8, nb: placed.nb, pool: obstacle_pool, slots: obstacle_slots }, &mut enc)?;
         let pairs = edt.output().ok_or_else(|| BackendError::Device("EDT buffers missing".into()))?;
@@ -279,17 +289,26 @@ impl GpuExact {
         if missing.len() > pool.free.len() {
             pool.evict(missing.len() - pool.free.len(), frame);
         }
+        // Blocks the map holds go up; those it lacks (every voxel FAR) are
+        // cleared on the device when the frame is recorded.
         let mut fresh: Vec<(u32, BlockKey)> = Vec::with_capacity(missing.len());
+        self.cleared.clear();
         for i in missing {
             let slot = pool.take(keys[i], frame)?;
             self.slot_table[i] = slot;
-            fresh.push((slot, keys[i]));
+            if map.get(keys[i]).is_some() {
+                fresh.push((slot, keys[i]));
+            } else {
+                self.cleared.push(slot);
+            }
         }
         fresh.sort_unstable_by_key(|f| f.0);
+        self.cleared.sort_unstable();
         let (reach, max) = (p.cutoff.reach, p.cutoff.max_dist_sq);
-        pool.write(&self.ctx, &fresh, &mut self.upload, |key, out| match map.get(key) {
-            Some(b) => out.extend((0..BLOCK_VOXELS).map(|off| encode(key.voxel(off), b.dist_sq(off), b.nearest(key, off), max, reach))),
-            None => out.extend(std::iter::repeat_n(ENC_FAR, BLOCK_VOXELS)),
+        pool.write(&self.ctx, &fresh, &mut self.upload, |key, out| {
+            if let Some(b) = map.get(key) {
+                out.extend((0..BLOCK_VOXELS).map(|off| encode(key.voxel(off), b.dist_sq(off), b.nearest(key, off), max, reach)));
+            }
         });
         Ok(())
     }

@@ -14,7 +14,7 @@
 // the squared distance is the offset's squared length. exact.rs encodes
 // the host's values the same way when it uploads a block.
 
-const FAR: u32 = 0xffffffffu;
+const FAR: u32 = 0u;
 const NO_SITE: u32 = 0xffffffffu;
 
 struct Params {

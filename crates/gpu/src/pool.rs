@@ -65,18 +65,40 @@ impl Pool {
     /// by slot, `fill` appends an item's words; runs of consecutive slots
     /// go up in one write, through `scratch`.
     pub(crate) fn write<T: Copy>(&self, ctx: &GpuContext, fresh: &[(u32, T)], scratch: &mut Vec<u32>, mut fill: impl FnMut(T, &mut Vec<u32>)) {
-        let mut run = 0;
-        while run < fresh.len() {
-            let mut end = run + 1;
-            while end < fresh.len() && fresh[end].0 == fresh[end - 1].0 + 1 {
-                end += 1;
-            }
+        let slots: Vec<u32> = fresh.iter().map(|f| f.0).collect();
+        let mut at = 0;
+        for (first, len) in runs(&slots) {
             scratch.clear();
-            for &(_, item) in &fresh[run..end] {
+            for &(_, item) in &fresh[at..at + len as usize] {
                 fill(item, scratch);
             }
-            ctx.queue.write_buffer(&self.buffer, u64::from(fresh[run].0) * self.block_bytes, bytemuck::cast_slice(scratch));
-            run = end;
+            ctx.queue.write_buffer(&self.buffer, u64::from(first) * self.block_bytes, bytemuck::cast_slice(scratch));
+            at += len as usize;
         }
+    }
+}
+
+/// The runs of consecutive values of sorted `slots`: (first, length).
+pub(crate) fn runs(slots: &[u32]) -> impl Iterator<Item = (u32, u32)> + '_ {
+    let mut at = 0;
+    std::iter::from_fn(move || {
+        let first = *slots.get(at)?;
+        let mut len = 1;
+        while slots.get(at + len as usize) == Some(&(first + len)) {
+            len += 1;
+        }
+        at += len as usize;
+        Some((first, len))
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::runs;
+
+    #[test]
+    fn runs_of_consecutive_slots() {
+        assert_eq!(runs(&[]).count(), 0);
+        assert_eq!(runs(&[3, 4, 5, 9, 11, 12]).collect::<Vec<_>>(), [(3, 3), (9, 1), (11, 2)]);
     }
 }

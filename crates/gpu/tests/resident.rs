@@ -143,7 +143,9 @@ fn a_warm_frame_moves_only_changed_blocks() {
     // The whole box once, so that every later region is resident.
     let all = Region { origin: [-32, -24, -24], dims: [64, 48, 48] };
     let blocks = all.blocks();
+    let before = gpu.device_counters().expect("counters");
     stage.update(&mut gpu, &mut map, world.obstacles(), &blocks).expect("gpu");
+    let cold = gpu.device_counters().expect("counters").since(before);
     // The bits of each block the device was last sent, as the test counts
     // them: a block goes up when its bits differ from these.
     let mut sent: HashMap<BlockKey, [u64; 8]> = HashMap::new();
@@ -160,7 +162,13 @@ fn a_warm_frame_moves_only_changed_blocks() {
         }
         up
     };
-    obstacle_blocks_up(Region::bounding(&blocks).expect("blocks").grown(cutoff.reach).grown(cutoff.reach), &world.obstacles());
+    let region = Region::bounding(&blocks).expect("blocks").grown(cutoff.reach);
+    let obstacle_blocks = obstacle_blocks_up(region.grown(cutoff.reach), &world.obstacles());
+    // Cold, on an empty map: no EDT block goes up (the pool's slots are
+    // cleared on the device), only the tables and the obstacle blocks.
+    let tables = 4 * region.blocks().len() as u64 + 4 * region.grown(cutoff.reach).blocks().len() as u64;
+    let least = tables + 64 * obstacle_blocks;
+    assert!(cold.uploaded_bytes >= least && cold.uploaded_bytes <= least + 4 * 256 + 64, "cold: {cold:?}, tables {tables}, obstacle blocks {obstacle_blocks}");
     let (mut checked, mut moved) = (0, 0);
     for step in 0..10 {
         let (window, _) = world.step();

@@ -265,6 +265,21 @@ impl Measurement {
             Measurement::Scan(_) => "laser scan",
         }
     }
+
+    /// The measurement's size as the sensor gives it, bytes: its depth
+    /// values (4 or 2 bytes each), ranges (4 bytes) or points (12 bytes).
+    /// What a backend has to receive at least, to compare its traffic to.
+    pub fn bytes(&self) -> usize {
+        match self {
+            Measurement::Depth(d) => match &d.data {
+                DepthData::Metres(v) => 4 * v.len(),
+                DepthData::U16 { values, .. } => 2 * values.len(),
+            },
+            Measurement::Lidar(s) => 4 * s.ranges.len(),
+            Measurement::Points(p) => 12 * p.points.len(),
+            Measurement::Scan(s) => 4 * s.ranges.len(),
+        }
+    }
 }
 
 #[inline]
