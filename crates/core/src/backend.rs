@@ -86,6 +86,14 @@ pub trait Backend: BatchEdt {
         None
     }
 
+    /// Whether the wavefront integration should be given the window's
+    /// obstacles ([`Integration::WavefrontMask`]) rather than its batch
+    /// EDT: true for a device, which computes the EDT where the
+    /// integration reads it instead of sending it to the host and back.
+    fn batch_stays_on_device(&self) -> bool {
+        false
+    }
+
     /// Ray casting (paper §IV-A): walks `rays`, set up at scale `q` for
     /// `obs`'s volume ([`crate::fixed_ray::prepare_rays`]), into `obs`
     /// (freshly reset): [`crate::OBS_MISS`] for every voxel a walk visits,
@@ -129,6 +137,19 @@ pub enum Integration<'a> {
         window: &'a LocalVolume,
         /// Exact EDT of the window's obstacles.
         batch: &'a EdtField,
+        /// Neighbour offsets the waves move along (6, 18 or 26).
+        offsets: &'a [[i32; 3]],
+    },
+    /// [`Integration::Wavefront`] with the batch EDT still to compute, of
+    /// `mask` (the window's obstacles, unknown voxels free), by the
+    /// backend itself: a device keeps it where the integration reads it,
+    /// and nothing of it crosses to the host
+    /// ([`Backend::batch_stays_on_device`]).
+    WavefrontMask {
+        /// The frame's window.
+        window: &'a LocalVolume,
+        /// The window's obstacles, `window.dims` voxels.
+        mask: &'a Grid3<bool>,
         /// Neighbour offsets the waves move along (6, 18 or 26).
         offsets: &'a [[i32; 3]],
     },
@@ -197,6 +218,10 @@ impl<B: Backend + ?Sized> Backend for Box<B> {
 
     fn device_counters(&self) -> Option<DeviceCounters> {
         (**self).device_counters()
+    }
+
+    fn batch_stays_on_device(&self) -> bool {
+        (**self).batch_stays_on_device()
     }
 
     fn cast_rays(&mut self, rays: &[FixedRay], q: u32, obs: &Observations) -> Result<(), BackendError> {

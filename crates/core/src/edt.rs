@@ -29,6 +29,13 @@ pub struct EdtField {
     nearest: Vec<u32>,
 }
 
+impl Default for EdtField {
+    /// [`EdtField::empty`].
+    fn default() -> Self {
+        EdtField::empty()
+    }
+}
+
 impl EdtField {
     /// Checks that a grid of `dims` fits the field's 32-bit storage: every
     /// linear index below [`NO_SITE`] and every squared distance below

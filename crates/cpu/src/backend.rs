@@ -25,6 +25,8 @@ pub struct CpuBackend {
     exact: ExactBuffers,
     separable: SeparableCache,
     seen: Option<MapStamp>,
+    /// The window's batch EDT of an [`Integration::WavefrontMask`].
+    window_edt: EdtField,
 }
 
 /// The batch EDT alone, with its scan layout.
@@ -94,6 +96,12 @@ impl Backend for CpuBackend {
             Integration::Wavefront { window, batch, offsets } => {
                 let packing = Packing::new(Region::around(window, cutoff.reach + 1), cutoff)?;
                 let (w, c) = integrate_wavefront(map, window, batch, &packing, offsets, &mut self.waves);
+                (w, c, packing.region)
+            }
+            Integration::WavefrontMask { window, mask, offsets } => {
+                let packing = Packing::new(Region::around(window, cutoff.reach + 1), cutoff)?;
+                self.edt.batch_edt(mask, &mut self.window_edt)?;
+                let (w, c) = integrate_wavefront(map, window, &self.window_edt, &packing, offsets, &mut self.waves);
                 (w, c, packing.region)
             }
             Integration::Changes { blocks } => {

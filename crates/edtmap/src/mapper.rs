@@ -123,10 +123,14 @@ pub struct Mapper<B: Backend = CpuBackend> {
     map: GlobalMap,
     occupancy: OccupancyStage,
     batch: BatchEdtStage,
+    /// Whether `batch` holds this frame's fields (wavefront mode): not
+    /// when the backend computed the window's EDT on its device.
+    batch_on_host: bool,
     integration: IntegrationStage,
     volume: Option<LocalVolume>,
     local_states: OnceLock<Grid3<VoxelState>>,
-    /// Exact mode: the local volume's batch EDT, once asked for.
+    /// Exact mode, or wavefront mode on a device: the local volume's batch
+    /// EDT, once asked for.
     local: OnceLock<EdtField>,
 }
 
@@ -170,6 +174,7 @@ impl<B: Backend> Mapper<B> {
             map,
             occupancy: OccupancyStage::default(),
             batch: BatchEdtStage::new(params.edt.unknown_as_occupied),
+            batch_on_host: false,
             integration,
             volume: None,
             local_states: OnceLock::new(),
@@ -201,12 +206,17 @@ impl<B: Backend> Mapper<B> {
         let ogm_ms = ms_since(start);
         self.local = OnceLock::new();
         self.local_states = OnceLock::new();
-        // §IV-B, Alg. 1: exact batch EDT of the local volume (wavefront).
+        // §IV-B, Alg. 1: exact batch EDT of the local volume (wavefront);
+        // a device computes it inside the integration, where it stays.
         let t = Instant::now();
-        if self.wavefront() {
+        self.batch_on_host = false;
+        if self.wavefront() && self.backend.batch_stays_on_device() {
+            self.batch.global_mask(&self.map, &volume)?;
+        } else if self.wavefront() {
             if let Err(e) = self.batch.run(&mut self.backend, &self.map, &volume) {
                 return Err(self.recover(&volume, &fused.changed_blocks, e.into()));
             }
+            self.batch_on_host = true;
         }
         let batch_edt_ms = ms_since(t);
         // §IV-C: the global EDT brought up to date (exact), or Alg. 2 and
@@ -249,6 +259,7 @@ impl<B: Backend> Mapper<B> {
         let mut finished = Ok(());
         if self.wavefront() {
             finished = self.batch.run(&mut cpu, &self.map, volume).map_err(MapError::from);
+            self.batch_on_host = finished.is_ok();
         }
         let finished = finished.and_then(|()| self.integrate(Some(&mut cpu), volume, changed));
         self.fallback = Some(cpu);
@@ -273,7 +284,9 @@ impl<B: Backend> Mapper<B> {
             Some(c) => c,
             None => &mut self.backend,
         };
-        Ok(if wavefront {
+        Ok(if wavefront && !self.batch_on_host {
+            self.integration.integrate_mask(backend, edt, obstacles, volume, self.batch.mask_for_global())?
+        } else if wavefront {
             self.integration.integrate(backend, edt, obstacles, volume, self.batch.for_global())?
         } else {
             self.integration.update(backend, edt, obstacles, changed)?
@@ -438,7 +451,7 @@ impl<B: Backend> Mapper<B> {
     /// first call after a frame, on the CPU (every backend gives the same
     /// field), empty before the first frame.
     pub fn local_edt(&self) -> &EdtField {
-        if self.wavefront() {
+        if self.wavefront() && self.batch_on_host {
             return self.batch.local();
         }
         self.local.get_or_init(|| {

@@ -2,7 +2,9 @@
 //! through the same stage, on
 //! the conformance suite's random worlds: after every step both global
 //! EDTs must hold the same blocks with the same squared distances and
-//! nearest obstacles, and the GPU's must pass the brute-force checks.
+//! nearest obstacles, and the GPU's must pass the brute-force checks. The
+//! same with the window's batch EDT left to each backend
+//! (`integrate_mask`: on the GPU it never leaves the device).
 
 #[path = "../../gpu/tests/common/mod.rs"]
 mod gpu_common;
@@ -23,6 +25,7 @@ fn blocks(map: &EdtMap) -> Vec<(edtmap_core::BlockKey, edtmap_core::EdtBlock)> {
 #[test]
 fn wavefront_integration_is_bit_identical_to_the_cpu() {
     let Some(mut gpu) = common::gpu_or_skip("GPU integration") else { return };
+    let Some(mut gpu_masked) = common::gpu_or_skip("GPU integration") else { return };
     let conns = [Connectivity::Six, Connectivity::Eighteen, Connectivity::TwentySix];
     let mut cases = 0;
     for seed in 0..12u64 {
@@ -36,8 +39,9 @@ fn wavefront_integration_is_bit_identical_to_the_cpu() {
         };
         let mut world = IntegrationWorld::new(seed);
         let stage = IntegrationStage::new(&params, IntegrationWorld::VOXEL_M).expect("valid");
-        let mut cpu = CpuBackend::default();
+        let (mut cpu, mut cpu_masked) = (CpuBackend::default(), CpuBackend::default());
         let (mut cpu_map, mut gpu_map) = (EdtMap::new(), EdtMap::new());
+        let (mut cpu_mask_map, mut gpu_mask_map) = (EdtMap::new(), EdtMap::new());
         let mut batch = EdtField::empty();
         for step in 0..10 {
             let (window, mask) = world.step();
@@ -50,6 +54,11 @@ fn wavefront_integration_is_bit_identical_to_the_cpu() {
             assert_eq!(cpu_report.voxels_changed, gpu_report.voxels_changed, "{at}");
             assert_eq!((cpu_report.waves.raised, cpu_report.waves.seeds, cpu_report.waves.levels), (gpu_report.waves.raised, gpu_report.waves.seeds, gpu_report.waves.levels), "{at}");
             world.check(&gpu_map, &params).unwrap_or_else(|e| panic!("{at}: {e}"));
+            for (name, backend, map) in [("cpu", &mut cpu_masked as &mut dyn edtmap_core::Backend, &mut cpu_mask_map), ("gpu", &mut gpu_masked, &mut gpu_mask_map)] {
+                let report = stage.integrate_mask(backend, map, world.obstacles(), &window, &mask).unwrap_or_else(|e| panic!("{at}, {name} from the mask: {e}"));
+                assert!(blocks(&cpu_map) == blocks(map), "{at}: {name} from the mask differs");
+                assert_eq!((&report.changed_blocks, report.voxels_changed), (&cpu_report.changed_blocks, cpu_report.voxels_changed), "{at}: {name} from the mask");
+            }
             cases += 1;
         }
     }

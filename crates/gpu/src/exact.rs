@@ -256,13 +256,7 @@ impl GpuExact {
         self.ctx.read_back(&bufs.staging, values_bytes, |bytes| copy_words(bytes, &mut values))?;
 
         let candidates: Vec<BlockKey> = listed.iter().map(|&b| keys[b as usize]).collect();
-        let old: Vec<Vec<u64>> = candidates
-            .iter()
-            .map(|&key| {
-                let block = map.get(key);
-                (0..BLOCK_VOXELS).map(|off| block.map_or(FAR, |b| p.pack(b.dist_sq(off), b.nearest(key, off)))).collect()
-            })
-            .collect();
+        let old = packed_values(map, p, &candidates);
         let cur = |k: usize, _: usize, off: usize| decode(p, candidates[k].voxel(off), values[k * BLOCK_VOXELS + off]);
         Ok(write_back_where(map, p, &candidates, |k, _, off| old[k][off], cur))
     }
@@ -343,6 +337,18 @@ impl GpuExact {
         }
         Ok(())
     }
+}
+
+/// The packed values `map` holds in the blocks `keys`, block by block in
+/// voxel order (`FAR` for a block it lacks): the old values a write-back
+/// compares the device's new ones with.
+pub(crate) fn packed_values(map: &EdtMap, p: &Packing, keys: &[BlockKey]) -> Vec<Vec<u64>> {
+    keys.iter()
+        .map(|&key| {
+            let block = map.get(key);
+            (0..BLOCK_VOXELS).map(|off| block.map_or(FAR, |b| p.pack(b.dist_sq(off), b.nearest(key, off)))).collect()
+        })
+        .collect()
 }
 
 /// The pool's word for the host value (`dist_sq`, `nearest`) of voxel `v`.

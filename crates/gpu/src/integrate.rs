@@ -15,7 +15,7 @@
 
 use crate::context::GpuContext;
 use crate::dispatch::{groups_1d, storage_entry, uniform_entry, Kernel};
-use edtmap_core::region::{read_region_except, write_back_with, Packing, Region, WriteBack, FAR};
+use edtmap_core::region::{read_region_except, write_back_where, Packing, Region, WriteBack};
 use edtmap_core::{BackendError, BlockKey, Cutoff, EdtField, EdtMap, IntegrateReport, LocalVolume, MapStamp, WaveCounts};
 
 /// Levels encoded per submission before the host checks for the end.
@@ -87,10 +87,9 @@ pub struct GpuIntegrator {
     bufs: Option<Buffers>,
     /// The next frontier stamp (stamps only grow, so `mark` is never cleared).
     stamp: u32,
-    /// Packed values before and after the frame, region order (the old
-    /// ones uploaded; both filled back only in the changed blocks).
+    /// The region's packed values as read from the map, region order (only
+    /// the newly covered ones when the region is resident), to upload.
     old: Vec<u64>,
-    cur: Vec<u64>,
     /// The region whose values the device holds in `cur`, equal to the
     /// host map's there while the map's stamp is `seen`.
     resident: Option<Region>,
@@ -98,10 +97,21 @@ pub struct GpuIntegrator {
     seen: Option<MapStamp>,
     /// The newly covered voxels' (index, S, D, 0), uploaded when resident.
     fresh: Vec<[u32; 4]>,
+    /// A host batch EDT's pairs, as uploaded.
+    pairs_up: Vec<u32>,
     /// The changed blocks (indices in the region's blocks) and their
     /// voxels' (old S, old D, new S, new D), as read back.
     changed_list: Vec<u32>,
     changed_pairs: Vec<u32>,
+}
+
+/// Where the window's batch EDT comes from.
+#[derive(Debug, Clone, Copy)]
+enum WindowBatch<'a> {
+    /// The host's field, uploaded as pairs.
+    Host(&'a EdtField),
+    /// A device buffer of pairs.
+    Device(&'a wgpu::Buffer),
 }
 
 #[derive(Debug)]
@@ -199,10 +209,10 @@ impl GpuIntegrator {
                 bufs: None,
                 stamp: 1,
                 old: Vec::new(),
-                cur: Vec::new(),
                 resident: None,
                 seen: None,
                 fresh: Vec::new(),
+                pairs_up: Vec::new(),
                 changed_list: Vec::new(),
                 changed_pairs: Vec::new(),
             }
@@ -212,19 +222,31 @@ impl GpuIntegrator {
     /// Merges `batch`, the batch EDT of `window`, into `map` (see the
     /// module docs).
     pub fn run(&mut self, map: &mut EdtMap, window: &LocalVolume, batch: &EdtField, cutoff: Cutoff, offsets: &[[i32; 3]]) -> Result<IntegrateReport, BackendError> {
+        if batch.dims() != window.dims {
+            return Err(BackendError::Device(format!("batch EDT of {:?} voxels for a window of {:?}", batch.dims(), window.dims)));
+        }
+        self.merge(map, window, WindowBatch::Host(batch), cutoff, offsets)
+    }
+
+    /// [`Self::run`] with the window's batch EDT in `pairs`, a device
+    /// buffer of (squared distance, nearest) pairs in the window's voxel
+    /// order, as [`crate::GpuEdt`] leaves it: copied on the device, never
+    /// read back.
+    pub(crate) fn run_resident(&mut self, map: &mut EdtMap, window: &LocalVolume, pairs: &wgpu::Buffer, cutoff: Cutoff, offsets: &[[i32; 3]]) -> Result<IntegrateReport, BackendError> {
+        self.merge(map, window, WindowBatch::Device(pairs), cutoff, offsets)
+    }
+
+    fn merge(&mut self, map: &mut EdtMap, window: &LocalVolume, batch: WindowBatch<'_>, cutoff: Cutoff, offsets: &[[i32; 3]]) -> Result<IntegrateReport, BackendError> {
         if self.seen != Some(map.stamp()) {
             // Changed by other means (another backend, fixed obstacles
             // laid down, another map): what the device holds is stale.
             self.resident = None;
         }
-        if batch.dims() != window.dims {
-            return Err(BackendError::Device(format!("batch EDT of {:?} voxels for a window of {:?}", batch.dims(), window.dims)));
-        }
         if offsets.len() > 26 {
             return Err(BackendError::Device(format!("{} neighbour offsets, at most 26", offsets.len())));
         }
         let job = self.prepare(map, window, cutoff, offsets)?;
-        self.merge_and_seed(&job, batch)?;
+        self.merge_and_seed(&job, window.len(), batch)?;
         self.lower()?;
         let counts = self.read_changes(&job)?;
         let mut written = self.write_changes(map, &job, counts[C_DIRTY] as usize);
@@ -286,9 +308,13 @@ impl GpuIntegrator {
     }
 
     /// Uploads the frame and runs the merge and the seeding of the waves.
-    fn merge_and_seed(&self, job: &FrameJob, batch: &EdtField) -> Result<(), BackendError> {
+    fn merge_and_seed(&mut self, job: &FrameJob, w: usize, batch: WindowBatch<'_>) -> Result<(), BackendError> {
         let FrameJob { params, nb, .. } = job;
-        let (r, w, nb) = (job.packing.region.len(), batch.dims().iter().product::<usize>(), *nb);
+        let (r, nb) = (job.packing.region.len(), *nb);
+        if let WindowBatch::Host(field) = batch {
+            self.pairs_up.clear();
+            self.pairs_up.extend(field.dist_sq_vox().iter().zip(field.nearest()).flat_map(|(&d, &s)| [d, s]));
+        }
         let mut ctrl = [0u32; CTRL_WORDS];
         ctrl[C_STAMP] = self.stamp;
         let bufs = self.bufs.as_ref().ok_or_else(|| BackendError::Device("buffers missing".into()))?;
@@ -306,9 +332,11 @@ impl GpuIntegrator {
             } else {
                 q.write_buffer(&bufs.old, 0, bytemuck::cast_slice(&self.old));
             }
-            q.write_buffer(&bufs.batch, 0, bytemuck::cast_slice(batch.dist_sq_vox()));
-            q.write_buffer(&bufs.batch, 4 * w as u64, bytemuck::cast_slice(batch.nearest()));
             let mut enc = self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("integrate") });
+            match batch {
+                WindowBatch::Host(_) => q.write_buffer(&bufs.batch, 0, bytemuck::cast_slice(&self.pairs_up)),
+                WindowBatch::Device(pairs) => enc.copy_buffer_to_buffer(pairs, 0, &bufs.batch, 0, 8 * w as u64),
+            }
             enc.clear_buffer(&bufs.blk, 0, Some(8 * nb as u64));
             {
                 let mut pass = self.ctx.pass(&mut enc, "merge and seed");
@@ -388,10 +416,10 @@ impl GpuIntegrator {
         let counts = self.read_ctrl()?;
         let dirty = counts[C_DIRTY] as usize;
         let (list_bytes, pairs_at) = (4 * dirty as u64, pairs_offset(nb));
-        let pair_bytes = 16 * 512 * dirty as u64;
+        let pair_bytes = 8 * 512 * dirty as u64;
         let (list, pairs) = (&mut self.changed_list, &mut self.changed_pairs);
         list.resize(dirty, 0);
-        pairs.resize(4 * 512 * dirty, 0);
+        pairs.resize(2 * 512 * dirty, 0);
         if dirty > 0 {
             self.ctx.scoped(|| {
                 let mut enc = self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("read changes") });
@@ -407,30 +435,25 @@ impl GpuIntegrator {
         Ok(counts)
     }
 
-    /// Scatters the changed blocks' pairs into region order and writes them
-    /// back into `map` with the shared write-back.
+    /// Writes the changed blocks' new pairs back into `map` with the shared
+    /// write-back, against the old values the map holds.
     fn write_changes(&mut self, map: &mut EdtMap, job: &FrameJob, dirty: usize) -> WriteBack {
-        let FrameJob { packing, params, nb3, key_lo, .. } = job;
-        let (region, r) = (packing.region, packing.region.len());
-        self.cur.resize(r, FAR);
-        let mut keys = Vec::with_capacity(dirty);
-        for (slot, &b) in self.changed_list.iter().enumerate() {
-            let b = b as usize;
-            let bc = [b % nb3[0] as usize, (b / nb3[0] as usize) % nb3[1] as usize, b / (nb3[0] * nb3[1]) as usize];
-            keys.push(BlockKey([0, 1, 2].map(|a| key_lo[a] + bc[a] as i32)));
-            for off in 0..512 {
-                let vo = [off % 8, (off / 8) % 8, off / 64];
-                let c = [0, 1, 2].map(|a| (bc[a] * 8 + vo[a]) as i64 - i64::from(params.o8[a]));
-                if (0..3).all(|a| c[a] >= 0 && (c[a] as usize) < region.dims[a]) {
-                    let i = region.linear(c.map(|x| x as usize));
-                    let p = &self.changed_pairs[4 * (slot * 512 + off)..4 * (slot * 512 + off) + 4];
-                    self.old[i] = (u64::from(p[1]) << 32) | u64::from(p[0]);
-                    self.cur[i] = (u64::from(p[3]) << 32) | u64::from(p[2]);
-                }
-            }
-        }
-        let cur = &self.cur;
-        write_back_with(map, packing, &keys, &self.old, |i| cur[i])
+        let FrameJob { packing, nb3, key_lo, .. } = job;
+        let keys: Vec<BlockKey> = self.changed_list[..dirty]
+            .iter()
+            .map(|&b| {
+                let b = b as usize;
+                let bc = [b % nb3[0] as usize, (b / nb3[0] as usize) % nb3[1] as usize, b / (nb3[0] * nb3[1]) as usize];
+                BlockKey([0, 1, 2].map(|a| key_lo[a] + bc[a] as i32))
+            })
+            .collect();
+        let old = crate::exact::packed_values(map, packing, &keys);
+        let pairs = &self.changed_pairs;
+        let cur = |k: usize, _: usize, off: usize| {
+            let at = 2 * (k * edtmap_core::BLOCK_VOXELS + off);
+            (u64::from(pairs[at + 1]) << 32) | u64::from(pairs[at])
+        };
+        write_back_where(map, packing, &keys, |k, _, off| old[k][off], cur)
     }
 
     fn encode_advance(&self, pass: &mut wgpu::ComputePass<'_>, bufs: &Buffers, advance: &Kernel) {
@@ -468,7 +491,7 @@ impl GpuIntegrator {
             ("the integration's frontier", 16 * r64),
             ("the integration's queues", 12 * r64),
             ("the batch EDT upload", 8 * w64),
-            ("the changed blocks' values", 16 * 512 * nb64),
+            ("the changed blocks' values", 8 * 512 * nb64),
         ];
         for (what, bytes) in limits {
             self.ctx.check_buffer(what, bytes)?;
@@ -485,8 +508,8 @@ impl GpuIntegrator {
             let queues = buffer("integrate queues", 12 * r64, storage);
             let front = buffer("integrate front", 16 * r64, storage);
             let blk = buffer("integrate blocks", 8 * nb64, storage | copy_dst | copy_src);
-            let pairs = buffer("integrate pairs", 16 * 512 * nb64, storage | copy_src);
-            let staging = buffer("integrate staging", pairs_offset(nb) + 16 * 512 * nb64, wgpu::BufferUsages::MAP_READ | copy_dst);
+            let pairs = buffer("integrate pairs", 8 * 512 * nb64, storage | copy_src);
+            let staging = buffer("integrate staging", pairs_offset(nb) + 8 * 512 * nb64, wgpu::BufferUsages::MAP_READ | copy_dst);
             let fresh = buffer("integrate fresh", 16 * r64, storage | copy_dst);
             let list = [&self.params, &old, &cur, &batch, &mark, &queues, &front, &self.ctrl, &blk, &pairs, &fresh];
             let group = self.ctx.bind_group("integrate", &self.layout, &list.map(|b| b.as_entire_binding()));

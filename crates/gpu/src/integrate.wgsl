@@ -80,7 +80,8 @@ struct Params {
 // already held overwritten by `shift`.
 @group(0) @binding(1) var<storage, read_write> old_v: array<vec2<u32>>;
 @group(0) @binding(2) var<storage, read_write> cur: array<atomic<u32>>;
-// The window's batch EDT: distances at [0, W), nearest at [W, 2W).
+// The window's batch EDT: per window voxel l, the squared distance at 2l
+// and the nearest obstacle's window index at 2l + 1 (edt.wgsl's pairs).
 @group(0) @binding(3) var<storage, read> batch: array<u32>;
 // Per region voxel: the stamp of the last frontier it joined.
 @group(0) @binding(4) var<storage, read_write> mark: array<atomic<u32>>;
@@ -94,7 +95,7 @@ struct Params {
 @group(0) @binding(8) var<storage, read_write> blk: array<atomic<u32>>;
 // (old S, old D, new S, new D) of every voxel of the changed blocks,
 // 512 per block in block order.
-@group(0) @binding(9) var<storage, read_write> pairs: array<vec4<u32>>;
+@group(0) @binding(9) var<storage, read_write> pairs: array<vec2<u32>>;
 // With the region resident: the newly covered voxels, (index, S, D, 0).
 @group(0) @binding(10) var<storage, read> fresh: array<vec4<u32>>;
 @group(1) @binding(0) var<storage, read_write> args: array<u32>;
@@ -165,7 +166,7 @@ fn merge(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: ve
             src_win = wc.x + w.x * (wc.y + w.y * wc.z);
         }
     }
-    let vanished = src_win != INF && batch[src_win] != 0u;
+    let vanished = src_win != INF && batch[2u * src_win] != 0u;
     var valid = old;
     if (vanished) {
         atomicAdd(&ctrl[C_RAISED], 1u);
@@ -175,8 +176,8 @@ fn merge(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: ve
     if (in_box(c, win_lo, w.xyz)) {
         let wc = vec3<u32>(c - win_lo);
         let l = wc.x + w.x * (wc.y + w.y * wc.z);
-        let bd = batch[l];
-        let bs = batch[w.w + l];
+        let bd = batch[2u * l];
+        let bs = batch[2u * l + 1u];
         var b = far;
         if (bs != INF) {
             if (src_win == bs && bd == old.y) {
@@ -491,8 +492,9 @@ fn prep_gather() {
     set_groups(A_GATHER, atomicLoad(&ctrl[C_DIRTY]) * 512u);
 }
 
-// The old and new pairs of every voxel of the changed blocks, for the host
-// to write into the CPU map; voxels outside the region get far pairs.
+// The new pair of every voxel of the changed blocks, for the host to write
+// into the CPU map (it has the old ones there); voxels outside the region
+// get far pairs.
 @compute @workgroup_size(64)
 fn gather(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
           @builtin(local_invocation_index) lid: u32) {
@@ -505,11 +507,10 @@ fn gather(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: v
     let bc = vec3<u32>(b % P.blocks.x, (b / P.blocks.x) % P.blocks.y, b / (P.blocks.x * P.blocks.y));
     let g = bc * 8u + vec3<u32>(off % 8u, (off / 8u) % 8u, off / 64u);
     let c = vec3<i32>(g) - vec3<i32>(P.o8.xyz);
-    var e = vec4<u32>(INF, INF, INF, INF);
+    var e = vec2<u32>(INF, INF);
     if (in_box(c, vec3<i32>(0), P.region.xyz)) {
         let i = u32(c.x) + P.region.x * (u32(c.y) + P.region.y * u32(c.z));
-        let n = load(i);
-        e = vec4<u32>(old_v[i], n);
+        e = load(i);
     }
     pairs[k] = e;
 }

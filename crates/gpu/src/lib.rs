@@ -182,6 +182,10 @@ impl Backend for GpuBackend {
         Some(self.ctx.counters())
     }
 
+    fn batch_stays_on_device(&self) -> bool {
+        true
+    }
+
     fn cast_rays(&mut self, rays: &[FixedRay], q: u32, obs: &Observations) -> Result<(), BackendError> {
         self.ctx.set_stage(Stage::Occupancy);
         if self.raycast.run(rays, q, obs.volume().dims, &mut self.bits)? {
@@ -208,6 +212,20 @@ impl Backend for GpuBackend {
         let IntegrateJob { map, obstacles, cutoff, work } = job;
         match work {
             Integration::Wavefront { window, batch, offsets } => self.integrator.run(map, window, batch, cutoff, offsets),
+            Integration::WavefrontMask { window, mask, offsets } => {
+                if mask.dims() != window.dims {
+                    return Err(BackendError::Device(format!("obstacle mask of {:?} voxels for a window of {:?}", mask.dims(), window.dims)));
+                }
+                // The window's batch EDT stays on the device, where the
+                // merge copies it from.
+                self.ctx.set_stage(Stage::BatchEdt);
+                let mut enc = self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("window edt") });
+                self.edt.encode(mask, &mut enc)?;
+                self.ctx.scoped(|| self.ctx.queue.submit([enc.finish()]))?;
+                self.ctx.set_stage(Stage::Integrate);
+                let pairs = self.edt.output().ok_or_else(|| BackendError::Device("EDT buffers missing".into()))?;
+                self.integrator.run_resident(map, window, pairs, cutoff, offsets)
+            }
             Integration::Changes { blocks } => {
                 // Exact over every voxel within the cutoff of the changed
                 // blocks: the same map as the CPU's line-by-line update.

@@ -4,7 +4,7 @@
 //! the second field the global integration needs (unknown voxels free).
 
 use crate::region::fill_mask;
-use crate::{BackendError, BatchEdt, EdtField, GlobalMap, Grid3, LocalVolume};
+use crate::{BackendError, BatchEdt, CoreError, EdtField, GlobalMap, Grid3, LocalVolume};
 
 /// The batch EDT stage, owning its masks and fields across frames.
 #[derive(Debug)]
@@ -36,6 +36,26 @@ impl BatchEdtStage {
             local_into(backend, map, volume, false, mask, field)?;
         }
         Ok(())
+    }
+
+    /// The window's obstacles as the global integration counts them
+    /// (unknown voxels free), without their EDT: for a backend that
+    /// computes it where it integrates ([`crate::Integration::WavefrontMask`]).
+    /// [`Self::local`] and [`Self::for_global`] then hold an older frame's.
+    pub fn global_mask(&mut self, map: &GlobalMap, volume: &LocalVolume) -> Result<&Grid3<bool>, CoreError> {
+        let mut obstacles = map.obstacles();
+        obstacles.unknown_as_occupied = false;
+        let mask = match &mut self.global {
+            Some((mask, _)) => mask,
+            None => &mut self.mask,
+        };
+        fill_mask(&obstacles, &volume.region(), mask)?;
+        Ok(mask)
+    }
+
+    /// The mask [`Self::global_mask`] filled last.
+    pub fn mask_for_global(&self) -> &Grid3<bool> {
+        self.global.as_ref().map_or(&self.mask, |(m, _)| m)
     }
 
     /// The local field: exact EDT of the latest volume, in its voxel units.

@@ -12,18 +12,12 @@ use rayon::prelude::*;
 use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 
 /// Reusable buffers of the exact integration.
-#[derive(Debug)]
+#[derive(Debug, Default)]
 pub struct ExactBuffers {
     mask: Grid3<bool>,
     field: EdtField,
     old: Vec<u64>,
     cur: Vec<AtomicU64>,
-}
-
-impl Default for ExactBuffers {
-    fn default() -> Self {
-        ExactBuffers { mask: Grid3::default(), field: EdtField::empty(), old: Vec::new(), cur: Vec::new() }
-    }
 }
 
 /// Recomputes `packing.region` of `map` exactly from `obstacles`, with the

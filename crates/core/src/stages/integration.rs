@@ -9,7 +9,7 @@
 //! that changed, returning the blocks they touched.
 
 use crate::region::Region;
-use crate::{Backend, BackendError, BlockKey, CoreError, Cutoff, EdtField, EdtMap, GlobalParams, IntegrateJob, IntegrateReport, Integration, IntegrationMode, LocalVolume, Obstacles};
+use crate::{Backend, BackendError, BlockKey, CoreError, Cutoff, EdtField, EdtMap, GlobalParams, Grid3, IntegrateJob, IntegrateReport, Integration, IntegrationMode, LocalVolume, Obstacles};
 
 /// Side of the tiles [`IntegrationStage::recompute`] works in, voxels: the
 /// memory it needs stays bounded whatever the box.
@@ -59,6 +59,28 @@ impl IntegrationStage {
         }
         let work = match self.mode {
             IntegrationMode::Wavefront => Integration::Wavefront { window, batch, offsets: &self.offsets },
+            IntegrationMode::Exact => return self.update(backend, map, obstacles, &window.region().blocks()),
+        };
+        backend.integrate(IntegrateJob { map, obstacles, cutoff: self.cutoff, work })
+    }
+
+    /// Wavefront mode, with the batch EDT of `mask` (the window's
+    /// obstacles, unknown voxels free) computed by `backend` itself, where
+    /// its integration reads it ([`Integration::WavefrontMask`]).
+    pub fn integrate_mask<B: Backend + ?Sized>(
+        &self,
+        backend: &mut B,
+        map: &mut EdtMap,
+        obstacles: Obstacles<'_>,
+        window: &LocalVolume,
+        mask: &Grid3<bool>,
+    ) -> Result<IntegrateReport, BackendError> {
+        if mask.dims() != window.dims {
+            let what = format!("obstacle mask of {:?} voxels for a window of {:?}", mask.dims(), window.dims);
+            return Err(CoreError::Unsupported(what).into());
+        }
+        let work = match self.mode {
+            IntegrationMode::Wavefront => Integration::WavefrontMask { window, mask, offsets: &self.offsets },
             IntegrationMode::Exact => return self.update(backend, map, obstacles, &window.region().blocks()),
         };
         backend.integrate(IntegrateJob { map, obstacles, cutoff: self.cutoff, work })
