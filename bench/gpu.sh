@@ -34,8 +34,10 @@
 #      window at 0.05 m: 200 x 200 x 60 voxels, the full-update
 #      target) with a third of the frames; one table per run with the median
 #      per-frame stage times (ogm, batch_edt, integrate, total) from
-#      report.json. Stages the GPU backend leaves to the CPU (fusion,
-#      spinning-LiDAR projection) run on the CPU inside a gpu run.
+#      report.json. What the GPU backend leaves to the CPU (fusion into the
+#      block map, the few voxels a projection leaves uncertain) runs on the
+#      CPU inside a gpu run.
+#      The four scenes again in wavefront mode (--integration wavefront).
 #      Then the shared recordings (3dmatch-seq01 with configs/3dmatch.toml,
 #      velodyne-pair with configs/velodyne.toml; from $EDTMAP_DATA, default
 #      ../shared/data, skipped with a note when missing), whole. Each table
@@ -192,6 +194,8 @@ echo
 #    200 x 200 x 60 voxels), fewer frames.
 runs=()
 for sc in "${scenes[@]}"; do runs+=("$sc|$sc, $frames frames|--scene $sc --frames $frames"); done
+# The paper's wavefront integration too (the default is the exact mode).
+for sc in "${scenes[@]}"; do runs+=("${sc}_wavefront|$sc, wavefront mode, $frames frames|--scene $sc --frames $frames --integration wavefront"); done
 f05=$(( frames / 3 > 5 ? frames / 3 : 5 ))
 runs+=("uav_pillars_0.05|uav_pillars at 0.05 m, $f05 frames|--scene uav_pillars --voxel-size 0.05 --frames $f05")
 if [ -d "$data/3dmatch-seq01" ] && [ -d "$data/velodyne-pair" ]; then
