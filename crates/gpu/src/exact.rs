@@ -269,20 +269,13 @@ impl GpuExact {
         let mut missing = Vec::new();
         self.slot_table.clear();
         for (i, &key) in keys.iter().enumerate() {
-            match pool.table.get(&key) {
-                Some(&slot) => {
-                    pool.owner[slot as usize] = Some((key, frame));
-                    self.slot_table.push(slot);
-                }
-                None => {
-                    missing.push(i);
-                    self.slot_table.push(u32::MAX);
-                }
+            let slot = pool.touch(key, frame);
+            if slot.is_none() {
+                missing.push(i);
             }
+            self.slot_table.push(slot.unwrap_or(u32::MAX));
         }
-        if missing.len() > pool.free.len() {
-            pool.evict(missing.len() - pool.free.len(), frame);
-        }
+        pool.make_room(missing.len(), frame);
         // Blocks the map holds go up; those it lacks (every voxel FAR) are
         // cleared on the device when the frame is recorded.
         let mut fresh: Vec<(u32, BlockKey)> = Vec::with_capacity(missing.len());

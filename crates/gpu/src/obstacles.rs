@@ -113,9 +113,8 @@ impl ResidentObstacles {
                 self.table.push(entry);
                 continue;
             }
-            match pool.table.get(&key) {
-                Some(&slot) => {
-                    pool.owner[slot as usize] = Some((key, frame));
+            match pool.touch(key, frame) {
+                Some(slot) => {
                     if self.held[slot as usize] != *bits {
                         fresh.push((slot, i));
                     }
@@ -127,9 +126,7 @@ impl ResidentObstacles {
                 }
             }
         }
-        if missing.len() > pool.free.len() {
-            pool.evict(missing.len() - pool.free.len(), frame);
-        }
+        pool.make_room(missing.len(), frame);
         for i in missing {
             let slot = pool.take(keys[i], frame)?;
             self.table[i] = slot;

@@ -42,7 +42,7 @@ impl Pool {
 
     /// Frees at least `n` slots not used in `frame`, least recently used
     /// first.
-    pub(crate) fn evict(&mut self, n: usize, frame: u64) {
+    fn evict(&mut self, n: usize, frame: u64) {
         let mut used: Vec<(u64, u32)> = self.owner.iter().enumerate().filter_map(|(s, o)| o.filter(|o| o.1 < frame).map(|o| (o.1, s as u32))).collect();
         used.sort_unstable();
         for &(_, slot) in used.iter().take(n) {
@@ -50,6 +50,21 @@ impl Pool {
                 self.table.remove(&key);
             }
             self.free.push(slot);
+        }
+    }
+
+    /// The slot holding `key`, marked used in `frame`; `None` when the
+    /// pool does not hold it.
+    pub(crate) fn touch(&mut self, key: BlockKey, frame: u64) -> Option<u32> {
+        let slot = *self.table.get(&key)?;
+        self.owner[slot as usize] = Some((key, frame));
+        Some(slot)
+    }
+
+    /// Frees slots (least recently used first) until `n` are free.
+    pub(crate) fn make_room(&mut self, n: usize, frame: u64) {
+        if n > self.free.len() {
+            self.evict(n - self.free.len(), frame);
         }
     }
 

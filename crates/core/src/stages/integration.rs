@@ -53,15 +53,8 @@ impl IntegrationStage {
         window: &LocalVolume,
         batch: &EdtField,
     ) -> Result<IntegrateReport, BackendError> {
-        if batch.dims() != window.dims {
-            let what = format!("batch EDT of {:?} voxels for a window of {:?}", batch.dims(), window.dims);
-            return Err(CoreError::Unsupported(what).into());
-        }
-        let work = match self.mode {
-            IntegrationMode::Wavefront => Integration::Wavefront { window, batch, offsets: &self.offsets },
-            IntegrationMode::Exact => return self.update(backend, map, obstacles, &window.region().blocks()),
-        };
-        backend.integrate(IntegrateJob { map, obstacles, cutoff: self.cutoff, work })
+        let work = Integration::Wavefront { window, batch, offsets: &self.offsets };
+        self.wavefront(backend, map, obstacles, window, ("batch EDT", batch.dims()), work)
     }
 
     /// Wavefront mode, with the batch EDT of `mask` (the window's
@@ -75,15 +68,29 @@ impl IntegrationStage {
         window: &LocalVolume,
         mask: &Grid3<bool>,
     ) -> Result<IntegrateReport, BackendError> {
-        if mask.dims() != window.dims {
-            let what = format!("obstacle mask of {:?} voxels for a window of {:?}", mask.dims(), window.dims);
-            return Err(CoreError::Unsupported(what).into());
+        let work = Integration::WavefrontMask { window, mask, offsets: &self.offsets };
+        self.wavefront(backend, map, obstacles, window, ("obstacle mask", mask.dims()), work)
+    }
+
+    /// `work` (a wavefront job over `window`, whose input, `what`, has
+    /// `dims` voxels) in wavefront mode; in exact mode an update of every
+    /// block of the window.
+    fn wavefront<B: Backend + ?Sized>(
+        &self,
+        backend: &mut B,
+        map: &mut EdtMap,
+        obstacles: Obstacles<'_>,
+        window: &LocalVolume,
+        (what, dims): (&str, [usize; 3]),
+        work: Integration<'_>,
+    ) -> Result<IntegrateReport, BackendError> {
+        if dims != window.dims {
+            return Err(CoreError::Unsupported(format!("{what} of {dims:?} voxels for a window of {:?}", window.dims)).into());
         }
-        let work = match self.mode {
-            IntegrationMode::Wavefront => Integration::WavefrontMask { window, mask, offsets: &self.offsets },
-            IntegrationMode::Exact => return self.update(backend, map, obstacles, &window.region().blocks()),
-        };
-        backend.integrate(IntegrateJob { map, obstacles, cutoff: self.cutoff, work })
+        match self.mode {
+            IntegrationMode::Wavefront => backend.integrate(IntegrateJob { map, obstacles, cutoff: self.cutoff, work }),
+            IntegrationMode::Exact => self.update(backend, map, obstacles, &window.region().blocks()),
+        }
     }
 
     /// Exact mode: brings `map` up to date with `obstacles`, which changed
