@@ -131,7 +131,7 @@ fn mismatch(dist_sq: u32, nearest: VoxelIndex, voxel: VoxelIndex) -> String {
 /// The squared length of offset `o`, [`FAR_DIST_SQ`] for [`NO_OFFSET`]
 /// (at most 3 · 32767², below it).
 #[inline]
-fn offset_dist_sq(o: [i16; 3]) -> u32 {
+pub(crate) fn offset_dist_sq(o: [i16; 3]) -> u32 {
     if o[0] == i16::MIN {
         return FAR_DIST_SQ;
     }

@@ -243,6 +243,11 @@ impl<B: Default + Clone> SharedBlock<B> {
         SharedBlock(Arc::new(block))
     }
 
+    /// The block as stored, to read.
+    pub fn get(&self) -> &B {
+        &self.0
+    }
+
     /// The block to write to: this one if no clone of the map shares it,
     /// else a copy; a new block for `None` (none stored).
     pub fn into_owned(block: Option<Self>) -> Box<B> {

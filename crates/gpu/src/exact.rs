@@ -21,8 +21,8 @@ use crate::dispatch::{groups_1d, storage_entry, uniform_entry, Kernel, GROUP};
 use crate::edt::{copy_words, GpuEdt, Mask};
 use crate::obstacles::ResidentObstacles;
 use crate::pool::{runs, Pool};
-use edtmap_core::region::{write_back_where, Packing, WriteBack, FAR};
-use edtmap_core::{BackendError, BlockKey, EdtMap, MapStamp, Obstacles, VoxelIndex, BLOCK_VOXELS, NO_OBSTACLE};
+use edtmap_core::region::{write_back_offsets, Packing, WriteBack};
+use edtmap_core::{BackendError, BlockKey, EdtMap, MapStamp, Obstacles, VoxelIndex, BLOCK_VOXELS, NO_OBSTACLE, NO_OFFSET};
 
 /// The largest reach, voxels, a value's 10-bit offsets hold.
 const MAX_REACH: i32 = 511;
@@ -252,13 +252,15 @@ impl GpuExact {
             }
             self.ctx.queue.submit([enc.finish()]);
         })?;
-        let mut values = vec![0u32; count * BLOCK_VOXELS];
-        self.ctx.read_back(&bufs.staging, values_bytes, |bytes| copy_words(bytes, &mut values))?;
-
+        // Written into the map straight from the mapped words, which are
+        // offsets already.
         let candidates: Vec<BlockKey> = listed.iter().map(|&b| keys[b as usize]).collect();
-        let old = packed_values(map, p, &candidates);
-        let cur = |k: usize, _: usize, off: usize| decode(p, candidates[k].voxel(off), values[k * BLOCK_VOXELS + off]);
-        Ok(write_back_where(map, p, &candidates, |k, _, off| old[k][off], cur))
+        let mut written = WriteBack::default();
+        self.ctx.read_back(&bufs.staging, values_bytes, |bytes| {
+            let word = |i: usize| u32::from_ne_bytes([bytes[4 * i], bytes[4 * i + 1], bytes[4 * i + 2], bytes[4 * i + 3]]);
+            written = write_back_offsets(map, p, &candidates, |k, off| word_offset(word(k * BLOCK_VOXELS + off)));
+        })?;
+        Ok(written)
     }
 
     /// Gives every block of `keys` a pool slot, uploading those not
@@ -332,18 +334,6 @@ impl GpuExact {
     }
 }
 
-/// The packed values `map` holds in the blocks `keys`, block by block in
-/// voxel order (`FAR` for a block it lacks): the old values a write-back
-/// compares the device's new ones with.
-pub(crate) fn packed_values(map: &EdtMap, p: &Packing, keys: &[BlockKey]) -> Vec<Vec<u64>> {
-    keys.iter()
-        .map(|&key| {
-            let block = map.get(key);
-            (0..BLOCK_VOXELS).map(|off| block.map_or(FAR, |b| p.pack(b.dist_sq(off), b.nearest(key, off)))).collect()
-        })
-        .collect()
-}
-
 /// The pool's word for the host value (`dist_sq`, `nearest`) of voxel `v`.
 fn encode(v: VoxelIndex, dist_sq: u32, nearest: VoxelIndex, max_dist_sq: u32, reach: i32) -> u32 {
     if dist_sq > max_dist_sq || nearest == NO_OBSTACLE {
@@ -358,15 +348,12 @@ fn encode(v: VoxelIndex, dist_sq: u32, nearest: VoxelIndex, max_dist_sq: u32, re
     b[0] | (b[1] << 10) | (b[2] << 20)
 }
 
-/// The packed value of the device word `word` of region voxel `v`.
-fn decode(p: &Packing, v: VoxelIndex, word: u32) -> u64 {
+/// The offset to the nearest obstacle that the device word `word` holds.
+fn word_offset(word: u32) -> [i16; 3] {
     if word == ENC_FAR {
-        return FAR;
+        return NO_OFFSET;
     }
-    let off = [0, 10, 20].map(|s| ((word >> s) & 0x3ff) as i32 - 512);
-    let dist_sq = off.iter().map(|o| (o * o) as u32).sum::<u32>();
-    let nearest = VoxelIndex([0, 1, 2].map(|a| v.0[a] + off[a]));
-    p.pack(dist_sq, nearest)
+    [0, 10, 20].map(|s| ((word >> s) & 0x3ff) as i16 - 512)
 }
 
 #[cfg(test)]
@@ -382,8 +369,10 @@ mod tests {
         let v = VoxelIndex([0, 5, 2]);
         for (n, d) in [(VoxelIndex([3, -4, 2]), 9 + 81), (v, 0), (VoxelIndex([-20, 5, 2]), 400)] {
             let word = encode(v, d, n, cutoff.max_dist_sq, cutoff.reach);
-            assert_eq!(decode(&p, v, word), p.pack(d, n));
+            let o = word_offset(word);
+            assert_eq!(p.pack(o.iter().map(|&c| (i32::from(c) * i32::from(c)) as u32).sum(), VoxelIndex([0, 1, 2].map(|a| v.0[a] + i32::from(o[a])))), p.pack(d, n));
         }
+        assert_eq!(word_offset(ENC_FAR), NO_OFFSET);
         assert_eq!(encode(v, 401, VoxelIndex([-21, 5, 2]), 400, 20), ENC_FAR);
         assert_eq!(encode(v, FAR_DIST_SQ, NO_OBSTACLE, 400, 20), ENC_FAR);
         assert_eq!(encode(v, 5, VoxelIndex([1, 5, 2]), 400, 20), ENC_INVALID, "distance not the offset's");

@@ -15,8 +15,8 @@
 
 use crate::context::GpuContext;
 use crate::dispatch::{groups_1d, storage_entry, uniform_entry, Kernel};
-use edtmap_core::region::{read_region_except, write_back_where, Packing, Region, WriteBack};
-use edtmap_core::{BackendError, BlockKey, Cutoff, EdtField, EdtMap, IntegrateReport, LocalVolume, MapStamp, WaveCounts};
+use edtmap_core::region::{read_region_except, write_back_offsets, Packing, Region, WriteBack, FAR};
+use edtmap_core::{BackendError, BlockKey, Cutoff, EdtField, EdtMap, IntegrateReport, LocalVolume, MapStamp, WaveCounts, NO_OFFSET};
 
 /// Levels encoded per submission before the host checks for the end.
 const LEVELS_PER_SUBMIT: usize = 4;
@@ -447,13 +447,22 @@ impl GpuIntegrator {
                 BlockKey([0, 1, 2].map(|a| key_lo[a] + bc[a] as i32))
             })
             .collect();
-        let old = crate::exact::packed_values(map, packing, &keys);
         let pairs = &self.changed_pairs;
-        let cur = |k: usize, _: usize, off: usize| {
+        let source = &packing.source;
+        let new = |k: usize, off: usize| {
             let at = 2 * (k * edtmap_core::BLOCK_VOXELS + off);
-            (u64::from(pairs[at + 1]) << 32) | u64::from(pairs[at])
+            if (u64::from(pairs[at + 1]) << 32) | u64::from(pairs[at]) == FAR {
+                return NO_OFFSET;
+            }
+            let (v, obstacle) = (keys[k].voxel(off), source.world(source.coords(pairs[at] as usize)));
+            let o = [0, 1, 2].map(|a| i16::try_from(obstacle.0[a] - v.0[a]).ok().filter(|&c| c != i16::MIN));
+            // As `EdtBlock::put` stores a value out of an offset's range.
+            match o {
+                [Some(x), Some(y), Some(z)] => [x, y, z],
+                _ => NO_OFFSET,
+            }
         };
-        write_back_where(map, packing, &keys, |k, _, off| old[k][off], cur)
+        write_back_offsets(map, packing, &keys, new)
     }
 
     fn encode_advance(&self, pass: &mut wgpu::ComputePass<'_>, bufs: &Buffers, advance: &Kernel) {

@@ -12,6 +12,7 @@
 //! uploaded, so it never needs to know what changed the map: a block whose
 //! bits differ from the device's goes up again.
 
+use rayon::prelude::*;
 use crate::context::GpuContext;
 use crate::pool::Pool;
 use edtmap_core::region::Region;
@@ -97,8 +98,8 @@ impl ResidentObstacles {
         };
         let nb = [0, 1, 2].map(|a| (last.0[a] - first.0[a] + 1) as u32);
         let o8 = [0, 1, 2].map(|a| (source.origin[a] - first.first_voxel().0[a]) as u32);
-        self.bits.clear();
-        self.bits.extend(keys.iter().map(|&k| to_words(obstacles.block_bits(k))));
+        // Two hash look-ups a block, tens of thousands of blocks: on every core.
+        keys.par_iter().map(|&k| to_words(obstacles.block_bits(k))).collect_into_vec(&mut self.bits);
         let mixed = self.bits.iter().filter(|b| entry_for(b).is_none()).count();
         self.ensure_pool(mixed)?;
         let pool = self.pool.as_mut().ok_or_else(|| BackendError::Device("obstacle pool missing".into()))?;
