@@ -44,8 +44,12 @@
 #      also has the device traffic per frame (up and down MB; "× floor",
 #      up and down over the frame's sensor data plus its changed EDT blocks
 #      at 2 KiB each, the least a resident pipeline moves; dispatches,
-#      submissions), the device memory held after the last frame and the
-#      device time per stage (timestamp queries; medians).
+#      submissions), the device memory held after the last frame, the
+#      device time per stage (timestamp queries; medians) and "host ms",
+#      the frame's total less the device time of its stages (the median
+#      over frames): the host's share, which a faster device does not
+#      shorten (on lavapipe it also holds the device's copies, which have
+#      no timestamps).
 #   5. Checks that the maps saved (--save) by the cpu and gpu runs of every
 #      run are byte-identical (cmp): prints "maps identical" or fails.
 # Grids, reports and maps land in bench/out/gpu/.
@@ -210,15 +214,15 @@ for run in "${runs[@]}"; do
     read -r -a extra <<<"$args"
     echo "### $title (edtmap run $args): median ms per frame"
     echo
-    echo "| backend (device) | local volume | ogm | batch_edt | integrate | total | up MB | down MB | × floor | dispatches | submits | device MB | device ms ogm / edt / int |"
-    echo "|---|---|---|---|---|---|---|---|---|---|---|---|---|"
+    echo "| backend (device) | local volume | ogm | batch_edt | integrate | total | up MB | down MB | × floor | dispatches | submits | device MB | device ms ogm / edt / int | host ms |"
+    echo "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
     for b in "${backends[@]}"; do
         dir="$out/run_${tag}_$b"
         rm -f "$out/map_${tag}_$b.edtmap"
         if ! "$edtmap" run "${extra[@]}" --backend "$b" --out "$dir" --save "$out/map_${tag}_$b.edtmap" >/dev/null 2>"$dir.log"; then
             # The CPU must always work; a GPU may refuse a size over its limits.
             if [ "$b" = cpu ]; then echo "edtmap run $args --backend cpu failed:" >&2; cat "$dir.log" >&2; exit 1; fi
-            echo "| $b | not run: $(grep -o 'edtmap: error: .*' "$dir.log" | head -1 | cut -c16-) | | | | | | | | | | | |"
+            echo "| $b | not run: $(grep -o 'edtmap: error: .*' "$dir.log" | head -1 | cut -c16-) | | | | | | | | | | | | |"
             continue
         fi
         python3 - "$dir/report.json" <<'PY'
@@ -243,6 +247,11 @@ device += f" | {held / 1e6:.1f}" if held else " | –"
 # Device time per stage (timestamp queries; 0 without them).
 times = [f"{s[k]['median']:.2f}" for k in ("gpu_ogm_device_ms", "gpu_batch_edt_device_ms", "gpu_integrate_device_ms") if k in s]
 device += f" | {' / '.join(times)}" if times else " | –"
+# The host's share of a frame: its total less the device time of its stages
+# (the median over frames), what a faster device does not shorten.
+timed = [f for f in r["frames"] if f.get("gpu_integrate_device_ms", 0) > 0]
+host = sorted(f["total_ms"] - f["gpu_ogm_device_ms"] - f["gpu_batch_edt_device_ms"] - f["gpu_integrate_device_ms"] for f in timed)
+device += f" | {host[len(host) // 2]:.1f}" if host else " | –"
 print(f"| {r['backend']} | {dims} at {r['voxel_size_m']} m | {stages} | {device} |")
 PY
     done
