@@ -42,8 +42,9 @@
 #      velodyne-pair with configs/velodyne.toml; from $EDTMAP_DATA, default
 #      ../shared/data, skipped with a note when missing), whole. Each table
 #      also has the device traffic per frame (up and down MB; "× floor",
-#      up and down over the frame's sensor data plus its changed EDT blocks
-#      at 2 KiB each, the least a resident pipeline moves; dispatches,
+#      up and down over the frame's sensor data plus its changed blocks,
+#      occupancy and EDT, at 2 KiB each, the least a resident pipeline that
+#      keeps the host's map current moves; dispatches,
 #      submissions), the device memory held after the last frame, the
 #      device time per stage (timestamp queries; medians) and "host ms",
 #      the frame's total less the device time of its stages (the median
@@ -234,11 +235,12 @@ stages = " | ".join(f"{s[k]['median']:.1f}" for k in ("ogm_ms", "batch_edt_ms", 
 # Per-frame device traffic (medians); a CPU run has none.
 mb = lambda k: f"{s[k]['median'] / 1e6:.2f}" if k in s else "–"
 count = lambda k: f"{s[k]['median']:.0f}" if k in s else "–"
-# The traffic over its floor: the frame's sensor data plus its changed EDT
-# blocks (2 KiB each, as the device holds them), the median over frames.
+# The traffic over its floor: the frame's sensor data plus its changed
+# blocks, occupancy and EDT (2 KiB each, as the device holds them), the
+# median over frames.
 def over_floor():
-    ratios = sorted((f["gpu_uploaded_bytes"] + f["gpu_downloaded_bytes"]) / (f["sensor_bytes"] + 2048 * f["edt_changed_blocks"])
-                    for f in r["frames"] if "gpu_uploaded_bytes" in f and f["sensor_bytes"] + f["edt_changed_blocks"] > 0)
+    floor = lambda f: f["sensor_bytes"] + 2048 * (f["edt_changed_blocks"] + f.get("occupancy_rewritten_blocks", 0))
+    ratios = sorted((f["gpu_uploaded_bytes"] + f["gpu_downloaded_bytes"]) / floor(f) for f in r["frames"] if "gpu_uploaded_bytes" in f and floor(f) > 0)
     return f"{ratios[len(ratios) // 2]:.2f}" if ratios else "–"
 device = f"{mb('gpu_uploaded_bytes')} | {mb('gpu_downloaded_bytes')} | {over_floor()} | {count('gpu_dispatches')} | {count('gpu_submissions')}"
 # Device memory held after the last frame.

@@ -487,6 +487,7 @@ fn construction_name(sensor: &Sensor, config: &Config) -> &'static str {
 fn global_fields(s: &FrameStats, occupancy_blocks: usize) -> Vec<(&'static str, f64)> {
     let mapped_voxels = (occupancy_blocks * edtmap::BLOCK_VOXELS).max(1);
     vec![
+        ("occupancy_rewritten_blocks", s.occupancy_rewritten_blocks as f64),
         ("edt_voxels_changed", s.edt_voxels_changed as f64),
         ("edt_changed_blocks", s.edt_changed_blocks as f64),
         ("change_score_m", s.change_score_m),

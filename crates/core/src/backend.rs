@@ -14,7 +14,7 @@
 
 use crate::fixed_ray::FixedRay;
 use crate::projection::ProjectJob;
-use crate::{BlockKey, CoreError, Cutoff, EdtField, EdtMap, Grid3, LocalVolume, Observations, Obstacles, Region};
+use crate::{BlockKey, CoreError, Cutoff, EdtField, EdtMap, FuseReport, Grid3, LocalVolume, LogOdds, Observations, Obstacles, OccupancyMap, Region};
 
 /// Errors a backend can raise besides those of the data it is given.
 #[derive(Debug, thiserror::Error, Clone, PartialEq, Eq)]
@@ -106,6 +106,27 @@ pub trait Backend: BatchEdt {
     /// [`crate::OBS_MISS`] in `obs` (freshly reset), and no other. Hits
     /// are left to the host ([`crate::stages::scatter_returns`]).
     fn project_volume(&mut self, job: &ProjectJob<'_>, obs: &Observations) -> Result<(), BackendError>;
+
+    /// Lets [`Backend::cast_rays`] and [`Backend::project_volume`] keep
+    /// the observations they make on the device, for [`Backend::fuse`] to
+    /// fuse there (`defer`), or makes them write every observation into
+    /// `obs` again. While deferred, `obs` holds only what the host marks
+    /// itself (a projection's hits, the uncertain voxels it decides): give
+    /// it to [`Backend::fuse`] before the next frame's occupancy, and read
+    /// the fused map, not `obs`. The mapper defers; a backend without a
+    /// device ignores it.
+    fn set_deferred_observations(&mut self, defer: bool) {
+        let _ = defer;
+    }
+
+    /// Fusion (paper §IV-A): adds the frame's observations (`obs`, with
+    /// what the device kept of them) to `map` with log-odds `lo`, as
+    /// [`crate::fuse::fuse`] defines it, which is what a backend without a
+    /// device runs. Every backend gives the same map and report, bit for
+    /// bit. On a device failure the map is as it was.
+    fn fuse(&mut self, map: &mut OccupancyMap, obs: &Observations, lo: &LogOdds) -> Result<FuseReport, BackendError> {
+        Ok(crate::fuse::fuse(map, obs, lo))
+    }
 
     /// Global integration (paper §IV-C): one [`IntegrateJob`] into
     /// `job.map`, writing back only the voxels that changed. Every
@@ -230,6 +251,14 @@ impl<B: Backend + ?Sized> Backend for Box<B> {
 
     fn project_volume(&mut self, job: &ProjectJob<'_>, obs: &Observations) -> Result<(), BackendError> {
         (**self).project_volume(job, obs)
+    }
+
+    fn set_deferred_observations(&mut self, defer: bool) {
+        (**self).set_deferred_observations(defer)
+    }
+
+    fn fuse(&mut self, map: &mut OccupancyMap, obs: &Observations, lo: &LogOdds) -> Result<FuseReport, BackendError> {
+        (**self).fuse(map, obs, lo)
     }
 
     fn integrate(&mut self, job: IntegrateJob<'_>) -> Result<IntegrateReport, BackendError> {

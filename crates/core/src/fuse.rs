@@ -16,6 +16,9 @@ pub struct FuseReport {
     pub changed_blocks: Vec<BlockKey>,
     /// Blocks allocated by this fusion.
     pub blocks_allocated: usize,
+    /// Blocks in which some voxel's log-odds changed (what a device that
+    /// fuses sends back to the host's map).
+    pub rewritten_blocks: usize,
 }
 
 /// Adds `obs` to `map` with log-odds `lo`. Blocks with observations are
@@ -27,10 +30,10 @@ pub fn fuse(map: &mut OccupancyMap, obs: &Observations, lo: &LogOdds) -> FuseRep
     let before = map.len();
     let mut blocks = map.take(&keys);
     let blocks_allocated = keys.len() - (before - map.len());
-    let per_block: Vec<(usize, usize)> = blocks
+    let per_block: Vec<(usize, usize, bool)> = blocks
         .par_iter_mut()
         .map(|(key, block)| {
-            let (mut updated, mut changed) = (0, 0);
+            let (mut updated, mut changed, mut rewritten) = (0, 0, false);
             for_each_voxel(&vol, *key, |i, offset| {
                 let o = obs.get(i);
                 if o != OBS_NONE {
@@ -39,9 +42,10 @@ pub fn fuse(map: &mut OccupancyMap, obs: &Observations, lo: &LogOdds) -> FuseRep
                     block.log_odds[offset] = new;
                     updated += 1;
                     changed += usize::from(lo.state(old) != lo.state(new));
+                    rewritten |= new.to_bits() != old.to_bits();
                 }
             });
-            (updated, changed)
+            (updated, changed, rewritten)
         })
         .collect();
     let changed_blocks = keys.iter().zip(&per_block).filter(|(_, c)| c.1 > 0).map(|(k, _)| *k).collect();
@@ -51,6 +55,7 @@ pub fn fuse(map: &mut OccupancyMap, obs: &Observations, lo: &LogOdds) -> FuseRep
         voxels_changed: per_block.iter().map(|c| c.1).sum(),
         changed_blocks,
         blocks_allocated,
+        rewritten_blocks: per_block.iter().filter(|c| c.2).count(),
     }
 }
 

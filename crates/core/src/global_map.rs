@@ -110,6 +110,12 @@ impl GlobalMap {
         crate::fuse::fuse(&mut self.occupancy, obs, &self.log_odds)
     }
 
+    /// [`Self::fuse`] on `backend` ([`crate::Backend::fuse`]), which may
+    /// hold some of the observations on its device.
+    pub fn fuse_on<B: crate::Backend + ?Sized>(&mut self, backend: &mut B, obs: &crate::Observations) -> Result<crate::FuseReport, crate::BackendError> {
+        backend.fuse(&mut self.occupancy, obs, &self.log_odds)
+    }
+
     /// Voxel edge length in metres.
     pub fn voxel_size_m(&self) -> f64 {
         self.voxel_size_m

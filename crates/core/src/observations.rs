@@ -125,6 +125,25 @@ impl Observations {
         cells[2].clone().any(|z| cells[1].clone().any(|y| cells[0].clone().any(|x| self.touched[x + cx * (y + cy * z)].load(Relaxed))))
     }
 
+    /// Every voxel observed, as (linear index, [`OBS_MISS`] or [`OBS_HIT`]),
+    /// in no particular order; visits only the touched cells.
+    pub fn observed(&self) -> Vec<(usize, u8)> {
+        let cells: Vec<usize> = (0..self.touched.len()).into_par_iter().filter(|&c| self.touched[c].load(Relaxed)).collect();
+        cells
+            .into_par_iter()
+            .flat_map_iter(|cell| {
+                let mut found = Vec::new();
+                self.for_each_in_cell(cell, |i| {
+                    let code = self.get(i);
+                    if code != OBS_NONE {
+                        found.push((i, code));
+                    }
+                });
+                found
+            })
+            .collect()
+    }
+
     /// Number of voxels observed (hit or miss).
     pub fn observed_count(&self) -> usize {
         self.voxels.par_iter().filter(|c| c.load(Relaxed) != OBS_NONE).count()

@@ -248,6 +248,15 @@ impl<B: Default + Clone> SharedBlock<B> {
         &self.0
     }
 
+    /// Whether `a` and `b` are the same stored block, or both none.
+    pub fn same(a: Option<&Self>, b: Option<&Self>) -> bool {
+        match (a, b) {
+            (Some(a), Some(b)) => Arc::ptr_eq(&a.0, &b.0),
+            (None, None) => true,
+            _ => false,
+        }
+    }
+
     /// The block to write to: this one if no clone of the map shares it,
     /// else a copy; a new block for `None` (none stored).
     pub fn into_owned(block: Option<Self>) -> Box<B> {
@@ -274,6 +283,14 @@ impl<B: Default> BlockMap<B> {
     /// Whether no block is allocated.
     pub fn is_empty(&self) -> bool {
         self.blocks.is_empty()
+    }
+
+    /// The block at `key` as stored, shared (a reference count, no copy),
+    /// if allocated: while it is held, a write to the block through the
+    /// map copies it first, so [`SharedBlock::same`] tells whether the map
+    /// still holds this version (what a device holds a copy of).
+    pub fn shared(&self, key: BlockKey) -> Option<SharedBlock<B>> {
+        self.blocks.get(&key).map(|b| SharedBlock(Arc::clone(b)))
     }
 
     /// The block at `key`, if allocated.

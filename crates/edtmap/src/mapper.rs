@@ -67,6 +67,8 @@ pub struct FrameStats {
     pub voxels_changed: usize,
     /// Blocks holding a voxel whose state changed, sorted.
     pub changed_blocks: Vec<BlockKey>,
+    /// Blocks in which some voxel's log-odds changed.
+    pub occupancy_rewritten_blocks: usize,
     /// Global EDT voxels whose distance or nearest obstacle changed.
     pub edt_voxels_changed: usize,
     /// Global EDT blocks holding such a voxel.
@@ -158,8 +160,10 @@ impl<B: Backend> Mapper<B> {
     /// A mapper on `backend` that goes on from `map` (a loaded map file,
     /// say); the map's voxel size, probabilities and global parameters
     /// replace those of `params`.
-    pub fn with_map_on(backend: B, sensor: Sensor, mut params: MapperParams, map: GlobalMap) -> Result<Self, MapError> {
+    pub fn with_map_on(mut backend: B, sensor: Sensor, mut params: MapperParams, map: GlobalMap) -> Result<Self, MapError> {
         sensor.validate()?;
+        // A device fuses the observations it makes where it made them.
+        backend.set_deferred_observations(true);
         params.voxel_size_m = map.voxel_size_m();
         params.occupancy = map.occupancy_params().clone();
         params.global = map.params().clone();
@@ -202,7 +206,7 @@ impl<B: Backend> Mapper<B> {
         let volume = LocalVolume::centred(&self.params.volume, self.params.voxel_size_m, frame.t_world_sensor.translation.vector.into())?;
         // §IV-A: occupancy of the local volume, fused into the global map.
         let obs = self.occupancy.observe(&mut self.backend, &self.sensor, frame, volume, &self.params.ogm)?;
-        let fused = self.map.fuse(obs);
+        let fused = self.map.fuse_on(&mut self.backend, obs)?;
         let ogm_ms = ms_since(start);
         self.local = OnceLock::new();
         self.local_states = OnceLock::new();
@@ -237,6 +241,7 @@ impl<B: Backend> Mapper<B> {
             voxels_updated: fused.voxels_updated,
             voxels_changed: fused.voxels_changed,
             changed_blocks: fused.changed_blocks,
+            occupancy_rewritten_blocks: fused.rewritten_blocks,
             edt_voxels_changed: merged.voxels_changed,
             edt_changed_blocks: merged.changed_blocks.len(),
             change_score_m: merged.change_sum_vox * self.params.voxel_size_m / mapped_voxels as f64,
@@ -364,7 +369,8 @@ impl<B: Backend> Mapper<B> {
     }
 
     /// Gives the backend up (to map something else on the same device).
-    pub fn into_backend(self) -> B {
+    pub fn into_backend(mut self) -> B {
+        self.backend.set_deferred_observations(false);
         self.backend
     }
 

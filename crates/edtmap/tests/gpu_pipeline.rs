@@ -1,5 +1,6 @@
 //! The whole pipeline on the GPU against the CPU, frame by frame, on the
-//! built-in scenes with their shipped configs: the local occupancy states,
+//! built-in scenes with their shipped configs: the fusion's counts (the
+//! GPU fuses on the device), the local occupancy states,
 //! the local batch EDT (squared distances and nearest obstacles), the
 //! global occupancy map and the global EDT must all be identical.
 
@@ -43,6 +44,8 @@ fn compare(scene_name: &str, construction: Construction, mode: IntegrationMode, 
         let a = cpu.integrate_frame(&frame).expect("cpu frame");
         let b = gpu.integrate_frame(&frame).expect("gpu frame");
         let at = format!("{scene_name} {construction:?} {mode:?} frame {i}");
+        // The fusion (on the device for the GPU): the same counts.
+        assert_eq!((a.voxels_updated, a.voxels_changed, a.occupancy_rewritten_blocks), (b.voxels_updated, b.voxels_changed, b.occupancy_rewritten_blocks), "{at}: fusion counts");
         assert_eq!(a.changed_blocks, b.changed_blocks, "{at}: changed blocks");
         assert_eq!(a.edt_voxels_changed, b.edt_voxels_changed, "{at}: EDT voxels changed");
         assert!(cpu.local_states() == gpu.local_states(), "{at}: local states differ");

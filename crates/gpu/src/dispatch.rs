@@ -86,22 +86,23 @@ impl Kernel {
 }
 
 /// A shader with one entry point over one bind group: a uniform parameter
-/// block at binding 0 (`params_bytes` long), a read-only input at 1 and an
-/// output at 2, the layout of the ray-casting and projection kernels.
-/// Returns the kernel, its layout and the parameter buffer.
+/// block at binding 0 (`params_bytes` long), a read-only input at 1 and
+/// `outputs` outputs from 2 on, the layout of the ray-casting and
+/// projection kernels. Returns the kernel, its layout and the parameter
+/// buffer.
 pub(crate) fn in_out_kernel(
     ctx: &GpuContext,
     file: &str,
     source: &str,
     entry: &str,
     params_bytes: u64,
+    outputs: u32,
 ) -> (Kernel, wgpu::BindGroupLayout, wgpu::Buffer) {
     let dev = &ctx.device;
     let module = dev.create_shader_module(wgpu::ShaderModuleDescriptor { label: Some(file), source: wgpu::ShaderSource::Wgsl(source.into()) });
-    let layout = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-        label: Some(entry),
-        entries: &[uniform_entry(0, false), storage_entry(1, true), storage_entry(2, false)],
-    });
+    let mut entries = vec![uniform_entry(0, false), storage_entry(1, true)];
+    entries.extend((0..outputs).map(|k| storage_entry(2 + k, false)));
+    let layout = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some(entry), entries: &entries });
     let params = ctx.buffer(entry, params_bytes, wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST);
     (Kernel::new(ctx, &module, &layout, entry), layout, params)
 }

@@ -13,6 +13,7 @@ mod context;
 mod dispatch;
 mod edt;
 mod exact;
+mod fuse;
 mod integrate;
 mod obstacles;
 mod pool;
@@ -22,6 +23,7 @@ mod raycast;
 pub use context::GpuContext;
 use context::Stage;
 use exact::GpuExact;
+use fuse::GpuFusion;
 pub use edt::GpuEdt;
 pub use integrate::GpuIntegrator;
 pub use project::GpuProject;
@@ -31,8 +33,10 @@ use edtmap_core::fixed_ray::{cast_fixed, FixedRay};
 use edtmap_core::region::{Packing, Region};
 use edtmap_core::stages::exact::{recompute_exact, ExactBuffers};
 use edtmap_core::{
-    decide_uncertain, mark_misses, Backend, BackendError, BatchEdt, EdtField, Grid3, IntegrateJob, IntegrateReport, Integration, Observations, ProjectJob,
+    decide_uncertain, mark_misses, Backend, BackendError, BatchEdt, EdtField, FuseReport, Grid3, IntegrateJob, IntegrateReport, Integration, LocalVolume,
+    LogOdds, Observations, OccupancyMap, ProjectJob, OBS_MISS, OBS_NONE,
 };
+use rayon::prelude::*;
 
 /// The GPU as a [`Backend`] of the mapper: one device, kernels compiled
 /// once, buffers reused across frames. Every stage runs on the device
@@ -47,6 +51,12 @@ pub struct GpuBackend {
     raycast: GpuRaycast,
     project: GpuProject,
     exact: GpuExact,
+    fusion: GpuFusion,
+    /// Whether the occupancy stage leaves its codes on the device
+    /// ([`Backend::set_deferred_observations`]).
+    defer: bool,
+    /// The codes the last occupancy stage left on the device, for `fuse`.
+    pending: Option<Pending>,
     /// The host-side exact integration, for cutoffs the device's pool
     /// cannot encode.
     exact_host: ExactBuffers,
@@ -66,7 +76,21 @@ impl GpuBackend {
         let raycast = GpuRaycast::new(&ctx)?;
         let project = GpuProject::new(&ctx)?;
         let exact = GpuExact::new(&ctx)?;
-        Ok(GpuBackend { ctx, edt, integrator, raycast, project, exact, exact_host: ExactBuffers::default(), bits: Vec::new(), max_tile_voxels: u64::MAX })
+        let fusion = GpuFusion::new(&ctx)?;
+        Ok(GpuBackend {
+            ctx,
+            edt,
+            integrator,
+            raycast,
+            project,
+            exact,
+            fusion,
+            defer: false,
+            pending: None,
+            exact_host: ExactBuffers::default(),
+            bits: Vec::new(),
+            max_tile_voxels: u64::MAX,
+        })
     }
 
     /// Caps the blocks of the global EDT the exact integration keeps
@@ -100,6 +124,16 @@ impl GpuBackend {
     pub fn project_bits(&mut self, job: &ProjectJob<'_>, bits: &mut Vec<u8>) -> Result<bool, BackendError> {
         self.project.run(job, bits)
     }
+}
+
+/// Observation codes an occupancy stage left on the device.
+#[derive(Debug)]
+struct Pending {
+    volume: LocalVolume,
+    /// Where: the ray casting's buffer (true) or the projection's.
+    cast: bool,
+    /// The voxels the projection left uncertain (the host decided them).
+    uncertain: Vec<u32>,
 }
 
 impl GpuBackend {
@@ -188,6 +222,15 @@ impl Backend for GpuBackend {
 
     fn cast_rays(&mut self, rays: &[FixedRay], q: u32, obs: &Observations) -> Result<(), BackendError> {
         self.ctx.set_stage(Stage::Occupancy);
+        self.pending = None;
+        if self.defer && self.fusion.fits(obs.volume()) {
+            if self.raycast.run_kept(rays, q, obs.volume().dims)? {
+                self.pending = Some(Pending { volume: *obs.volume(), cast: true, uncertain: Vec::new() });
+            } else {
+                cast_fixed(obs, rays, q);
+            }
+            return Ok(());
+        }
         if self.raycast.run(rays, q, obs.volume().dims, &mut self.bits)? {
             obs.load_bits(&self.bits);
         } else {
@@ -198,6 +241,27 @@ impl Backend for GpuBackend {
 
     fn project_volume(&mut self, job: &ProjectJob<'_>, obs: &Observations) -> Result<(), BackendError> {
         self.ctx.set_stage(Stage::Occupancy);
+        self.pending = None;
+        if self.defer && self.fusion.fits(&job.volume) {
+            match self.project.run_kept(job)? {
+                Some(uncertain) => {
+                    // The host decides the uncertain voxels, as
+                    // `decide_uncertain` does, and marks the misses.
+                    let geom = job.voxel_to_sensor();
+                    let [nx, ny, _] = job.volume.dims;
+                    uncertain.par_iter().for_each(|&i| {
+                        let i = i as usize;
+                        let c = [i % nx, (i / nx) % ny, i / (nx * ny)];
+                        if job.is_miss(&geom, c) {
+                            obs.mark(c, i, OBS_MISS);
+                        }
+                    });
+                    self.pending = Some(Pending { volume: job.volume, cast: false, uncertain });
+                }
+                None => mark_misses(obs, job),
+            }
+            return Ok(());
+        }
         if self.project.run(job, &mut self.bits)? {
             decide_uncertain(job, &mut self.bits);
             obs.load_bits(&self.bits);
@@ -205,6 +269,26 @@ impl Backend for GpuBackend {
             mark_misses(obs, job);
         }
         Ok(())
+    }
+
+    fn set_deferred_observations(&mut self, defer: bool) {
+        self.defer = defer;
+        self.pending = None;
+    }
+
+    fn fuse(&mut self, map: &mut OccupancyMap, obs: &Observations, lo: &LogOdds) -> Result<FuseReport, BackendError> {
+        let Some(pending) = self.pending.take() else { return Ok(edtmap_core::fuse(map, obs, lo)) };
+        if pending.volume != *obs.volume() {
+            return Err(BackendError::Device(format!("observations of {:?} to fuse, the device's are of {:?}", obs.volume(), pending.volume)));
+        }
+        self.ctx.set_stage(Stage::Occupancy);
+        let codes = if pending.cast { self.raycast.codes() } else { self.project.codes() };
+        let codes = codes.ok_or_else(|| BackendError::Device("observation codes missing".into()))?;
+        // What the host marked (a projection's hits, the uncertain voxels
+        // it found missed), then the uncertain voxels it left unobserved.
+        let mut fixes: Vec<u32> = obs.observed().into_iter().map(|(i, code)| ((i as u32) << 2) | u32::from(code)).collect();
+        fixes.extend(pending.uncertain.iter().filter(|&&i| obs.get(i as usize) == OBS_NONE).map(|&i| i << 2));
+        self.fusion.run(codes, &fixes, map, obs.volume(), lo)
     }
 
     fn integrate(&mut self, job: IntegrateJob<'_>) -> Result<IntegrateReport, BackendError> {

@@ -65,6 +65,8 @@ struct Buffers {
     free_below: wgpu::Buffer,
     out: wgpu::Buffer,
     staging: wgpu::Buffer,
+    /// How many voxels are uncertain, then their indices.
+    uncertain: wgpu::Buffer,
     group: wgpu::BindGroup,
 }
 
@@ -72,7 +74,7 @@ impl GpuProject {
     /// Compiles the kernel once for `ctx`.
     pub fn new(ctx: &GpuContext) -> Result<Self, BackendError> {
         ctx.scoped(|| {
-            let (kernel, layout, params) = in_out_kernel(ctx, "project.wgsl", include_str!("project.wgsl"), "project", std::mem::size_of::<Params>() as u64);
+            let (kernel, layout, params) = in_out_kernel(ctx, "project.wgsl", include_str!("project.wgsl"), "project", std::mem::size_of::<Params>() as u64, 2);
             GpuProject { ctx: ctx.clone(), kernel, layout, params, free_below: Vec::new(), bufs: None }
         })
     }
@@ -83,6 +85,52 @@ impl GpuProject {
     /// the shader's exact range (a sensor millions of
     /// voxels away, a scan of more than 2²⁴ beams per turn).
     pub fn run(&mut self, job: &ProjectJob<'_>, bits: &mut Vec<u8>) -> Result<bool, BackendError> {
+        let voxels = job.volume.len();
+        let words = voxels.div_ceil(16) as u64;
+        if !self.encode(job, |enc, bufs| enc.copy_buffer_to_buffer(&bufs.out, 0, &bufs.staging, 0, 4 * words))? {
+            return Ok(false);
+        }
+        let bufs = self.bufs.as_ref().ok_or_else(|| BackendError::Device("buffers missing".into()))?;
+        bits.resize(voxels, 0);
+        self.ctx.read_back(&bufs.staging, 4 * words, |b| unpack_codes(b, bits))?;
+        Ok(true)
+    }
+
+    /// [`Self::run`] with the codes left on the device ([`Self::codes`])
+    /// and only the uncertain voxels read back: their linear indices, in
+    /// no particular order. `Ok(None)` where the kernel does not apply.
+    pub(crate) fn run_kept(&mut self, job: &ProjectJob<'_>) -> Result<Option<Vec<u32>>, BackendError> {
+        if !self.encode(job, |enc, bufs| enc.copy_buffer_to_buffer(&bufs.uncertain, 0, &bufs.staging, 0, 4))? {
+            return Ok(None);
+        }
+        let bufs = self.bufs.as_ref().ok_or_else(|| BackendError::Device("buffers missing".into()))?;
+        let mut count = 0;
+        self.ctx.read_back(&bufs.staging, 4, |b| count = u32::from_ne_bytes([b[0], b[1], b[2], b[3]]) as usize)?;
+        if count > job.volume.len() {
+            return Err(BackendError::Device(format!("the projection listed {count} uncertain voxels of {}", job.volume.len())));
+        }
+        let mut list = vec![0u32; count];
+        if count > 0 {
+            let bytes = 4 * count as u64;
+            self.ctx.scoped(|| {
+                let mut enc = self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("project uncertain") });
+                enc.copy_buffer_to_buffer(&bufs.uncertain, 4, &bufs.staging, 0, bytes);
+                self.ctx.queue.submit([enc.finish()]);
+            })?;
+            self.ctx.read_back(&bufs.staging, bytes, |b| crate::edt::copy_words(b, &mut list))?;
+        }
+        Ok(Some(list))
+    }
+
+    /// The codes of the last projection, two bits per voxel (sixteen to a
+    /// word), on the device.
+    pub(crate) fn codes(&self) -> Option<&wgpu::Buffer> {
+        self.bufs.as_ref().map(|b| &b.out)
+    }
+
+    /// Records and submits the projection of `job` and `copy` after it;
+    /// `Ok(false)` where the kernel does not apply.
+    fn encode(&mut self, job: &ProjectJob<'_>, copy: impl FnOnce(&mut wgpu::CommandEncoder, &Buffers)) -> Result<bool, BackendError> {
         let Some(params) = self.prepare(job) else { return Ok(false) };
         let voxels = job.volume.len();
         let words = voxels.div_ceil(16) as u64;
@@ -93,15 +141,14 @@ impl GpuProject {
             q.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
             q.write_buffer(&bufs.free_below, 0, bytemuck::cast_slice(&self.free_below));
             let mut enc = self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("project") });
+            enc.clear_buffer(&bufs.uncertain, 0, Some(4));
             {
                 let mut pass = self.ctx.pass(&mut enc, "project");
                 self.kernel.dispatch(&mut pass, &[&bufs.group], groups_1d(words));
             }
-            enc.copy_buffer_to_buffer(&bufs.out, 0, &bufs.staging, 0, 4 * words);
+            copy(&mut enc, bufs);
             q.submit([enc.finish()]);
         })?;
-        bits.resize(voxels, 0);
-        self.ctx.read_back(&bufs.staging, 4 * words, |b| unpack_codes(b, bits))?;
         Ok(true)
     }
 
@@ -191,13 +238,16 @@ impl GpuProject {
         let words = voxels.div_ceil(16).max(1) as u64;
         self.ctx.check_buffer("the free ranges of the pixels or beams", 4 * beams as u64)?;
         self.ctx.check_buffer("the projection bits", 4 * words)?;
+        self.ctx.check_buffer("the projection's uncertain voxels", 4 + 4 * voxels as u64)?;
         let bufs = self.ctx.scoped(|| {
             let buffer = |label, size, usage| self.ctx.buffer(label, size, usage);
             let free_below = buffer("project free ranges", 4 * beams as u64, wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST);
             let out = buffer("project bits", 4 * words, wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC);
-            let staging = buffer("project staging", 4 * words, wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST);
-            let group = self.ctx.bind_group("project", &self.layout, &[&self.params, &free_below, &out].map(|b| b.as_entire_binding()));
-            Buffers { beams, voxels, free_below, out, staging, group }
+            let uncertain = buffer("project uncertain", 4 + 4 * voxels as u64, wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC);
+            // The codes, or the uncertain voxels' list.
+            let staging = buffer("project staging", (4 * words).max(4 * voxels as u64), wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST);
+            let group = self.ctx.bind_group("project", &self.layout, &[&self.params, &free_below, &out, &uncertain].map(|b| b.as_entire_binding()));
+            Buffers { beams, voxels, free_below, out, staging, uncertain, group }
         })?;
         self.bufs = Some(bufs);
         Ok(())

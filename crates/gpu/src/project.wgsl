@@ -1,6 +1,6 @@
 // Volumetric projection (paper §IV-A), dispatched by project.rs: one
 // invocation per word of sixteen voxels, two bits each (each owns its word:
-// no atomics)
+// no atomics but the uncertain voxels' list)
 // decides edtmap_core::ProjectJob::is_miss in f32 together with a bound on
 // how far each quantity it thresholds can be from the CPU's value. A voxel
 // is written NOT_MISS or MISS only when every threshold is farther than
@@ -65,6 +65,10 @@ struct Params {
 // for a LiDAR (beam ring * bins + bin), then its rings and ring bounds.
 @group(0) @binding(1) var<storage, read> free_below: array<f32>;
 @group(0) @binding(2) var<storage, read_write> out: array<u32>;
+// [0]: how many voxels were left uncertain; from [1]: their linear indices,
+// in no particular order (for a host that keeps the codes on the device and
+// decides only these).
+@group(0) @binding(3) var<storage, read_write> uncertain: array<atomic<u32>>;
 
 fn merge(a: u32, b: u32) -> u32 {
     return select(UNCERTAIN, a, a == b);
@@ -348,7 +352,12 @@ fn project(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: 
     var word = 0u;
     for (var k = 0u; k < 16u; k++) {
         if (first + k < P.dims.w) {
-            word |= decide(first + k) << (2u * k);
+            let code = decide(first + k);
+            if (code == UNCERTAIN) {
+                let at = atomicAdd(&uncertain[0], 1u);
+                atomicStore(&uncertain[1u + at], first + k);
+            }
+            word |= code << (2u * k);
         }
     }
     out[w] = word;

@@ -46,7 +46,7 @@ impl GpuRaycast {
     /// Compiles the kernel once for `ctx`.
     pub fn new(ctx: &GpuContext) -> Result<Self, BackendError> {
         ctx.scoped(|| {
-            let (kernel, layout, params) = in_out_kernel(ctx, "raycast.wgsl", include_str!("raycast.wgsl"), "cast_rays", std::mem::size_of::<Params>() as u64);
+            let (kernel, layout, params) = in_out_kernel(ctx, "raycast.wgsl", include_str!("raycast.wgsl"), "cast_rays", std::mem::size_of::<Params>() as u64, 1);
             GpuRaycast { ctx: ctx.clone(), kernel, layout, params, bufs: None }
         })
     }
@@ -56,6 +56,32 @@ impl GpuRaycast {
     /// `Ok(false)` when `q` does not fit `dims`
     /// (the CPU then walks nothing either, so it is left to it).
     pub fn run(&mut self, rays: &[FixedRay], q: u32, dims: [usize; 3], bits: &mut Vec<u8>) -> Result<bool, BackendError> {
+        if !self.encode(rays, q, dims, true)? {
+            return Ok(false);
+        }
+        let voxels: usize = dims.iter().product();
+        let words = voxels.div_ceil(16) as u64;
+        let bufs = self.bufs.as_ref().ok_or_else(|| BackendError::Device("buffers missing".into()))?;
+        bits.resize(voxels, 0);
+        self.ctx.read_back(&bufs.staging, 4 * words, |b| unpack_codes(b, bits))?;
+        Ok(true)
+    }
+
+    /// [`Self::run`] with the codes left on the device ([`Self::codes`]),
+    /// nothing read back.
+    pub(crate) fn run_kept(&mut self, rays: &[FixedRay], q: u32, dims: [usize; 3]) -> Result<bool, BackendError> {
+        self.encode(rays, q, dims, false)
+    }
+
+    /// The codes of the last walk, two bits per voxel (sixteen to a word),
+    /// on the device.
+    pub(crate) fn codes(&self) -> Option<&wgpu::Buffer> {
+        self.bufs.as_ref().map(|b| &b.obs)
+    }
+
+    /// Records and submits the walk, with the codes' copy for reading
+    /// back when `download`; `Ok(false)` when `q` does not fit `dims`.
+    fn encode(&mut self, rays: &[FixedRay], q: u32, dims: [usize; 3], download: bool) -> Result<bool, BackendError> {
         let fits = fixed_scale(dims).is_ok_and(|max| q >= 1 && q <= max);
         if !fits {
             return Ok(false);
@@ -82,11 +108,11 @@ impl GpuRaycast {
                     self.kernel.dispatch(&mut pass, &[&bufs.group], groups_1d(rays.len() as u64));
                 }
             }
-            enc.copy_buffer_to_buffer(&bufs.obs, 0, &bufs.staging, 0, 4 * words);
+            if download {
+                enc.copy_buffer_to_buffer(&bufs.obs, 0, &bufs.staging, 0, 4 * words);
+            }
             q.submit([enc.finish()]);
         })?;
-        bits.resize(voxels, 0);
-        self.ctx.read_back(&bufs.staging, 4 * words, |b| unpack_codes(b, bits))?;
         Ok(true)
     }
 

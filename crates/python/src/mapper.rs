@@ -163,6 +163,7 @@ fn stats_dict<'py>(py: Python<'py>, s: &FrameStats) -> PyResult<Bound<'py, PyDic
     d.set_item("voxels_updated", s.voxels_updated)?;
     d.set_item("voxels_changed", s.voxels_changed)?;
     d.set_item("changed_blocks", s.changed_blocks.len())?;
+    d.set_item("occupancy_rewritten_blocks", s.occupancy_rewritten_blocks)?;
     d.set_item("edt_voxels_changed", s.edt_voxels_changed)?;
     d.set_item("change_score_m", s.change_score_m)?;
     d.set_item("integrate_region_voxels", s.integrate_region_voxels)?;
