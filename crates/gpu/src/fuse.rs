@@ -55,7 +55,6 @@ pub(crate) struct GpuFusion {
     fuse: Kernel,
     layout: wgpu::BindGroupLayout,
     params: wgpu::Buffer,
-    ctrl: wgpu::Buffer,
     pool: Option<Pool>,
     /// Per slot: the version of the map's block the device holds (`None`:
     /// a block the map lacked, all unobserved).
@@ -76,8 +75,8 @@ struct Buffers {
     corrections: usize,
     slots: wgpu::Buffer,
     fixes: wgpu::Buffer,
-    list: wgpu::Buffer,
-    list_staging: wgpu::Buffer,
+    counts: wgpu::Buffer,
+    counts_staging: wgpu::Buffer,
     staging: wgpu::Buffer,
 }
 
@@ -91,14 +90,13 @@ impl GpuFusion {
                 source: wgpu::ShaderSource::Wgsl(include_str!("fuse.wgsl").into()),
             });
             let mut entries = vec![uniform_entry(0, false)];
-            entries.extend((1..=6).map(|b| storage_entry(b, b == 2 || b == 3)));
+            entries.extend((1..=5).map(|b| storage_entry(b, b == 2 || b == 3)));
             let layout = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some("fuse"), entries: &entries });
             GpuFusion {
                 ctx: ctx.clone(),
                 correct: Kernel::new(ctx, &module, &layout, "correct"),
                 fuse: Kernel::new(ctx, &module, &layout, "fuse"),
                 params: ctx.buffer("fuse params", std::mem::size_of::<Params>() as u64, wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST),
-                ctrl: ctx.buffer("fuse ctrl", 16, wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC),
                 layout,
                 pool: None,
                 held: Vec::new(),
@@ -164,9 +162,9 @@ impl GpuFusion {
         };
         let pool = self.pool.as_ref().ok_or_else(|| BackendError::Device("fusion pool missing".into()))?;
         let bufs = self.bufs.as_ref().ok_or_else(|| BackendError::Device("fusion buffers missing".into()))?;
-        let list_bytes = 8 * nb as u64;
+        let counts_bytes = 4 * nb as u64;
         self.ctx.scoped(|| {
-            let resources = [&self.params, codes, &bufs.fixes, &bufs.slots, &pool.buffer, &bufs.list, &self.ctrl].map(|b| b.as_entire_binding());
+            let resources = [&self.params, codes, &bufs.fixes, &bufs.slots, &pool.buffer, &bufs.counts].map(|b| b.as_entire_binding());
             let group = self.ctx.bind_group("fuse", &self.layout, &resources);
             let q = &self.ctx.queue;
             q.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
@@ -178,7 +176,7 @@ impl GpuFusion {
             for (first, len) in runs(&self.cleared) {
                 enc.clear_buffer(&pool.buffer, u64::from(first) * BLOCK_BYTES, Some(u64::from(len) * BLOCK_BYTES));
             }
-            enc.clear_buffer(&self.ctrl, 0, None);
+            enc.clear_buffer(&bufs.counts, 0, Some(counts_bytes));
             {
                 let mut pass = self.ctx.pass(&mut enc, "fuse");
                 if !corrections.is_empty() {
@@ -187,22 +185,19 @@ impl GpuFusion {
                 // One workgroup per block.
                 self.fuse.dispatch(&mut pass, &[&group], groups_1d(nb as u64 * GROUP));
             }
-            enc.copy_buffer_to_buffer(&self.ctrl, 0, &bufs.list_staging, 0, 16);
-            enc.copy_buffer_to_buffer(&bufs.list, 0, &bufs.list_staging, 16, list_bytes);
+            enc.copy_buffer_to_buffer(&bufs.counts, 0, &bufs.counts_staging, 0, counts_bytes);
             q.submit([enc.finish()]);
         })?;
 
         // The observed blocks, in the volume's block order as the CPU
         // lists them, with their counts.
         let mut listed: Vec<(u32, u32)> = Vec::new();
-        self.ctx.read_back(&bufs.list_staging, 16 + list_bytes, |bytes| {
+        self.ctx.read_back(&bufs.counts_staging, counts_bytes, |bytes| {
             let word = |i: usize| u32::from_ne_bytes([bytes[4 * i], bytes[4 * i + 1], bytes[4 * i + 2], bytes[4 * i + 3]]);
-            let count = (word(0) as usize).min(nb);
-            listed = (0..count).map(|k| (word(4 + 2 * k), word(5 + 2 * k))).collect();
+            listed = (0..nb).map(|b| (b as u32, word(b))).filter(|l| l.1 != 0).collect();
         })?;
-        listed.sort_unstable();
-        if listed.last().is_some_and(|l| l.0 as usize >= nb) || listed.windows(2).any(|w| w[0].0 == w[1].0) {
-            return Err(BackendError::Device("the device listed a block twice or out of the volume".into()));
+        if listed.iter().any(|l| l.1 & 0x3ff == 0 || l.1 >> 21 != 0) {
+            return Err(BackendError::Device("the device's fusion counts are inconsistent".into()));
         }
         let counts = |e: u32| ((e & 0x3ff) as usize, ((e >> 10) & 0x3ff) as usize, e >> 20 != 0);
         let mut report = FuseReport::default();
@@ -341,8 +336,8 @@ impl GpuFusion {
                     corrections: fixes,
                     slots: buffer("fuse slots", 4 * n, storage | wgpu::BufferUsages::COPY_DST),
                     fixes: buffer("fuse corrections", 4 * fixes as u64, storage | wgpu::BufferUsages::COPY_DST),
-                    list: buffer("fuse list", 8 * n, storage | wgpu::BufferUsages::COPY_SRC),
-                    list_staging: buffer("fuse list staging", 16 + 8 * n, read),
+                    counts: buffer("fuse counts", 4 * n, storage | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC),
+                    counts_staging: buffer("fuse counts staging", 4 * n, read),
                     staging: buffer("fuse staging", n * BLOCK_BYTES, read),
                 }
             })?;

@@ -39,11 +39,9 @@ struct Params {
 @group(0) @binding(3) var<storage, read> slots: array<u32>;
 // 512 words per slot, voxels in block order (x fastest).
 @group(0) @binding(4) var<storage, read_write> pool: array<u32>;
-// Per observed block: its index, observations, state changes, and whether
-// a value changed.
-@group(0) @binding(5) var<storage, read_write> list: array<vec2<u32>>;
-// [0]: how many blocks are listed.
-@group(0) @binding(6) var<storage, read_write> ctrl: array<atomic<u32>>;
+// Per volume block: its observations (bits 0-9), state changes (10-19),
+// and whether a value changed (bit 20).
+@group(0) @binding(5) var<storage, read_write> counts: array<atomic<u32>>;
 
 // One invocation per correction.
 @compute @workgroup_size(64)
@@ -75,12 +73,11 @@ fn state(word: u32) -> u32 {
     return select(1u, 2u, key(word ^ UNOBSERVED_BITS) > P.occupied.x);
 }
 
-var<workgroup> observed: atomic<u32>;
-var<workgroup> flipped: atomic<u32>;
-var<workgroup> rewritten: atomic<u32>;
-
-// One workgroup per volume block: its observed voxels fused, the block
-// listed with its counts if any was observed.
+// One workgroup per volume block, an invocation per row of eight voxels
+// along x (which reads one or two code words, none where the row is
+// unobserved): the row's observed voxels fused, and what they did added to
+// the block's counts. No barrier: lavapipe runs a workgroup with one as
+// coroutines, several times slower.
 @compute @workgroup_size(64)
 fn fuse(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
         @builtin(local_invocation_index) lid: u32) {
@@ -88,27 +85,36 @@ fn fuse(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec
     if (b >= P.blocks.w) {
         return;
     }
-    if (lid == 0u) {
-        atomicStore(&observed, 0u);
-        atomicStore(&flipped, 0u);
-        atomicStore(&rewritten, 0u);
-    }
-    workgroupBarrier();
     let bc = vec3<u32>(b % P.blocks.x, (b / P.blocks.x) % P.blocks.y, b / (P.blocks.x * P.blocks.y));
+    // The row's y and z in the volume, negative (wrapped) before its origin.
+    let cy = bc.y * 8u + (lid % 8u) - P.o8.y;
+    let cz = bc.z * 8u + (lid / 8u) - P.o8.z;
+    if (cy >= P.dims.y || cz >= P.dims.z) {
+        return;
+    }
     let slot = slots[b] * 512u;
-    for (var k = 0u; k < 8u; k++) {
-        let off = lid + 64u * k;
-        let w = vec3<u32>(off % 8u, (off / 8u) % 8u, off / 64u);
-        // Volume coordinates, negative (wrapped) before the volume's origin.
-        let c = bc * 8u + w - P.o8.xyz;
-        if (any(c >= P.dims.xyz)) {
+    let x0 = bc.x * 8u;
+    // The code word last read: a row's eight voxels lie in one or two.
+    var held = 0xffffffffu;
+    var word_codes = 0u;
+    var observed = 0u;
+    var flipped = 0u;
+    var rewritten = 0u;
+    for (var x = 0u; x < 8u; x++) {
+        let cx = x0 + x - P.o8.x;
+        if (cx >= P.dims.x) {
             continue;
         }
-        let i = c.x + P.dims.x * (c.y + P.dims.y * c.z);
-        let code = (atomicLoad(&codes[i >> 4u]) >> (2u * (i & 15u))) & 3u;
+        let i = cx + P.dims.x * (cy + P.dims.y * cz);
+        if ((i >> 4u) != held) {
+            held = i >> 4u;
+            word_codes = atomicLoad(&codes[held]);
+        }
+        let code = (word_codes >> (2u * (i & 15u))) & 3u;
         if (code == 0u) {
             continue;
         }
+        let off = x + 8u * lid;
         let old = pool[slot + off];
         let prior = select(bitcast<f32>(old ^ UNOBSERVED_BITS), 0.0, old == 0u);
         var value: f32;
@@ -118,19 +124,19 @@ fn fuse(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec
             value = max(prior + P.lo.y, P.lo.z);
         }
         let word = bitcast<u32>(value) ^ UNOBSERVED_BITS;
-        atomicAdd(&observed, 1u);
-        if (state(old) != state(word)) {
-            atomicAdd(&flipped, 1u);
-        }
+        observed += 1u;
+        flipped += select(0u, 1u, state(old) != state(word));
         if (word != old) {
             pool[slot + off] = word;
-            atomicStore(&rewritten, 1u);
+            rewritten = 1u;
         }
     }
-    workgroupBarrier();
-    let n = atomicLoad(&observed);
-    if (lid == 0u && n != 0u) {
-        let at = atomicAdd(&ctrl[0], 1u);
-        list[at] = vec2<u32>(b, n | (atomicLoad(&flipped) << 10u) | (atomicLoad(&rewritten) << 20u));
+    // A block's observations and state changes are at most 512 each: the
+    // two sums never carry into the next field or the flag.
+    if (observed != 0u) {
+        atomicAdd(&counts[b], observed | (flipped << 10u));
+    }
+    if (rewritten != 0u) {
+        atomicOr(&counts[b], 1u << 20u);
     }
 }

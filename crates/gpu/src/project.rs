@@ -56,6 +56,8 @@ pub struct GpuProject {
     /// Per pixel or beam: `ProjectJob::free_below_m`.
     free_below: Vec<f32>,
     bufs: Option<Buffers>,
+    /// How many uncertain voxels to read back with their count.
+    uncertain_guess: usize,
 }
 
 #[derive(Debug)]
@@ -75,7 +77,7 @@ impl GpuProject {
     pub fn new(ctx: &GpuContext) -> Result<Self, BackendError> {
         ctx.scoped(|| {
             let (kernel, layout, params) = in_out_kernel(ctx, "project.wgsl", include_str!("project.wgsl"), "project", std::mem::size_of::<Params>() as u64, 2);
-            GpuProject { ctx: ctx.clone(), kernel, layout, params, free_below: Vec::new(), bufs: None }
+            GpuProject { ctx: ctx.clone(), kernel, layout, params, free_below: Vec::new(), bufs: None, uncertain_guess: 4096 }
         })
     }
 
@@ -99,26 +101,39 @@ impl GpuProject {
     /// [`Self::run`] with the codes left on the device ([`Self::codes`])
     /// and only the uncertain voxels read back: their linear indices, in
     /// no particular order. `Ok(None)` where the kernel does not apply.
+    ///
+    /// The count comes back with as many indices as the last frame had
+    /// and a quarter more (one round trip); only a frame with more needs a
+    /// second.
     pub(crate) fn run_kept(&mut self, job: &ProjectJob<'_>) -> Result<Option<Vec<u32>>, BackendError> {
-        if !self.encode(job, |enc, bufs| enc.copy_buffer_to_buffer(&bufs.uncertain, 0, &bufs.staging, 0, 4))? {
+        let voxels = job.volume.len();
+        let guess = self.uncertain_guess.min(voxels);
+        if !self.encode(job, |enc, bufs| enc.copy_buffer_to_buffer(&bufs.uncertain, 0, &bufs.staging, 0, 4 + 4 * guess as u64))? {
             return Ok(None);
         }
         let bufs = self.bufs.as_ref().ok_or_else(|| BackendError::Device("buffers missing".into()))?;
-        let mut count = 0;
-        self.ctx.read_back(&bufs.staging, 4, |b| count = u32::from_ne_bytes([b[0], b[1], b[2], b[3]]) as usize)?;
-        if count > job.volume.len() {
-            return Err(BackendError::Device(format!("the projection listed {count} uncertain voxels of {}", job.volume.len())));
+        let (mut list, mut count) = (Vec::new(), 0);
+        self.ctx.read_back(&bufs.staging, 4 + 4 * guess as u64, |b| {
+            count = u32::from_ne_bytes([b[0], b[1], b[2], b[3]]) as usize;
+            if count <= voxels {
+                list = vec![0u32; count];
+                let have = count.min(guess);
+                crate::edt::copy_words(&b[4..4 + 4 * have], &mut list[..have]);
+            }
+        })?;
+        if count > voxels {
+            return Err(BackendError::Device(format!("the projection listed {count} uncertain voxels of {voxels}")));
         }
-        let mut list = vec![0u32; count];
-        if count > 0 {
-            let bytes = 4 * count as u64;
+        if count > guess {
+            let bytes = 4 * (count - guess) as u64;
             self.ctx.scoped(|| {
                 let mut enc = self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("project uncertain") });
-                enc.copy_buffer_to_buffer(&bufs.uncertain, 4, &bufs.staging, 0, bytes);
+                enc.copy_buffer_to_buffer(&bufs.uncertain, 4 + 4 * guess as u64, &bufs.staging, 0, bytes);
                 self.ctx.queue.submit([enc.finish()]);
             })?;
-            self.ctx.read_back(&bufs.staging, bytes, |b| crate::edt::copy_words(b, &mut list))?;
+            self.ctx.read_back(&bufs.staging, bytes, |b| crate::edt::copy_words(b, &mut list[guess..]))?;
         }
+        self.uncertain_guess = count + count / 4 + 256;
         Ok(Some(list))
     }
 
@@ -245,7 +260,7 @@ impl GpuProject {
             let out = buffer("project bits", 4 * words, wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC);
             let uncertain = buffer("project uncertain", 4 + 4 * voxels as u64, wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC);
             // The codes, or the uncertain voxels' list.
-            let staging = buffer("project staging", (4 * words).max(4 * voxels as u64), wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST);
+            let staging = buffer("project staging", (4 * words).max(4 + 4 * voxels as u64), wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST);
             let group = self.ctx.bind_group("project", &self.layout, &[&self.params, &free_below, &out, &uncertain].map(|b| b.as_entire_binding()));
             Buffers { beams, voxels, free_below, out, staging, uncertain, group }
         })?;
