@@ -502,7 +502,7 @@ fn global_fields(s: &FrameStats, occupancy_blocks: usize) -> Vec<(&'static str, 
 }
 
 /// A device backend's traffic and work during one frame (GPU runs).
-fn device_fields(c: edtmap::DeviceCounters) -> [(&'static str, f64); 8] {
+fn device_fields(c: edtmap::DeviceCounters) -> [(&'static str, f64); 9] {
     [
         ("gpu_uploaded_bytes", c.uploaded_bytes as f64),
         ("gpu_downloaded_bytes", c.downloaded_bytes as f64),
@@ -512,6 +512,7 @@ fn device_fields(c: edtmap::DeviceCounters) -> [(&'static str, f64); 8] {
         ("gpu_ogm_device_ms", c.occupancy_ns as f64 * 1e-6),
         ("gpu_batch_edt_device_ms", c.batch_edt_ns as f64 * 1e-6),
         ("gpu_integrate_device_ms", c.integrate_ns as f64 * 1e-6),
+        ("gpu_wait_ms", c.wait_ns as f64 * 1e-6),
     ]
 }
 

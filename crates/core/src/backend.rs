@@ -290,6 +290,10 @@ pub struct DeviceCounters {
     /// Device time of the integration's passes (its own batch EDT
     /// included), nanoseconds.
     pub integrate_ns: u64,
+    /// Wall time the host spent waiting for the device to finish before
+    /// reading results back, nanoseconds: with the rest of a frame's time,
+    /// the host's own share (which a faster device does not shorten).
+    pub wait_ns: u64,
 }
 
 impl DeviceCounters {
@@ -304,6 +308,7 @@ impl DeviceCounters {
             occupancy_ns: self.occupancy_ns.saturating_sub(earlier.occupancy_ns),
             batch_edt_ns: self.batch_edt_ns.saturating_sub(earlier.batch_edt_ns),
             integrate_ns: self.integrate_ns.saturating_sub(earlier.integrate_ns),
+            wait_ns: self.wait_ns.saturating_sub(earlier.wait_ns),
         }
     }
 }

@@ -123,3 +123,55 @@ fn a_device_lost_in_the_occupancy_stage_is_a_backend_failure() {
     assert!(err.is_backend_failure(), "{err:?}");
     assert!(matches!(err, MapError::Backend(BackendError::DeviceLost(_))), "{err:?}");
 }
+
+/// A backend whose device is lost while fusing a frame's observations.
+struct LostInFusion(CpuBackend, usize);
+
+impl BatchEdt for LostInFusion {
+    fn batch_edt(&mut self, mask: &Grid3<bool>, out: &mut EdtField) -> Result<(), BackendError> {
+        self.0.batch_edt(mask, out)
+    }
+}
+
+impl Backend for LostInFusion {
+    fn name(&self) -> String {
+        "lost-in-fusion".into()
+    }
+    fn cast_rays(&mut self, rays: &[FixedRay], q: u32, obs: &Observations) -> Result<(), BackendError> {
+        self.0.cast_rays(rays, q, obs)
+    }
+    fn project_volume(&mut self, job: &ProjectJob<'_>, obs: &Observations) -> Result<(), BackendError> {
+        self.0.project_volume(job, obs)
+    }
+    fn fuse(&mut self, map: &mut edtmap::OccupancyMap, obs: &Observations, lo: &edtmap::LogOdds) -> Result<edtmap::FuseReport, BackendError> {
+        // The first frames fuse; then the device is gone.
+        self.1 += 1;
+        if self.1 > 2 {
+            return Err(BackendError::DeviceLost("lost while fusing".into()));
+        }
+        self.0.fuse(map, obs, lo)
+    }
+    fn integrate(&mut self, job: IntegrateJob<'_>) -> Result<IntegrateReport, BackendError> {
+        self.0.integrate(job)
+    }
+}
+
+#[test]
+fn a_device_lost_in_the_fusion_leaves_the_map_as_it_was() {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../configs/uav_pillars.toml");
+    let (sensor, params) = Config::load(&path).expect("config").mapper_params().expect("valid");
+    let scene = Scene::new(SceneName::UavPillars, &SceneOptions::default()).expect("scene");
+    let mut mapper = Mapper::new_on(LostInFusion(CpuBackend::default(), 0), sensor.clone(), params).expect("mapper");
+    for i in 0..2 {
+        mapper.integrate_frame(&scene.frame(&sensor, i).expect("frame")).expect("fused");
+    }
+    let blocks = |m: &edtmap::GlobalMap| {
+        let mut b: Vec<(edtmap::BlockKey, Vec<u32>)> = m.occupancy().iter().map(|(k, b)| (k, b.log_odds.iter().map(|l| l.to_bits()).collect())).collect();
+        b.sort_by_key(|e| e.0);
+        b
+    };
+    let before = blocks(mapper.map());
+    let err = mapper.integrate_frame(&scene.frame(&sensor, 5).expect("frame")).expect_err("the device is lost");
+    assert!(matches!(err, MapError::Backend(BackendError::DeviceLost(_))), "{err:?}");
+    assert!(blocks(mapper.map()) == before, "the failed frame changed the occupancy");
+}

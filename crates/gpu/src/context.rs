@@ -164,7 +164,7 @@ impl GpuContext {
                 for (tick, b) in ticks.iter_mut().zip(bytes.chunks_exact(8)) {
                     *tick = u64::from_ne_bytes([b[0], b[1], b[2], b[3], b[4], b[5], b[6], b[7]]);
                 }
-            })?;
+            }, None)?;
             let passes = std::mem::take(&mut state.passes);
             for (stage, pair) in passes.into_iter().zip(ticks.chunks_exact(2)) {
                 let ns = (pair[1].saturating_sub(pair[0]) as f64 * t.period_ns).round() as u64;
@@ -267,12 +267,13 @@ impl GpuContext {
         read: impl FnOnce(&[u8]),
     ) -> Result<(), BackendError> {
         self.queue.counters.downloaded.fetch_add(bytes, Ordering::Relaxed);
-        self.map_read(staging, bytes, read)
+        self.map_read(staging, bytes, read, Some(&self.queue.counters.waited_ns))
     }
 
     /// Maps the first `bytes` of `staging` once the device is done and
-    /// gives them to `read`, uncounted.
-    fn map_read(&self, staging: &wgpu::Buffer, bytes: u64, read: impl FnOnce(&[u8])) -> Result<(), BackendError> {
+    /// gives them to `read`, uncounted; the time spent waiting for the
+    /// device is added to `waited` where given.
+    fn map_read(&self, staging: &wgpu::Buffer, bytes: u64, read: impl FnOnce(&[u8]), waited: Option<&AtomicU64>) -> Result<(), BackendError> {
         let slice = staging.slice(..bytes);
         let status = Arc::new(Mutex::new(None));
         let done = Arc::clone(&status);
@@ -281,7 +282,12 @@ impl GpuContext {
                 *slot = Some(r);
             }
         });
-        self.wait()?;
+        let start = std::time::Instant::now();
+        let done = self.wait();
+        if let Some(w) = waited {
+            w.fetch_add(start.elapsed().as_nanos() as u64, Ordering::Relaxed);
+        }
+        done?;
         let mapped = status.lock().ok().and_then(|mut s| s.take());
         match mapped {
             Some(Ok(())) => {}
@@ -304,6 +310,7 @@ pub(crate) struct Counters {
     downloaded: AtomicU64,
     pub(crate) dispatches: AtomicU64,
     submissions: AtomicU64,
+    waited_ns: AtomicU64,
 }
 
 impl Counters {
@@ -313,6 +320,7 @@ impl Counters {
             downloaded_bytes: self.downloaded.load(Ordering::Relaxed),
             dispatches: self.dispatches.load(Ordering::Relaxed),
             submissions: self.submissions.load(Ordering::Relaxed),
+            wait_ns: self.waited_ns.load(Ordering::Relaxed),
             ..DeviceCounters::default()
         }
     }
