@@ -257,8 +257,20 @@ impl GpuExact {
         let candidates: Vec<BlockKey> = listed.iter().map(|&b| keys[b as usize]).collect();
         let mut written = WriteBack::default();
         self.ctx.read_back(&bufs.staging, values_bytes, |bytes| {
-            let word = |i: usize| u32::from_ne_bytes([bytes[4 * i], bytes[4 * i + 1], bytes[4 * i + 2], bytes[4 * i + 3]]);
-            written = write_back_offsets(map, p, &candidates, |k, off| word_offset(word(k * BLOCK_VOXELS + off)));
+            // The mapping is aligned on every backend; a copy otherwise.
+            let copied: Vec<u32>;
+            let words: &[u32] = match bytemuck::try_cast_slice(bytes) {
+                Ok(words) => words,
+                Err(_) => {
+                    copied = bytes.chunks_exact(4).map(|b| u32::from_ne_bytes([b[0], b[1], b[2], b[3]])).collect();
+                    &copied
+                }
+            };
+            written = write_back_offsets(map, p, &candidates, |k, out| {
+                for (o, &w) in out.iter_mut().zip(&words[k * BLOCK_VOXELS..(k + 1) * BLOCK_VOXELS]) {
+                    *o = word_offset(w);
+                }
+            });
         })?;
         Ok(written)
     }

@@ -449,17 +449,20 @@ impl GpuIntegrator {
             .collect();
         let pairs = &self.changed_pairs;
         let source = &packing.source;
-        let new = |k: usize, off: usize| {
-            let at = 2 * (k * edtmap_core::BLOCK_VOXELS + off);
-            if (u64::from(pairs[at + 1]) << 32) | u64::from(pairs[at]) == FAR {
-                return NO_OFFSET;
-            }
-            let (v, obstacle) = (keys[k].voxel(off), source.world(source.coords(pairs[at] as usize)));
-            let o = [0, 1, 2].map(|a| i16::try_from(obstacle.0[a] - v.0[a]).ok().filter(|&c| c != i16::MIN));
-            // As `EdtBlock::put` stores a value out of an offset's range.
-            match o {
-                [Some(x), Some(y), Some(z)] => [x, y, z],
-                _ => NO_OFFSET,
+        let new = |k: usize, out: &mut [[i16; 3]; edtmap_core::BLOCK_VOXELS]| {
+            for (off, o) in out.iter_mut().enumerate() {
+                let at = 2 * (k * edtmap_core::BLOCK_VOXELS + off);
+                *o = if (u64::from(pairs[at + 1]) << 32) | u64::from(pairs[at]) == FAR {
+                    NO_OFFSET
+                } else {
+                    let (v, obstacle) = (keys[k].voxel(off), source.world(source.coords(pairs[at] as usize)));
+                    let c = [0, 1, 2].map(|a| i16::try_from(obstacle.0[a] - v.0[a]).ok().filter(|&c| c != i16::MIN));
+                    // As `EdtBlock::put` stores a value out of an offset's range.
+                    match c {
+                        [Some(x), Some(y), Some(z)] => [x, y, z],
+                        _ => NO_OFFSET,
+                    }
+                };
             }
         };
         write_back_offsets(map, packing, &keys, new)
