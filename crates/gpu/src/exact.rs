@@ -238,18 +238,10 @@ impl GpuExact {
         // The changed blocks' values, copied out of the pool (runs of
         // consecutive slots in one copy).
         let values_bytes = count as u64 * BLOCK_BYTES;
+        let slots: Vec<u32> = listed.iter().map(|&b| self.slot_table[b as usize]).collect();
         self.ctx.scoped(|| {
             let mut enc = self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("exact read") });
-            let mut k = 0;
-            while k < count {
-                let first = self.slot_table[listed[k] as usize];
-                let mut end = k + 1;
-                while end < count && self.slot_table[listed[end] as usize] == first + (end - k) as u32 {
-                    end += 1;
-                }
-                enc.copy_buffer_to_buffer(&pool.buffer, u64::from(first) * BLOCK_BYTES, &bufs.staging, k as u64 * BLOCK_BYTES, (end - k) as u64 * BLOCK_BYTES);
-                k = end;
-            }
+            pool.copy_out(&mut enc, &slots, &bufs.staging);
             self.ctx.queue.submit([enc.finish()]);
         })?;
         // Written into the map straight from the mapped words, which are

@@ -224,18 +224,10 @@ impl GpuFusion {
         // The changed blocks' values, copied out of the pool (runs of
         // consecutive slots in one copy).
         let count = rewritten.len();
+        let slots: Vec<u32> = rewritten.iter().map(|&b| self.slot_table[b]).collect();
         self.ctx.scoped(|| {
             let mut enc = self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("fuse read") });
-            let mut k = 0;
-            while k < count {
-                let first = self.slot_table[rewritten[k]];
-                let mut end = k + 1;
-                while end < count && self.slot_table[rewritten[end]] == first + (end - k) as u32 {
-                    end += 1;
-                }
-                enc.copy_buffer_to_buffer(&pool.buffer, u64::from(first) * BLOCK_BYTES, &bufs.staging, k as u64 * BLOCK_BYTES, (end - k) as u64 * BLOCK_BYTES);
-                k = end;
-            }
+            pool.copy_out(&mut enc, &slots, &bufs.staging);
             self.ctx.queue.submit([enc.finish()]);
         })?;
         let mut blocks: Vec<(BlockKey, Box<OccupancyBlock>)> = Vec::with_capacity(count);

@@ -93,6 +93,24 @@ impl Pool {
     }
 }
 
+impl Pool {
+    /// Records copies of the blocks in `slots`, in that order, into
+    /// `staging` one after the other: a copy command per run of
+    /// consecutive slots (no dispatch).
+    pub(crate) fn copy_out(&self, enc: &mut wgpu::CommandEncoder, slots: &[u32], staging: &wgpu::Buffer) {
+        let mut k = 0;
+        while k < slots.len() {
+            let mut end = k + 1;
+            while end < slots.len() && slots[end] == slots[k] + (end - k) as u32 {
+                end += 1;
+            }
+            let bytes = self.block_bytes;
+            enc.copy_buffer_to_buffer(&self.buffer, u64::from(slots[k]) * bytes, staging, k as u64 * bytes, (end - k) as u64 * bytes);
+            k = end;
+        }
+    }
+}
+
 /// The runs of consecutive values of sorted `slots`: (first, length).
 pub(crate) fn runs(slots: &[u32]) -> impl Iterator<Item = (u32, u32)> + '_ {
     let mut at = 0;
