@@ -290,9 +290,11 @@ pub struct DeviceCounters {
     /// Device time of the integration's passes (its own batch EDT
     /// included), nanoseconds.
     pub integrate_ns: u64,
-    /// Wall time the host spent waiting for the device to finish before
-    /// reading results back, nanoseconds: with the rest of a frame's time,
-    /// the host's own share (which a faster device does not shorten).
+    /// Wall time the host spent waiting for the device, nanoseconds: in
+    /// submissions (a software device such as lavapipe runs much of the
+    /// work inside them) and before reading results back. The rest of a
+    /// frame's time is the host's own share, which a faster device does
+    /// not shorten.
     pub wait_ns: u64,
 }
 

@@ -341,9 +341,13 @@ impl CountingQueue {
         self.queue.write_buffer(buffer, offset, data);
     }
 
-    /// `wgpu::Queue::submit`, counted.
+    /// `wgpu::Queue::submit`, counted. Its time counts as waiting for the
+    /// device: a software device (lavapipe) may run the work inside it.
     pub(crate) fn submit<I: IntoIterator<Item = wgpu::CommandBuffer>>(&self, buffers: I) -> wgpu::SubmissionIndex {
         self.counters.submissions.fetch_add(1, Ordering::Relaxed);
-        self.queue.submit(buffers)
+        let start = std::time::Instant::now();
+        let index = self.queue.submit(buffers);
+        self.counters.waited_ns.fetch_add(start.elapsed().as_nanos() as u64, Ordering::Relaxed);
+        index
     }
 }
