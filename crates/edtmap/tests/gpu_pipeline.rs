@@ -68,3 +68,40 @@ fn every_scene_is_bit_identical_on_both_backends() {
         backend = compare(scene, Construction::Auto, IntegrationMode::Exact, 4, backend);
     }
 }
+
+/// A projection with more uncertain voxels than its list holds reads every
+/// code back and is fused on the host; the frames after it fuse on the
+/// device again, from a pool that must see what the host fusion changed.
+#[test]
+fn frames_whose_uncertain_voxels_overflow_the_list_are_the_cpus_too() {
+    let Some(mut backend) = common::gpu_or_skip("the GPU pipeline") else { return };
+    // No room at all: every frame with an uncertain voxel overflows.
+    backend.limit_uncertain_list(0);
+    let (scene, sensor, params) = setup("room");
+    let mut cpu = Mapper::new(sensor.clone(), params.clone()).expect("cpu mapper");
+    let mut gpu = Mapper::new_on(backend, sensor.clone(), params.clone()).expect("gpu mapper");
+    let window = edtmap::LocalVolume::centred(&params.volume, params.voxel_size_m, [0.0; 3]).expect("window");
+    let voxels = window.len() as u64;
+    let mut overflowed = 0;
+    for i in (0..8).map(|k| k * 7) {
+        let frame = scene.frame(&sensor, i).expect("frame");
+        let before = gpu.backend().device_counters().expect("a device");
+        let a = cpu.integrate_frame(&frame).expect("cpu frame");
+        let b = gpu.integrate_frame(&frame).expect("gpu frame");
+        // The codes came back: a quarter byte per window voxel.
+        overflowed += usize::from(gpu.backend().device_counters().expect("a device").since(before).downloaded_bytes >= voxels / 4);
+        assert_eq!((a.voxels_updated, a.voxels_changed, a.changed_blocks.clone()), (b.voxels_updated, b.voxels_changed, b.changed_blocks.clone()), "frame {i}");
+        assert!(snapshot(cpu.map()) == snapshot(gpu.map()), "frame {i}: global maps differ");
+    }
+    assert!(overflowed > 0, "no frame overflowed the list");
+    // Then with the default list, on the same device: fused there again.
+    let mut backend = gpu.into_backend();
+    backend.limit_uncertain_list(usize::MAX);
+    let mut gpu = Mapper::with_map_on(backend, sensor.clone(), params, cpu.map().clone()).expect("gpu mapper");
+    for i in (60..66).map(|k| k * 3) {
+        let frame = scene.frame(&sensor, i).expect("frame");
+        cpu.integrate_frame(&frame).expect("cpu frame");
+        gpu.integrate_frame(&frame).expect("gpu frame");
+        assert!(snapshot(cpu.map()) == snapshot(gpu.map()), "frame {i}: global maps differ");
+    }
+}

@@ -27,6 +27,7 @@ use fuse::GpuFusion;
 pub use edt::GpuEdt;
 pub use integrate::GpuIntegrator;
 pub use project::GpuProject;
+use project::Kept;
 pub use raycast::GpuRaycast;
 
 use edtmap_core::fixed_ray::{cast_fixed, FixedRay};
@@ -109,6 +110,15 @@ impl GpuBackend {
     /// tiles, each exact, so the map is the same.
     pub fn limit_tile_voxels(&mut self, voxels: u64) {
         self.max_tile_voxels = voxels;
+    }
+
+    /// Caps the voxels a projection's list of uncertain voxels holds (by
+    /// default a sixteenth of the volume, a quarter byte a voxel as the
+    /// codes) at `voxels`: a frame with more uncertain voxels reads every
+    /// code back and is fused on the host, with the same map. For tests
+    /// and devices with little memory.
+    pub fn limit_uncertain_list(&mut self, voxels: usize) {
+        self.project.limit_list(voxels);
     }
 
     /// The device in use.
@@ -243,8 +253,13 @@ impl Backend for GpuBackend {
         self.ctx.set_stage(Stage::Occupancy);
         self.pending = None;
         if self.defer && self.fusion.fits(&job.volume) {
-            match self.project.run_kept(job)? {
-                Some(uncertain) => {
+            match self.project.run_kept(job, &mut self.bits)? {
+                Some(Kept::Codes) => {
+                    // Too many uncertain voxels to list: fused on the host.
+                    decide_uncertain(job, &mut self.bits);
+                    obs.load_bits(&self.bits);
+                }
+                Some(Kept::Uncertain(uncertain)) => {
                     // The host decides the uncertain voxels, as
                     // `decide_uncertain` does, and marks the misses.
                     let geom = job.voxel_to_sensor();

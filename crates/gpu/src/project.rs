@@ -39,6 +39,22 @@ const KIND_DEPTH: i32 = 0;
 const KIND_PLANAR: i32 = 1;
 const KIND_LIDAR: i32 = 2;
 
+/// What [`GpuProject::run_kept`] read back.
+#[derive(Debug)]
+pub(crate) enum Kept {
+    /// The uncertain voxels' indices; the codes stay on the device.
+    Uncertain(Vec<u32>),
+    /// Every code, into the caller's bytes: more voxels were uncertain
+    /// than the list holds.
+    Codes,
+}
+
+/// How many uncertain voxels the list of a volume of `voxels` holds: a
+/// sixteenth of them (at least 4096), a quarter byte each as the codes.
+fn list_capacity(voxels: usize) -> usize {
+    (voxels / 16).max(4096).min(voxels)
+}
+
 /// Largest voxel offset the shader takes exactly (`x - n` in `f32`).
 const MAX_OFFSET: f64 = (1u32 << 22) as f64;
 
@@ -58,6 +74,8 @@ pub struct GpuProject {
     bufs: Option<Buffers>,
     /// How many uncertain voxels to read back with their count.
     uncertain_guess: usize,
+    /// The most uncertain voxels the list holds, below its default.
+    max_listed: usize,
 }
 
 #[derive(Debug)]
@@ -67,8 +85,10 @@ struct Buffers {
     free_below: wgpu::Buffer,
     out: wgpu::Buffer,
     staging: wgpu::Buffer,
-    /// How many voxels are uncertain, then their indices.
+    /// How many voxels are uncertain, then their indices (up to
+    /// `capacity`).
     uncertain: wgpu::Buffer,
+    capacity: usize,
     group: wgpu::BindGroup,
 }
 
@@ -77,7 +97,7 @@ impl GpuProject {
     pub fn new(ctx: &GpuContext) -> Result<Self, BackendError> {
         ctx.scoped(|| {
             let (kernel, layout, params) = in_out_kernel(ctx, "project.wgsl", include_str!("project.wgsl"), "project", std::mem::size_of::<Params>() as u64, 2);
-            GpuProject { ctx: ctx.clone(), kernel, layout, params, free_below: Vec::new(), bufs: None, uncertain_guess: 4096 }
+            GpuProject { ctx: ctx.clone(), kernel, layout, params, free_below: Vec::new(), bufs: None, uncertain_guess: 4096, max_listed: usize::MAX }
         })
     }
 
@@ -100,22 +120,27 @@ impl GpuProject {
 
     /// [`Self::run`] with the codes left on the device ([`Self::codes`])
     /// and only the uncertain voxels read back: their linear indices, in
-    /// no particular order. `Ok(None)` where the kernel does not apply.
+    /// no particular order ([`Kept::Uncertain`]). `Ok(None)` where the
+    /// kernel does not apply.
     ///
     /// The count comes back with as many indices as the last frame had
     /// and a quarter more (one round trip); only a frame with more needs a
-    /// second.
-    pub(crate) fn run_kept(&mut self, job: &ProjectJob<'_>) -> Result<Option<Vec<u32>>, BackendError> {
+    /// second. The list holds a sixteenth of the voxels (a quarter byte
+    /// each, as the codes); a frame with more uncertain voxels reads every
+    /// code back into `bits` instead, as [`Self::run`] does
+    /// ([`Kept::Codes`]).
+    pub(crate) fn run_kept(&mut self, job: &ProjectJob<'_>, bits: &mut Vec<u8>) -> Result<Option<Kept>, BackendError> {
         let voxels = job.volume.len();
-        let guess = self.uncertain_guess.min(voxels);
+        let guess = self.uncertain_guess.min(list_capacity(voxels)).min(self.max_listed);
         if !self.encode(job, |enc, bufs| enc.copy_buffer_to_buffer(&bufs.uncertain, 0, &bufs.staging, 0, 4 + 4 * guess as u64))? {
             return Ok(None);
         }
         let bufs = self.bufs.as_ref().ok_or_else(|| BackendError::Device("buffers missing".into()))?;
         let (mut list, mut count) = (Vec::new(), 0);
+        let capacity = bufs.capacity;
         self.ctx.read_back(&bufs.staging, 4 + 4 * guess as u64, |b| {
             count = u32::from_ne_bytes([b[0], b[1], b[2], b[3]]) as usize;
-            if count <= voxels {
+            if count <= capacity {
                 list = vec![0u32; count];
                 let have = count.min(guess);
                 crate::edt::copy_words(&b[4..4 + 4 * have], &mut list[..have]);
@@ -123,6 +148,17 @@ impl GpuProject {
         })?;
         if count > voxels {
             return Err(BackendError::Device(format!("the projection listed {count} uncertain voxels of {voxels}")));
+        }
+        if count > capacity {
+            let words = voxels.div_ceil(16) as u64;
+            self.ctx.scoped(|| {
+                let mut enc = self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("project codes") });
+                enc.copy_buffer_to_buffer(&bufs.out, 0, &bufs.staging, 0, 4 * words);
+                self.ctx.queue.submit([enc.finish()]);
+            })?;
+            bits.resize(voxels, 0);
+            self.ctx.read_back(&bufs.staging, 4 * words, |b| unpack_codes(b, bits))?;
+            return Ok(Some(Kept::Codes));
         }
         if count > guess {
             let bytes = 4 * (count - guess) as u64;
@@ -134,7 +170,7 @@ impl GpuProject {
             self.ctx.read_back(&bufs.staging, bytes, |b| crate::edt::copy_words(b, &mut list[guess..]))?;
         }
         self.uncertain_guess = count + count / 4 + 256;
-        Ok(Some(list))
+        Ok(Some(Kept::Uncertain(list)))
     }
 
     /// The codes of the last projection, two bits per voxel (sixteen to a
@@ -243,6 +279,14 @@ impl GpuProject {
         Some(p)
     }
 
+    /// Lists at most `voxels` uncertain voxels for [`Self::run_kept`]
+    /// (default: a sixteenth of the volume); a frame with more reads every
+    /// code back.
+    pub(crate) fn limit_list(&mut self, voxels: usize) {
+        self.max_listed = voxels;
+        self.bufs = None;
+    }
+
     fn ensure_buffers(&mut self, beams: usize, voxels: usize) -> Result<(), BackendError> {
         let beams = beams.max(1);
         if self.bufs.as_ref().is_some_and(|b| b.beams >= beams && b.voxels >= voxels) {
@@ -253,16 +297,17 @@ impl GpuProject {
         let words = voxels.div_ceil(16).max(1) as u64;
         self.ctx.check_buffer("the free ranges of the pixels or beams", 4 * beams as u64)?;
         self.ctx.check_buffer("the projection bits", 4 * words)?;
-        self.ctx.check_buffer("the projection's uncertain voxels", 4 + 4 * voxels as u64)?;
+        let capacity = list_capacity(voxels).min(self.max_listed);
+        self.ctx.check_buffer("the projection's uncertain voxels", 4 + 4 * capacity as u64)?;
         let bufs = self.ctx.scoped(|| {
             let buffer = |label, size, usage| self.ctx.buffer(label, size, usage);
             let free_below = buffer("project free ranges", 4 * beams as u64, wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST);
             let out = buffer("project bits", 4 * words, wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC);
-            let uncertain = buffer("project uncertain", 4 + 4 * voxels as u64, wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC);
+            let uncertain = buffer("project uncertain", 4 + 4 * capacity as u64, wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC);
             // The codes, or the uncertain voxels' list.
-            let staging = buffer("project staging", (4 * words).max(4 + 4 * voxels as u64), wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST);
+            let staging = buffer("project staging", (4 * words).max(4 + 4 * capacity as u64), wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST);
             let group = self.ctx.bind_group("project", &self.layout, &[&self.params, &free_below, &out, &uncertain].map(|b| b.as_entire_binding()));
-            Buffers { beams, voxels, free_below, out, staging, uncertain, group }
+            Buffers { beams, voxels, free_below, out, staging, uncertain, capacity, group }
         })?;
         self.bufs = Some(bufs);
         Ok(())

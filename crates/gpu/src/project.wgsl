@@ -354,8 +354,11 @@ fn project(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: 
         if (first + k < P.dims.w) {
             let code = decide(first + k);
             if (code == UNCERTAIN) {
+                // Counted past the list's end, listed while it has room.
                 let at = atomicAdd(&uncertain[0], 1u);
-                atomicStore(&uncertain[1u + at], first + k);
+                if (at + 1u < arrayLength(&uncertain)) {
+                    atomicStore(&uncertain[1u + at], first + k);
+                }
             }
             word |= code << (2u * k);
         }
