@@ -169,6 +169,9 @@ impl GpuProject {
             })?;
             self.ctx.read_back(&bufs.staging, bytes, |b| crate::edt::copy_words(b, &mut list[guess..]))?;
         }
+        if list.iter().any(|&i| i as usize >= voxels) {
+            return Err(BackendError::Device("the projection listed an uncertain voxel outside the volume".into()));
+        }
         self.uncertain_guess = count + count / 4 + 256;
         Ok(Some(Kept::Uncertain(list)))
     }
