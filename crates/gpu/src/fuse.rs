@@ -51,7 +51,6 @@ struct Params {
 #[derive(Debug)]
 pub(crate) struct GpuFusion {
     ctx: GpuContext,
-    correct: Kernel,
     fuse: Kernel,
     layout: wgpu::BindGroupLayout,
     params: wgpu::Buffer,
@@ -65,6 +64,8 @@ pub(crate) struct GpuFusion {
     upload: Vec<u32>,
     slot_table: Vec<u32>,
     cleared: Vec<u32>,
+    /// The corrections grouped by block, as the shader reads them.
+    fixes: Vec<u32>,
 }
 
 /// Per-frame buffers, for volumes of up to `blocks` blocks and
@@ -90,11 +91,10 @@ impl GpuFusion {
                 source: wgpu::ShaderSource::Wgsl(include_str!("fuse.wgsl").into()),
             });
             let mut entries = vec![uniform_entry(0, false)];
-            entries.extend((1..=5).map(|b| storage_entry(b, b == 2 || b == 3)));
+            entries.extend((1..=5).map(|b| storage_entry(b, b <= 3)));
             let layout = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some("fuse"), entries: &entries });
             GpuFusion {
                 ctx: ctx.clone(),
-                correct: Kernel::new(ctx, &module, &layout, "correct"),
                 fuse: Kernel::new(ctx, &module, &layout, "fuse"),
                 params: ctx.buffer("fuse params", std::mem::size_of::<Params>() as u64, wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST),
                 layout,
@@ -105,6 +105,7 @@ impl GpuFusion {
                 upload: Vec::new(),
                 slot_table: Vec::new(),
                 cleared: Vec::new(),
+                fixes: Vec::new(),
             }
         })
     }
@@ -147,15 +148,16 @@ impl GpuFusion {
         if nb == 0 {
             return Ok(FuseReport::default());
         }
-        self.ensure_buffers(nb, corrections.len())?;
-        self.assign_slots(map, &keys)?;
         let first = keys[0].first_voxel().0;
         let o8 = [0, 1, 2].map(|a| (vol.origin.0[a] - first[a]) as u32);
         let nb3 = [0, 1, 2].map(|a| (o8[a] + vol.dims[a] as u32).div_ceil(8));
+        self.group_fixes(corrections, vol, o8, nb3, nb)?;
+        self.ensure_buffers(nb, self.fixes.len())?;
+        self.assign_slots(map, &keys)?;
         let key = |bits: u32| if bits & 0x8000_0000 != 0 { !bits } else { bits | 0x8000_0000 };
         let params = Params {
             dims: [vol.dims[0] as u32, vol.dims[1] as u32, vol.dims[2] as u32, vol.len() as u32],
-            o8: [o8[0], o8[1], o8[2], corrections.len() as u32],
+            o8: [o8[0], o8[1], o8[2], 0],
             blocks: [nb3[0], nb3[1], nb3[2], nb as u32],
             lo: [lo.hit, lo.miss, lo.min, lo.max],
             occupied: [key(lo.occupied.to_bits()), 0, 0, 0],
@@ -169,9 +171,7 @@ impl GpuFusion {
             let q = &self.ctx.queue;
             q.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
             q.write_buffer(&bufs.slots, 0, bytemuck::cast_slice(&self.slot_table));
-            if !corrections.is_empty() {
-                q.write_buffer(&bufs.fixes, 0, bytemuck::cast_slice(corrections));
-            }
+            q.write_buffer(&bufs.fixes, 0, bytemuck::cast_slice(&self.fixes));
             let mut enc = self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("fuse") });
             for (first, len) in runs(&self.cleared) {
                 enc.clear_buffer(&pool.buffer, u64::from(first) * BLOCK_BYTES, Some(u64::from(len) * BLOCK_BYTES));
@@ -179,9 +179,6 @@ impl GpuFusion {
             enc.clear_buffer(&bufs.counts, 0, Some(counts_bytes));
             {
                 let mut pass = self.ctx.pass(&mut enc, "fuse");
-                if !corrections.is_empty() {
-                    self.correct.dispatch(&mut pass, &[&group], groups_1d(corrections.len() as u64));
-                }
                 // One workgroup per block.
                 self.fuse.dispatch(&mut pass, &[&group], groups_1d(nb as u64 * GROUP));
             }
@@ -250,6 +247,44 @@ impl GpuFusion {
             self.held[self.slot_table[b] as usize] = map.shared(keys[b]);
         }
         Ok(report)
+    }
+
+    /// Groups `corrections` (voxel index × 4 + code) by the block of `vol`
+    /// (`nb` blocks, `nb3` per axis, the volume's origin at `o8` in the
+    /// first) into `self.fixes`: `nb + 1` bounds, then per block its
+    /// voxels' offsets + 512 × code (a counting sort).
+    fn group_fixes(&mut self, corrections: &[u32], vol: &LocalVolume, o8: [u32; 3], nb3: [u32; 3], nb: usize) -> Result<(), BackendError> {
+        let [nx, ny, _] = vol.dims;
+        let place = |e: u32| {
+            let i = (e >> 2) as usize;
+            let c = [i % nx, (i / nx) % ny, i / (nx * ny)];
+            let w = [0, 1, 2].map(|a| c[a] as u32 + o8[a]);
+            let b = (w[0] / 8 + nb3[0] * (w[1] / 8 + nb3[1] * (w[2] / 8))) as usize;
+            (b, (w[0] % 8 + 8 * (w[1] % 8 + 8 * (w[2] % 8))) | ((e & 3) << 9))
+        };
+        if corrections.iter().any(|&e| (e >> 2) as usize >= vol.len()) {
+            return Err(BackendError::Device("a correction outside the volume".into()));
+        }
+        let head = nb + 1;
+        self.fixes.clear();
+        self.fixes.resize(head + corrections.len(), 0);
+        for &e in corrections {
+            self.fixes[place(e).0 + 1] += 1;
+        }
+        let mut at = head as u32;
+        // fixes[b + 1] holds block b's count: the running sum is block b's
+        // end, and block b + 1's start.
+        for bound in &mut self.fixes[..head] {
+            at += *bound;
+            *bound = at;
+        }
+        let mut next: Vec<u32> = self.fixes[..nb].to_vec();
+        for &e in corrections {
+            let (b, entry) = place(e);
+            self.fixes[next[b] as usize] = entry;
+            next[b] += 1;
+        }
+        Ok(())
     }
 
     /// Gives every block of `keys` a pool slot holding the map's current

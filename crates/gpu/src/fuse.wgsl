@@ -12,16 +12,16 @@
 //
 // Codes, two bits per voxel, sixteen to a word: bit 1 a hit, else bit 0 a
 // miss (ray casting sets both on a voxel hit and missed: a hit). The host's
-// corrections (a projection's hits, the uncertain voxels it decided) set
-// their voxels' two bits first.
+// corrections (a projection's hits, the uncertain voxels it decided, as
+// codes of their own) replace those voxels' codes; they come grouped by
+// block, so the fusion reads them in the same dispatch.
 
 const UNOBSERVED_BITS: u32 = 0xff800000u;
 
 struct Params {
     // Volume dims, and its voxel count.
     dims: vec4<u32>,
-    // Volume origin within its first block (0..7 per axis), and the number
-    // of corrections.
+    // Volume origin within its first block (0..7 per axis).
     o8: vec4<u32>,
     // The volume's blocks per axis, and their count.
     blocks: vec4<u32>,
@@ -32,9 +32,10 @@ struct Params {
 }
 
 @group(0) @binding(0) var<uniform> P: Params;
-@group(0) @binding(1) var<storage, read_write> codes: array<atomic<u32>>;
-// Per correction: voxel index * 4 + its code.
-@group(0) @binding(2) var<storage, read> corrections: array<u32>;
+@group(0) @binding(1) var<storage, read> codes: array<u32>;
+// The corrections: [b] and [b + 1] bound block b's, which follow the
+// blocks' bounds, each its voxel's offset in the block + 512 * its code.
+@group(0) @binding(2) var<storage, read> fixes: array<u32>;
 // Pool slot of each volume block (x fastest).
 @group(0) @binding(3) var<storage, read> slots: array<u32>;
 // 512 words per slot, voxels in block order (x fastest).
@@ -42,23 +43,6 @@ struct Params {
 // Per volume block: its observations (bits 0-9), state changes (10-19),
 // and whether a value changed (bit 20).
 @group(0) @binding(5) var<storage, read_write> counts: array<atomic<u32>>;
-
-// One invocation per correction.
-@compute @workgroup_size(64)
-fn correct(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
-           @builtin(local_invocation_index) lid: u32) {
-    let k = (wid.x + wid.y * nwg.x) * 64u + lid;
-    if (k >= P.o8.w) {
-        return;
-    }
-    let e = corrections[k];
-    let i = e >> 2u;
-    let shift = 2u * (i & 15u);
-    // Each voxel is corrected once; the two atomics leave the word's other
-    // voxels alone, whatever order the invocations take.
-    atomicAnd(&codes[i >> 4u], ~(3u << shift));
-    atomicOr(&codes[i >> 4u], (e & 3u) << shift);
-}
 
 // f32 bits mapped to u32 so that unsigned order is the floats' order.
 fn key(bits: u32) -> u32 {
@@ -94,6 +78,18 @@ fn fuse(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec
     }
     let slot = slots[b] * 512u;
     let x0 = bc.x * 8u;
+    // The row's corrections: which of its eight voxels have one (two bits
+    // each), and their codes.
+    var fixed = 0u;
+    var fixed_codes = 0u;
+    for (var k = fixes[b]; k < fixes[b + 1u]; k++) {
+        let e = fixes[k];
+        if (((e & 511u) >> 3u) == lid) {
+            let s = 2u * (e & 7u);
+            fixed |= 3u << s;
+            fixed_codes |= (e >> 9u) << s;
+        }
+    }
     // The code word last read: a row's eight voxels lie in one or two.
     var held = 0xffffffffu;
     var word_codes = 0u;
@@ -106,11 +102,16 @@ fn fuse(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec
             continue;
         }
         let i = cx + P.dims.x * (cy + P.dims.y * cz);
-        if ((i >> 4u) != held) {
-            held = i >> 4u;
-            word_codes = atomicLoad(&codes[held]);
+        var code: u32;
+        if (((fixed >> (2u * x)) & 3u) != 0u) {
+            code = (fixed_codes >> (2u * x)) & 3u;
+        } else {
+            if ((i >> 4u) != held) {
+                held = i >> 4u;
+                word_codes = codes[held];
+            }
+            code = (word_codes >> (2u * (i & 15u))) & 3u;
         }
-        let code = (word_codes >> (2u * (i & 15u))) & 3u;
         if (code == 0u) {
             continue;
         }
