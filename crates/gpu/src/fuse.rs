@@ -11,10 +11,10 @@
 //!
 //! A frame's observation codes stay where ray casting or the projection
 //! left them; the host's corrections (a projection's hits and the uncertain
-//! voxels it decided) go up as a list. One dispatch applies them, one
-//! fuses, and the blocks whose values changed come back for the host's
-//! map: two round trips, the list of observed blocks with their counts,
-//! then the changed blocks' values.
+//! voxels it decided) go up grouped by block. One dispatch fuses, taking a
+//! voxel's correction in place of its code, and the blocks whose values
+//! changed come back for the host's map: two round trips, every volume
+//! block's counts, then the changed blocks' values.
 
 use crate::context::GpuContext;
 use crate::dispatch::{groups_1d, storage_entry, uniform_entry, Kernel, GROUP};
@@ -110,9 +110,9 @@ impl GpuFusion {
         })
     }
 
-    /// Fuses the codes in `codes` (two bits per voxel of `vol`), with
-    /// `corrections` (voxel index × 4 + code, each voxel once) applied
-    /// first, into `map` with `lo`. On a failure the pool is dropped and
+    /// Fuses the codes in `codes` (two bits per voxel of `vol`), those of
+    /// the voxels in `corrections` (voxel index × 4 + code, each voxel
+    /// once) replaced, into `map` with `lo`. On a failure the pool is dropped and
     /// the map is as it was.
     pub(crate) fn run(&mut self, codes: &wgpu::Buffer, corrections: &[u32], map: &mut OccupancyMap, vol: &LocalVolume, lo: &LogOdds) -> Result<FuseReport, BackendError> {
         let result = self.frame(codes, corrections, map, vol, lo);
