@@ -269,12 +269,14 @@ fn pack_bits(mask: &[bool], bits: &mut Vec<u32>) {
 
 /// Copies native-endian `u32`s from `bytes` into `out`.
 pub(crate) fn copy_words(bytes: &[u8], out: &mut [u32]) {
+    out.copy_from_slice(&as_words(bytes));
+}
+
+/// `bytes` as native-endian `u32`s: the bytes themselves where aligned (a
+/// mapped read-back is on every backend), else a copy.
+pub(crate) fn as_words(bytes: &[u8]) -> std::borrow::Cow<'_, [u32]> {
     match bytemuck::try_cast_slice::<u8, u32>(bytes) {
-        Ok(words) => out.copy_from_slice(words),
-        Err(_) => {
-            for (o, b) in out.iter_mut().zip(bytes.chunks_exact(4)) {
-                *o = u32::from_ne_bytes([b[0], b[1], b[2], b[3]]);
-            }
-        }
+        Ok(words) => std::borrow::Cow::Borrowed(words),
+        Err(_) => std::borrow::Cow::Owned(bytes.chunks_exact(4).map(|b| u32::from_ne_bytes([b[0], b[1], b[2], b[3]])).collect()),
     }
 }

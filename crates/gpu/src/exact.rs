@@ -18,7 +18,7 @@
 
 use crate::context::GpuContext;
 use crate::dispatch::{groups_1d, storage_entry, uniform_entry, Kernel, GROUP};
-use crate::edt::{copy_words, GpuEdt, Mask};
+use crate::edt::{as_words, copy_words, GpuEdt, Mask};
 use crate::obstacles::ResidentObstacles;
 use crate::pool::{runs, Pool};
 use edtmap_core::region::{write_back_offsets, Packing, WriteBack};
@@ -249,15 +249,7 @@ impl GpuExact {
         let candidates: Vec<BlockKey> = listed.iter().map(|&b| keys[b as usize]).collect();
         let mut written = WriteBack::default();
         self.ctx.read_back(&bufs.staging, values_bytes, |bytes| {
-            // The mapping is aligned on every backend; a copy otherwise.
-            let copied: Vec<u32>;
-            let words: &[u32] = match bytemuck::try_cast_slice(bytes) {
-                Ok(words) => words,
-                Err(_) => {
-                    copied = bytes.chunks_exact(4).map(|b| u32::from_ne_bytes([b[0], b[1], b[2], b[3]])).collect();
-                    &copied
-                }
-            };
+            let words = as_words(bytes);
             written = write_back_offsets(map, p, &candidates, |k, out| {
                 for (o, &w) in out.iter_mut().zip(&words[k * BLOCK_VOXELS..(k + 1) * BLOCK_VOXELS]) {
                     *o = word_offset(w);

@@ -18,6 +18,7 @@
 
 use crate::context::GpuContext;
 use crate::dispatch::{groups_1d, storage_entry, uniform_entry, Kernel, GROUP};
+use crate::edt::as_words;
 use crate::pool::{runs, Pool};
 use edtmap_core::{BackendError, BlockKey, FuseReport, LocalVolume, LogOdds, OccupancyBlock, OccupancyMap, SharedBlock, BLOCK_VOXELS, UNOBSERVED};
 
@@ -190,8 +191,7 @@ impl GpuFusion {
         // lists them, with their counts.
         let mut listed: Vec<(u32, u32)> = Vec::new();
         self.ctx.read_back(&bufs.counts_staging, counts_bytes, |bytes| {
-            let word = |i: usize| u32::from_ne_bytes([bytes[4 * i], bytes[4 * i + 1], bytes[4 * i + 2], bytes[4 * i + 3]]);
-            listed = (0..nb).map(|b| (b as u32, word(b))).filter(|l| l.1 != 0).collect();
+            listed = as_words(bytes).iter().enumerate().map(|(b, &e)| (b as u32, e)).filter(|l| l.1 != 0).collect();
         })?;
         if listed.iter().any(|l| l.1 & 0x3ff == 0 || l.1 >> 21 != 0) {
             return Err(BackendError::Device("the device's fusion counts are inconsistent".into()));
@@ -229,19 +229,18 @@ impl GpuFusion {
         })?;
         let mut blocks: Vec<(BlockKey, Box<OccupancyBlock>)> = Vec::with_capacity(count);
         self.ctx.read_back(&bufs.staging, count as u64 * BLOCK_BYTES, |bytes| {
+            let words = as_words(bytes);
             let items: Vec<(usize, usize)> = rewritten.iter().copied().enumerate().collect();
             blocks = edtmap_core::par_fill(items, |(k, b)| {
                 let mut block = Box::new(OccupancyBlock::default());
-                for (off, l) in block.log_odds.iter_mut().enumerate() {
-                    let at = 4 * (k * BLOCK_VOXELS + off);
-                    *l = f32::from_bits(u32::from_ne_bytes([bytes[at], bytes[at + 1], bytes[at + 2], bytes[at + 3]]) ^ UNOBSERVED_BITS);
+                for (l, &w) in block.log_odds.iter_mut().zip(&words[k * BLOCK_VOXELS..(k + 1) * BLOCK_VOXELS]) {
+                    *l = f32::from_bits(w ^ UNOBSERVED_BITS);
                 }
                 (keys[b], block)
             });
         })?;
-        // Into the map, and the pool told which versions it holds.
-        let changed_keys: Vec<BlockKey> = blocks.iter().map(|b| b.0).collect();
-        drop(map.take_shared(&changed_keys));
+        // Into the map (replacing the blocks there), and the pool told which
+        // versions it holds.
         map.restore_shared(blocks.into_iter().map(|(k, b)| (k, SharedBlock::new(b))).collect());
         for &b in &rewritten {
             self.held[self.slot_table[b] as usize] = map.shared(keys[b]);
