@@ -86,11 +86,30 @@ _SECTIONS = {
 }
 
 
+def _finite(value: Any, name: str) -> Any:
+    """``value`` with every number in it checked finite (JSON, which carries
+    the parameters to the core, has no NaN or infinity)."""
+    if isinstance(value, (list, tuple)):
+        return [_finite(v, f"{name}[{i}]") for i, v in enumerate(value)]
+    if isinstance(value, float) and not math.isfinite(value):
+        raise ValueError(f"{name} must be a finite number, got {value}")
+    return value
+
+
+def _json(config: Dict[str, Any]) -> str:
+    return json.dumps(config, allow_nan=False)
+
+
 def _config(sensor: _Sensor, voxel_size_m: float, params: Dict[str, Any]) -> Dict[str, Any]:
     if not isinstance(sensor, _Sensor):
         raise TypeError("sensor must be edtmap.DepthCamera, SpinningLidar, PointSensor or PlanarLidar, "
                         f"not {type(sensor).__name__}")
-    config: Dict[str, Any] = {"sensor": sensor.section(), "occupancy": {"voxel_size_m": float(voxel_size_m)}}
+    try:
+        voxel = float(voxel_size_m)
+    except (TypeError, ValueError):
+        raise TypeError(f"voxel_size_m must be a number (metres), not {type(voxel_size_m).__name__}") from None
+    section = {k: _finite(v, f"{type(sensor).__name__} {k}") for k, v in sensor.section().items()}
+    config: Dict[str, Any] = {"sensor": section, "occupancy": {"voxel_size_m": _finite(voxel, "voxel_size_m")}}
     for key, value in params.items():
         if key == "max_memory":
             config.setdefault("memory", {})["max"] = str(value)
@@ -101,7 +120,9 @@ def _config(sensor: _Sensor, voxel_size_m: float, params: Dict[str, Any]) -> Dic
             raise TypeError(f"Mapper() got an unknown parameter {key!r}; known: {', '.join(known)}")
         if isinstance(value, np.ndarray):
             value = value.tolist()
-        config.setdefault(section, {})[key] = value
+        elif isinstance(value, np.generic):
+            value = value.item()
+        config.setdefault(section, {})[key] = _finite(value, key)
     return config
 
 
@@ -157,7 +178,7 @@ class Mapper:
     def __init__(self, sensor: _Sensor, voxel_size_m: float, backend: str = "cpu", **params: Any):
         config = _config(sensor, voxel_size_m, params)
         self._config = config
-        self._core = _edtmap.Mapper.from_config_json(json.dumps(config), "edtmap.Mapper(...)", backend)
+        self._core = _edtmap.Mapper.from_config_json(_json(config), "edtmap.Mapper(...)", backend)
 
     @classmethod
     def _wrap(cls, core, config: Optional[Dict[str, Any]]) -> "Mapper":
@@ -179,7 +200,7 @@ class Mapper:
         sensor (default :class:`PointSensor`) and ``params`` are for the
         frames integrated from now on."""
         config = _config(sensor if sensor is not None else PointSensor(), 1.0, params)
-        core = _edtmap.Mapper.load(os.fspath(path), json.dumps(config), "edtmap.Mapper.load(...)", backend)
+        core = _edtmap.Mapper.load(os.fspath(path), _json(config), "edtmap.Mapper.load(...)", backend)
         return cls._wrap(core, config)
 
     @property
@@ -214,11 +235,13 @@ class Mapper:
         return). Returns the frame's statistics."""
         arr = np.asarray(depth)
         pose, stamp = _pose(t_world_sensor), _stamp(stamp)
-        if arr.dtype == np.uint16:
+        if arr.dtype.kind == "u" and arr.dtype.itemsize == 2:
+            # Byte-swapped raw depth (">u2", as some PNG readers give) is
+            # converted to native order.
             arr = _float_array(arr, "depth", 2, np.uint16)
             return self._core.integrate_depth_u16(arr, float(depth_scale), pose, stamp)
         if arr.dtype.kind != "f":
-            raise TypeError(f"depth must be float (metres) or uint16 (raw), not {arr.dtype}")
+            raise TypeError(f"depth must be float (metres) or uint16 (raw, either byte order), not {arr.dtype}")
         return self._core.integrate_depth_m(_float_array(arr, "depth", 2, np.float32), pose, stamp)
 
     def integrate_points(self, points, t_world_sensor, stamp: float = 0.0) -> Dict[str, Any]:

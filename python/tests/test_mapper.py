@@ -249,6 +249,39 @@ def test_bad_input_raises_and_keeps_the_map(tmp_path):
         edtmap.read_recording(tmp_path / "nothing.mcap", REPO / "configs" / "room.toml")
 
 
+@pytest.mark.parametrize("field", ["voxel_size_m", "local_size_m", "max_distance_m", "prob_hit"])
+@pytest.mark.parametrize("value", [np.nan, np.inf, -np.inf])
+def test_non_finite_parameters_name_the_argument(field, value):
+    params = {"voxel_size_m": 0.1, "max_distance_m": 2.0}
+    params[field] = [4.0, value, 2.0] if field == "local_size_m" else value
+    voxel = params.pop("voxel_size_m")
+    with pytest.raises(ValueError, match=rf"^{field}(\[1\])? must be a finite number, got -?(nan|inf)$"):
+        edtmap.Mapper(edtmap.PointSensor(), voxel, **params)
+
+
+def test_non_finite_sensor_fields_name_the_argument():
+    cam = edtmap.DepthCamera(np.nan, 500.0, 32.0, 24.0, 64, 48)
+    with pytest.raises(ValueError, match="^DepthCamera fx must be a finite number, got nan$"):
+        edtmap.Mapper(cam, 0.05)
+    with pytest.raises(TypeError, match="voxel_size_m must be a number"):
+        edtmap.Mapper(edtmap.PointSensor(), "fine")
+
+
+def test_byte_swapped_depth_is_converted():
+    cam = edtmap.DepthCamera(500.0, 500.0, 32.0, 24.0, 64, 48, min_range_m=0.2, max_range_m=5.0)
+    raw = np.random.default_rng(6).integers(500, 4000, size=(48, 64)).astype(np.uint16)
+    native = edtmap.Mapper(cam, 0.05, local_size_m=[4.0, 4.0, 2.0])
+    native.integrate_depth(raw, np.eye(4), depth_scale=0.001)
+    swapped = edtmap.Mapper(cam, 0.05, local_size_m=[4.0, 4.0, 2.0])
+    swapped.integrate_depth(raw.astype(">u2"), np.eye(4), depth_scale=0.001)
+    points = np.random.default_rng(7).uniform(-1, 3, size=(300, 3))
+    for a, b in zip(native.distance(points), swapped.distance(points)):
+        np.testing.assert_array_equal(a, b)
+    with pytest.raises(TypeError, match=r"^depth must be float \(metres\) or uint16 \(raw, either byte order\), "
+                                        r"not int32$"):
+        native.integrate_depth(raw.astype(np.int32), np.eye(4))
+
+
 def test_queries_from_threads_while_integrating(tmp_path):
     recording, config = recorded(tmp_path, "uav_pillars", 6, "mcap")
     frames = list(edtmap.read_recording(recording, config))
