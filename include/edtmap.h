@@ -331,7 +331,9 @@ void edtmap_mapper_free(struct edtmap_mapper *mapper);
  * Integrates a point cloud: `n_points` points, `xyz` holding x, y, z of
  * each in the sensor frame (metres), seen from the pose `t_world_sensor`
  * (16 doubles, a row-major 4 × 4 rigid transform) at `stamp_s` seconds.
- * `stats` may be null.
+ * `stats` may be null. A cloud of no points (`xyz` may then be null)
+ * observes nothing: the mapper refuses it with `EDTMAP_FRAME`, as it
+ * refuses every empty frame, and the map is as it was.
  */
 enum edtmap_status edtmap_integrate_points(struct edtmap_mapper *mapper,
                                            const float *xyz,
@@ -398,6 +400,7 @@ enum edtmap_status edtmap_integrate_range_image(struct edtmap_mapper *mapper,
  * states (`EDTMAP_STATE_*`) into `states` (n bytes) unless those are null.
  * `signed`: negative inside obstacles. Saturated at the cutoff; NaN for a
  * point that is not finite. Reads the map as of the last finished frame.
+ * `n` = 0 writes nothing and succeeds; the buffers may then be null.
  */
 enum edtmap_status edtmap_mapper_query(const struct edtmap_mapper *mapper,
                                        const double *points,

@@ -12,7 +12,10 @@
 // hot path (a batched query into the caller's buffers) throws only on a
 // caller's mistake. Handles are RAII (move-only). Buffers are taken as
 // pointer and length, or as std::vector / std::array; with EDTMAP_EIGEN
-// defined before including this header, Eigen types too.
+// defined before including this header, Eigen types too. Empty buffers
+// are fine (a null pointer with a length of 0): an empty batch of queries
+// gives empty results, and an empty frame throws Error(EDTMAP_FRAME), as
+// the mapper refuses a frame that observes nothing.
 //
 // Threads: as the C API says, every member may run concurrently with the
 // others on one Mapper (frames are integrated one at a time; queries read

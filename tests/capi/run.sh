@@ -3,7 +3,8 @@
 # through its CMake project, installs it into a temporary prefix, builds the
 # tests and the planner example against the installed package from a clean
 # build directory (find_package), runs them, runs the C test under valgrind
-# (no leaks, no invalid accesses), and compiles the C test once more through
+# (no leaks, no invalid accesses), runs the C and C++ tests once more built
+# with AddressSanitizer and UBSan, and compiles the C test once more through
 # pkg-config.
 #
 #   bash tests/capi/run.sh [--profile dev|release]   (default: dev)
@@ -47,12 +48,22 @@ cmake --build "$work/build-tests" -j 2
 valgrind -q --error-exitcode=1 --leak-check=full --show-leak-kinds=definite --errors-for-leak-kinds=definite \
     "$work/build-tests/test_edtmap_c" "$work/wall.bin" "$work"
 
-# 5. pkg-config, as a Makefile would use it.
+# 5. The C (shared and static) and C++ tests built with AddressSanitizer
+# and UBSan: no invalid access or undefined behaviour on the C side, no
+# leak (the library's allocations go through ASan's malloc too).
+cmake -S tests/capi -B "$work/build-asan" -DCMAKE_PREFIX_PATH="$prefix" -DCMAKE_BUILD_TYPE=Debug -DEDTMAP_TEST_SANITIZERS=ON >/dev/null
+cmake --build "$work/build-asan" -j 2 --target test_edtmap_c test_edtmap_c_static test_edtmap_cpp
+for t in test_edtmap_c test_edtmap_c_static test_edtmap_cpp; do
+    ASAN_OPTIONS=detect_leaks=1:halt_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
+        "$work/build-asan/$t" "$work/wall.bin" "$work"
+done
+
+# 6. pkg-config, as a Makefile would use it.
 PKG_CONFIG_PATH="$(ls -d "$prefix"/lib*/pkgconfig | head -n 1)" \
     bash -c 'gcc -std=c11 -Wall -Werror -I tests/capi tests/capi/test_edtmap.c $(pkg-config --cflags --libs edtmap) -lpthread -lm -Wl,-rpath,$(pkg-config --variable=libdir edtmap) -o "$0"' "$work/test_pc"
 "$work/test_pc" "$work/wall.bin" "$work"
 
-# 6. The example on a map the CLI saves.
+# 7. The example on a map the CLI saves.
 edtmap_bin="${CARGO_TARGET_DIR:-$root/target}/debug/edtmap"
 [ -x "$edtmap_bin" ] || cargo build -q --locked -p edtmap-cli
 "$edtmap_bin" run --scene uav_pillars --frames 20 --out "$work/run" --save "$work/map.edtmap" >/dev/null

@@ -190,6 +190,32 @@ int main(int argc, char** argv) {
         FAILS(edtmap_mapper_new(&q, &none), EDTMAP_CONFIG, "voxel_size_m");
     }
     CHECK(none == NULL, "a failed constructor gave a handle");
+
+    /* Empty inputs: a batch of 0 points is an answer of size 0, null
+     * buffers and all; an empty frame reaches the mapper, which refuses it
+     * (it observes nothing), whether its buffer is null or not. */
+    {
+        double sentinel = 42.0;
+        OK(edtmap_mapper_query(m, NULL, 0, false, NULL, NULL, NULL));
+        OK(edtmap_map_query(map, NULL, 0, true, NULL, NULL, NULL));
+        OK(edtmap_mapper_query(m, q1, 0, false, &sentinel, NULL, NULL));
+        CHECK(sentinel == 42.0, "a query of 0 points wrote %g", sentinel);
+        FAILS(edtmap_integrate_points(m, NULL, 0, WALL_IDENTITY, 1.0, NULL), EDTMAP_FRAME, "point cloud is empty");
+        FAILS(edtmap_integrate_points(m, cloud, 0, WALL_IDENTITY, 1.0, NULL), EDTMAP_FRAME, "point cloud is empty");
+        FAILS(edtmap_integrate_scan(m, NULL, 0, 0.0, 0.1, WALL_IDENTITY, 1.0, NULL), EDTMAP_FRAME, "");
+        edtmap_params planar_params = p;
+        planar_params.sensor = EDTMAP_SENSOR_PLANAR;
+        edtmap_mapper* planar = NULL;
+        OK(edtmap_mapper_new(&planar_params, &planar));
+        FAILS(edtmap_integrate_scan(planar, NULL, 0, 0.0, 0.1, WALL_IDENTITY, 1.0, NULL), EDTMAP_FRAME, "no ranges");
+        edtmap_mapper_free(planar);
+        FAILS(edtmap_integrate_range_image(m, NULL, 0, WALL_IDENTITY, 1.0, NULL), EDTMAP_FRAME, "");
+        FAILS(edtmap_integrate_depth(m, NULL, 0, 0, WALL_IDENTITY, 1.0, NULL), EDTMAP_FRAME, "");
+        FAILS(edtmap_integrate_depth_u16(m, NULL, 0, 480, 0.001f, WALL_IDENTITY, 1.0, NULL), EDTMAP_FRAME, "");
+        /* Null with a length is still a caller's mistake. */
+        FAILS(edtmap_integrate_points(m, NULL, 1, WALL_IDENTITY, 1.0, NULL), EDTMAP_NULL_ARGUMENT, "xyz is null");
+        FAILS(edtmap_integrate_depth(m, NULL, 2, 2, WALL_IDENTITY, 1.0, NULL), EDTMAP_NULL_ARGUMENT, "depth_m is null");
+    }
     /* The map is as it was after all of that. */
     OK(edtmap_mapper_query(m, qp, WALL_QUERIES, false, md, NULL, NULL));
     CHECK(memcmp(d, md, sizeof d) == 0, "refused frames changed the map");

@@ -95,6 +95,26 @@ int main(int argc, char** argv) {
         moved.integrate_points(cloud, pose, 1.0);
     }, EDTMAP_INVALID_ARGUMENT, "NaN pose");
     throws([&] { moved.integrate_scan({1.0f, 2.0f}, 0.0, 0.1, edtmap::identity_pose(), 1.0); }, EDTMAP_FRAME, "scan to a point sensor");
+
+    // Empty inputs: a batch of no points is an answer of size 0; an empty
+    // frame reaches the mapper, which refuses it (EDTMAP_FRAME, not a null
+    // argument), and the map is as it was.
+    const std::vector<edtmap::Point> none;
+    edtmap::QueryResult empty = moved.query(none, true);
+    CHECK(empty.distances.empty() && empty.gradients.empty() && empty.states.empty(), "empty query");
+    CHECK(moved.distances(none).empty() && map.distances(none).empty() && map.query(none).states.empty(), "empty distances");
+    moved.query(nullptr, 0, nullptr);
+    throws([&] { moved.integrate_points(std::vector<std::array<float, 3>>{}, edtmap::identity_pose(), 2.0); }, EDTMAP_FRAME, "empty cloud");
+    throws([&] { moved.integrate_points(nullptr, 0, edtmap::identity_pose(), 2.0); }, EDTMAP_FRAME, "empty cloud by pointer");
+    throws([&] { moved.integrate_range_image({}, edtmap::identity_pose(), 2.0); }, EDTMAP_FRAME, "empty range image");
+    {
+        edtmap::Params planar_params;
+        planar_params.sensor = EDTMAP_SENSOR_PLANAR;
+        edtmap::Mapper planar(planar_params);
+        throws([&] { planar.integrate_scan({}, 0.0, 0.1, edtmap::identity_pose(), 2.0); }, EDTMAP_FRAME, "empty scan");
+        CHECK(planar.query(none).distances.empty(), "empty query of an empty map");
+    }
+    CHECK(moved.distances(points) == rd, "the map changed after refused empty frames");
     std::printf("C++ API: all checks passed\n");
     return 0;
 }

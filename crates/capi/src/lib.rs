@@ -11,8 +11,11 @@
 //!   paired with a `*_free`. There is no global state.
 //! - Pointers are checked: a null pointer is [`edtmap_status::EDTMAP_NULL_ARGUMENT`],
 //!   a misaligned one or a length that does not fit
-//!   [`edtmap_status::EDTMAP_INVALID_ARGUMENT`]. Buffers are the caller's; a
-//!   call never keeps a pointer after it returns.
+//!   [`edtmap_status::EDTMAP_INVALID_ARGUMENT`]. A buffer of 0 elements may
+//!   be null (an empty `std::vector` has no address): an empty batch is an
+//!   answer of size 0, and an empty frame goes to the mapper, which refuses
+//!   it as [`edtmap_status::EDTMAP_FRAME`] (it observes nothing). Buffers
+//!   are the caller's; a call never keeps a pointer after it returns.
 //! - No panic crosses the boundary: each entry point catches it and
 //!   returns [`edtmap_status::EDTMAP_PANIC`].
 //!
@@ -250,7 +253,8 @@ unsafe fn handle<'a, T>(ptr: *const T, name: &str) -> Result<&'a T> {
     unsafe { ptr.as_ref() }.map_or_else(|| fail(edtmap_status::EDTMAP_NULL_ARGUMENT, format!("{name} is null")), Ok)
 }
 
-/// A slice of `len` `T` at `ptr`, checked for null, alignment and size.
+/// A slice of `len` `T` at `ptr`, checked for null (allowed when `len` is
+/// 0), alignment and size.
 unsafe fn slice<'a, T>(ptr: *const T, len: usize, name: &str) -> Result<&'a [T]> {
     check_ptr(ptr, len, name)?;
     if len == 0 {
@@ -270,9 +274,14 @@ unsafe fn slice_mut<'a, T>(ptr: *mut T, len: usize, name: &str) -> Result<&'a mu
     Ok(unsafe { std::slice::from_raw_parts_mut(ptr, len) })
 }
 
+/// Null is refused unless `len` is 0: an empty buffer may have no address
+/// (`std::vector::data()` of an empty vector).
 fn check_ptr<T>(ptr: *const T, len: usize, name: &str) -> Result<()> {
     if ptr.is_null() {
-        return fail(edtmap_status::EDTMAP_NULL_ARGUMENT, format!("{name} is null"));
+        return match len {
+            0 => Ok(()),
+            _ => fail(edtmap_status::EDTMAP_NULL_ARGUMENT, format!("{name} is null")),
+        };
     }
     if !(ptr as usize).is_multiple_of(std::mem::align_of::<T>()) {
         return fail(edtmap_status::EDTMAP_INVALID_ARGUMENT, format!("{name} is not aligned to {} bytes", std::mem::align_of::<T>()));
@@ -535,7 +544,9 @@ unsafe fn integrate(mapper: *const edtmap_mapper, t_world_sensor: *const f64, st
 /// Integrates a point cloud: `n_points` points, `xyz` holding x, y, z of
 /// each in the sensor frame (metres), seen from the pose `t_world_sensor`
 /// (16 doubles, a row-major 4 × 4 rigid transform) at `stamp_s` seconds.
-/// `stats` may be null.
+/// `stats` may be null. A cloud of no points (`xyz` may then be null)
+/// observes nothing: the mapper refuses it with `EDTMAP_FRAME`, as it
+/// refuses every empty frame, and the map is as it was.
 #[no_mangle]
 pub unsafe extern "C" fn edtmap_integrate_points(
     mapper: *mut edtmap_mapper,
@@ -716,6 +727,7 @@ unsafe fn query_into(map: &GlobalMap, points: *const f64, n: usize, signed: bool
 /// states (`EDTMAP_STATE_*`) into `states` (n bytes) unless those are null.
 /// `signed`: negative inside obstacles. Saturated at the cutoff; NaN for a
 /// point that is not finite. Reads the map as of the last finished frame.
+/// `n` = 0 writes nothing and succeeds; the buffers may then be null.
 #[no_mangle]
 #[allow(clippy::too_many_arguments)]
 pub unsafe extern "C" fn edtmap_mapper_query(
