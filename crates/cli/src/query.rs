@@ -46,6 +46,9 @@ pub(crate) struct ExportArgs {
     /// A map saved with `edtmap run --save`.
     map: PathBuf,
     /// The box: xmin,ymin,zmin,xmax,ymax,zmax in metres; every voxel overlapping it is exported.
+    ///
+    /// Default: the mapped box that `edtmap info` prints (every allocated
+    /// block of the map, whole).
     #[arg(long = "box", value_name = "XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX", value_delimiter = ',', allow_hyphen_values = true)]
     bounds: Vec<f64>,
     /// Output: float32 distances in metres, shape (nz, ny, nx); saturated voxels hold max_distance_m.
@@ -79,10 +82,7 @@ pub(crate) fn info(args: &InfoArgs) -> Result<()> {
     let vs = map.voxel_size_m();
     outln!("{}: voxel {vs} m, cutoff {} m, connectivity {}, integration {:?}", args.map.display(), map.params().max_distance_m, u8::from(map.params().connectivity), map.params().mode);
     outln!("blocks: {} occupancy, {} EDT, {} fixed; {:.1} MB", map.occupancy().len(), map.edt().len(), map.fixed_obstacles().len(), map.bytes() as f64 / 1e6);
-    if let Some((lo, hi)) = map.occupancy().key_bounds() {
-        let side = f64::from(edtmap::BLOCK_SIDE) * vs;
-        let lo: Vec<f64> = lo.iter().map(|&b| f64::from(b) * side).collect();
-        let hi: Vec<f64> = hi.iter().map(|&b| f64::from(b + 1) * side).collect();
+    if let Some((lo, hi)) = mapped_box_m(&map) {
         outln!("mapped box (m): {:.2},{:.2},{:.2} to {:.2},{:.2},{:.2}", lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]);
     }
     let (mut free, mut occupied) = (0usize, 0usize);
@@ -107,6 +107,14 @@ pub(crate) fn info(args: &InfoArgs) -> Result<()> {
         outln!("wrote {}", path.display());
     }
     Ok(())
+}
+
+/// The mapped box, metres: the lowest and highest corner of the blocks
+/// the occupancy layer holds; `None` for an empty map.
+pub(crate) fn mapped_box_m(map: &GlobalMap) -> Option<([f64; 3], [f64; 3])> {
+    let (lo, hi) = map.occupancy().key_bounds()?;
+    let side = f64::from(edtmap::BLOCK_SIDE) * map.voxel_size_m();
+    Some((lo.map(|b| f64::from(b) * side), hi.map(|b| f64::from(b) * side + side)))
 }
 
 /// Prints distance, gradient and state of every point as CSV.
@@ -138,8 +146,7 @@ pub(crate) fn query(args: &QueryArgs) -> Result<()> {
 /// Writes a dense box of distances (and states) as `.npy`, and beside the
 /// distances a JSON sidecar saying where the box lies and what it holds.
 pub(crate) fn export(args: &ExportArgs) -> Result<()> {
-    let b = &args.bounds;
-    if b.len() != 6 {
+    if !args.bounds.is_empty() && args.bounds.len() != 6 {
         bail!("--box takes six numbers: xmin,ymin,zmin,xmax,ymax,zmax");
     }
     let sidecar = sidecar_path(&args.output);
@@ -149,7 +156,8 @@ pub(crate) fn export(args: &ExportArgs) -> Result<()> {
     }
     files::check_distinct_outputs(&outputs)?;
     let map = load_map(&args.map)?;
-    let dense = distance_box(&map, [b[0], b[1], b[2]], [b[3], b[4], b[5]], args.signed).context("--box")?;
+    let (min_m, max_m) = export_box(&map, args)?;
+    let dense = distance_box(&map, min_m, max_m, args.signed).context(if args.bounds.is_empty() { "the mapped box (no --box given): give a smaller --box" } else { "--box" })?;
     let [nx, ny, nz] = dense.dims;
     let layout = ArrayLayout::new(vec![nz, ny, nx], ArrayOrder::C).context("empty box")?;
     npy::write_distances(&args.output, &layout, &dense.distance_m)?;
@@ -159,10 +167,18 @@ pub(crate) fn export(args: &ExportArgs) -> Result<()> {
         npy::write_bytes(path, &layout, &dense.state)?;
         outln!("wrote {}", path.display());
     }
-    let text = sidecar_json(&map, &dense, args);
+    let text = sidecar_json(&map, &dense, args, (min_m, max_m));
     files::write_atomic(&sidecar, text.as_bytes())?;
     outln!("wrote {}", sidecar.display());
     Ok(())
+}
+
+/// The box to export: `--box`, else the mapped box.
+fn export_box(map: &GlobalMap, args: &ExportArgs) -> Result<([f64; 3], [f64; 3])> {
+    match args.bounds[..] {
+        [x0, y0, z0, x1, y1, z1] => Ok(([x0, y0, z0], [x1, y1, z1])),
+        _ => mapped_box_m(map).with_context(|| format!("{} holds no mapped block, so there is no box to export by default: give --box", args.map.display())),
+    }
 }
 
 /// The sidecar of export's output `OUT`: `OUT.json` (`box.npy` gives
@@ -174,7 +190,7 @@ pub(crate) fn sidecar_path(output: &Path) -> PathBuf {
 }
 
 /// The sidecar's text (docs/FORMAT.md, "Exported boxes").
-fn sidecar_json(map: &GlobalMap, dense: &DistanceBox, args: &ExportArgs) -> String {
+fn sidecar_json(map: &GlobalMap, dense: &DistanceBox, args: &ExportArgs, (min_m, max_m): ([f64; 3], [f64; 3])) -> String {
     let vs = map.voxel_size_m();
     let [nx, ny, nz] = dense.dims;
     let corner = dense.origin.0.map(|i| f64::from(i) * vs);
@@ -200,7 +216,7 @@ fn sidecar_json(map: &GlobalMap, dense: &DistanceBox, args: &ExportArgs) -> Stri
         "origin_is": "the world coordinate (metres) of the centre of element [0, 0, 0]; element [k, j, i] is centred at origin_m + voxel_size_m * [i, j, k]",
         "origin_corner_m": corner,
         "origin_voxel": dense.origin.0,
-        "box_m": { "min": &args.bounds[..3], "max": &args.bounds[3..] },
+        "box_m": { "min": min_m, "max": max_m },
         "signed": args.signed,
         "distance_meaning": distances,
         "max_distance_m": map.params().max_distance_m,
