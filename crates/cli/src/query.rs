@@ -72,6 +72,9 @@ pub(crate) struct InfoArgs {
     /// A map saved with `edtmap run --save`.
     map: PathBuf,
     /// Write the exploration frontiers (observed free voxels next to unknown ones) as x,y,z voxel centres.
+    ///
+    /// A voxel's six face neighbours count; in a map whose observed voxels
+    /// all lie in one z layer (a 2D LiDAR's), only the four in that plane.
     #[arg(long, value_name = "OUT.csv")]
     frontiers: Option<PathBuf>,
 }

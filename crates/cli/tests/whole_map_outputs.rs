@@ -65,3 +65,41 @@ fn export_without_a_box_covers_the_mapped_box() {
     let (ok, _, err) = edtmap(&["export", s(&map), "--box", "0,0,0", s(&npy)]);
     assert!(!ok && err.contains("--box takes six numbers"), "{err}");
 }
+
+#[test]
+fn frontiers_of_a_planar_map_stay_in_its_plane() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let map = saved_map(dir.path(), "planar");
+    let frontiers = dir.path().join("frontiers.csv");
+    let (ok, info, err) = edtmap(&["info", s(&map), "--frontiers", s(&frontiers)]);
+    assert!(ok, "{err}");
+    let reported = numbers_after(&info, "voxels: ")[2] as usize;
+
+    // Brute force over the states of the whole mapped box: free voxels
+    // with an unknown (or unmapped) neighbour among the four in the plane.
+    let states = dir.path().join("states.npy");
+    let (ok, out, err) = edtmap(&["export", s(&map), s(&dir.path().join("d.npy")), "--states", s(&states)]);
+    assert!(ok, "{out}\n{err}");
+    let bytes = std::fs::read(&states).expect("states");
+    let array = npyz::NpyFile::new(&bytes[..]).expect("npy");
+    let [nz, ny, nx] = <[u64; 3]>::try_from(array.shape()).expect("3D").map(|n| n as i64);
+    let values: Vec<u8> = array.into_vec().expect("u8 states");
+    let at = |x: i64, y: i64, z: i64| if (0..nx).contains(&x) && (0..ny).contains(&y) { values[((z * ny + y) * nx + x) as usize] } else { 0 };
+    let layers: Vec<i64> = (0..nz).filter(|&z| (0..ny).any(|y| (0..nx).any(|x| at(x, y, z) >= 2))).collect();
+    assert_eq!(layers.len(), 1, "the planar scene observes one layer");
+    let z = layers[0];
+    let mut brute = 0;
+    for y in 0..ny {
+        for x in 0..nx {
+            let unknown_beside = [(1, 0), (-1, 0), (0, 1), (0, -1)].iter().any(|(dx, dy)| at(x + dx, y + dy, z) <= 1);
+            brute += usize::from(at(x, y, z) == 2 && unknown_beside);
+        }
+    }
+    let free = numbers_after(&info, "voxels: ")[0] as usize;
+    assert!(brute > 0 && brute < free, "in-plane frontiers are the rim of the free area: {brute} of {free}");
+    assert_eq!(reported, brute, "{info}");
+    let listed: Vec<String> = std::fs::read_to_string(&frontiers).expect("csv").lines().skip(1).map(String::from).collect();
+    assert_eq!(listed.len(), brute);
+    let heights: std::collections::BTreeSet<&str> = listed.iter().map(|l| l.rsplit(',').next().expect("z")).collect();
+    assert_eq!(heights.len(), 1, "every frontier lies in the scan plane");
+}

@@ -151,9 +151,34 @@ impl GlobalMap {
         layer(&self.occupancy) + layer(&self.edt) + layer(&self.fixed)
     }
 
+    /// The lowest and highest z index of the voxels the sensors observed
+    /// (free or occupied); `None` when none was.
+    pub fn observed_z_range(&self) -> Option<(i32, i32)> {
+        let mut range: Option<(i32, i32)> = None;
+        for (key, block) in self.occupancy.iter() {
+            for (offset, &value) in block.log_odds.iter().enumerate() {
+                if self.log_odds.state(value) != VoxelState::Unknown {
+                    let z = key.voxel(offset).0[2];
+                    range = Some(range.map_or((z, z), |(lo, hi)| (lo.min(z), hi.max(z))));
+                }
+            }
+        }
+        range
+    }
+
+    /// Whether every observed voxel lies in one z layer: the map of a
+    /// planar sensor (a 2D LiDAR), whose layers above and below are never
+    /// seen. `false` for a map with nothing observed.
+    pub fn is_planar(&self) -> bool {
+        self.observed_z_range().is_some_and(|(lo, hi)| lo == hi)
+    }
+
     /// Exploration frontiers: observed free voxels with an unknown face
-    /// neighbour, sorted.
+    /// neighbour, sorted. In a planar map ([`Self::is_planar`]) only the
+    /// four neighbours in the plane count: the unseen layers above and
+    /// below it are not where exploration goes on.
     pub fn frontiers(&self) -> Vec<VoxelIndex> {
+        let faces = if self.is_planar() { &FACES[..4] } else { &FACES[..] };
         let mut out = Vec::new();
         for (key, block) in self.occupancy.iter() {
             for (offset, &value) in block.log_odds.iter().enumerate() {
@@ -161,7 +186,7 @@ impl GlobalMap {
                     continue;
                 }
                 let v = key.voxel(offset);
-                let unknown_next = FACES.iter().any(|d| {
+                let unknown_next = faces.iter().any(|d| {
                     let n = VoxelIndex([v.0[0] + d[0], v.0[1] + d[1], v.0[2] + d[2]]);
                     self.state(n) == VoxelState::Unknown
                 });
@@ -175,6 +200,7 @@ impl GlobalMap {
     }
 }
 
+/// The six face neighbours, the four in the xy plane first.
 const FACES: [[i32; 3]; 6] = [[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]];
 
 #[cfg(test)]
@@ -195,6 +221,33 @@ mod tests {
         assert_eq!(map.frontiers(), vec![VoxelIndex([0, 0, 0]), VoxelIndex([1, 0, 0]), VoxelIndex([2, 0, 0])]);
         assert_eq!(map.state(wall), VoxelState::Occupied);
         assert!(map.obstacles().contains(wall));
+    }
+
+    #[test]
+    fn frontiers_of_a_planar_map_are_in_its_plane() {
+        let mut map = GlobalMap::new(0.1, OccupancyParams::default(), GlobalParams::default()).expect("defaults");
+        let lo = *map.log_odds();
+        // A free 5 x 5 square in layer z = 3, walled on its x = 5 side; the
+        // layers above and below are unknown.
+        for x in 0..6 {
+            for y in 0..5 {
+                let v = VoxelIndex([x, y, 3]);
+                map.occupancy_mut().get_or_insert(v.block()).log_odds[v.offset_in_block()] = if x == 5 { lo.max } else { lo.min };
+            }
+        }
+        assert_eq!(map.observed_z_range(), Some((3, 3)));
+        assert!(map.is_planar());
+        // Free voxels at x = 0 or y = 0 or y = 4 (unknown beside them in the
+        // plane); x = 4 has the wall beside it.
+        let expected: Vec<VoxelIndex> =
+            (0..5).flat_map(|x| (0..5).map(move |y| VoxelIndex([x, y, 3]))).filter(|v| v.0[0] == 0 || v.0[1] == 0 || v.0[1] == 4).collect();
+        assert_eq!(map.frontiers(), expected);
+        // One more observed layer makes the map 3D: every free voxel of the
+        // square has unknown above or below.
+        let above = VoxelIndex([9, 9, 4]);
+        map.occupancy_mut().get_or_insert(above.block()).log_odds[above.offset_in_block()] = lo.max;
+        assert!(!map.is_planar());
+        assert_eq!(map.frontiers().len(), 25);
     }
 
     #[test]
