@@ -75,7 +75,8 @@ typedef enum edtmap_status {
 } edtmap_status;
 
 /**
- * The sensor a mapper made by [`edtmap_mapper_new`] takes frames of.
+ * The sensor a mapper made by [`edtmap_mapper_new`] takes frames of: the
+ * values of `edtmap_params.sensor`.
  */
 typedef enum edtmap_sensor {
   /**
@@ -99,7 +100,8 @@ typedef enum edtmap_sensor {
 } edtmap_sensor;
 
 /**
- * The device a mapper runs on.
+ * The device a mapper runs on: the values of `edtmap_params.backend` and
+ * of the `backend` arguments.
  */
 typedef enum edtmap_backend {
   /**
@@ -133,13 +135,15 @@ typedef struct edtmap_mapper edtmap_mapper;
  */
 typedef struct edtmap_params {
   /**
-   * The sensor kind.
+   * The sensor kind, an `edtmap_sensor` value (`EDTMAP_SENSOR_*`); any
+   * other number is refused with `EDTMAP_INVALID_ARGUMENT`.
    */
-  enum edtmap_sensor sensor;
+  uint32_t sensor;
   /**
-   * The device.
+   * The device, an `edtmap_backend` value (`EDTMAP_BACKEND_*`); any other
+   * number is refused likewise.
    */
-  enum edtmap_backend backend;
+  uint32_t backend;
   /**
    * Voxel edge, metres (`[occupancy] voxel_size_m`).
    */
@@ -153,9 +157,10 @@ typedef struct edtmap_params {
    */
   double max_distance_m;
   /**
-   * Exact integration (true, the default) or the paper's wavefronts.
+   * Exact integration (1, the default) or the paper's wavefronts (0);
+   * any other value is refused with `EDTMAP_INVALID_ARGUMENT`.
    */
-  bool exact;
+  uint8_t exact;
   /**
    * Shortest and longest valid return, metres.
    */
@@ -165,9 +170,10 @@ typedef struct edtmap_params {
    */
   float max_range_m;
   /**
-   * Whether a beam with no return clears space up to `max_range_m`.
+   * Whether a beam with no return clears space up to `max_range_m` (1)
+   * or not (0); any other value is refused likewise.
    */
-  bool clear_no_return;
+  uint8_t clear_no_return;
   /**
    * Depth camera: focal lengths and principal point, pixels.
    */
@@ -306,10 +312,11 @@ enum edtmap_status edtmap_mapper_new(const struct edtmap_params *params,
 
 /**
  * A mapper from the configuration file at `config_path` (the TOML of
- * `edtmap run --config`) on `backend` into `*out`.
+ * `edtmap run --config`) on `backend` (an `edtmap_backend` value; any
+ * other number is `EDTMAP_INVALID_ARGUMENT`) into `*out`.
  */
 enum edtmap_status edtmap_mapper_from_config(const char *config_path,
-                                             enum edtmap_backend backend,
+                                             uint32_t backend,
                                              struct edtmap_mapper **out);
 
 /**
@@ -319,7 +326,7 @@ enum edtmap_status edtmap_mapper_from_config(const char *config_path,
  */
 enum edtmap_status edtmap_mapper_resume(const char *config_path,
                                         const char *map_path,
-                                        enum edtmap_backend backend,
+                                        uint32_t backend,
                                         struct edtmap_mapper **out);
 
 /**

@@ -189,6 +189,36 @@ int main(int argc, char** argv) {
         q.voxel_size_m = NAN;
         FAILS(edtmap_mapper_new(&q, &none), EDTMAP_CONFIG, "voxel_size_m");
     }
+    /* Enumerations and flags are numbers in C: one out of range is refused,
+     * naming the field and the values it takes. */
+    {
+        edtmap_params q = p;
+        q.sensor = 42;
+        FAILS(edtmap_mapper_new(&q, &none), EDTMAP_INVALID_ARGUMENT, "edtmap_params.sensor = 42");
+        CHECK(strstr(edtmap_last_error(), "EDTMAP_SENSOR_PLANAR (3)") != NULL, "%s", edtmap_last_error());
+        q.sensor = UINT32_MAX;
+        FAILS(edtmap_mapper_new(&q, &none), EDTMAP_INVALID_ARGUMENT, "edtmap_params.sensor = 4294967295");
+        q = p;
+        q.backend = 7;
+        FAILS(edtmap_mapper_new(&q, &none), EDTMAP_INVALID_ARGUMENT, "edtmap_params.backend = 7");
+        CHECK(strstr(edtmap_last_error(), "EDTMAP_BACKEND_AUTO (2)") != NULL, "%s", edtmap_last_error());
+        q = p;
+        q.exact = 0x7f;
+        FAILS(edtmap_mapper_new(&q, &none), EDTMAP_INVALID_ARGUMENT, "edtmap_params.exact = 127: must be 0 (false) or 1 (true)");
+        q = p;
+        q.clear_no_return = 2;
+        FAILS(edtmap_mapper_new(&q, &none), EDTMAP_INVALID_ARGUMENT, "edtmap_params.clear_no_return = 2");
+        FAILS(edtmap_mapper_from_config(path, 7, &none), EDTMAP_INVALID_ARGUMENT, "backend = 7");
+        FAILS(edtmap_mapper_resume(path, path, 3, &none), EDTMAP_INVALID_ARGUMENT, "backend = 3");
+        /* Every value in range is taken. */
+        q = p;
+        q.exact = 0;
+        q.clear_no_return = 1;
+        q.backend = EDTMAP_BACKEND_AUTO;
+        edtmap_mapper* wavefront = NULL;
+        OK(edtmap_mapper_new(&q, &wavefront));
+        edtmap_mapper_free(wavefront);
+    }
     CHECK(none == NULL, "a failed constructor gave a handle");
 
     /* Empty inputs: a batch of 0 points is an answer of size 0, null

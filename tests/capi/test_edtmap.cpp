@@ -22,14 +22,16 @@
         }                                                                              \
     } while (0)
 
-// Runs `f`, which must throw edtmap::Error with `status`.
+// Runs `f`, which must throw edtmap::Error with `status` and a message
+// holding `word`.
 template <class F>
-void throws(F f, edtmap_status status, const char* what) {
+void throws(F f, edtmap_status status, const char* what, const char* word = "") {
     try {
         f();
     } catch (const edtmap::Error& e) {
         CHECK(e.status() == status, e.what());
         CHECK(std::strlen(e.what()) > 0, what);
+        CHECK(std::strstr(e.what(), word) != nullptr, e.what());
         return;
     }
     CHECK(false, what);
@@ -89,6 +91,26 @@ int main(int argc, char** argv) {
         bad.local_size_m[0] = -3.0;
         edtmap::Mapper m(bad);
     }, EDTMAP_CONFIG, "bad params");
+    // Out-of-range enumerations and flags, as C++ can set them.
+    throws([&] {
+        edtmap::Params bad;
+        bad.sensor = 42;
+        edtmap::Mapper m(bad);
+    }, EDTMAP_INVALID_ARGUMENT, "sensor 42", "edtmap_params.sensor = 42");
+    throws([&] {
+        edtmap::Params bad;
+        bad.backend = 7;
+        edtmap::Mapper m(bad);
+    }, EDTMAP_INVALID_ARGUMENT, "backend 7", "edtmap_params.backend = 7");
+    throws([&] {
+        edtmap::Params bad;
+        bad.exact = 0x7f;
+        edtmap::Mapper m(bad);
+    }, EDTMAP_INVALID_ARGUMENT, "exact 0x7f", "edtmap_params.exact = 127");
+    // 3 is a value an edtmap_backend may hold (C++ gives it two bits) but
+    // names no backend.
+    throws([&] { edtmap::Mapper::from_config(std::string(argv[2]) + "/missing.toml", static_cast<edtmap_backend>(3)); },
+           EDTMAP_INVALID_ARGUMENT, "backend 3", "backend = 3");
     throws([&] {
         edtmap::Pose pose = edtmap::identity_pose();
         pose[0] = NAN;

@@ -16,6 +16,13 @@
 //!   answer of size 0, and an empty frame goes to the mapper, which refuses
 //!   it as [`edtmap_status::EDTMAP_FRAME`] (it observes nothing). Buffers
 //!   are the caller's; a call never keeps a pointer after it returns.
+//! - Enumerations and flags the caller passes (the `edtmap_params` fields
+//!   `sensor`, `backend`, `exact`, `clear_no_return`; the `backend`
+//!   argument) are taken as integers and checked: C lets them hold any
+//!   value, and a Rust enum or `bool` holding one it does not have would be
+//!   undefined behaviour. An out-of-range value is
+//!   [`edtmap_status::EDTMAP_INVALID_ARGUMENT`], naming the field and the
+//!   values it takes.
 //! - No panic crosses the boundary: each entry point catches it and
 //!   returns [`edtmap_status::EDTMAP_PANIC`].
 //!
@@ -69,7 +76,8 @@ pub enum edtmap_status {
     EDTMAP_PANIC = 7,
 }
 
-/// The sensor a mapper made by [`edtmap_mapper_new`] takes frames of.
+/// The sensor a mapper made by [`edtmap_mapper_new`] takes frames of: the
+/// values of `edtmap_params.sensor`.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum edtmap_sensor {
@@ -85,7 +93,8 @@ pub enum edtmap_sensor {
     EDTMAP_SENSOR_PLANAR = 3,
 }
 
-/// The device a mapper runs on.
+/// The device a mapper runs on: the values of `edtmap_params.backend` and
+/// of the `backend` arguments.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum edtmap_backend {
@@ -97,30 +106,50 @@ pub enum edtmap_backend {
     EDTMAP_BACKEND_AUTO = 2,
 }
 
+impl edtmap_sensor {
+    /// Every value with its C name, in the order of their numbers from 0.
+    const VALUES: [(Self, &'static str); 4] = [
+        (Self::EDTMAP_SENSOR_POINTS, "EDTMAP_SENSOR_POINTS"),
+        (Self::EDTMAP_SENSOR_DEPTH, "EDTMAP_SENSOR_DEPTH"),
+        (Self::EDTMAP_SENSOR_LIDAR, "EDTMAP_SENSOR_LIDAR"),
+        (Self::EDTMAP_SENSOR_PLANAR, "EDTMAP_SENSOR_PLANAR"),
+    ];
+}
+
+impl edtmap_backend {
+    /// Every value with its C name, in the order of their numbers from 0.
+    const VALUES: [(Self, &'static str); 3] =
+        [(Self::EDTMAP_BACKEND_CPU, "EDTMAP_BACKEND_CPU"), (Self::EDTMAP_BACKEND_GPU, "EDTMAP_BACKEND_GPU"), (Self::EDTMAP_BACKEND_AUTO, "EDTMAP_BACKEND_AUTO")];
+}
+
 /// Explicit parameters of a mapper ([`edtmap_mapper_new`]); fill them with
 /// [`edtmap_params_default`] first, then set what differs. The fields are
 /// the configuration file's (docs/CONFIG.md), with the same checks.
 #[repr(C)]
 #[derive(Debug, Clone, Copy)]
 pub struct edtmap_params {
-    /// The sensor kind.
-    pub sensor: edtmap_sensor,
-    /// The device.
-    pub backend: edtmap_backend,
+    /// The sensor kind, an `edtmap_sensor` value (`EDTMAP_SENSOR_*`); any
+    /// other number is refused with `EDTMAP_INVALID_ARGUMENT`.
+    pub sensor: u32,
+    /// The device, an `edtmap_backend` value (`EDTMAP_BACKEND_*`); any other
+    /// number is refused likewise.
+    pub backend: u32,
     /// Voxel edge, metres (`[occupancy] voxel_size_m`).
     pub voxel_size_m: f64,
     /// Local volume around the sensor, metres (`[occupancy] local_size_m`).
     pub local_size_m: [f64; 3],
     /// Cutoff of the global EDT, metres (`[global] max_distance_m`).
     pub max_distance_m: f64,
-    /// Exact integration (true, the default) or the paper's wavefronts.
-    pub exact: bool,
+    /// Exact integration (1, the default) or the paper's wavefronts (0);
+    /// any other value is refused with `EDTMAP_INVALID_ARGUMENT`.
+    pub exact: u8,
     /// Shortest and longest valid return, metres.
     pub min_range_m: f32,
     /// See `min_range_m`.
     pub max_range_m: f32,
-    /// Whether a beam with no return clears space up to `max_range_m`.
-    pub clear_no_return: bool,
+    /// Whether a beam with no return clears space up to `max_range_m` (1)
+    /// or not (0); any other value is refused likewise.
+    pub clear_no_return: u8,
     /// Depth camera: focal lengths and principal point, pixels.
     pub fx: f64,
     /// See `fx`.
@@ -312,6 +341,28 @@ unsafe fn put<T>(out: *mut T, value: T, name: &str) -> Result<()> {
     Ok(())
 }
 
+/// The value numbered `raw` of an enumeration (`values`: its variants with
+/// their C names, numbered from 0), or an error naming `field` and the
+/// values it takes.
+fn enum_value<T: Copy>(field: &str, raw: u32, values: &[(T, &str)]) -> Result<T> {
+    match values.get(raw as usize) {
+        Some((value, _)) => Ok(*value),
+        None => {
+            let accepted: Vec<String> = values.iter().enumerate().map(|(i, (_, name))| format!("{name} ({i})")).collect();
+            fail(edtmap_status::EDTMAP_INVALID_ARGUMENT, format!("{field} = {raw}: must be one of {}", accepted.join(", ")))
+        }
+    }
+}
+
+/// A flag byte: 0 is false, 1 true, anything else an error naming `field`.
+fn flag(field: &str, raw: u8) -> Result<bool> {
+    match raw {
+        0 => Ok(false),
+        1 => Ok(true),
+        _ => fail(edtmap_status::EDTMAP_INVALID_ARGUMENT, format!("{field} = {raw}: must be 0 (false) or 1 (true)")),
+    }
+}
+
 fn open_backend(b: edtmap_backend) -> Result<Box<dyn Backend + Send>> {
     match b {
         edtmap_backend::EDTMAP_BACKEND_CPU => Ok(Box::new(CpuBackend::default())),
@@ -346,6 +397,9 @@ fn mapper_from(config: &Config, backend: edtmap_backend, map: Option<GlobalMap>)
 /// The configuration `p` stands for, checked as a file's would be.
 fn config_of(p: &edtmap_params) -> Result<Config> {
     use serde_json::json;
+    let kind = enum_value("edtmap_params.sensor", p.sensor, &edtmap_sensor::VALUES)?;
+    let exact = flag("edtmap_params.exact", p.exact)?;
+    let clear_no_return = flag("edtmap_params.clear_no_return", p.clear_no_return)?;
     let numbers = [
         ("voxel_size_m", p.voxel_size_m),
         ("local_size_m[0]", p.local_size_m[0]),
@@ -364,19 +418,19 @@ fn config_of(p: &edtmap_params) -> Result<Config> {
     if let Some((name, value)) = numbers.iter().find(|(_, v)| !v.is_finite()) {
         return fail(edtmap_status::EDTMAP_CONFIG, format!("edtmap_params.{name} = {value}: must be a finite number"));
     }
-    let kind = match p.sensor {
+    let kind_name = match kind {
         edtmap_sensor::EDTMAP_SENSOR_POINTS => "points",
         edtmap_sensor::EDTMAP_SENSOR_DEPTH => "depth",
         edtmap_sensor::EDTMAP_SENSOR_LIDAR => "lidar",
         edtmap_sensor::EDTMAP_SENSOR_PLANAR => "planar",
     };
     let mut sensor = json!({
-        "kind": kind,
+        "kind": kind_name,
         "min_range_m": p.min_range_m,
         "max_range_m": p.max_range_m,
-        "clear_no_return": p.clear_no_return,
+        "clear_no_return": clear_no_return,
     });
-    match p.sensor {
+    match kind {
         edtmap_sensor::EDTMAP_SENSOR_DEPTH => {
             for (k, v) in [("fx", json!(p.fx)), ("fy", json!(p.fy)), ("cx", json!(p.cx)), ("cy", json!(p.cy)), ("width", json!(p.width)), ("height", json!(p.height))] {
                 sensor[k] = v;
@@ -397,7 +451,7 @@ fn config_of(p: &edtmap_params) -> Result<Config> {
     let value = json!({
         "sensor": sensor,
         "occupancy": { "voxel_size_m": p.voxel_size_m, "local_size_m": p.local_size_m },
-        "global": { "max_distance_m": p.max_distance_m, "mode": if p.exact { "exact" } else { "wavefront" } },
+        "global": { "max_distance_m": p.max_distance_m, "mode": if exact { "exact" } else { "wavefront" } },
     });
     serde_json::from_value(value).or_else(|e| fail(edtmap_status::EDTMAP_CONFIG, format!("edtmap_params: {e}")))
 }
@@ -423,15 +477,15 @@ pub extern "C" fn edtmap_last_error() -> *const c_char {
 pub unsafe extern "C" fn edtmap_params_default(out: *mut edtmap_params) -> edtmap_status {
     guard("edtmap_params_default", || {
         let p = edtmap_params {
-            sensor: edtmap_sensor::EDTMAP_SENSOR_POINTS,
-            backend: edtmap_backend::EDTMAP_BACKEND_CPU,
+            sensor: edtmap_sensor::EDTMAP_SENSOR_POINTS as u32,
+            backend: edtmap_backend::EDTMAP_BACKEND_CPU as u32,
             voxel_size_m: 0.1,
             local_size_m: [10.0, 10.0, 4.0],
             max_distance_m: 2.0,
-            exact: true,
+            exact: 1,
             min_range_m: 0.3,
             max_range_m: 10.0,
-            clear_no_return: false,
+            clear_no_return: 0,
             fx: 525.0,
             fy: 525.0,
             cx: 319.5,
@@ -455,17 +509,20 @@ pub unsafe extern "C" fn edtmap_mapper_new(params: *const edtmap_params, out: *m
     guard("edtmap_mapper_new", || {
         // SAFETY: the caller passes a valid `edtmap_params` or null.
         let p = unsafe { handle(params, "params") }?;
-        let mapper = mapper_from(&config_of(p)?, p.backend, None)?;
+        let backend = enum_value("edtmap_params.backend", p.backend, &edtmap_backend::VALUES)?;
+        let mapper = mapper_from(&config_of(p)?, backend, None)?;
         // SAFETY: the caller passes a writable pointer or null.
         unsafe { put(out, Box::into_raw(mapper), "out") }
     })
 }
 
 /// A mapper from the configuration file at `config_path` (the TOML of
-/// `edtmap run --config`) on `backend` into `*out`.
+/// `edtmap run --config`) on `backend` (an `edtmap_backend` value; any
+/// other number is `EDTMAP_INVALID_ARGUMENT`) into `*out`.
 #[no_mangle]
-pub unsafe extern "C" fn edtmap_mapper_from_config(config_path: *const c_char, backend: edtmap_backend, out: *mut *mut edtmap_mapper) -> edtmap_status {
+pub unsafe extern "C" fn edtmap_mapper_from_config(config_path: *const c_char, backend: u32, out: *mut *mut edtmap_mapper) -> edtmap_status {
     guard("edtmap_mapper_from_config", || {
+        let backend = enum_value("backend", backend, &edtmap_backend::VALUES)?;
         // SAFETY: the caller passes a NUL-terminated string or null.
         let config = Config::load(unsafe { path(config_path, "config_path") }?)?;
         let mapper = mapper_from(&config, backend, None)?;
@@ -478,8 +535,9 @@ pub unsafe extern "C" fn edtmap_mapper_from_config(config_path: *const c_char, b
 /// map saved at `map_path` (by [`edtmap_mapper_save`] or `edtmap run
 /// --save`), into `*out`.
 #[no_mangle]
-pub unsafe extern "C" fn edtmap_mapper_resume(config_path: *const c_char, map_path: *const c_char, backend: edtmap_backend, out: *mut *mut edtmap_mapper) -> edtmap_status {
+pub unsafe extern "C" fn edtmap_mapper_resume(config_path: *const c_char, map_path: *const c_char, backend: u32, out: *mut *mut edtmap_mapper) -> edtmap_status {
     guard("edtmap_mapper_resume", || {
+        let backend = enum_value("backend", backend, &edtmap_backend::VALUES)?;
         // SAFETY: as in `edtmap_mapper_from_config`.
         let config = Config::load(unsafe { path(config_path, "config_path") }?)?;
         // SAFETY: likewise.
@@ -883,4 +941,31 @@ pub unsafe extern "C" fn edtmap_map_voxel_size(map: *const edtmap_map) -> f64 {
 pub unsafe extern "C" fn edtmap_map_max_distance(map: *const edtmap_map) -> f64 {
     // SAFETY: a map from this library or null.
     unsafe { map.as_ref() }.map_or(0.0, |m| m.map.params().max_distance_m)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `enum_value` finds a variant by its position: the tables must list
+    /// the variants in the order of their numbers, from 0.
+    #[test]
+    fn value_tables_follow_the_discriminants() {
+        for (i, (v, _)) in edtmap_sensor::VALUES.iter().enumerate() {
+            assert_eq!(*v as usize, i);
+        }
+        for (i, (v, _)) in edtmap_backend::VALUES.iter().enumerate() {
+            assert_eq!(*v as usize, i);
+        }
+    }
+
+    #[test]
+    fn out_of_range_values_name_the_field_and_the_values() {
+        let Err(Failure(status, message)) = enum_value("edtmap_params.sensor", 42, &edtmap_sensor::VALUES) else { panic!("42 is no sensor") };
+        assert_eq!(status, edtmap_status::EDTMAP_INVALID_ARGUMENT);
+        assert!(message.contains("edtmap_params.sensor = 42") && message.contains("EDTMAP_SENSOR_PLANAR (3)"), "{message}");
+        let Err(Failure(_, message)) = flag("edtmap_params.exact", 0x7f) else { panic!("0x7f is no flag") };
+        assert!(message.contains("edtmap_params.exact = 127") && message.contains("0 (false) or 1 (true)"), "{message}");
+        assert!(flag("f", 1).is_ok_and(|b| b) && flag("f", 0).is_ok_and(|b| !b));
+    }
 }
