@@ -70,6 +70,15 @@ impl Source {
         }
     }
 
+    /// The one warning for the recording's poses that were replaced by the
+    /// nearest rotation, if any were.
+    pub(crate) fn pose_warning(&self) -> Option<String> {
+        match self {
+            Source::Scene(_) => None,
+            Source::Recording(r) => r.pose_warning(),
+        }
+    }
+
     /// The first `n` frames, or failures in their place.
     pub(crate) fn frames<'a>(&'a self, sensor: &'a Sensor, n: usize, name: &'a str) -> Box<dyn Iterator<Item = Result<Frame, Failure>> + 'a> {
         match self {

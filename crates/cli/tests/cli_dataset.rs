@@ -1,5 +1,8 @@
-//! `edtmap run --dataset`: the real recordings in `../shared/data` replayed
-//! with the shipped configs, and the mistakes a user can make.
+//! `edtmap run --dataset`: the real recordings replayed with the shipped
+//! configs, and the mistakes a user can make. The Velodyne pair ships in the
+//! repository (`data/`); the depth recordings are read from `../shared/data`
+//! beside the checkout where it exists, and their cases are skipped (with a
+//! note) where it does not.
 
 use std::path::PathBuf;
 use std::process::{Command, Output};
@@ -8,6 +11,12 @@ fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..")
 }
 
+/// A recording of the repository's own `data/` folder.
+fn repo_data(name: &str) -> PathBuf {
+    root().join("data").join(name)
+}
+
+/// A recording of `../shared/data`, or `None` (with a note) where it is absent.
 fn data(name: &str) -> Option<PathBuf> {
     let dir = root().join("../shared/data").join(name);
     if dir.exists() {
@@ -50,8 +59,8 @@ fn ply_vertices(path: &std::path::Path) -> usize {
 #[test]
 fn replays_the_3dmatch_frames_and_the_velodyne_pair() {
     let tmp = tempfile::tempdir().expect("temp dir");
-    for (config, name, frames, sensor) in [("3dmatch.toml", "3dmatch-seq01", 5, "depth camera"), ("velodyne.toml", "velodyne-pair", 2, "point cloud")] {
-        let Some(dir) = data(name) else { return };
+    for (config, name, frames, sensor) in [("velodyne.toml", "velodyne-pair", 2, "point cloud"), ("3dmatch.toml", "3dmatch-seq01", 5, "depth camera")] {
+        let dir = if name == "velodyne-pair" { repo_data(name) } else if let Some(dir) = data(name) { dir } else { continue };
         let out = tmp.path().join(name);
         let o = run(config, &dir, &out, &["--eval", "--ply", "--save", out.join("map.edtmap").to_str().expect("utf-8")]);
         assert!(o.status.success(), "{name}: {}", String::from_utf8_lossy(&o.stderr));
@@ -82,16 +91,17 @@ fn replays_the_3dmatch_frames_and_the_velodyne_pair() {
 #[test]
 fn dataset_mistakes_are_refused_with_the_reason() {
     let tmp = tempfile::tempdir().expect("temp dir");
-    let Some(depth) = data("3dmatch-seq01") else { return };
-    let Some(clouds) = data("velodyne-pair") else { return };
-    let cases: [(&str, &PathBuf, &[&str], &str); 4] = [
-        ("velodyne.toml", &depth, &[], "holds depth camera frames"),
-        ("3dmatch.toml", &clouds, &[], "holds point cloud frames"),
-        ("3dmatch.toml", &depth, &["--frames", "9"], "has 5 frames"),
-        ("3dmatch.toml", &tmp.path().to_path_buf(), &[], "neither a depth folder"),
+    let clouds = repo_data("velodyne-pair");
+    let mut cases: Vec<(&str, PathBuf, &[&str], &str)> = vec![
+        ("3dmatch.toml", clouds.clone(), &[], "holds point cloud frames"),
+        ("velodyne.toml", clouds, &["--frames", "9"], "has 2 frames"),
+        ("3dmatch.toml", tmp.path().to_path_buf(), &[], "neither a depth folder"),
     ];
+    if let Some(depth) = data("3dmatch-seq01") {
+        cases.push(("velodyne.toml", depth, &[], "holds depth camera frames"));
+    }
     for (config, dir, extra, want) in cases {
-        let o = run(config, dir, &tmp.path().join("out"), extra);
+        let o = run(config, &dir, &tmp.path().join("out"), extra);
         let err = String::from_utf8_lossy(&o.stderr);
         assert!(!o.status.success() && err.contains(want), "{config} {}: {err}", dir.display());
     }
@@ -128,4 +138,53 @@ fn a_bad_cloud_is_skipped_or_stops_the_run_keeping_the_others() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success() && err.contains("000001.pcd") && err.contains("the 1 frame before it is integrated"), "{err}");
     assert_eq!(report(&out)["frames"].as_array().map(Vec::len), Some(1));
+}
+
+/// A row-major 3 × 4 pose (KITTI's `poses.txt` line): a rotation of `angle`
+/// about z whose entries are off by `noise` (as published ground truth
+/// is), at `x` along the x axis.
+fn kitti_line(angle: f64, noise: f64, x: f64) -> String {
+    let (s, c) = angle.sin_cos();
+    let r = [[c + noise, -s, 0.0], [s, c - noise, noise], [0.0, 0.0, 1.0 + noise]];
+    format!("{} {} {} {x} {} {} {} 0 {} {} {} 0\n", r[0][0], r[0][1], r[0][2], r[1][0], r[1][1], r[1][2], r[2][0], r[2][1], r[2][2])
+}
+
+#[test]
+fn published_poses_are_projected_with_one_warning_and_bad_ones_refused() {
+    let tmp = tempfile::tempdir().expect("temp dir");
+    let dir = tmp.path().join("clouds");
+    std::fs::create_dir(&dir).expect("dir");
+    for k in 0..3 {
+        std::fs::write(dir.join(format!("00000{k}.pcd")), wall_pcd("DATA ascii")).expect("pcd");
+    }
+    // Orthonormal to 3e-4, as 7-Scenes' ground truth: every frame maps, and
+    // one warning names the worst deviation.
+    let poses = (0..3).map(|k| kitti_line(0.1 * k as f64, 1.5e-4, 0.1 * k as f64)).collect::<String>();
+    std::fs::write(dir.join("poses.txt"), poses).expect("poses");
+    let out = tmp.path().join("out");
+    let o = run("velodyne.toml", &dir, &out, &[]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert_eq!(err.matches("had rotations orthonormal only to").count(), 1, "{err}");
+    assert!(err.contains("3 poses") && err.contains("e-4 (worst"), "{err}");
+    assert_eq!(report(&out)["frames"].as_array().map(Vec::len), Some(3));
+    // Beyond the tolerance (2 %): refused, naming the file, line and the fix.
+    let poses = kitti_line(0.0, 0.0, 0.0) + &kitti_line(0.1, 2e-2, 0.1) + &kitti_line(0.2, 0.0, 0.2);
+    std::fs::write(dir.join("poses.txt"), poses).expect("poses");
+    let o = run("velodyne.toml", &dir, &tmp.path().join("refused"), &[]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "{err}");
+    assert!(err.contains("poses.txt") && err.contains("line 2") && err.contains("not orthonormal") && err.contains("accepted up to 1e-2"), "{err}");
+}
+
+#[test]
+fn the_seven_scenes_frames_map_as_published() {
+    let Some(dir) = data("7scenes-kitchen-100") else { return };
+    let tmp = tempfile::tempdir().expect("temp dir");
+    let out = tmp.path().join("out");
+    let o = run("3dmatch.toml", &dir, &out, &[]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert_eq!(err.matches("had rotations orthonormal only to").count(), 1, "{err}");
+    assert_eq!(report(&out)["frames"].as_array().map(Vec::len), Some(100));
 }

@@ -131,6 +131,18 @@ impl Dataset {
         }
     }
 
+    /// The one warning for the poses read so far whose rotations were
+    /// orthonormal only within the tolerance and were replaced by the
+    /// nearest rotation (`None` when there were none): a reader shows it
+    /// once, after the frames it read.
+    pub fn pose_warning(&self) -> Option<String> {
+        let (dir, noted) = match self {
+            Dataset::Depth(d) => (d.frames.first().and_then(|f| f.path.parent()), &d.poses_adjusted),
+            Dataset::Clouds(c) => (c.frames.first().and_then(|f| f.path.parent()), &c.poses_adjusted),
+        };
+        noted.warning(&dir.map_or_else(|| "the recording".to_string(), |d| d.display().to_string()))
+    }
+
     /// Frame `i`, read from disk. [`IoError::NoPose`] when nothing gives
     /// it a pose (its time outside the trajectory, its pose file missing).
     pub fn frame(&self, i: usize) -> Result<Frame, IoError> {
@@ -159,7 +171,7 @@ mod tests {
 
     #[test]
     fn opens_the_velodyne_pair_with_its_kitti_poses() {
-        let Some(dir) = data("velodyne-pair") else { return };
+        let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../data/velodyne-pair");
         let set = Dataset::open(&dir, 0.001, RangeLimits { min_m: 0.1, max_m: 100.0 }).expect("opens");
         assert_eq!((set.kind(), set.len()), ("point cloud", 2));
         let first = set.frame(0).expect("frame 0");

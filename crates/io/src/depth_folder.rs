@@ -31,8 +31,9 @@ use crate::folder::frames::{bad, file_name, list_dir, read_text, FrameFile, Fram
 use crate::folder::DatasetOptions;
 use crate::IoError;
 use depth_png::DepthPng;
-use edtmap_core::sensor::{DepthData, DepthImage, Frame, Measurement, PinholeCamera, RangeLimits};
+use edtmap_core::sensor::{DepthData, DepthImage, Frame, Measurement, PinholeCamera, PoseAdjustments, RangeLimits};
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 /// Frame rate of 3DMatch sequences, Hz: the time of frame `XXXXXX`.
 pub const THREEDMATCH_RATE_HZ: f64 = 30.0;
@@ -54,6 +55,9 @@ pub struct DepthFolder {
     /// Files left out at open (named like frames but not frames), one
     /// line each.
     pub warnings: Vec<String>,
+    /// The rotations read so far that were replaced by the nearest
+    /// rotation (see [`Dataset::pose_warning`](crate::dataset::Dataset::pose_warning)).
+    pub poses_adjusted: Arc<PoseAdjustments>,
 }
 
 impl DepthFolder {
@@ -78,7 +82,7 @@ impl DepthFolder {
         let ([fx, fy, cx, cy], intrinsics_file) = intrinsics(dir, opts)?;
         let (width, height) = first_image_size(dir, &frames)?;
         let camera = PinholeCamera { fx, fy, cx, cy, width, height, range: opts.range };
-        Ok(DepthFolder { camera, frames, metres_per_unit: opts.depth_scale_m, intrinsics_file, warnings })
+        Ok(DepthFolder { camera, frames, metres_per_unit: opts.depth_scale_m, intrinsics_file, warnings, poses_adjusted: Arc::default() })
     }
 
     /// Frame `i`: its depth image, time and pose. A frame whose time the
@@ -87,7 +91,7 @@ impl DepthFolder {
     /// decoded.
     pub fn frame(&self, i: usize) -> Result<Frame, IoError> {
         let file = self.frames.get(i).ok_or_else(|| bad(Path::new("."), format!("frame {i} of {}", self.frames.len())))?;
-        let pose = file.pose()?;
+        let pose = file.pose_noted(Some(&self.poses_adjusted))?;
         let (width, height) = (self.camera.width, self.camera.height);
         let expected = ExpectedSize { width, height, source: "the folder's first image" };
         let (width, height, values) = read_depth_png(&file.path, Some(expected))?;

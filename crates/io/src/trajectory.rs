@@ -8,8 +8,8 @@
 //! odometry.
 
 use crate::IoError;
-use edtmap_core::sensor::check_pose;
-use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
+use edtmap_core::sensor::{check_pose, rotation_from_quaternion};
+use nalgebra::{Isometry3, Quaternion, Translation3};
 use std::path::Path;
 
 /// Largest time between two trajectory samples that a frame's pose is
@@ -198,12 +198,8 @@ impl Trajectory {
             let [t, x, y, z, qx, qy, qz, qw] = numbers[..] else {
                 return Err(at(format!("{} numbers, a TUM pose has 8: timestamp tx ty tz qx qy qz qw", numbers.len())));
             };
-            let q = Quaternion::new(qw, qx, qy, qz);
-            let norm = q.norm();
-            if !norm.is_finite() || (norm - 1.0).abs() > 1e-2 {
-                return Err(at(format!("quaternion ({qx}, {qy}, {qz}, {qw}) has norm {norm}, not 1")));
-            }
-            let pose = Isometry3::from_parts(Translation3::new(x, y, z), UnitQuaternion::from_quaternion(q));
+            let (rotation, _) = rotation_from_quaternion(Quaternion::new(qw, qx, qy, qz)).map_err(|e| at(e.to_string()))?;
+            let pose = Isometry3::from_parts(Translation3::new(x, y, z), rotation);
             check_pose(&pose).map_err(|e| at(e.to_string()))?;
             if !t.is_finite() {
                 return Err(at(format!("timestamp {t} is not finite")));

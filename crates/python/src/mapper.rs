@@ -15,7 +15,7 @@ use edtmap::sensor::{
 use edtmap::cpu::CpuBackend;
 use edtmap::{Backend, FrameStats, GlobalMap, MapError, Mapper, PointState, SharedMapper};
 use edtmap_cpu::query;
-use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
+use nalgebra::{Isometry3, Quaternion, Translation3};
 use numpy::{PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyOSError, PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
@@ -127,15 +127,11 @@ fn pose(values: &[f64]) -> PyResult<Isometry3<f64>> {
             edtmap::sensor::pose_from_matrix(&m).map_err(|e| bad(e.to_string()))
         }
         7 => {
-            // Taken as it is, as recordings' poses are: the pipeline accepts
-            // a norm within its tolerance of 1, and a normalised copy would
-            // not map bit for bit as the recording does.
+            // The rule recordings' poses follow: normalised within the
+            // tolerance (a unit quaternion kept bit for bit), refused beyond.
             let q = Quaternion::new(values[6], values[3], values[4], values[5]);
-            let norm = q.norm();
-            if (norm - 1.0).abs() > edtmap::sensor::ROTATION_TOLERANCE {
-                return Err(bad(format!("quaternion [qx, qy, qz, qw] has norm {norm}, not 1")));
-            }
-            let rotation = UnitQuaternion::new_unchecked(q);
+            let (rotation, _) = edtmap::sensor::rotation_from_quaternion(q)
+                .map_err(|e| bad(format!("[qx, qy, qz, qw]: {e}")))?;
             Ok(Isometry3::from_parts(Translation3::new(values[0], values[1], values[2]), rotation))
         }
         n => Err(bad(format!("has {n} values: give a 4 x 4 matrix or [x, y, z, qx, qy, qz, qw]"))),

@@ -11,7 +11,7 @@
 
 use super::wire::{WireReader, WireResult, WireWriter};
 use super::Encoding;
-use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
+use nalgebra::{Isometry3, Quaternion, Translation3};
 
 /// A message header: time stamp and coordinate frame.
 #[derive(Debug, Clone, PartialEq, Default)]
@@ -363,13 +363,12 @@ fn read_rigid(r: &mut WireReader<'_>, what: &str) -> WireResult<Isometry3<f64>> 
 /// The rigid transform of a translation and a quaternion `[x, y, z, w]`,
 /// as every pose message gives them; `what` names it in the error.
 pub(crate) fn rigid(t: [f64; 3], [x, y, z, w]: [f64; 4], what: &str) -> WireResult<Isometry3<f64>> {
-    let q = Quaternion::new(w, x, y, z);
-    let norm = q.norm();
-    if !norm.is_finite() || (norm - 1.0).abs() > 1e-2 || t.iter().any(|v| !v.is_finite()) {
-        return Err(format!("{what}: translation {t:?}, quaternion (x {x}, y {y}, z {z}, w {w}) is not a rigid transform"));
+    if t.iter().any(|v| !v.is_finite()) {
+        return Err(format!("{what}: translation {t:?} is not finite"));
     }
-    // Renormalize only what needs it, so stored unit quaternions stay bit for bit.
-    let rotation = if (norm - 1.0).abs() < 1e-12 { UnitQuaternion::new_unchecked(q) } else { UnitQuaternion::from_quaternion(q) };
+    // The rule every front end applies: normalised within the tolerance
+    // (stored unit quaternions kept bit for bit), refused beyond it.
+    let (rotation, _) = edtmap::sensor::rotation_from_quaternion(Quaternion::new(w, x, y, z)).map_err(|e| format!("{what}: {e}"))?;
     Ok(Isometry3::from_parts(Translation3::new(t[0], t[1], t[2]), rotation))
 }
 

@@ -74,6 +74,16 @@ impl Recording {
         Ok(Recording::Folder(set))
     }
 
+    /// The one warning for the poses read so far that were replaced by the
+    /// nearest rotation (a folder's pose files; see
+    /// [`Dataset::pose_warning`]); `None` when there were none.
+    pub fn pose_warning(&self) -> Option<String> {
+        match self {
+            Recording::Folder(d) => d.pose_warning(),
+            Recording::Ros(_) => None,
+        }
+    }
+
     /// Frames the recording's index holds.
     pub fn len(&self) -> usize {
         match self {

@@ -13,7 +13,7 @@ mod pose;
 pub use lidar::{LidarScan, SpinningLidar, MAX_RINGS};
 pub use pinhole::{raw_depth_m, DepthData, DepthImage, PinholeCamera, MAX_IMAGE_PIXELS};
 pub use planar::LaserScan;
-pub use pose::{check_pose, pose_from_matrix, ROTATION_TOLERANCE};
+pub use pose::{check_pose, pose_from_matrix, pose_from_matrix_noted, rotation_from_matrix, rotation_from_quaternion, PoseAdjustments, ROTATION_NOTED, ROTATION_TOLERANCE};
 
 use crate::CoreError;
 use nalgebra::Isometry3;

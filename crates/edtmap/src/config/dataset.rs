@@ -2,7 +2,7 @@
 
 use super::limits::{DEPTH_SCALE_M, OFFSET_M, POSE_GAP_S};
 use edtmap_core::CoreError;
-use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
+use nalgebra::{Isometry3, Quaternion, Translation3};
 use serde::Deserialize;
 use std::path::PathBuf;
 
@@ -132,11 +132,11 @@ pub(super) fn sensor_in_body(field: &'static str, pose: Option<[f64; 7]>) -> Res
     let Some([x, y, z, qx, qy, qz, qw]) = pose else {
         return Ok(Isometry3::identity());
     };
-    let q = Quaternion::new(qw, qx, qy, qz);
     let finite = [x, y, z, qx, qy, qz, qw].iter().all(|v| v.is_finite());
-    if !finite || (q.norm() - 1.0).abs() > 1e-3 {
-        return Err(invalid(field, format!("{:?}", [x, y, z, qx, qy, qz, qw]), "must be [x, y, z, qx, qy, qz, qw] with a unit quaternion"));
-    }
-    Ok(Isometry3::from_parts(Translation3::new(x, y, z), UnitQuaternion::from_quaternion(q)))
+    let rotation = match edtmap_core::sensor::rotation_from_quaternion(Quaternion::new(qw, qx, qy, qz)) {
+        Ok((rotation, _)) if finite => rotation,
+        _ => return Err(invalid(field, format!("{:?}", [x, y, z, qx, qy, qz, qw]), "must be [x, y, z, qx, qy, qz, qw] with a unit quaternion (norm within 1e-2 of 1)")),
+    };
+    Ok(Isometry3::from_parts(Translation3::new(x, y, z), rotation))
 
 }

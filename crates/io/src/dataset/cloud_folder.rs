@@ -1,13 +1,14 @@
 //! Folders of point clouds, one file per frame: `*.pcd`, KITTI Velodyne
 //! `*.bin` or `*.ply`, one kind per folder.
 
-use crate::folder::frames::{bad, file_name, list_dir, parse_kitti_poses, parse_times, read_text, stem_time, FrameFile, FramePose, TrajectoryFile};
+use crate::folder::frames::{bad, file_name, list_dir, parse_kitti_poses_noted, parse_times, read_text, stem_time, FrameFile, FramePose, TrajectoryFile};
 use crate::folder::DatasetOptions;
 use crate::files::{self, MAX_CLOUD_BYTES};
 use crate::ply::read_ply;
 use crate::{read_pcd, IoError};
-use edtmap_core::sensor::{Frame, Measurement, PointCloud};
+use edtmap_core::sensor::{Frame, Measurement, PointCloud, PoseAdjustments};
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 /// Frame rate assumed for clouds without times (KITTI's Velodyne), Hz.
 pub const DEFAULT_CLOUD_RATE_HZ: f64 = 10.0;
@@ -21,6 +22,9 @@ pub struct CloudFolder {
     /// The clouds in order (file-name order; time order when every name is
     /// a time), with their times and poses.
     pub frames: Vec<FrameFile>,
+    /// The rotations read so far that were replaced by the nearest
+    /// rotation (see [`Dataset::pose_warning`](crate::dataset::Dataset::pose_warning)).
+    pub poses_adjusted: Arc<PoseAdjustments>,
 }
 
 /// The point-cloud files of a folder's entries.
@@ -49,6 +53,7 @@ impl CloudFolder {
             clouds.iter().map(|c| stem_time(c)).collect()
         };
         let stamps = file_times.clone().unwrap_or_else(|| (0..clouds.len()).map(|i| i as f64 / DEFAULT_CLOUD_RATE_HZ).collect());
+        let poses_adjusted = Arc::new(PoseAdjustments::default());
         let poses = if let Some(traj_path) = &opts.trajectory {
             let Some(times) = file_times else {
                 return Err(bad(dir, format!("a trajectory ({}) needs each cloud's time: add times.txt (one time per cloud) or name the clouds by their time, as 1311868164.363181.pcd", traj_path.display())));
@@ -57,7 +62,7 @@ impl CloudFolder {
             times.iter().map(|&t| traj.pose_at(t)).collect()
         } else if dir.join("poses.txt").exists() {
             let poses_path = dir.join("poses.txt");
-            let poses = parse_kitti_poses(&poses_path, &read_text(&poses_path)?)?;
+            let poses = parse_kitti_poses_noted(&poses_path, &read_text(&poses_path)?, Some(&poses_adjusted))?;
             if poses.len() != clouds.len() {
                 return Err(bad(&poses_path, format!("{} poses for {} point clouds", poses.len(), clouds.len())));
             }
@@ -66,13 +71,13 @@ impl CloudFolder {
             per_file_poses(dir, &clouds)?
         };
         let frames = clouds.into_iter().zip(stamps).zip(poses).map(|((path, stamp_s), pose)| FrameFile { path, stamp_s, pose }).collect();
-        Ok(CloudFolder { frames })
+        Ok(CloudFolder { frames, poses_adjusted })
     }
 
     /// Cloud `i`, read from disk, with its time and pose.
     pub fn frame(&self, i: usize) -> Result<Frame, IoError> {
         let file = self.frames.get(i).ok_or_else(|| bad(Path::new("."), format!("frame {i} of {}", self.frames.len())))?;
-        let pose = file.pose()?;
+        let pose = file.pose_noted(Some(&self.poses_adjusted))?;
         let cloud = match file.path.extension().and_then(|e| e.to_str()) {
             Some("bin") => read_kitti_bin(&file.path)?,
             Some("ply") => read_ply(&file.path)?,

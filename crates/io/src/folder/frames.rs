@@ -5,7 +5,7 @@
 
 use crate::trajectory::Trajectory;
 use crate::IoError;
-use edtmap_core::sensor::pose_from_matrix;
+use edtmap_core::sensor::{pose_from_matrix_noted, PoseAdjustments};
 use nalgebra::Isometry3;
 use std::path::{Path, PathBuf};
 
@@ -37,9 +37,14 @@ pub enum FramePose {
 impl FrameFile {
     /// The frame's pose, reading its matrix file if it has one.
     pub fn pose(&self) -> Result<Isometry3<f64>, IoError> {
+        self.pose_noted(None)
+    }
+
+    /// [`FrameFile::pose`], counting an adjusted rotation in `noted`.
+    pub fn pose_noted(&self, noted: Option<&PoseAdjustments>) -> Result<Isometry3<f64>, IoError> {
         match &self.pose {
             FramePose::Known(pose) => Ok(*pose),
-            FramePose::File(path) => read_matrix_file(path),
+            FramePose::File(path) => parse_matrix_noted(path, &read_text(path)?, noted),
             FramePose::Missing(reason) => {
                 Err(IoError::NoPose { path: self.path.clone(), stamp_s: self.stamp_s, reason: reason.clone() })
             }
@@ -124,13 +129,18 @@ fn content_lines(text: &str) -> impl Iterator<Item = (usize, &str)> {
 /// of the row-major 3 × 4 `T_world_sensor`. `path` names the file in
 /// errors.
 pub fn parse_kitti_poses(path: &Path, text: &str) -> Result<Vec<Isometry3<f64>>, IoError> {
+    parse_kitti_poses_noted(path, text, None)
+}
+
+/// [`parse_kitti_poses`], counting adjusted rotations in `noted`.
+pub(crate) fn parse_kitti_poses_noted(path: &Path, text: &str, noted: Option<&PoseAdjustments>) -> Result<Vec<Isometry3<f64>>, IoError> {
     let mut poses = Vec::new();
     for (k, line) in content_lines(text) {
         let numbers = line_numbers(path, k, line)?;
         if numbers.len() != 12 {
             return Err(bad(path, format!("line {}: {} numbers, a KITTI pose has 12", k + 1, numbers.len())));
         }
-        poses.push(matrix_pose(&numbers).map_err(|e| bad(path, format!("line {}: {e}", k + 1)))?);
+        poses.push(matrix_pose(&numbers, noted).map_err(|e| bad(path, format!("line {}: {e}", k + 1)))?);
     }
     Ok(poses)
 }
@@ -162,6 +172,11 @@ pub fn read_matrix_file(path: &Path) -> Result<Isometry3<f64>, IoError> {
 
 /// Parses the text of a pose matrix file (see [`read_matrix_file`]).
 pub fn parse_matrix(path: &Path, text: &str) -> Result<Isometry3<f64>, IoError> {
+    parse_matrix_noted(path, text, None)
+}
+
+/// [`parse_matrix`], counting an adjusted rotation in `noted`.
+fn parse_matrix_noted(path: &Path, text: &str, noted: Option<&PoseAdjustments>) -> Result<Isometry3<f64>, IoError> {
     let mut numbers = Vec::with_capacity(16);
     for (k, line) in content_lines(text) {
         numbers.extend(line_numbers(path, k, line)?);
@@ -172,18 +187,18 @@ pub fn parse_matrix(path: &Path, text: &str) -> Result<Isometry3<f64>, IoError> 
     if numbers.len() != 16 && numbers.len() != 12 {
         return Err(bad(path, format!("{} numbers, a pose matrix has 16 (4 × 4) or 12 (3 × 4)", numbers.len())));
     }
-    matrix_pose(&numbers).map_err(|e| bad(path, e))
+    matrix_pose(&numbers, noted).map_err(|e| bad(path, e))
 }
 
 /// The pose of 12 or 16 row-major numbers.
-fn matrix_pose(n: &[f64]) -> Result<Isometry3<f64>, String> {
+fn matrix_pose(n: &[f64], noted: Option<&PoseAdjustments>) -> Result<Isometry3<f64>, String> {
     let m: [[f64; 4]; 4] = std::array::from_fn(|r| {
         std::array::from_fn(|c| match n.get(4 * r + c) {
             Some(&v) => v,
             None => f64::from(u8::from(c == 3)),
         })
     });
-    pose_from_matrix(&m).map_err(|e| e.to_string())
+    pose_from_matrix_noted(&m, noted).map_err(|e| e.to_string())
 }
 
 #[cfg(test)]
