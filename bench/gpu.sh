@@ -230,7 +230,7 @@ import json, sys
 r = json.load(open(sys.argv[1]))
 s = r["summary"]
 dims = "×".join(str(d) for d in r["local_dims"])
-stages = " | ".join(f"{s[k]['median']:.1f}" for k in ("ogm_ms", "batch_edt_ms", "integrate_ms", "total_ms"))
+stages = " | ".join(f"{s[k]['median']:.1f}" if k in s else "–" for k in ("ogm_ms", "batch_edt_ms", "integrate_ms", "total_ms"))
 # Per-frame device traffic (medians); a CPU run has none.
 mb = lambda k: f"{s[k]['median'] / 1e6:.2f}" if k in s else "–"
 count = lambda k: f"{s[k]['median']:.0f}" if k in s else "–"

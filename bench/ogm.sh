@@ -33,7 +33,7 @@ r = json.load(open(sys.argv[1]))
 s = r["summary"]
 dims = "x".join(str(d) for d in r["local_dims"])
 print(f"| {r['scene']} | {r['sensor']} | {r['voxel_size_m']} | {dims} | {r['construction']} "
-      f"| {s['ogm_ms']['median']:.2f} | {s['ogm_ms']['p95']:.2f} | {s['batch_edt_ms']['median']:.2f} |")
+      f"| {s['ogm_ms']['median']:.2f} | {s['ogm_ms']['p95']:.2f} | {s.get('batch_edt_ms', {'median': 0.0})['median']:.2f} |")
 PY
     done
 done

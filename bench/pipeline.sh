@@ -62,7 +62,7 @@ for name in names:
     r = json.load(open(f"{out}/{name}/report.json"))
     f = r["frames"]
     ogm = [x["ogm_ms"] for x in f]
-    edt = [x["batch_edt_ms"] + x["integrate_ms"] for x in f]
+    edt = [x.get("batch_edt_ms", 0.0) + x["integrate_ms"] for x in f]
     tot = [x["total_ms"] for x in f]
     mapped = max(1, r["map_blocks"] * 512)
     cell = lambda xs: f"{statistics.median(xs):.1f} / {p95(xs):.1f}"

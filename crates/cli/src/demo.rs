@@ -9,7 +9,7 @@ use anyhow::Result;
 use clap::Args;
 
 use crate::backend::BackendArg;
-use crate::run::{execute, print_summary, RunArgs};
+use crate::run::{execute, finish, RunArgs};
 
 /// Arguments of `edtmap demo`.
 #[derive(Args, Debug)]
@@ -46,7 +46,5 @@ pub(crate) fn run(args: &DemoArgs) -> Result<()> {
     outln!(
         "edtmap demo: a drone flies among pillars with a 32-ring LiDAR; occupancy by volumetric projection, then the exact EDT of the 10 x 10 x 3 m volume around it, merged into the global EDT"
     );
-    let outcome = execute(&run, true)?;
-    print_summary(&outcome);
-    Ok(())
+    finish(&execute(&run, true)?)
 }

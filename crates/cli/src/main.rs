@@ -5,6 +5,7 @@ mod output;
 mod backend;
 mod demo;
 mod edt;
+mod interrupt;
 mod memory;
 mod node;
 mod pictures;
@@ -91,10 +92,16 @@ fn main() -> ExitCode {
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            // Stderr may be closed too; there is nowhere left to say it.
-            let _ = writeln!(std::io::stderr(), "edtmap: error: {e:#}");
-            ExitCode::FAILURE
-        }
+        Err(e) => match e.downcast_ref::<interrupt::Interrupted>() {
+            Some(stop) => {
+                let _ = writeln!(std::io::stderr(), "edtmap: {stop}");
+                ExitCode::from(stop.exit_code())
+            }
+            None => {
+                // Stderr may be closed too; there is nowhere left to say it.
+                let _ = writeln!(std::io::stderr(), "edtmap: error: {e:#}");
+                ExitCode::FAILURE
+            }
+        },
     }
 }

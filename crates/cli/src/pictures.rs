@@ -175,13 +175,13 @@ pub(crate) fn write_timing_plot(frames: &[FrameRecord], backend: &str, out: &Pat
     let series = |name: &str, get: fn(&FrameRecord) -> f64| {
         Series::new(name, frames.iter().map(|f| (f.index as f64, get(f))), SeriesStyle::Line)
     };
-    let chart = Chart::new(format!("time per frame ({backend})"))
-        .x_label("frame")
-        .y_label("ms")
-        .series(series("occupancy", |f| f.ogm_ms))
-        .series(series("batch EDT", |f| f.batch_edt_ms))
-        .series(series("integration", |f| f.integrate_ms))
-        .series(series("total", |f| f.total_ms));
+    let mut chart = Chart::new(format!("time per frame ({backend})")).x_label("frame").y_label("ms").series(series("occupancy", |f| f.ogm_ms));
+    if frames.iter().all(|f| f.batch_edt_ms.is_some()) {
+        chart = chart.series(series("batch EDT", |f| f.batch_edt_ms.unwrap_or(0.0))).series(series("integration", |f| f.integrate_ms));
+    } else {
+        chart = chart.series(series("EDT update", |f| f.integrate_ms));
+    }
+    let chart = chart.series(series("total", |f| f.total_ms));
     let path = out.join(TIMING_PLOT);
     chart.write_png(&path)?;
     Ok(path)

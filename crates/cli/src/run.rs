@@ -16,6 +16,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::{json, Map};
 
 use crate::backend::{self, BackendArg, CliMapper};
+use crate::interrupt::{self, Interrupted, OnFirst};
 use crate::pictures::{write_plys, write_slices, write_timing_plot, SliceHeight};
 use crate::report::{median, report, FrameRecord};
 use crate::scenes::builtin_config;
@@ -153,13 +154,27 @@ pub(crate) struct RunOutcome {
     pub(crate) pictures: Vec<PathBuf>,
     /// The backend's name.
     pub(crate) backend: String,
+    /// The signal that stopped the replay early, its outputs written.
+    pub(crate) interrupted: Option<i32>,
 }
 
 /// Runs `edtmap run` and prints its summary.
 pub(crate) fn run(args: &RunArgs) -> Result<()> {
-    let outcome = execute(args, true)?;
-    print_summary(&outcome);
-    Ok(())
+    finish(&execute(args, true)?)
+}
+
+/// Prints a run's summary; a run stopped by a signal is then an
+/// [`Interrupted`] error (the program exits with 128 + the signal).
+pub(crate) fn finish(outcome: &RunOutcome) -> Result<()> {
+    print_summary(outcome);
+    match outcome.interrupted {
+        Some(signal) => {
+            let n = outcome.frames.len();
+            let what = format!("stopped after {n} integrated frame{}; the report, pictures and map of them are written", if n == 1 { "" } else { "s" });
+            Err(Interrupted { signal, what }.into())
+        }
+        None => Ok(()),
+    }
 }
 
 /// Replays the scene; `progress` draws a progress bar on a terminal.
@@ -172,7 +187,12 @@ pub(crate) fn execute(args: &RunArgs, progress: bool) -> Result<RunOutcome> {
     let setup = Setup::new(args)?;
     let mut mapper = open_mapper(args, &setup)?;
     prepare_out(args)?;
+    let save_dir = args.save.as_deref().and_then(Path::parent).map(|d| if d.as_os_str().is_empty() { Path::new(".") } else { d });
+    interrupt::catch(OnFirst::Finish, &[Some(args.out.as_path()), save_dir].into_iter().flatten().collect::<Vec<_>>());
     let replayed = replay(args, &setup, &mut mapper, progress)?;
+    if let Some(warning) = setup.source.pose_warning() {
+        tracing::warn!("{warning}");
+    }
     let slice = SliceHeight::choose(args.slice_height, setup.config.output.slice_height_m, &mapper);
     let header = report_header(args, &setup, &mapper, &slice, &replayed);
     let report_path = args.out.join(REPORT);
@@ -184,7 +204,7 @@ pub(crate) fn execute(args: &RunArgs, progress: bool) -> Result<RunOutcome> {
     }
     let pictures = write_outputs(args, &mapper, &slice, &replayed)?;
     check_stopped(args, &setup.config, &replayed)?;
-    Ok(RunOutcome { frames: replayed.records, report_path, pictures, backend: mapper.backend().name() })
+    Ok(RunOutcome { frames: replayed.records, report_path, pictures, backend: mapper.backend().name(), interrupted: replayed.interrupted })
 }
 
 /// What a run maps and with what, settled before the mapper is built.
@@ -276,6 +296,9 @@ struct Replayed {
     records: Vec<FrameRecord>,
     skipped: Vec<Failure>,
     stopped: Option<Failure>,
+    /// The signal (SIGINT, SIGTERM) that ended the replay before its last
+    /// frame; the frame being integrated when it came was finished.
+    interrupted: Option<i32>,
 }
 
 /// Integrates the frames one by one, skipping or stopping at a frame that
@@ -284,9 +307,15 @@ fn replay(args: &RunArgs, setup: &Setup, mapper: &mut CliMapper, progress: bool)
     let bar = progress_bar(setup.frames, progress);
     // Grows with the frames that come: --frames may be far more than a
     // recording or a soak run delivers.
-    let mut out = Replayed { records: Vec::new(), skipped: Vec::new(), stopped: None };
+    let mut out = Replayed { records: Vec::new(), skipped: Vec::new(), stopped: None, interrupted: None };
     let mut truth = (Vec::new(), Vec::new());
-    for (i, item) in setup.source.frames(&setup.sensor, setup.frames, &setup.name).enumerate() {
+    let mut frames = setup.source.frames(&setup.sensor, setup.frames, &setup.name).enumerate();
+    loop {
+        if let Some(signal) = interrupt::requested() {
+            out.interrupted = Some(signal);
+            break;
+        }
+        let Some((i, item)) = frames.next() else { break };
         let counted = mapper.backend().device_counters();
         let (frame, stats) = match item.and_then(|frame| integrate(mapper, frame, i, &setup.name)) {
             Ok(done) => done,
@@ -303,6 +332,9 @@ fn replay(args: &RunArgs, setup: &Setup, mapper: &mut CliMapper, progress: bool)
         };
         tracing::debug!("frame {i} at {:.3} s: {:.2} ms", frame.stamp_s, stats.total_ms);
         let mut rec = frame_record(i, &frame, &stats, mapper.map().occupancy().len());
+        if !batch_stage(setup, mapper) {
+            rec.batch_edt_ms = None;
+        }
         if let (Some(before), Some(now)) = (counted, mapper.backend().device_counters()) {
             rec.global.extend(device_fields(now.since(before)));
         }
@@ -328,6 +360,33 @@ fn integrate(mapper: &mut CliMapper, frame: Frame, i: usize, name: &str) -> std:
     }
 }
 
+/// Whether the window's batch EDT runs as a stage of its own: in wavefront
+/// mode, where the backend does not keep it inside the integration.
+fn batch_stage(setup: &Setup, mapper: &CliMapper) -> bool {
+    setup.params.global.mode == IntegrationMode::Wavefront && !mapper.backend().batch_stays_on_device()
+}
+
+/// `report.json`'s `stages`: what each timed stage of a frame is, as the
+/// integration mode and backend run them.
+fn stages(setup: &Setup, mapper: &CliMapper) -> serde_json::Value {
+    let ogm = "occupancy: ray casting or projection of the frame into the local window, fused into the map's log-odds (paper §IV-A)";
+    match setup.params.global.mode {
+        IntegrationMode::Exact => json!({
+            "ogm_ms": ogm,
+            "integrate_ms": "the exact global EDT brought up to date over the region the frame's obstacle changes can reach (exact mode has no separate batch EDT of the window)",
+        }),
+        IntegrationMode::Wavefront if batch_stage(setup, mapper) => json!({
+            "ogm_ms": ogm,
+            "batch_edt_ms": "the exact batch EDT of the local window (paper §IV-B)",
+            "integrate_ms": "the window's EDT merged into the global EDT by raise and lower wavefronts (paper §IV-C)",
+        }),
+        IntegrationMode::Wavefront => json!({
+            "ogm_ms": ogm,
+            "integrate_ms": "the window's batch EDT and its merge into the global EDT by wavefronts, both on the device",
+        }),
+    }
+}
+
 /// Whether `failure` ends the run rather than skipping its frame.
 fn stops_the_run(failure: &Failure, setup: &Setup) -> bool {
     failure.kind != FailureKind::Frame || setup.config.dataset.on_error == OnError::Stop || matches!(setup.source, Source::Scene(_))
@@ -340,7 +399,7 @@ fn frame_record(index: usize, frame: &Frame, stats: &FrameStats, occupancy_block
         index,
         stamp_s: frame.stamp_s,
         ogm_ms: stats.ogm_ms,
-        batch_edt_ms: stats.batch_edt_ms,
+        batch_edt_ms: Some(stats.batch_edt_ms),
         integrate_ms: stats.integrate_ms,
         total_ms: stats.total_ms,
         voxels_updated: stats.voxels_updated,
@@ -384,12 +443,15 @@ fn report_header(args: &RunArgs, setup: &Setup, mapper: &CliMapper, slice: &Slic
     header.insert("connectivity".into(), json!(params.global.connectivity));
     header.insert("max_distance_m".into(), json!(params.global.max_distance_m));
     header.insert("slice".into(), slice.to_json());
+    header.insert("stages".into(), stages(setup, mapper));
     if args.eval {
         header.insert("eval".into(), eval_note(&setup.source));
     }
     let failure = |f: &Failure| json!({"index": f.index, "reason": f.message});
     header.insert("skipped".into(), json!(replayed.skipped.iter().map(failure).collect::<Vec<_>>()));
     header.insert("stopped".into(), json!(replayed.stopped.as_ref().map(failure)));
+    let interrupted = |&s: &i32| json!({"signal": if s == libc::SIGTERM { "SIGTERM" } else { "SIGINT" }, "frames": replayed.records.len()});
+    header.insert("interrupted".into(), json!(replayed.interrupted.as_ref().map(interrupted)));
     header
 }
 
@@ -570,15 +632,18 @@ fn write_json(path: &Path, value: &serde_json::Value) -> Result<()> {
 pub(crate) fn print_summary(outcome: &RunOutcome) {
     let f = &outcome.frames;
     // The same median as report.json's summary.
-    let median = |g: fn(&FrameRecord) -> f64| median(&f.iter().map(g).collect::<Vec<_>>()).unwrap_or(f64::NAN);
+    let median = |g: fn(&FrameRecord) -> Option<f64>| median(&f.iter().filter_map(g).collect::<Vec<_>>()).unwrap_or(f64::NAN);
+    // Only the stages that ran: exact mode has no batch EDT of its own.
+    let stages = match f.iter().all(|r| r.batch_edt_ms.is_some()) {
+        true => format!("batch EDT median {:.2} ms, integration median {:.2} ms", median(|r| r.batch_edt_ms), median(|r| Some(r.integrate_ms))),
+        false => format!("EDT update median {:.2} ms", median(|r| Some(r.integrate_ms))),
+    };
     outln!(
-        "{} frames on {}: occupancy median {:.2} ms, batch EDT median {:.2} ms, integration median {:.2} ms, total median {:.2} ms per frame",
+        "{} frames on {}: occupancy median {:.2} ms, {stages}, total median {:.2} ms per frame",
         f.len(),
         outcome.backend,
-        median(|r| r.ogm_ms),
-        median(|r| r.batch_edt_ms),
-        median(|r| r.integrate_ms),
-        median(|r| r.total_ms)
+        median(|r| Some(r.ogm_ms)),
+        median(|r| Some(r.total_ms))
     );
     let mean = |g: fn(&FrameRecord) -> Option<f64>| {
         let v: Vec<f64> = f.iter().filter_map(g).collect();

@@ -17,13 +17,14 @@ fn demo_writes_report_and_pictures() {
     let out = dir.path().join("out");
     let (ok, stdout, stderr) = edtmap(&["demo", "--frames", "4"], &out);
     assert!(ok, "{stdout}\n{stderr}");
-    assert!(stdout.contains("batch EDT median") && stdout.contains("precision"), "{stdout}");
+    assert!(stdout.contains("EDT update median") && stdout.contains("precision"), "{stdout}");
     assert!(is_png(&out.join("edt_slice.png")) && is_png(&out.join("occupancy_slice.png")));
     let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).expect("report")).expect("json");
     assert_eq!(report["scene"], "uav_pillars");
     assert_eq!(report["frames"].as_array().map(Vec::len), Some(4));
     let frame = &report["frames"][3];
-    for key in ["ogm_ms", "batch_edt_ms", "integrate_ms", "total_ms", "voxels_updated", "precision", "recall", "change_score_m", "map_bytes", "local_rms_m", "global_rms_m", "global_max_m"] {
+    assert!(report["stages"]["integrate_ms"].is_string() && report["stages"].get("batch_edt_ms").is_none(), "{}", report["stages"]);
+    for key in ["ogm_ms", "integrate_ms", "total_ms", "voxels_updated", "precision", "recall", "change_score_m", "map_bytes", "local_rms_m", "global_rms_m", "global_max_m"] {
         assert!(frame[key].is_number(), "frame lacks {key}: {frame}");
     }
     assert!(report["summary"]["ogm_ms"]["p95"].is_number());

@@ -54,8 +54,19 @@ fn printed_medians_are_report_medians() {
     let (ok, stdout, stderr) = edtmap(&["run", "--scene", "planar", "--frames", "4", "--out", path(dir.path())]);
     assert!(ok, "{stdout}\n{stderr}");
     let summary = &report(dir.path())["summary"];
-    for (printed, key) in [("occupancy", "ogm_ms"), ("batch EDT", "batch_edt_ms"), ("integration", "integrate_ms"), ("total", "total_ms")] {
+    for (printed, key) in [("occupancy", "ogm_ms"), ("EDT update", "integrate_ms"), ("total", "total_ms")] {
         let median = summary[key]["median"].as_f64().expect("median");
+        let text = format!("{printed} median {median:.2} ms");
+        assert!(stdout.contains(&text), "{text:?} not in {stdout}");
+    }
+    // Exact mode has no batch EDT stage: none is printed or reported.
+    assert!(!stdout.contains("batch EDT") && summary.get("batch_edt_ms").is_none(), "{stdout}");
+    let (ok, stdout, stderr) = edtmap(&["run", "--scene", "planar", "--frames", "4", "--integration", "wavefront", "--out", path(dir.path())]);
+    assert!(ok, "{stdout}\n{stderr}");
+    let r = report(dir.path());
+    assert!(r["stages"]["batch_edt_ms"].is_string(), "{}", r["stages"]);
+    for (printed, key) in [("occupancy", "ogm_ms"), ("batch EDT", "batch_edt_ms"), ("integration", "integrate_ms"), ("total", "total_ms")] {
+        let median = r["summary"][key]["median"].as_f64().expect("median");
         let text = format!("{printed} median {median:.2} ms");
         assert!(stdout.contains(&text), "{text:?} not in {stdout}");
     }

@@ -339,6 +339,26 @@ fn remove_stale_temps(path: &Path) {
     }
 }
 
+/// Removes the temporaries this process has open in `dir` (outputs being
+/// written), for a program that is about to exit mid-write: no partial
+/// file is left behind, and the targets keep their previous contents.
+pub fn remove_own_temporaries(dir: &Path) {
+    let Ok(entries) = fs::read_dir(dir) else { return };
+    let own = format!(".{}.", std::process::id());
+    for entry in entries.flatten() {
+        let name = entry.file_name();
+        let Some(name) = name.to_str() else { continue };
+        let Some(rest) = name.strip_prefix('.').and_then(|r| r.strip_suffix(".tmp")) else { continue };
+        // `.NAME.PID.N.tmp`: the process id is the second-to-last part.
+        let tail = rest.rsplit_once('.').map(|(head, n)| (head, n.bytes().all(|b| b.is_ascii_digit())));
+        if let Some((head, true)) = tail {
+            if format!("{head}.").ends_with(&own) {
+                let _ = fs::remove_file(entry.path());
+            }
+        }
+    }
+}
+
 /// Whether process `pid` runs; `true` where that cannot be told.
 fn process_alive(pid: u32) -> bool {
     if cfg!(target_os = "linux") {
