@@ -1,6 +1,6 @@
 //! `edtmap edt`: exact EDT of an `.npy` grid.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
@@ -10,6 +10,7 @@ use edtmap::{BatchEdt, EdtField};
 use edtmap_io::npy::{self, ObstacleNpy};
 
 use crate::backend::{self, BackendArg};
+use crate::interrupt::{self, OnFirst};
 use crate::memory::ensure_fits;
 use crate::timing::RunTimes;
 
@@ -70,6 +71,10 @@ pub(crate) fn run(args: &EdtArgs) -> Result<()> {
         per_voxel.saturating_mul(layout.len() as u64),
         "a smaller grid, or raise the budget with --max-memory",
     )?;
+    // One transform has nothing to keep part-way: a signal stops at once,
+    // leaving no partial output.
+    let dirs: Vec<&Path> = outputs.iter().map(|(_, p)| p.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."))).collect();
+    interrupt::catch(OnFirst::Abandon, &dirs);
     let grid = file.read()?;
     let scan = match args.layout {
         Layout::Tiled => ScanLayout::default(),

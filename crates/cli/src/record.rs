@@ -11,6 +11,7 @@ use edtmap_ros::msg::{CameraInfo, Header, Image, LaserScanMsg, Message, PointClo
 use edtmap_ros::{Encoding, RecordingWriter};
 use edtmap_sim::Scene;
 
+use crate::interrupt::{self, Interrupted, OnFirst};
 use crate::scenes::builtin_config;
 use crate::source::build_scene;
 
@@ -53,7 +54,14 @@ pub(crate) fn record(args: &RecordArgs) -> Result<()> {
     let first = frame_messages(&scene, &sensor, 0)?;
     check_disk(args, frames, &first)?;
     let mut writer = RecordingWriter::create(&args.out)?;
+    let dir = args.out.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    interrupt::catch(OnFirst::Finish, &[dir]);
+    let mut written = frames;
     for i in 0..frames {
+        if interrupt::requested().is_some() {
+            written = i;
+            break;
+        }
         let messages = if i == 0 { first.clone() } else { frame_messages(&scene, &sensor, i)? };
         for (topic, msg, log_ns) in &messages {
             writer.write(topic, msg, *log_ns)?;
@@ -61,9 +69,14 @@ pub(crate) fn record(args: &RecordArgs) -> Result<()> {
     }
     writer.finish()?;
     edtmap_io::files::write_atomic(&config_path, replay_config(text, &sensor, args)?.as_bytes())?;
-    outln!("wrote {} ({frames} frames on {topic}, poses on {ODOM} and {TF})", args.out.display());
+    outln!("wrote {} ({written} frames on {topic}, poses on {ODOM} and {TF})", args.out.display());
     outln!("wrote {}: edtmap run --config {} --dataset {}", config_path.display(), config_path.display(), args.out.display());
-    Ok(())
+    match interrupt::requested() {
+        Some(signal) if written < frames => {
+            Err(Interrupted { signal, what: format!("the recording holds the first {written} of {frames} frames, closed and replayable") }.into())
+        }
+        _ => Ok(()),
+    }
 }
 
 /// The messages of frame `i`: its pose on `/odom` and `/tf`, the camera

@@ -110,3 +110,28 @@ fn a_second_signal_stops_at_once_leaving_no_partial_file() {
         serde_json::from_slice::<serde_json::Value>(&bytes).expect("a whole report");
     }
 }
+
+#[test]
+fn an_interrupted_recording_is_closed_and_replays() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let mcap = dir.path().join("planar.mcap");
+    let mut child = common::bin()
+        .args(["record", "--scene", "planar", "--frames", "1000000"])
+        .arg(&mcap)
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("the binary starts");
+    std::thread::sleep(Duration::from_millis(1500));
+    signal(&child, libc::SIGINT);
+    let status = wait(&mut child);
+    let mut err = String::new();
+    std::io::Read::read_to_string(&mut child.stderr.take().expect("stderr"), &mut err).expect("stderr");
+    assert_eq!(status.code(), Some(130), "{err}");
+    assert!(err.contains("closed and replayable"), "{err}");
+    let out = dir.path().join("out");
+    let config = dir.path().join("planar.toml");
+    let run = common::run_in(dir.path(), &["run", "--config", config.to_str().expect("utf-8"), "--dataset", mcap.to_str().expect("utf-8"), "--out", out.to_str().expect("utf-8")], Duration::from_secs(600));
+    assert!(run.status.success(), "{}", run.stderr);
+}
