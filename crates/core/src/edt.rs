@@ -83,6 +83,18 @@ impl EdtField {
     /// overwrite entirely (their contents are unspecified until then).
     pub fn prepare(&mut self, dims: [usize; 3]) -> Result<(&mut [u32], &mut [u32]), CoreError> {
         let count = Self::check_dims(dims)?;
+        // A grid too large for the memory left is an error, not an abort.
+        for buf in [&mut self.dist_sq_vox, &mut self.nearest] {
+            if buf.try_reserve_exact(count.saturating_sub(buf.len())).is_err() {
+                return Err(CoreError::OutOfMemory {
+                    what: format!("the EDT field of a {dims:?} grid"),
+                    needed: count as u64 * 8,
+                    limit: crate::MemoryBudget::with_limit(u64::MAX).limit_bytes().unwrap_or(0),
+                    origin: "the allocator refused it",
+                    setting: "transform a smaller grid".to_string(),
+                });
+            }
+        }
         self.dims = dims;
         self.dist_sq_vox.resize(count, UNREACHABLE_DIST_SQ);
         self.nearest.resize(count, NO_SITE);
