@@ -18,6 +18,7 @@ __version__: str
 def transform(
     input: npt.NDArray[Any],
     spacing: Optional[List[float]],
+    labels: bool,
     zero_is_obstacle: bool,
     output: str,
     indices: str,
@@ -25,7 +26,6 @@ def transform(
     missing: str,
     threads: int,
 ) -> Tuple[Optional[npt.NDArray[Any]], Optional[npt.NDArray[np.int32]]]: ...
-def several_labels(input: npt.NDArray[Any]) -> bool: ...
 
 class Mapper:
     @staticmethod

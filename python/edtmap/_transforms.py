@@ -2,13 +2,19 @@
 the ``edt`` package, plus edtmap's own obstacle convention.
 
 All three run edtmap's exact separable transform (Rust, all cores, the GIL
-released). Distances are exact: integer spacings are computed in integer
-arithmetic, other spacings in float64.
+released). Distances alone are computed in the output array itself, with
+no copy of the input; the nearest obstacles' indices need a field of
+8 bytes per voxel besides. Distances are exact with integer spacings (as
+integers, below 2^24 squared voxels for float32 outputs) and with any
+spacing for float64 outputs; float32 outputs with non-integer anisotropic
+spacings are rounded to float32 after each axis, as the ``edt`` package's.
+An array too large for the memory left raises ``MemoryError``.
 """
 
 from __future__ import annotations
 
 import numbers
+import os
 from typing import Optional, Sequence, Tuple, Union
 
 import numpy as np
@@ -20,21 +26,28 @@ __all__ = ["distance_transform_edt", "edt", "edtsq", "obstacle_distance"]
 Spacing = Union[None, float, Sequence[float]]
 
 
-def _grid(array, name: str):
-    """Returns ``(c_contiguous_unsigned_view, transposed)`` for the core.
+def _array(array, name: str) -> np.ndarray:
+    """``array`` as numpy, checked to hold booleans or numbers."""
+    a = np.asarray(array)
+    if a.dtype.kind not in "biuf":
+        raise TypeError(f"{name} must hold booleans, integers or floats, not {a.dtype}")
+    if a.ndim > 3:
+        raise ValueError(f"{name} must have 1, 2 or 3 dimensions, not {a.ndim} (shape {a.shape})")
+    return a
+
+
+def _grid(a: np.ndarray, name: str):
+    """Returns ``(c_contiguous_view, transposed)`` of a checked, non-empty
+    array of 1 to 3 dimensions for the core.
 
     C-ordered arrays are borrowed as they are; Fortran-ordered ones are
     transposed (a view, no copy) and the results transposed back; other
     strides are copied once. bool and signed integers are viewed as unsigned
-    integers of the same width (zero stays zero); floats are compared with 0.
+    integers of the same width (zero stays zero, equal values stay equal);
+    float32 and float64 are passed as they are (other floats converted).
     """
-    a = np.asarray(array)
-    if a.dtype.kind not in "biuf":
-        raise TypeError(f"{name} must hold booleans, integers or floats, not {a.dtype}")
-    if a.ndim not in (1, 2, 3):
-        raise ValueError(f"{name} must have 1, 2 or 3 dimensions, not {a.ndim} (shape {a.shape})")
-    if a.size == 0:
-        raise ValueError(f"{name} is empty (shape {a.shape})")
+    if a.ndim == 0:
+        raise ValueError(f"{name} must have 1, 2 or 3 dimensions, not 0 (shape ())")
     transposed = False
     if not a.flags.c_contiguous:
         if a.flags.f_contiguous:
@@ -42,7 +55,8 @@ def _grid(array, name: str):
         else:
             a = np.ascontiguousarray(a)
     if a.dtype.kind == "f":
-        a = (a != 0).view(np.uint8)
+        if a.dtype.itemsize not in (4, 8) or not a.dtype.isnative:
+            a = a.astype(np.float64 if a.dtype.itemsize > 4 else np.float32)
     elif a.dtype.kind == "b":
         a = a.view(np.uint8)
     elif a.dtype.kind == "i" or not a.dtype.isnative:
@@ -67,17 +81,27 @@ def _spacing(values: Spacing, ndim: int, name: str) -> Optional[list]:
 
 
 def _threads(parallel, name: str = "parallel") -> int:
+    """Threads for the transform: 0 (or less) for all cores; more than the
+    cores available are capped there (the core caps it again)."""
     if isinstance(parallel, bool) or not isinstance(parallel, numbers.Integral):
         raise TypeError(f"{name} must be an integer (0: all cores), not {type(parallel).__name__}")
-    return max(int(parallel), 0)
+    return min(max(int(parallel), 0), _cores())
 
 
-def _run(a, transposed, spacing, *, zero_is_obstacle, output, indices="none", black_border=False,
-         missing="minus1", threads=0):
+def _cores() -> int:
+    """Cores this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0)) or 1
+    except AttributeError:
+        return os.cpu_count() or 1
+
+
+def _run(a, transposed, spacing, *, zero_is_obstacle, output, labels=False, indices="none",
+         black_border=False, missing="minus1", threads=0):
     """Calls the core on the C-ordered grid and undoes any transposition."""
     if transposed and spacing is not None:
         spacing = spacing[::-1]
-    dist, near = _edtmap.transform(a, spacing, zero_is_obstacle, output, indices, black_border,
+    dist, near = _edtmap.transform(a, spacing, labels, zero_is_obstacle, output, indices, black_border,
                                    missing, threads)
     if transposed:
         if dist is not None:
@@ -105,14 +129,15 @@ def distance_transform_edt(input, sampling: Spacing = None, return_distances: bo
     virtual zero at index -1 of the first axis.
 
     Accepts 1D, 2D and 3D arrays of any bool, integer or float dtype, in C
-    or Fortran order.
+    or Fortran order; as SciPy, a 0-d input is taken as 1D of one element,
+    and an empty input gives empty outputs.
     """
     ft_inplace = isinstance(indices, np.ndarray)
     dt_inplace = isinstance(distances, np.ndarray)
     if not return_distances and not return_indices and not ft_inplace and not dt_inplace:
         raise RuntimeError("at least one of return_distances/return_indices must be True")
-    a, transposed = _grid(input, "input")
-    shape = a.T.shape if transposed else a.shape
+    a = np.atleast_1d(_array(input, "input"))
+    shape = a.shape
     spacing = _spacing(sampling, len(shape), "sampling")
     want_dist = return_distances or dt_inplace
     want_near = return_indices or ft_inplace
@@ -120,10 +145,14 @@ def distance_transform_edt(input, sampling: Spacing = None, return_distances: bo
         raise RuntimeError(f"distances must be a float64 array of shape {shape}")
     if ft_inplace and (indices.shape != (len(shape),) + shape or indices.dtype != np.int32):
         raise RuntimeError(f"indices must be an int32 array of shape {(len(shape),) + shape}")
-    dist, near = _run(a, transposed, spacing, zero_is_obstacle=True,
-                      output="scipy" if want_dist else "none",
-                      indices="first" if want_near else "none",
-                      missing="scipy")
+    if a.size == 0:
+        dist, near = np.zeros(shape), np.zeros((len(shape),) + shape, dtype=np.int32)
+    else:
+        a, transposed = _grid(a, "input")
+        dist, near = _run(a, transposed, spacing, zero_is_obstacle=True,
+                          output="scipy" if want_dist else "none",
+                          indices="first" if want_near else "none",
+                          missing="scipy")
     result = []
     if want_dist:
         if dt_inplace:
@@ -143,44 +172,30 @@ def distance_transform_edt(input, sampling: Spacing = None, return_distances: bo
 
 
 def _labelled(data, anisotropy, black_border, parallel, squared):
-    a, transposed = _grid(data, "data")
-    shape = a.T.shape if transposed else a.shape
-    spacing = _spacing(anisotropy, len(shape), "anisotropy")
+    # Every label at once: the core splits each line of each pass at the
+    # boundaries between labels.
+    a = _array(data, "data")
+    spacing = _spacing(anisotropy, max(a.ndim, 1), "anisotropy")
     threads = _threads(parallel)
-    output = "float32sq" if squared else "float32"
-    if not _edtmap.several_labels(a):
-        dist, _ = _run(a, transposed, spacing, zero_is_obstacle=True, output=output,
-                       black_border=black_border, threads=threads)
-        return dist
-    # Several labels: each voxel's distance to the nearest voxel of another
-    # label (background included), one transform per label over its
-    # bounding box grown by one voxel: every voxel outside the box is of
-    # another label and no farther than the box's outer layer.
-    # The box's outer layer, where it lies inside the array, is of other
-    # labels, so the core's black_border on the box adds the array's own
-    # border only: on the other faces the outer layer is nearer.
-    grid = a.T if transposed else a
-    out = np.zeros(shape, dtype=np.float32)
-    labels = np.unique(a)
-    for label in labels[labels != 0]:
-        where = np.nonzero(grid == label)
-        box = tuple(slice(max(int(w.min()) - 1, 0), min(int(w.max()) + 2, n))
-                    for w, n in zip(where, shape))
-        inside = np.ascontiguousarray(grid[box] == label)
-        dist, _ = _run(inside.view(np.uint8), False, spacing, zero_is_obstacle=True,
-                       output=output, black_border=black_border, threads=threads)
-        out[box][inside] = dist[inside]
-    return out
+    if a.size == 0 and a.ndim > 0:
+        return np.zeros(a.shape, dtype=np.float32)
+    a, transposed = _grid(a, "data")
+    dist, _ = _run(a, transposed, spacing, zero_is_obstacle=True, labels=True,
+                   output="float32sq" if squared else "float32", black_border=black_border,
+                   threads=threads)
+    return dist
 
 
 def edt(data, anisotropy: Spacing = None, black_border: bool = False, parallel: int = 0):
     """Euclidean distance transform as the ``edt`` package's ``edt.edt``.
 
     For every voxel of a nonzero label, the distance to the nearest voxel
-    of a different label (0 is background); float32 output of the input's
-    shape. ``anisotropy`` is the spacing per axis; ``black_border`` treats
+    of a different label (0 is background; every other value, integer or
+    float, is a label); float32 output of the input's shape, empty for an
+    empty input. ``anisotropy`` is the spacing per axis; ``black_border`` treats
     the outside of the array as background; ``parallel`` is the number of
-    threads (0: all cores).
+    threads (0: all cores; a larger number than the cores this process may
+    use is capped at those cores).
     """
     return _labelled(data, anisotropy, black_border, parallel, squared=False)
 
@@ -200,10 +215,14 @@ def obstacle_distance(obstacles, voxel_size: Spacing = None,
     ``inf`` everywhere if the array holds no obstacle. With
     ``return_nearest``, also the nearest obstacle's index as int32 of shape
     ``shape + (ndim,)`` (``-1`` where there is none), as ``--nearest``.
+    An empty array gives empty outputs.
     """
-    a, transposed = _grid(obstacles, "obstacles")
-    shape = a.T.shape if transposed else a.shape
-    spacing = _spacing(voxel_size, len(shape), "voxel_size")
-    dist, near = _run(a, transposed, spacing, zero_is_obstacle=False, output="float32",
-                      indices="last" if return_nearest else "none")
+    a = _array(obstacles, "obstacles")
+    spacing = _spacing(voxel_size, max(a.ndim, 1), "voxel_size")
+    if a.size == 0 and a.ndim > 0:
+        dist, near = np.zeros(a.shape, dtype=np.float32), np.zeros(a.shape + (a.ndim,), dtype=np.int32)
+    else:
+        a, transposed = _grid(a, "obstacles")
+        dist, near = _run(a, transposed, spacing, zero_is_obstacle=False, output="float32",
+                          indices="last" if return_nearest else "none")
     return (dist, near) if return_nearest else dist

@@ -6,7 +6,9 @@
 
 use pyo3::prelude::*;
 
+mod labelled;
 mod mapper;
+mod memory;
 mod recording;
 mod transforms;
 
@@ -15,7 +17,6 @@ mod transforms;
 fn _edtmap(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add_function(wrap_pyfunction!(transforms::transform, m)?)?;
-    m.add_function(wrap_pyfunction!(transforms::several_labels, m)?)?;
     m.add_class::<mapper::PyMapper>()?;
     m.add_class::<recording::PyRecording>()?;
     Ok(())

@@ -2,6 +2,12 @@
 //! `edtmap.distance_transform_edt`, `edtmap.edt`/`edtsq` and
 //! `edtmap.obstacle_distance` (python/edtmap/_transforms.py normalises the
 //! arguments and the array layout, this does the work).
+//!
+//! Distances alone come from the distance-only transform (`labelled.rs`),
+//! written into the output array itself; the nearest obstacles' indices,
+//! and SciPy's distances with non-integer sampling (computed from those
+//! indices to round as SciPy does), come from the core's transform, which
+//! tracks every voxel's nearest obstacle.
 
 use edtmap_core::{EdtField, NO_SITE, UNREACHABLE_DIST_SQ};
 use edtmap_cpu::edt::{edt_slice_into, edt_weighted_int, edt_weighted_real, ScanLayout};
@@ -10,6 +16,8 @@ use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use rayon::prelude::*;
 use std::sync::Mutex;
+
+mod distance_only;
 
 /// The distances and the nearest obstacles' coordinates, as asked.
 type Outputs = (Option<Py<PyAny>>, Option<Py<PyAny>>);
@@ -33,8 +41,6 @@ enum Output {
     Float32,
     /// float32 squared distances (`edt.edtsq`).
     Float32Sq,
-    /// float64 distances.
-    Float64,
 }
 
 impl Output {
@@ -44,7 +50,6 @@ impl Output {
             "scipy" => Output::Scipy,
             "float32" => Output::Float32,
             "float32sq" => Output::Float32Sq,
-            "float64" => Output::Float64,
             other => return Err(PyValueError::new_err(format!("unknown output kind {other:?}"))),
         })
     }
@@ -150,21 +155,25 @@ impl Geometry {
     }
 }
 
-/// Runs the transform on a C-contiguous array of unsigned integers
-/// (python/edtmap/_transforms.py views bool and signed data as those).
+/// Runs the transform on a C-contiguous array of unsigned integers or
+/// floats (python/edtmap/_transforms.py views bool and signed data as
+/// unsigned integers).
 ///
-/// Obstacles are the zero elements when `zero_is_obstacle` (SciPy and
-/// `edt` semantics), the nonzero ones otherwise. Returns the distances (as
-/// `output` says) and, if `indices`, the nearest obstacle's coordinates as
-/// an int32 array of shape `(ndim,) + shape` (`indices = "first"`) or
-/// `shape + (ndim,)` (`"last"`).
+/// With `labels` (`edt` semantics), zero elements are background and every
+/// other value is a label: each voxel's distance is to the nearest voxel
+/// not of its label. Otherwise obstacles are the zero elements when
+/// `zero_is_obstacle` (SciPy semantics), the nonzero ones if not. Returns
+/// the distances (as `output` says) and, if `indices`, the nearest
+/// obstacle's coordinates as an int32 array of shape `(ndim,) + shape`
+/// (`indices = "first"`) or `shape + (ndim,)` (`"last"`).
 #[pyfunction]
-#[pyo3(signature = (input, spacing, zero_is_obstacle, output, indices, black_border, missing, threads))]
+#[pyo3(signature = (input, spacing, labels, zero_is_obstacle, output, indices, black_border, missing, threads))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn transform<'py>(
     py: Python<'py>,
     input: &Bound<'py, PyAny>,
     spacing: Option<Vec<f64>>,
+    labels: bool,
     zero_is_obstacle: bool,
     output: &str,
     indices: &str,
@@ -194,34 +203,25 @@ pub(crate) fn transform<'py>(
                 let voxels = array.as_slice().map_err(|e| PyValueError::new_err(e.to_string()))?;
                 let geometry = geometry(shape, spacing)?;
                 let job = Job { geometry: &geometry, output, indices, black_border, missing };
+                job.check_memory()?;
+                let zero = <$t>::default();
                 let (dist, near) = py.detach(|| {
-                    with_threads(threads, || job.run(voxels, |&v: &$t| (v == 0) == zero_is_obstacle))
+                    with_threads(threads, || {
+                        if labels {
+                            // Float labels compare as numbers: -0.0 is
+                            // background, and NaN is no other voxel's label.
+                            job.distances_only(voxels, |v: &$t| *v == zero, |a: &$t, b: &$t| a == b)
+                        } else {
+                            job.run(voxels, |v: &$t| (*v == zero) == zero_is_obstacle)
+                        }
+                    })
                 })?;
                 return job.to_arrays(py, dist, near);
             })*
         };
     }
-    by_type!(u8, u16, u32, u64);
-    Err(PyTypeError::new_err("internal: the array must hold unsigned integers"))
-}
-
-/// Whether a C-contiguous array of unsigned integers holds two different
-/// nonzero values (labels), decided without sorting it.
-#[pyfunction]
-pub(crate) fn several_labels<'py>(py: Python<'py>, input: &Bound<'py, PyAny>) -> PyResult<bool> {
-    macro_rules! by_type {
-        ($($t:ty),*) => {
-            $(if let Ok(array) = input.extract::<PyReadonlyArrayDyn<'py, $t>>() {
-                let values = array.as_slice().map_err(|e| PyValueError::new_err(e.to_string()))?;
-                return Ok(py.detach(|| {
-                    let first = values.par_iter().find_first(|&&v| v != 0).copied();
-                    first.is_some_and(|first| values.par_iter().any(|&v| v != 0 && v != first))
-                }));
-            })*
-        };
-    }
-    by_type!(u8, u16, u32, u64);
-    Err(PyTypeError::new_err("internal: the array must hold unsigned integers"))
+    by_type!(u8, u16, u32, u64, f32, f64);
+    Err(PyTypeError::new_err("internal: the array must hold unsigned integers or floats"))
 }
 
 /// The isotropic transform's working field, kept between calls: a grid
@@ -271,8 +271,11 @@ fn geometry(shape: Vec<usize>, spacing: Option<Vec<f64>>) -> PyResult<Geometry> 
     Ok(Geometry { shape, spacing, sampled })
 }
 
-/// Runs `f` on a pool of `threads` threads (0: all cores).
+/// Runs `f` on a pool of `threads` threads (0: all cores), at most as many
+/// as the cores this process may use: more would only contend for them.
 fn with_threads<T: Send>(threads: usize, f: impl FnOnce() -> PyResult<T> + Send) -> PyResult<T> {
+    let cores = std::thread::available_parallelism().map_or(1, usize::from);
+    let threads = threads.min(cores);
     if threads == 0 || threads == rayon::current_num_threads() {
         return f();
     }
@@ -310,17 +313,25 @@ enum Distances {
 
 impl Job<'_> {
     /// The transform and the outputs, without the GIL.
-    fn run<T: Sync>(
+    fn run<T: Copy + Sync>(
         &self,
         voxels: &[T],
         is_obstacle: impl Fn(&T) -> bool + Sync,
     ) -> PyResult<(Option<Distances>, Option<Vec<i32>>)> {
+        if self.without_field() {
+            return self.distances_only(voxels, is_obstacle, |_: &T, _: &T| true);
+        }
         let g = self.geometry;
         let dims = g.dims();
         // The core's axes are numpy's reversed.
         let w: Vec<f64> = g.spacing.iter().rev().copied().chain([1.0; 3]).take(3).collect();
         let w = [w[0], w[1], w[2]];
-        let err = |e: edtmap_cpu::CpuError| PyValueError::new_err(e.to_string());
+        let err = |e: edtmap_cpu::CpuError| match e {
+            edtmap_cpu::CpuError::Core(edtmap_core::CoreError::OutOfMemory { .. }) => {
+                pyo3::exceptions::PyMemoryError::new_err(e.to_string())
+            }
+            _ => PyValueError::new_err(e.to_string()),
+        };
         let field = if w.iter().all(|&x| x == w[0]) {
             let mut field = take_field();
             edt_slice_into(voxels, dims, is_obstacle, ScanLayout::default(), &mut field).map_err(err)?;
@@ -380,7 +391,7 @@ impl Job<'_> {
                     }
                     sum.sqrt()
                 }
-                Output::Float32Sq | Output::Float64 | Output::Float32 => {
+                Output::Float32Sq | Output::Float32 => {
                     let squared = self.output == Output::Float32Sq;
                     if border {
                         g.coords(i, &mut c);
@@ -401,7 +412,7 @@ impl Job<'_> {
         };
         match self.output {
             Output::None => None,
-            Output::Scipy | Output::Float64 => {
+            Output::Scipy => {
                 let mut out = vec![0.0f64; n];
                 out.par_chunks_mut(CHUNK).enumerate().for_each(|(t, chunk)| {
                     for (j, o) in chunk.iter_mut().enumerate() {
@@ -501,3 +512,4 @@ impl Job<'_> {
         Ok((dist.map(Bound::unbind), near))
     }
 }
+
