@@ -3,7 +3,8 @@
 
 Usage (through the wrapper, which builds and installs the package into
 bench/.venv-python): bash bench/python.sh [--repeat K] [--sizes 128,256]
-[--points N] [--markdown FILE]
+[--points N] [--labels 500,3000] [--label-size 160] [--memory 384]
+[--markdown FILE]
 
 Transforms, on seeded n^3 grids with 1 % obstacles (zeros for SciPy's and
 edt's convention), each call timed whole (argument conversion and output
@@ -14,7 +15,14 @@ arrays included), median (min) of K runs after a warm-up:
   edtmap.dte+ind    the same with return_indices=True
   edt.edt(p=2)      edt.edt(grid, parallel=2)
   edtmap.edt        edtmap.edt(grid)                                    (parallel=0: all cores)
-Each edtmap result is checked against its peer (exactly). Then the query
+Each edtmap result is checked against its peer (exactly). Then many
+labels: edt.edt and edtmap.edt of a --label-size^3 grid of L labels
+(seeded cells of a coarse grid, 5 % background), ratio to edt.edt measured
+in the same run. Then the peak memory above the input of each call on a
+--memory^3 uint8 grid, each in a fresh interpreter (the peak resident
+memory, VmHWM of /proc/self/status, after the call less before it; not
+getrusage's ru_maxrss, which a child inherits from the parent it was forked
+from; 0 skips). Then the query
 throughput of Mapper.distance() (distance, gradient, state) for N points
 spread over a mapped scene. Exits 1 on a mismatch.
 """
@@ -23,6 +31,8 @@ from importlib.metadata import version
 import os
 import platform
 import statistics
+import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -44,11 +54,59 @@ def timed(fn, repeat):
     return statistics.median(runs), min(runs)
 
 
+def label_grid(n, labels, seed):
+    """n^3 labels 1..labels in blocks of a coarse grid, 5 % background."""
+    rng = np.random.default_rng(seed)
+    cells = max(round(labels ** (1 / 3)) + 1, 2)
+    coarse = rng.integers(1, labels + 1, size=(cells,) * 3).astype(np.uint32)
+    index = np.arange(n) * cells // n
+    grid = coarse[np.ix_(index, index, index)]
+    grid[rng.random(grid.shape) < 0.05] = 0
+    return grid
+
+
+# One call measured in a fresh interpreter: peak resident memory after the
+# call less the peak before it, when the input is resident.
+MEMORY_CHILD = """
+import sys
+import numpy as np
+import edt, edtmap
+from scipy import ndimage
+n = int(sys.argv[1])
+grid = np.ones((n, n, n), dtype=np.uint8)
+rng = np.random.default_rng(n)
+grid.reshape(-1)[rng.integers(0, grid.size, size=grid.size // 100)] = 0
+small = np.ascontiguousarray(grid[:16, :16, :16])
+calls = {
+    "scipy.dte": lambda g: ndimage.distance_transform_edt(g),
+    "edtmap.dte": lambda g: edtmap.distance_transform_edt(g),
+    "scipy.dte+ind": lambda g: ndimage.distance_transform_edt(g, return_indices=True),
+    "edtmap.dte+ind": lambda g: edtmap.distance_transform_edt(g, return_indices=True),
+    "edt.edt": lambda g: edt.edt(g, parallel=2),
+    "edtmap.edt": lambda g: edtmap.edt(g),
+    "edtmap.obstacle_distance": lambda g: edtmap.obstacle_distance(g),
+}
+def peak_kib():
+    with open("/proc/self/status") as f:
+        return next(int(line.split()[1]) for line in f if line.startswith("VmHWM:"))
+call = calls[sys.argv[2]]
+call(small)
+before = peak_kib()
+out = call(grid)
+print((peak_kib() - before) / 1024)
+"""
+MEMORY_CALLS = ["scipy.dte", "edtmap.dte", "scipy.dte+ind", "edtmap.dte+ind", "edt.edt", "edtmap.edt",
+                "edtmap.obstacle_distance"]
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--sizes", default="128,256")
     ap.add_argument("--points", type=int, default=1_000_000)
+    ap.add_argument("--labels", default="500,3000")
+    ap.add_argument("--label-size", type=int, default=160)
+    ap.add_argument("--memory", type=int, default=384)
     ap.add_argument("--markdown")
     args = ap.parse_args()
     rows, ok = [], True
@@ -75,6 +133,29 @@ def main():
             rows.append((f"{n}³", name, f"{med:.1f} ({lo:.1f})", ratio))
             print(f"{n}^3 {name:16s} {med:9.1f} ms (min {lo:.1f}) {ratio}", flush=True)
 
+    n = args.label_size
+    for count in [int(s) for s in args.labels.split(",") if s]:
+        grid = label_grid(n, count, count)
+        ok &= bool(np.array_equal(edt.edt(grid, parallel=2), edtmap.edt(grid)))
+        theirs = timed(lambda: edt.edt(grid, parallel=2), args.repeat)
+        ours = timed(lambda: edtmap.edt(grid), args.repeat)
+        labels = len(np.unique(grid)) - 1
+        for name, (med, lo) in [("edt.edt(p=2)", theirs), ("edtmap.edt", ours)]:
+            ratio = f"{med / theirs[0]:.2f} of edt.edt(p=2)" if name == "edtmap.edt" else ""
+            rows.append((f"{n}³, {labels} labels", name, f"{med:.1f} ({lo:.1f})", ratio))
+            print(f"{n}^3 {labels} labels {name:14s} {med:9.1f} ms (min {lo:.1f}) {ratio}", flush=True)
+
+    if args.memory:
+        for name in MEMORY_CALLS:
+            done = subprocess.run([sys.executable, "-c", MEMORY_CHILD, str(args.memory), name],
+                                  capture_output=True, text=True)
+            if done.returncode != 0:
+                print(done.stderr)
+                raise SystemExit(f"{name}: the memory run failed")
+            mib = float(done.stdout.strip())
+            rows.append((f"{args.memory}³ uint8", f"{name}, peak memory above the input", f"{mib:.0f} MiB", ""))
+            print(f"{args.memory}^3 {name:26s} peak above the input {mib:7.0f} MiB", flush=True)
+
     # Query throughput on a mapped scene: a wall-and-pillars point cloud.
     rng = np.random.default_rng(1)
     mapper = edtmap.Mapper(edtmap.PointSensor(0.1, 30.0), 0.1, max_distance_m=2.0)
@@ -96,8 +177,8 @@ def main():
             f"{platform.python_version()}, numpy {np.__version__}, scipy {scipy.__version__}, edt {version('edt')}")
     print(info)
     if args.markdown:
-        lines = [f"Measured by `bash bench/python.sh` ({info}); median (min) of the runs, ms.", "",
-                 "| grid | call | ms | ratio |", "|---|---|---|---|"]
+        lines = [f"Measured by `bash bench/python.sh` ({info}); median (min) of the runs, ms "
+                 "(peak memory in MiB).", "", "| grid | call | ms | ratio |", "|---|---|---|---|"]
         lines += [f"| {a} | {b} | {c} | {d} |" for a, b, c, d in rows]
         Path(args.markdown).write_text("\n".join(lines) + "\n")
     if not ok:
