@@ -341,6 +341,15 @@ unsafe fn put<T>(out: *mut T, value: T, name: &str) -> Result<()> {
     Ok(())
 }
 
+/// Refuses a null out-pointer of a constructor before anything is built
+/// (a handle built and then dropped on the floor would leak).
+fn check_out<T>(out: *mut *mut T) -> Result<()> {
+    match out.is_null() {
+        true => fail(edtmap_status::EDTMAP_NULL_ARGUMENT, "out is null"),
+        false => Ok(()),
+    }
+}
+
 /// The value numbered `raw` of an enumeration (`values`: its variants with
 /// their C names, numbered from 0), or an error naming `field` and the
 /// values it takes.
@@ -507,6 +516,7 @@ pub unsafe extern "C" fn edtmap_params_default(out: *mut edtmap_params) -> edtma
 #[no_mangle]
 pub unsafe extern "C" fn edtmap_mapper_new(params: *const edtmap_params, out: *mut *mut edtmap_mapper) -> edtmap_status {
     guard("edtmap_mapper_new", || {
+        check_out(out)?;
         // SAFETY: the caller passes a valid `edtmap_params` or null.
         let p = unsafe { handle(params, "params") }?;
         let backend = enum_value("edtmap_params.backend", p.backend, &edtmap_backend::VALUES)?;
@@ -522,6 +532,7 @@ pub unsafe extern "C" fn edtmap_mapper_new(params: *const edtmap_params, out: *m
 #[no_mangle]
 pub unsafe extern "C" fn edtmap_mapper_from_config(config_path: *const c_char, backend: u32, out: *mut *mut edtmap_mapper) -> edtmap_status {
     guard("edtmap_mapper_from_config", || {
+        check_out(out)?;
         let backend = enum_value("backend", backend, &edtmap_backend::VALUES)?;
         // SAFETY: the caller passes a NUL-terminated string or null.
         let config = Config::load(unsafe { path(config_path, "config_path") }?)?;
@@ -537,6 +548,7 @@ pub unsafe extern "C" fn edtmap_mapper_from_config(config_path: *const c_char, b
 #[no_mangle]
 pub unsafe extern "C" fn edtmap_mapper_resume(config_path: *const c_char, map_path: *const c_char, backend: u32, out: *mut *mut edtmap_mapper) -> edtmap_status {
     guard("edtmap_mapper_resume", || {
+        check_out(out)?;
         let backend = enum_value("backend", backend, &edtmap_backend::VALUES)?;
         // SAFETY: as in `edtmap_mapper_from_config`.
         let config = Config::load(unsafe { path(config_path, "config_path") }?)?;
@@ -913,6 +925,7 @@ pub unsafe extern "C" fn edtmap_mapper_save(mapper: *const edtmap_mapper, path_:
 #[no_mangle]
 pub unsafe extern "C" fn edtmap_map_load(path_: *const c_char, out: *mut *mut edtmap_map) -> edtmap_status {
     guard("edtmap_map_load", || {
+        check_out(out)?;
         // SAFETY: a NUL-terminated string or null.
         let map = edtmap::load_map(unsafe { path(path_, "path") }?)?;
         // SAFETY: a writable pointer or null.
