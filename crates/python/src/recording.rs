@@ -3,13 +3,13 @@
 
 use std::path::PathBuf;
 use std::sync::mpsc::{sync_channel, Receiver};
-use std::sync::Mutex;
+use std::sync::{Arc, Mutex};
 
 use edtmap::config::{Config, OnError};
 use edtmap::sensor::{DepthData, Frame, Measurement, Sensor};
 use edtmap_ros::recording::{Recording, RecordingFailure};
 use numpy::{PyArray1, PyArrayMethods};
-use pyo3::exceptions::{PyRuntimeError, PyValueError};
+use pyo3::exceptions::{PyRuntimeError, PyUserWarning, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
@@ -28,6 +28,10 @@ pub(crate) struct PyRecording {
     len: usize,
     kind: &'static str,
     skipped: Mutex<Vec<String>>,
+    /// The recording's one warning about poses replaced by the nearest
+    /// rotation, left by the reader thread when it is done; given to
+    /// Python's `warnings` once, at the end of the iteration.
+    pose_warning: Arc<Mutex<Option<String>>>,
 }
 
 #[pymethods]
@@ -55,6 +59,8 @@ impl PyRecording {
         let n = frames.unwrap_or(len).min(len);
         let (tx, rx) = sync_channel(READ_AHEAD);
         let name = path.display().to_string();
+        let pose_warning = Arc::new(Mutex::new(None));
+        let warning_slot = Arc::clone(&pose_warning);
         std::thread::Builder::new()
             .name("edtmap-recording".into())
             .spawn(move || {
@@ -64,9 +70,14 @@ impl PyRecording {
                         return;
                     }
                 }
+                // Before the sender is dropped, which ends the iteration.
+                if let Ok(mut slot) = warning_slot.lock() {
+                    *slot = recording.pose_warning();
+                }
+                drop(tx);
             })
             .map_err(|e| PyRuntimeError::new_err(format!("cannot start the reader thread: {e}")))?;
-        Ok(PyRecording { frames: Mutex::new(rx), config, sensor, len, kind, skipped: Mutex::new(Vec::new()) })
+        Ok(PyRecording { frames: Mutex::new(rx), config, sensor, len, kind, skipped: Mutex::new(Vec::new()), pose_warning })
     }
 
     fn __len__(&self) -> usize {
@@ -104,7 +115,13 @@ impl PyRecording {
             let next = py.detach(|| self.frames.lock().map(|rx| rx.recv().ok()).map_err(|_| ()));
             let next = next.map_err(|()| PyRuntimeError::new_err("a reader of this recording panicked"))?;
             match next {
-                None => return Ok(None),
+                None => {
+                    let warning = self.pose_warning.lock().ok().and_then(|mut w| w.take());
+                    if let Some(text) = warning {
+                        PyErr::warn(py, &py.get_type::<PyUserWarning>(), &std::ffi::CString::new(text).unwrap_or_default(), 1)?;
+                    }
+                    return Ok(None);
+                }
                 Some(Ok(frame)) => return frame_dict(py, &frame, &self.sensor).map(Some),
                 Some(Err(failure)) => {
                     if self.config.dataset.on_error == OnError::Stop {
