@@ -52,7 +52,7 @@ enum Command {
     Node(node::NodeArgs),
     /// Distance, gradient and state at points (CSV) from a saved map.
     Query(query::QueryArgs),
-    /// A dense box of distances from a saved map, as .npy.
+    /// A dense box of distances from a saved map, as .npy; or, to OUT.yaml, a 2D map for ROS navigation (map_server).
     Export(query::ExportArgs),
     /// What a saved map holds: size, extent, parameters.
     Info(query::InfoArgs),

@@ -6,8 +6,9 @@ use std::path::{Path, PathBuf};
 use anyhow::{anyhow, bail, Context, Result};
 use clap::Args;
 use edtmap::cpu::query::{distance_box, distances, max_query_coordinate_m, DistanceBox, MAX_QUERY_INDEX};
-use edtmap::{load_map, GlobalMap, PointState};
+use edtmap::{load_map, GlobalMap, PointState, VoxelIndex, VoxelState};
 use edtmap_io::files;
+use edtmap_io::map_server::{write_map_server, OccupancyGrid2d};
 use edtmap_io::npy::{self, ArrayLayout, ArrayOrder};
 
 /// Arguments of `edtmap query`.
@@ -56,7 +57,18 @@ pub(crate) struct ExportArgs {
     /// Beside it, OUT.json (the name with `.json` appended) records the
     /// world coordinate of the centre of element [0, 0, 0], the voxel size,
     /// shape, axis order, dtype and what the values mean (docs/FORMAT.md).
+    ///
+    /// An OUT ending in `.yaml` or `.yml` writes instead a 2D map for ROS
+    /// navigation (map_server, nav2_map_server): OUT and the image OUT.pgm
+    /// beside it (trinary: 0 occupied, 254 free, 205 unknown), one layer
+    /// of the map at --height over the box's x and y.
     output: PathBuf,
+    /// Height of the map_server map's layer, metres (OUT.yaml only).
+    ///
+    /// Default: the one layer a map holds when all its observed voxels lie
+    /// in one z layer (a 2D LiDAR's map); a 3D map needs it.
+    #[arg(long, value_name = "Z", allow_negative_numbers = true, value_parser = finite_metres)]
+    height: Option<f64>,
     /// Also write each voxel's state as uint8: 0 outside, 1 unknown, 2 free, 3 occupied.
     #[arg(long, value_name = "STATES.npy")]
     states: Option<PathBuf>,
@@ -152,6 +164,12 @@ pub(crate) fn export(args: &ExportArgs) -> Result<()> {
     if !args.bounds.is_empty() && args.bounds.len() != 6 {
         bail!("--box takes six numbers: xmin,ymin,zmin,xmax,ymax,zmax");
     }
+    if is_map_server(&args.output) {
+        return export_map_server(args);
+    }
+    if args.height.is_some() {
+        bail!("--height picks the layer of a map_server map: name an OUT ending in .yaml, or leave --height out for a .npy box");
+    }
     let sidecar = sidecar_path(&args.output);
     let mut outputs = vec![("OUT", args.output.as_path()), ("the sidecar OUT.json", sidecar.as_path())];
     if let Some(states) = &args.states {
@@ -160,7 +178,8 @@ pub(crate) fn export(args: &ExportArgs) -> Result<()> {
     files::check_distinct_outputs(&outputs)?;
     let map = load_map(&args.map)?;
     let (min_m, max_m) = export_box(&map, args)?;
-    let dense = distance_box(&map, min_m, max_m, args.signed).context(if args.bounds.is_empty() { "the mapped box (no --box given): give a smaller --box" } else { "--box" })?;
+    let (lo, hi) = query_box(args, (min_m, max_m), map.voxel_size_m());
+    let dense = distance_box(&map, lo, hi, args.signed).context(if args.bounds.is_empty() { "the mapped box (no --box given): give a smaller --box" } else { "--box" })?;
     let [nx, ny, nz] = dense.dims;
     let layout = ArrayLayout::new(vec![nz, ny, nx], ArrayOrder::C).context("empty box")?;
     npy::write_distances(&args.output, &layout, &dense.distance_m)?;
@@ -176,11 +195,92 @@ pub(crate) fn export(args: &ExportArgs) -> Result<()> {
     Ok(())
 }
 
+/// Whether export's `OUT` names a map_server YAML.
+fn is_map_server(output: &Path) -> bool {
+    output.extension().and_then(|e| e.to_str()).is_some_and(|e| e.eq_ignore_ascii_case("yaml") || e.eq_ignore_ascii_case("yml"))
+}
+
+/// Writes one layer of the map over the box's x and y as a map_server
+/// pair: OUT.yaml and OUT.pgm. Fixed obstacles are occupied; unmapped
+/// cells unknown.
+fn export_map_server(args: &ExportArgs) -> Result<()> {
+    if args.states.is_some() || args.signed {
+        bail!("--states and --signed are for .npy boxes: {} writes a map_server map of states only", args.output.display());
+    }
+    let map = load_map(&args.map)?;
+    let vs = map.voxel_size_m();
+    let layer = map_server_layer(&map, args)?;
+    let (min_m, max_m) = query_box(args, export_box(&map, args)?, vs);
+    // A box one voxel thick around the layer's centre, so that rounding
+    // cannot reach the layers beside it.
+    let z = [0.25, 0.75].map(|f| (f64::from(layer) + f) * vs);
+    let what = if args.bounds.is_empty() { "the mapped box (no --box given): give a smaller --box" } else { "--box" };
+    let dense = distance_box(&map, [min_m[0], min_m[1], z[0]], [max_m[0], max_m[1], z[1]], false).context(what)?;
+    let [width, height, _] = dense.dims;
+    let states: Vec<VoxelState> = dense.state.iter().map(|&s| match s {
+        3 => VoxelState::Occupied,
+        2 => VoxelState::Free,
+        _ => VoxelState::Unknown,
+    }).collect();
+    let origin_m = [0, 1].map(|a| f64::from(dense.origin.0[a]) * vs);
+    let grid = OccupancyGrid2d { width, height, states: &states, resolution_m: vs, origin_m };
+    let image = write_map_server(&args.output, &grid)?;
+    outln!("wrote {} ({width} x {height} cells of {vs} m at z = {:.3} m, lower left corner {origin_m:?} m)", image.display(), (f64::from(layer) + 0.5) * vs);
+    outln!("wrote {}", args.output.display());
+    Ok(())
+}
+
+/// The z index of the map_server layer: `--height`, else the one layer a
+/// planar map observed.
+fn map_server_layer(map: &GlobalMap, args: &ExportArgs) -> Result<i32> {
+    let vs = map.voxel_size_m();
+    let observed = map.observed_z_range();
+    if let Some(z) = args.height {
+        let layer = VoxelIndex::containing([0.0, 0.0, z], vs).with_context(|| format!("--height {z} m is beyond the map's voxel index range"))?;
+        if let Some((lo, hi)) = observed.filter(|(lo, hi)| !(*lo..=*hi).contains(&layer.0[2])) {
+            tracing::warn!("--height {z} m is outside the observed heights (z from {:.3} to {:.3} m): the map is all unknown there", f64::from(lo) * vs, f64::from(hi + 1) * vs);
+        }
+        return Ok(layer.0[2]);
+    }
+    match observed {
+        Some((lo, hi)) if lo == hi => Ok(lo),
+        Some((lo, hi)) => bail!(
+            "{} is a 2D map and {} is 3D (observed voxels from z = {:.3} to {:.3} m): give --height Z",
+            args.output.display(),
+            args.map.display(),
+            f64::from(lo) * vs,
+            f64::from(hi + 1) * vs
+        ),
+        None => bail!("{} has no observed voxel, so it has no layer to draw: give --height Z", args.map.display()),
+    }
+}
+
+/// Parses a height in metres: a finite number within a million metres.
+fn finite_metres(text: &str) -> std::result::Result<f64, String> {
+    match text.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() && v.abs() <= 1e6 => Ok(v),
+        Ok(v) => Err(format!("{v} is not a height: give finite metres within ±1e6")),
+        Err(e) => Err(format!("{text:?} is not a number of metres: {e}")),
+    }
+}
+
 /// The box to export: `--box`, else the mapped box.
 fn export_box(map: &GlobalMap, args: &ExportArgs) -> Result<([f64; 3], [f64; 3])> {
     match args.bounds[..] {
         [x0, y0, z0, x1, y1, z1] => Ok(([x0, y0, z0], [x1, y1, z1])),
         _ => mapped_box_m(map).with_context(|| format!("{} holds no mapped block, so there is no box to export by default: give --box", args.map.display())),
+    }
+}
+
+/// The box handed to the box query: `--box` as given; the mapped box,
+/// whose faces lie on voxel faces, a quarter voxel inside them, so that
+/// rounding cannot add a layer of voxels beyond it.
+fn query_box(args: &ExportArgs, (min_m, max_m): ([f64; 3], [f64; 3]), voxel_size_m: f64) -> ([f64; 3], [f64; 3]) {
+    if args.bounds.is_empty() {
+        let inset = voxel_size_m / 4.0;
+        (min_m.map(|m| m + inset), max_m.map(|m| m - inset))
+    } else {
+        (min_m, max_m)
     }
 }
 

@@ -103,3 +103,137 @@ fn frontiers_of_a_planar_map_stay_in_its_plane() {
     let heights: std::collections::BTreeSet<&str> = listed.iter().map(|l| l.rsplit(',').next().expect("z")).collect();
     assert_eq!(heights.len(), 1, "every frontier lies in the scan plane");
 }
+
+/// A map_server map read back by a minimal loader of its own: the YAML's
+/// keys, and the PGM's cells as map_server classifies them.
+struct LoadedMap {
+    resolution: f64,
+    origin: [f64; 3],
+    width: usize,
+    height: usize,
+    /// "occupied", "free" or "unknown" per pixel, row 0 at the top.
+    cells: Vec<&'static str>,
+}
+
+fn load_map_server(yaml: &Path) -> LoadedMap {
+    let text = std::fs::read_to_string(yaml).expect("yaml");
+    let value = |key: &str| -> String {
+        let line = text.lines().find_map(|l| l.strip_prefix(&format!("{key}:"))).unwrap_or_else(|| panic!("no {key} in {text}"));
+        line.trim().to_string()
+    };
+    let number = |key: &str| value(key).parse::<f64>().unwrap_or_else(|e| panic!("{key}: {e}"));
+    assert_eq!(value("mode"), "trinary");
+    assert_eq!(value("negate"), "0");
+    let (occupied_thresh, free_thresh) = (number("occupied_thresh"), number("free_thresh"));
+    let origin: Vec<f64> = value("origin").trim_matches(['[', ']']).split(',').map(|t| t.trim().parse().expect("origin number")).collect();
+    let image = yaml.parent().expect("folder").join(value("image").trim_matches('"'));
+    let bytes = std::fs::read(image).expect("pgm");
+    // P5, then width, height and maxval as whitespace-separated tokens
+    // with `#` comments, then one whitespace byte and the pixels.
+    let mut pos = 0;
+    let mut tokens = Vec::new();
+    while tokens.len() < 4 {
+        while bytes[pos].is_ascii_whitespace() {
+            pos += 1;
+        }
+        if bytes[pos] == b'#' {
+            while bytes[pos] != b'\n' {
+                pos += 1;
+            }
+            continue;
+        }
+        let start = pos;
+        while !bytes[pos].is_ascii_whitespace() {
+            pos += 1;
+        }
+        tokens.push(String::from_utf8(bytes[start..pos].to_vec()).expect("ascii"));
+    }
+    assert_eq!((tokens[0].as_str(), tokens[3].as_str()), ("P5", "255"));
+    let (width, height): (usize, usize) = (tokens[1].parse().expect("width"), tokens[2].parse().expect("height"));
+    let pixels = &bytes[pos + 1..];
+    assert_eq!(pixels.len(), width * height);
+    let cells = pixels
+        .iter()
+        .map(|&v| {
+            let p = (255.0 - f64::from(v)) / 255.0;
+            if p > occupied_thresh {
+                "occupied"
+            } else if p < free_thresh {
+                "free"
+            } else {
+                "unknown"
+            }
+        })
+        .collect();
+    LoadedMap { resolution: number("resolution"), origin: [origin[0], origin[1], origin[2]], width, height, cells }
+}
+
+/// The states `edtmap query` answers at the centre of every cell of
+/// `loaded` at height `z`, in the image's order (row 0 at the top).
+fn queried_states(dir: &Path, map: &Path, loaded: &LoadedMap, z: f64) -> Vec<String> {
+    let mut csv = String::from("x,y,z\n");
+    for row in 0..loaded.height {
+        for col in 0..loaded.width {
+            let x = loaded.origin[0] + (col as f64 + 0.5) * loaded.resolution;
+            let y = loaded.origin[1] + ((loaded.height - 1 - row) as f64 + 0.5) * loaded.resolution;
+            csv.push_str(&format!("{x},{y},{z}\n"));
+        }
+    }
+    let points = dir.join("cells.csv");
+    std::fs::write(&points, csv).expect("points");
+    let (ok, out, err) = edtmap(&["query", s(map), "--points", s(&points)]);
+    assert!(ok, "{err}");
+    out.lines().skip(1).map(|l| l.split(',').nth(7).expect("state").replace("outside", "unknown")).collect()
+}
+
+#[test]
+fn map_server_map_of_a_planar_map_matches_its_voxels() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let map = saved_map(dir.path(), "planar");
+    let yaml = dir.path().join("floor.yaml");
+    let (ok, out, err) = edtmap(&["export", s(&map), s(&yaml)]);
+    assert!(ok, "{out}\n{err}");
+    let loaded = load_map_server(&yaml);
+    let (ok, info, _) = edtmap(&["info", s(&map)]);
+    assert!(ok);
+    let mapped = numbers_after(&info, "mapped box (m): ");
+    assert_eq!(loaded.resolution, 0.1);
+    assert_eq!(loaded.origin, [mapped[0], mapped[1], 0.0]);
+    assert_eq!((loaded.width, loaded.height), (((mapped[3] - mapped[0]) / 0.1).round() as usize, ((mapped[4] - mapped[1]) / 0.1).round() as usize));
+
+    // The planar scene's scan plane: the one observed layer.
+    let frontiers = dir.path().join("f.csv");
+    assert!(edtmap(&["info", s(&map), "--frontiers", s(&frontiers)]).0);
+    let z: f64 = std::fs::read_to_string(&frontiers).expect("csv").lines().nth(1).expect("a frontier").rsplit(',').next().expect("z").parse().expect("z");
+    let truth = queried_states(dir.path(), &map, &loaded, z);
+    let mismatches = loaded.cells.iter().zip(&truth).filter(|(a, b)| **a != b.as_str()).count();
+    assert_eq!(mismatches, 0, "every cell reads as the voxel at its centre");
+    let count = |state: &str| loaded.cells.iter().filter(|c| **c == state).count();
+    let counts = numbers_after(&info, "voxels: ");
+    assert_eq!((count("free"), count("occupied")), (counts[0] as usize, counts[1] as usize), "the map holds every observed voxel");
+
+    // Orientation: an occupied voxel, found by query, is black at its
+    // row (counted from the top, the largest y) and column.
+    let first = truth.iter().position(|t| t == "occupied").expect("an obstacle");
+    let (row, col) = (first / loaded.width, first % loaded.width);
+    let bytes = std::fs::read(dir.path().join("floor.pgm")).expect("pgm");
+    assert_eq!(bytes[bytes.len() - loaded.width * loaded.height + row * loaded.width + col], 0);
+}
+
+#[test]
+fn map_server_map_of_a_3d_map_is_a_layer_at_the_height_asked() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let map = saved_map(dir.path(), "uav_pillars");
+    let yaml = dir.path().join("layer.yaml");
+    let (ok, _, err) = edtmap(&["export", s(&map), s(&yaml)]);
+    assert!(!ok && err.contains("--height") && !yaml.exists(), "a 3D map needs --height: {err}");
+    let (ok, out, err) = edtmap(&["export", s(&map), s(&yaml), "--height", "1.1"]);
+    assert!(ok, "{out}\n{err}");
+    let loaded = load_map_server(&yaml);
+    let truth = queried_states(dir.path(), &map, &loaded, 1.1);
+    assert!(truth.iter().any(|t| t == "occupied") && truth.iter().any(|t| t == "free"));
+    let mismatches = loaded.cells.iter().zip(&truth).filter(|(a, b)| **a != b.as_str()).count();
+    assert_eq!(mismatches, 0);
+    let (ok, _, err) = edtmap(&["export", s(&map), s(&yaml), "--states", s(&dir.path().join("st.npy"))]);
+    assert!(!ok && err.contains("--states"), "{err}");
+}

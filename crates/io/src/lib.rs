@@ -19,6 +19,8 @@
 //! * [`mapfile`]: the versioned `.edtmap` map file ([`write_map`],
 //!   [`read_map`]): occupancy, global EDT, fixed obstacles and parameters,
 //!   saved bit for bit, checksummed, written atomically.
+//! * [`map_server`]: 2D occupancy maps for ROS navigation (`map_server`,
+//!   `nav2_map_server`): a PGM image and the YAML that places it.
 //! * Pictures and charts are drawn by the `edtmap-viz` crate, which writes
 //!   them through [`files`]; nothing here draws.
 //!
@@ -34,6 +36,7 @@ pub mod depth_folder;
 mod error;
 pub mod files;
 mod folder;
+pub mod map_server;
 pub mod mapfile;
 pub mod npy;
 pub mod pcd;
