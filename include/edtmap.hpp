@@ -20,7 +20,10 @@
 // Threads: as the C API says, every member may run concurrently with the
 // others on one Mapper (frames are integrated one at a time; queries read
 // the map as of the last finished frame and never wait); a Map is
-// immutable.
+// immutable. The header edtmap.h opens with the whole contract. Here the
+// handles free themselves; a moved-from Mapper holds none, and a call on it
+// throws Error(EDTMAP_NULL_ARGUMENT). Error keeps its own copy of the
+// library's message.
 #ifndef EDTMAP_HPP
 #define EDTMAP_HPP
 

@@ -38,6 +38,14 @@
 
 static float cloud[3 * WALL_POINTS];
 
+/* Fails a call on its own thread and returns whether that thread's message
+ * names it. */
+static void* fail_elsewhere(void* arg) {
+    (void)arg;
+    int named = edtmap_map_load(NULL, NULL) == EDTMAP_NULL_ARGUMENT && strstr(edtmap_last_error(), "edtmap_map_load") != NULL;
+    return named ? arg : NULL;
+}
+
 struct reader {
     edtmap_mapper* mapper;
     volatile int* stop;
@@ -270,6 +278,23 @@ int main(int argc, char** argv) {
         /* Null with a length is still a caller's mistake. */
         FAILS(edtmap_integrate_points(m, NULL, 1, WALL_IDENTITY, 1.0, NULL), EDTMAP_NULL_ARGUMENT, "xyz is null");
         FAILS(edtmap_integrate_depth(m, NULL, 2, 2, WALL_IDENTITY, 1.0, NULL), EDTMAP_NULL_ARGUMENT, "depth_m is null");
+    }
+    /* The last error's lifetime, as the header states it: the message stays
+     * at its address through successful calls and other threads' failures,
+     * until this thread's next failure. */
+    {
+        FAILS(edtmap_mapper_query(NULL, q1, 1, false, &d1, NULL, NULL), EDTMAP_NULL_ARGUMENT, "mapper is null");
+        const char* msg = edtmap_last_error();
+        char copy[256];
+        snprintf(copy, sizeof copy, "%s", msg);
+        OK(edtmap_mapper_query(m, q1, 1, false, &d1, NULL, NULL));
+        pthread_t other;
+        void* named = NULL;
+        int token = 0;
+        CHECK(pthread_create(&other, NULL, fail_elsewhere, &token) == 0, "pthread_create");
+        pthread_join(other, &named);
+        CHECK(named == &token, "the other thread's message does not name its call");
+        CHECK(edtmap_last_error() == msg && strcmp(msg, copy) == 0, "the message changed: \"%s\"", edtmap_last_error());
     }
     /* The map is as it was after all of that. */
     OK(edtmap_mapper_query(m, qp, WALL_QUERIES, false, md, NULL, NULL));

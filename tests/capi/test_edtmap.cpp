@@ -83,6 +83,7 @@ int main(int argc, char** argv) {
 
     edtmap::Mapper moved = std::move(mapper);
     CHECK(moved.distance({1.05, 0.05, 0.05}) > 0.99, "moved mapper");
+    throws([&] { mapper.distance({1.05, 0.05, 0.05}); }, EDTMAP_NULL_ARGUMENT, "moved-from mapper", "mapper is null");
 
     throws([&] { edtmap::Map::load(std::string(argv[2]) + "/missing.edtmap"); }, EDTMAP_IO, "missing map");
     throws([&] { edtmap::Mapper::from_config(std::string(argv[2]) + "/missing.toml"); }, EDTMAP_IO, "missing config");

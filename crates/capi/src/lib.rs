@@ -8,7 +8,9 @@
 //!   failed call *of the calling thread*).
 //! - Handles are opaque: [`edtmap_mapper`] (a mapping pipeline) and
 //!   [`edtmap_map`] (a saved map, for queries). Each `*_new`/`*_load` is
-//!   paired with a `*_free`. There is no global state.
+//!   paired with a `*_free`. There is no global state. The contract C
+//!   callers rely on (ownership, what is undefined, threads, the error
+//!   message's lifetime) opens the header: `cbindgen.toml`'s `header`.
 //! - Pointers are checked: a null pointer is [`edtmap_status::EDTMAP_NULL_ARGUMENT`],
 //!   a misaligned one or a length that does not fit
 //!   [`edtmap_status::EDTMAP_INVALID_ARGUMENT`]. A buffer of 0 elements may
@@ -465,14 +467,15 @@ fn config_of(p: &edtmap_params) -> Result<Config> {
     serde_json::from_value(value).or_else(|e| fail(edtmap_status::EDTMAP_CONFIG, format!("edtmap_params: {e}")))
 }
 
-/// The library's version, e.g. `"0.1.0"` (static storage).
+/// The library's version, e.g. `"0.1.0"` (static storage: never free it).
 #[no_mangle]
 pub extern "C" fn edtmap_version() -> *const c_char {
     concat!(env!("CARGO_PKG_VERSION"), "\0").as_ptr().cast()
 }
 
-/// The message of the calling thread's last failed call (empty if none);
-/// valid until that thread's next failed call.
+/// The message of the calling thread's last failed call (empty if none):
+/// the library's memory, never to be freed, valid until that thread's next
+/// failed call or its exit.
 #[no_mangle]
 pub extern "C" fn edtmap_last_error() -> *const c_char {
     LAST_ERROR.with(|e| e.borrow().as_ptr())
@@ -560,7 +563,8 @@ pub unsafe extern "C" fn edtmap_mapper_resume(config_path: *const c_char, map_pa
     })
 }
 
-/// Frees a mapper (null is allowed and does nothing).
+/// Frees a mapper (null is allowed and does nothing). No other call on it
+/// may be running or start after this one; freeing it twice is undefined.
 #[no_mangle]
 pub unsafe extern "C" fn edtmap_mapper_free(mapper: *mut edtmap_mapper) {
     if !mapper.is_null() {
@@ -933,7 +937,9 @@ pub unsafe extern "C" fn edtmap_map_load(path_: *const c_char, out: *mut *mut ed
     })
 }
 
-/// Frees a loaded map (null is allowed and does nothing).
+/// Frees a loaded map (null is allowed and does nothing). No other call on
+/// it may be running or start after this one; freeing it twice is
+/// undefined.
 #[no_mangle]
 pub unsafe extern "C" fn edtmap_map_free(map: *mut edtmap_map) {
     if !map.is_null() {
