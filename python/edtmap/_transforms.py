@@ -1,14 +1,17 @@
 """Distance transforms of numpy arrays with the call shapes of SciPy and of
 the ``edt`` package, plus edtmap's own obstacle convention.
 
-All three run edtmap's exact separable transform (Rust, all cores, the GIL
-released). Distances alone are computed in the output array itself, with
-no copy of the input; the nearest obstacles' indices need a field of
-8 bytes per voxel besides. Distances are exact with integer spacings (as
-integers, below 2^24 squared voxels for float32 outputs) and with any
-spacing for float64 outputs; float32 outputs with non-integer anisotropic
-spacings are rounded to float32 after each axis, as the ``edt`` package's.
-An array too large for the memory left raises ``MemoryError``.
+All three run edtmap's exact separable transforms (Rust, all cores, the
+GIL released), with no copy of a C- or Fortran-ordered input. The core's
+transform keeps each voxel's nearest obstacle (8 bytes per voxel): it
+serves indices, and one label of an isotropic grid where the system has
+room for it; the distance-only transform computes distances in the output
+array itself, for any number of labels, and wherever the core's would not
+fit. Distances are exact with integer spacings (integer arithmetic; in
+float32 below 2^24 squared voxels) and within float64 rounding otherwise,
+except that float32 outputs with non-integer anisotropic spacings are
+rounded to float32 after each axis, as the ``edt`` package's are. An array
+too large for the memory left raises ``MemoryError``.
 """
 
 from __future__ import annotations

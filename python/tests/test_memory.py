@@ -46,6 +46,45 @@ CHILD = textwrap.dedent("""
 """)
 
 
+# Room for the outputs but not for the core's nearest-obstacle field: the
+# distance-only transform answers, exactly as the peers.
+LEAN_CHILD = textwrap.dedent("""
+    import resource
+
+    import edt
+    import numpy as np
+    from scipy import ndimage
+
+    import edtmap
+
+    def vm_size():
+        with open("/proc/self/status") as f:
+            return next(int(l.split()[1]) * 1024 for l in f if l.startswith("VmSize:"))
+
+    n = 200
+    grid = np.ones((n, n, n), dtype=np.uint8)
+    rng = np.random.default_rng(5)
+    grid.reshape(-1)[rng.integers(0, grid.size, size=grid.size // 200)] = 0
+    want_dte = ndimage.distance_transform_edt(grid)
+    want_edt = edt.edt(grid)
+    want_obstacles = ndimage.distance_transform_edt(grid).astype(np.float32)
+    edtmap.edt(np.ascontiguousarray(grid[:9, :9, :9]))  # starts the threads before the limit
+    # The float64 output (64 MB) fits, the field besides it (64 MB more) not.
+    soft = vm_size() + (100 << 20)
+    resource.setrlimit(resource.RLIMIT_AS, (soft, resource.getrlimit(resource.RLIMIT_AS)[1]))
+    assert np.array_equal(edtmap.distance_transform_edt(grid), want_dte)
+    assert np.array_equal(edtmap.edt(grid), want_edt)
+    assert np.array_equal(edtmap.obstacle_distance(grid == 0), want_obstacles)
+    print("equal")
+""")
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc/self/status")
+def test_without_room_for_the_field_the_results_are_the_same():
+    done = subprocess.run([sys.executable, "-c", LEAN_CHILD], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0 and "equal" in done.stdout, f"exit {done.returncode}\n{done.stdout}\n{done.stderr}"
+
+
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc/self/status")
 def test_too_large_raises_memory_error():
     done = subprocess.run([sys.executable, "-c", CHILD], capture_output=True, text=True, timeout=300)

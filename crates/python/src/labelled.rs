@@ -172,11 +172,14 @@ struct Scratch<T> {
 }
 
 /// The lower envelope of one run: the parabolas' sites and where each
-/// starts to be the lowest.
+/// starts to be the lowest, as the fraction `num / den` (`den > 0`), so
+/// that building and reading the envelope compare products instead of
+/// dividing.
 #[derive(Default)]
 struct Envelope {
     sites: Vec<usize>,
-    starts: Vec<f64>,
+    num: Vec<f64>,
+    den: Vec<f64>,
 }
 
 /// A later pass over every line of `lines`, tiles of neighbouring lines in
@@ -268,46 +271,46 @@ fn line_pass<T, B, S>(
 
 /// The run `f` starting at position `a` of its line, bounded by voxels of
 /// another label at positions `before` and `after` where there are any.
-fn run(
-    f: &[f64],
-    a: usize,
-    w2: f64,
-    before: Option<f64>,
-    after: Option<f64>,
-    out: &mut [f64],
-    env: &mut Envelope,
-) {
-    env.sites.clear();
-    env.starts.clear();
+fn run(f: &[f64], a: usize, w2: f64, before: Option<f64>, after: Option<f64>, out: &mut [f64], env: &mut Envelope) {
+    let n = f.len();
+    for buf in [&mut env.num, &mut env.den] {
+        buf.resize(n.max(buf.len()), 0.0);
+    }
+    env.sites.resize(n.max(env.sites.len()), 0);
+    let (sites, num, den) = (&mut env.sites[..n], &mut env.num[..n], &mut env.den[..n]);
+    // The envelope is sites[..=k] (none while k is None); the first one is
+    // lowest towards -infinity and always stays.
+    let mut top: Option<usize> = None;
     for (q, &fq) in f.iter().enumerate() {
         if !fq.is_finite() {
             continue;
         }
-        while let (Some(&p), Some(&start)) = (env.sites.last(), env.starts.last()) {
-            // Where parabola q starts to lie below parabola p.
-            let d = (q - p) as f64;
-            let s = ((fq - f[p]) + w2 * d * (q + p) as f64) / (2.0 * w2 * d);
-            if s > start {
-                env.sites.push(q);
-                env.starts.push(s);
-                break;
-            }
-            env.sites.pop();
-            env.starts.pop();
+        let Some(mut k) = top else {
+            sites[0] = q;
+            top = Some(0);
+            continue;
+        };
+        // Pop the parabolas that q lies below from where they start on.
+        let (mut sn, mut sd) = start(f, w2, sites[k], q, fq);
+        while k > 0 && sn * den[k] <= num[k] * sd {
+            k -= 1;
+            (sn, sd) = start(f, w2, sites[k], q, fq);
         }
-        if env.sites.is_empty() {
-            env.sites.push(q);
-            env.starts.push(f64::NEG_INFINITY);
-        }
+        k += 1;
+        sites[k] = q;
+        num[k] = sn;
+        den[k] = sd;
+        top = Some(k);
     }
     let mut k = 0;
     for (i, o) in out.iter_mut().enumerate() {
         let mut d = f64::INFINITY;
-        if !env.sites.is_empty() {
-            while k + 1 < env.sites.len() && env.starts[k + 1] < i as f64 {
+        if let Some(last) = top {
+            let x = i as f64;
+            while k < last && num[k + 1] < x * den[k + 1] {
                 k += 1;
             }
-            let p = env.sites[k];
+            let p = sites[k];
             let gap = i.abs_diff(p) as f64;
             d = w2 * gap * gap + f[p];
         }
@@ -320,6 +323,14 @@ fn run(
         }
         *o = d;
     }
+}
+
+/// Where parabola `q` (value `fq`) starts to lie below parabola `p < q`, as
+/// a fraction with a positive denominator.
+#[inline]
+fn start(f: &[f64], w2: f64, p: usize, q: usize, fq: f64) -> (f64, f64) {
+    let d = (q - p) as f64;
+    ((fq - f[p]) + w2 * d * (q + p) as f64, 2.0 * w2 * d)
 }
 
 /// The output, written concurrently by tasks that own disjoint voxels: the

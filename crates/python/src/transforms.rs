@@ -208,11 +208,21 @@ pub(crate) fn transform<'py>(
                 let (dist, near) = py.detach(|| {
                     with_threads(threads, || {
                         if labels {
-                            // Float labels compare as numbers: -0.0 is
-                            // background, and NaN is no other voxel's label.
-                            job.distances_only(voxels, |v: &$t| *v == zero, |a: &$t, b: &$t| a == b)
+                            let one_label = || !several_labels(voxels, zero);
+                            if job.field_is_faster() && one_label() {
+                                job.run(voxels, |v: &$t| *v == zero)
+                            } else {
+                                // Float labels compare as numbers: -0.0 is
+                                // background, NaN no other voxel's label.
+                                job.distances_only(voxels, |v: &$t| *v == zero, |a: &$t, b: &$t| a == b)
+                            }
                         } else {
-                            job.run(voxels, |v: &$t| (*v == zero) == zero_is_obstacle)
+                            let is_obstacle = |v: &$t| (*v == zero) == zero_is_obstacle;
+                            if job.without_field() && !job.field_is_faster() {
+                                job.distances_only(voxels, is_obstacle, |_: &$t, _: &$t| true)
+                            } else {
+                                job.run(voxels, is_obstacle)
+                            }
                         }
                     })
                 })?;
@@ -222,6 +232,13 @@ pub(crate) fn transform<'py>(
     }
     by_type!(u8, u16, u32, u64, f32, f64);
     Err(PyTypeError::new_err("internal: the array must hold unsigned integers or floats"))
+}
+
+/// Whether `values` holds two different nonzero values (labels; a NaN
+/// differs from every value), decided without sorting.
+fn several_labels<T: Copy + PartialEq + Sync>(values: &[T], zero: T) -> bool {
+    let first = values.par_iter().find_first(|&&v| v != zero).copied();
+    first.is_some_and(|first| values.par_iter().any(|&v| v != zero && v != first))
 }
 
 /// The isotropic transform's working field, kept between calls: a grid
@@ -318,9 +335,6 @@ impl Job<'_> {
         voxels: &[T],
         is_obstacle: impl Fn(&T) -> bool + Sync,
     ) -> PyResult<(Option<Distances>, Option<Vec<i32>>)> {
-        if self.without_field() {
-            return self.distances_only(voxels, is_obstacle, |_: &T, _: &T| true);
-        }
         let g = self.geometry;
         let dims = g.dims();
         // The core's axes are numpy's reversed.
@@ -335,6 +349,10 @@ impl Job<'_> {
         let field = if w.iter().all(|&x| x == w[0]) {
             let mut field = take_field();
             edt_slice_into(voxels, dims, is_obstacle, ScanLayout::default(), &mut field).map_err(err)?;
+            let float32 = matches!(self.output, Output::Float32 | Output::Float32Sq);
+            if float32 && self.indices == Indices::None && !self.black_border {
+                return Ok((Some(self.float32_in_place(field, w[0])), None));
+            }
             Field::Iso(field, w[0])
         } else if w.iter().all(|&x| x.fract() == 0.0 && x <= MAX_INT_WEIGHT) {
             let (d, n) = edt_weighted_int(voxels, dims, is_obstacle, w.map(|x| x as u32)).map_err(err)?;
