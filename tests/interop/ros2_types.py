@@ -202,7 +202,7 @@ class GetDistances_Request(IdlStruct, typename="edtmap_msgs::srv::dds_::GetDista
     client_guid: uint64 = 0  # request header
     seq: int64 = 0           # request header
     points: sequence[Point] = field(default_factory=list)
-    signed: bool = False
+    signed_distance: bool = False
 
 
 @dataclass

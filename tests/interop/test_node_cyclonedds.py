@@ -419,7 +419,7 @@ def check_get_distances(node, w_request, r_reply, wall, last_stamp):
 
     guid = random.getrandbits(63) | 1
     seq = 1
-    w_request.write(GetDistances_Request(client_guid=guid, seq=seq, points=[Point(*p) for p, *_ in queries], signed=False))
+    w_request.write(GetDistances_Request(client_guid=guid, seq=seq, points=[Point(*p) for p, *_ in queries], signed_distance=False))
     reply = None
 
     def take_reply():

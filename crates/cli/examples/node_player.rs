@@ -58,7 +58,7 @@ fn percentile(v: &mut [f64], p: f64) -> f64 {
 fn ask(client: &ros2_client::Client<GetDistancesRequest, GetDistancesResponse>, points: &[Point]) -> Option<f64> {
     let start = Instant::now();
     for chunk in points.chunks(1800) {
-        let id = client.send_request(GetDistancesRequest { points: chunk.to_vec(), signed: false }).ok()?;
+        let id = client.send_request(GetDistancesRequest { points: chunk.to_vec(), signed_distance: false }).ok()?;
         let deadline = Instant::now() + Duration::from_secs(5);
         loop {
             if let Ok(Some((rid, r))) = client.receive_response() {

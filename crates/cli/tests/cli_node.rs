@@ -218,7 +218,7 @@ fn drive(d: &Path, domain: u16, frames: u64, sensor_topic: &str) {
     // interpolate), and some far from anything.
     let mut query: Vec<Point> = values.chunks(4).step_by(7).take(300).map(|p| Point { x: f64::from(p[0]) + 0.031, y: f64::from(p[1]) - 0.047, z: f64::from(p[2]) + 0.012 }).collect();
     query.extend((0..50).map(|i| Point { x: 1e3 + f64::from(i), y: -7.0, z: f64::NAN.min(1.0) }));
-    let req = GetDistancesRequest { points: query.clone(), signed: false };
+    let req = GetDistancesRequest { points: query.clone(), signed_distance: false };
     let id = distances.send_request(req).expect("request");
     let resp = wait(Duration::from_secs(20), || distances.receive_response().ok().flatten().filter(|(rid, _)| *rid == id).map(|(_, r)| r)).expect("get_distances answers");
     let want = edtmap::cpu::query::distances(&map, &query.iter().map(|p| [p.x, p.y, p.z]).collect::<Vec<_>>(), false);
@@ -236,7 +236,7 @@ fn drive(d: &Path, domain: u16, frames: u64, sensor_topic: &str) {
     // RustDDS loses replies over 64 kB on loopback (see the README).
     let vs = map.voxel_size_m();
     let (lo, hi) = ([-7.0 * vs, -7.0 * vs, 0.0], [7.0 * vs, 7.0 * vs, 5.0 * vs]);
-    let req = GetEsdfBoxRequest { min_corner: Point { x: lo[0], y: lo[1], z: lo[2] }, max_corner: Point { x: hi[0], y: hi[1], z: hi[2] }, signed: false };
+    let req = GetEsdfBoxRequest { min_corner: Point { x: lo[0], y: lo[1], z: lo[2] }, max_corner: Point { x: hi[0], y: hi[1], z: hi[2] }, signed_distance: false };
     let id = boxes.send_request(req).expect("request");
     let resp = wait(Duration::from_secs(20), || match boxes.receive_response() {
         Ok(r) => r.filter(|(rid, _)| *rid == id).map(|(_, r)| r),

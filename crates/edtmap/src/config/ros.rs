@@ -33,16 +33,21 @@ pub enum PoseType {
     Tf,
 }
 
-/// Which request/reply layout services use: the two RMW implementations
-/// of ROS 2 Humble and Jazzy put the request id in different places.
+/// Which request/reply layout services use. ROS 2's two usual RMW
+/// implementations put the request id in different places
+/// (`rmw_cyclonedds_cpp` in a 16-byte header of the sample,
+/// `rmw_fastrtps_cpp` in the RTPS inline QoS); the node tells them apart
+/// per request and answers both whatever this says, so only `auto` is
+/// needed; the others are accepted so older configs load.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum ServiceMapping {
-    /// `rmw_cyclonedds_cpp`: the id is a 16-byte header of the sample.
+    /// Each request answered in the layout it came in.
     #[default]
+    Auto,
+    /// Formerly: only `rmw_cyclonedds_cpp` clients; now as `auto`.
     Cyclone,
-    /// `rmw_fastrtps_cpp` (ROS 2's default RMW): the id is in the RTPS
-    /// inline QoS.
+    /// Formerly: only `rmw_fastrtps_cpp` clients; now as `auto`.
     Enhanced,
 }
 
@@ -122,8 +127,8 @@ pub struct RosSection {
     pub slice_hz: f64,
     /// Height of the slice, metres, world frame.
     pub slice_height_m: f64,
-    /// Service request layout: `cyclone` (rmw_cyclonedds) or `enhanced`
-    /// (rmw_fastrtps).
+    /// Service request layout: `auto` (the default; every value answers
+    /// `rmw_fastrtps_cpp` and `rmw_cyclonedds_cpp` clients alike).
     pub service_mapping: ServiceMapping,
     /// Forget the map farther than this from the sensor (metres; 0: keep
     /// everything), so a node that runs for hours holds a bounded map.
@@ -164,7 +169,7 @@ impl Default for RosSection {
             occupied_scope: OccupiedScope::Window,
             slice_hz: 2.0,
             slice_height_m: 1.0,
-            service_mapping: ServiceMapping::Cyclone,
+            service_mapping: ServiceMapping::Auto,
             map_clearing_radius_m: 0.0,
             map_clearing_period_s: 1.0,
             map_clearing_save: None,

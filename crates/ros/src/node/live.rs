@@ -39,13 +39,17 @@ pub(crate) struct LiveFrames {
     history_s: f64,
     newest_pose_s: f64,
     camera: Option<CameraInfo>,
+    /// The frame of the latest pose topic message.
+    pose_frame: Option<String>,
+    /// The fixed frame of the latest frame placed.
+    world_frame: Option<String>,
 }
 
 impl LiveFrames {
     /// Frames placed by `opts`; `is_tf` when poses come from `/tf`.
     pub(crate) fn new(opts: RosOptions, is_tf: bool, wait_s: f64, history_s: f64) -> Self {
         let poses = Poses::new(is_tf, &opts);
-        LiveFrames { opts, poses, pending: VecDeque::new(), wait: Duration::from_secs_f64(wait_s), history_s, newest_pose_s: f64::NEG_INFINITY, camera: None }
+        LiveFrames { opts, poses, pending: VecDeque::new(), wait: Duration::from_secs_f64(wait_s), history_s, newest_pose_s: f64::NEG_INFINITY, camera: None, pose_frame: None, world_frame: None }
     }
 
     /// Adds a pose message (`is_static` for `/tf_static`).
@@ -53,7 +57,10 @@ impl LiveFrames {
         self.poses.add(msg, is_static, &self.opts).map_err(|reason| Skipped { kind: "bad pose", reason })?;
         let newest = match msg {
             Message::Tf(ts) if !is_static => ts.iter().map(|t| t.header.stamp_s()).fold(f64::NEG_INFINITY, f64::max),
-            Message::Odometry(t) | Message::PoseStamped(t) | Message::TransformStamped(t) => t.header.stamp_s(),
+            Message::Odometry(t) | Message::PoseStamped(t) | Message::TransformStamped(t) => {
+                self.pose_frame = Some(t.header.frame_id.trim_start_matches('/').to_string());
+                t.header.stamp_s()
+            }
             _ => f64::NEG_INFINITY,
         };
         if newest > self.newest_pose_s {
@@ -71,6 +78,23 @@ impl LiveFrames {
     /// The latest camera info.
     pub(crate) fn camera(&self) -> Option<&CameraInfo> {
         self.camera.as_ref()
+    }
+
+    /// The fixed frame the latest frame's pose is in: `world_frame` when
+    /// configured, else the pose topic's frame, or the root of the
+    /// transform tree above the sensor (`None` before any frame).
+    pub(crate) fn world_frame(&self) -> Option<&str> {
+        self.world_frame.as_deref()
+    }
+
+    fn fixed_frame(&self, sensor_frame: &str) -> Option<String> {
+        if let Some(w) = &self.opts.world_frame {
+            return Some(w.trim_start_matches('/').to_string());
+        }
+        match &self.poses {
+            Poses::Topic(_) => self.pose_frame.clone(),
+            Poses::Tf(tf, _) => tf.root_of(self.opts.body_frame.as_deref().unwrap_or(sensor_frame)),
+        }
     }
 
     /// Queues a sensor message until its pose is known; a message that
@@ -108,7 +132,10 @@ impl LiveFrames {
             }
             let Some(p) = self.pending.pop_front() else { break };
             out.push(match self.poses.sensor_pose(p.stamp_s, &p.frame_id, &self.opts) {
-                Ok(t_world_sensor) => Ok(Frame { stamp_s: p.stamp_s, t_world_sensor, measurement: p.measurement }),
+                Ok(t_world_sensor) => {
+                    self.world_frame = self.fixed_frame(&p.frame_id).or(self.world_frame.take());
+                    Ok(Frame { stamp_s: p.stamp_s, t_world_sensor, measurement: p.measurement })
+                }
                 Err(e) => Err(Skipped {
                     kind: "missing transform",
                     reason: format!("no pose for the message at stamp {:.6} s in frame {:?} after waiting {:.3} s: {e}", p.stamp_s, p.frame_id, self.wait.as_secs_f64()),
@@ -190,6 +217,35 @@ mod tests {
         }
         assert_eq!(live.add_sensor(cloud(99.0), t0).expect_err("full").kind, "pose queue full");
         assert_eq!(live.pending(), MAX_PENDING);
+    }
+
+    #[test]
+    fn without_a_configured_world_frame_outputs_take_the_poses_frame() {
+        let t0 = Instant::now();
+        let odom = |t: f64| Message::Odometry(StampedTransform { header: Header { stamp_ns: (t * 1e9) as i64, frame_id: "odom".into() }, child_frame: "base_link".into(), transform: Isometry3::identity() });
+        let mut topic = LiveFrames::new(RosOptions { pose_topic: "/odom".into(), world_frame: None, ..opts() }, false, 0.5, 10.0);
+        assert_eq!(topic.world_frame(), None);
+        topic.add_pose(&odom(0.0), false).expect("pose");
+        topic.add_pose(&odom(1.0), false).expect("pose");
+        topic.add_sensor(cloud(0.5), t0).expect("decodes");
+        assert!(topic.ready(t0)[0].is_ok());
+        assert_eq!(topic.world_frame(), Some("odom"));
+
+        let mut tree = LiveFrames::new(RosOptions { world_frame: None, ..opts() }, true, 0.5, 10.0);
+        tree.add_pose(&tf("base_link", "lidar", 0.0, 0.25), true).expect("static");
+        tree.add_pose(&tf("odom", "base_link", 0.0, 0.0), false).expect("pose");
+        tree.add_pose(&tf("odom", "base_link", 1.0, 0.0), false).expect("pose");
+        tree.add_sensor(cloud(0.5), t0).expect("decodes");
+        assert!(tree.ready(t0)[0].is_ok());
+        assert_eq!(tree.world_frame(), Some("odom"));
+
+        let mut configured = LiveFrames::new(RosOptions { pose_topic: "/odom".into(), world_frame: Some("/map".into()), ..opts() }, false, 0.5, 10.0);
+        let map = |t: f64| Message::Odometry(StampedTransform { header: Header { stamp_ns: (t * 1e9) as i64, frame_id: "map".into() }, child_frame: "base_link".into(), transform: Isometry3::identity() });
+        configured.add_pose(&map(0.0), false).expect("pose");
+        configured.add_pose(&map(1.0), false).expect("pose");
+        configured.add_sensor(cloud(0.5), t0).expect("decodes");
+        assert!(configured.ready(t0)[0].is_ok());
+        assert_eq!(configured.world_frame(), Some("map"));
     }
 
     #[test]

@@ -18,12 +18,13 @@
 
 mod live;
 mod outputs;
+mod rpc;
 mod services;
 pub mod types;
 
 use crate::msg::{CameraInfo, Message};
 use crate::RosOptions;
-use edtmap::config::{Config, Intrinsics, OccupiedScope, PoseType, SensorKind};
+use edtmap::config::{Config, Intrinsics, OccupiedScope, PoseType, SensorKind, ServiceMapping};
 use edtmap::sensor::Frame;
 use edtmap::{GlobalMap, LocalVolume, MapError, Mapper};
 use live::{LiveFrames, Skipped};
@@ -77,17 +78,21 @@ pub struct NodeStats {
     /// Frames replaced in the slot by a newer one before they were mapped.
     pub dropped: u64,
     /// Messages skipped, by kind (`bad message`, `missing transform`,
-    /// `bad pose`, `pose queue full`, `mapper refused`).
+    /// `bad pose`, `pose queue full`, `mapper refused`, `bad request`).
     pub skipped: BTreeMap<String, u64>,
     /// Service requests answered.
     pub requests: u64,
 }
 
+/// The frame outputs are labelled with before any pose said otherwise.
+const DEFAULT_WORLD_FRAME: &str = "map";
+
 /// What the threads share.
 struct Shared {
     stop: AtomicBool,
-    /// The newest frame not yet mapped, with the depth camera's latest info.
-    slot: Mutex<Option<(Frame, Option<CameraInfo>)>>,
+    /// The newest frame not yet mapped, with the depth camera's latest info
+    /// and the fixed frame its pose is in.
+    slot: Mutex<Option<(Frame, Option<CameraInfo>, String)>>,
     wake: Condvar,
     snapshot: RwLock<Arc<Snapshot>>,
     received: AtomicU64,
@@ -95,8 +100,6 @@ struct Shared {
     dropped: AtomicU64,
     requests: AtomicU64,
     skipped: Mutex<BTreeMap<String, u64>>,
-    /// The world frame outputs are published in.
-    world_frame: String,
 }
 
 impl Shared {
@@ -148,9 +151,23 @@ fn sensor_qos() -> QosProfile {
     QosProfile::subscription_default().history(History::KeepLast { depth: 5 })
 }
 
-/// QoS of outputs and pose topics: reliable, volatile.
+/// QoS of pose subscriptions: best effort (a best-effort reader matches
+/// best-effort and reliable writers; odometry drivers often publish best
+/// effort), keeping `depth` samples.
+fn pose_qos(depth: usize) -> QosProfile {
+    QosProfile::subscription_default().durability(Durability::Volatile).history(History::KeepLast { depth })
+}
+
+/// QoS of outputs: reliable, volatile.
 fn reliable_qos(depth: usize) -> QosProfile {
     QosProfile::publisher_default().reliability_reliable(WhenFull::Wait(Duration::from_millis(100))).durability(Durability::Volatile).history(History::KeepLast { depth })
+}
+
+/// QoS of map-like outputs (the occupancy grid), as `map_server`'s: reliable,
+/// transient local, keep last 1, so a subscriber that joins late (a Nav2
+/// costmap, RViz's Map display) gets the latest at once.
+fn map_qos() -> QosProfile {
+    QosProfile::publisher_default().reliability_reliable(WhenFull::Wait(Duration::from_millis(100))).durability(Durability::TransientLocal).history(History::KeepLast { depth: 1 })
 }
 
 /// `/tf_static`: reliable, transient local (late joiners get the tree).
@@ -253,9 +270,9 @@ pub fn start(config: &Config, mapper: Mapper) -> Result<NodeHandle, NodeError> {
 
     let ns = r.namespace.as_str();
     let topic = |node: &mut Node, t: &str, package: &str, ty: &str, qos: &QosProfile| node.create_topic(&name(ns, t)?, MessageTypeName::new(package, ty), qos).map_err(|e| NodeError::Dds(format!("topic {t}: {e:?}")));
-    let out_topic = |node: &mut Node, base: &str, package: &str, ty: &str| {
+    let out_topic = |node: &mut Node, base: &str, package: &str, ty: &str, qos: &QosProfile| {
         let n = own_name(ns, base)?;
-        node.create_topic(&n, MessageTypeName::new(package, ty), &reliable_qos(2)).map_err(|e| NodeError::Dds(format!("topic edtmap/{base}: {e:?}")))
+        node.create_topic(&n, MessageTypeName::new(package, ty), qos).map_err(|e| NodeError::Dds(format!("topic edtmap/{base}: {e:?}")))
     };
     macro_rules! sub {
         ($node:expr, $topic:expr, $qos:expr) => {
@@ -266,10 +283,11 @@ pub fn start(config: &Config, mapper: Mapper) -> Result<NodeHandle, NodeError> {
         };
     }
     macro_rules! publ {
-        ($node:expr, $topic:expr) => {
+        ($node:expr, $base:expr, $package:expr, $ty:expr, $qos:expr) => {
             {
-                let topic = $topic;
-                $node.create_publisher(&topic, Some(reliable_qos(2))).map_err(|e| NodeError::Dds(format!("publishing: {e:?}")))?
+                let qos = $qos;
+                let topic = out_topic(&mut $node, $base, $package, $ty, &qos)?;
+                $node.create_publisher(&topic, Some(qos)).map_err(|e| NodeError::Dds(format!("publishing: {e:?}")))?
             }
         };
     }
@@ -289,22 +307,25 @@ pub fn start(config: &Config, mapper: Mapper) -> Result<NodeHandle, NodeError> {
     let pose_type = r.pose_type();
     let pose_sub = match pose_type {
         PoseType::Tf => {
-            let t = topic(&mut node, &r.pose_topic, "tf2_msgs", "TFMessage", &reliable_qos(100))?;
+            let t = topic(&mut node, &r.pose_topic, "tf2_msgs", "TFMessage", &pose_qos(100))?;
             let s = topic(&mut node, &r.static_tf_topic, "tf2_msgs", "TFMessage", &static_qos())?;
-            PoseSub::Tf(sub!(node, t, reliable_qos(100)), sub!(node, s, static_qos()))
+            PoseSub::Tf(sub!(node, t, pose_qos(100)), sub!(node, s, static_qos()))
         }
-        PoseType::Odometry => PoseSub::Odometry(sub!(node, topic(&mut node, &r.pose_topic, "nav_msgs", "Odometry", &reliable_qos(100))?, reliable_qos(100))),
-        PoseType::PoseStamped => PoseSub::PoseStamped(sub!(node, topic(&mut node, &r.pose_topic, "geometry_msgs", "PoseStamped", &reliable_qos(100))?, reliable_qos(100))),
-        PoseType::TransformStamped => PoseSub::TransformStamped(sub!(node, topic(&mut node, &r.pose_topic, "geometry_msgs", "TransformStamped", &reliable_qos(100))?, reliable_qos(100))),
+        PoseType::Odometry => PoseSub::Odometry(sub!(node, topic(&mut node, &r.pose_topic, "nav_msgs", "Odometry", &pose_qos(100))?, pose_qos(100))),
+        PoseType::PoseStamped => PoseSub::PoseStamped(sub!(node, topic(&mut node, &r.pose_topic, "geometry_msgs", "PoseStamped", &pose_qos(100))?, pose_qos(100))),
+        PoseType::TransformStamped => PoseSub::TransformStamped(sub!(node, topic(&mut node, &r.pose_topic, "geometry_msgs", "TransformStamped", &pose_qos(100))?, pose_qos(100))),
     };
     let outputs = Outputs {
-        esdf: publ!(node, out_topic(&mut node, "esdf_pointcloud", "sensor_msgs", "PointCloud2")?),
-        occupied: publ!(node, out_topic(&mut node, "occupied_pointcloud", "sensor_msgs", "PointCloud2")?),
-        slice: publ!(node, out_topic(&mut node, "distance_slice", "sensor_msgs", "PointCloud2")?),
-        grid: publ!(node, out_topic(&mut node, "occupancy_grid", "nav_msgs", "OccupancyGrid")?),
-        stats: publ!(node, out_topic(&mut node, "frame_stats", "diagnostic_msgs", "DiagnosticArray")?),
+        esdf: publ!(node, "esdf_pointcloud", "sensor_msgs", "PointCloud2", reliable_qos(2)),
+        occupied: publ!(node, "occupied_pointcloud", "sensor_msgs", "PointCloud2", reliable_qos(2)),
+        slice: publ!(node, "distance_slice", "sensor_msgs", "PointCloud2", reliable_qos(2)),
+        grid: publ!(node, "occupancy_grid", "nav_msgs", "OccupancyGrid", map_qos()),
+        stats: publ!(node, "frame_stats", "diagnostic_msgs", "DiagnosticArray", reliable_qos(2)),
     };
-    let servers = services::Servers::create(&mut node, ns, r.service_mapping)?;
+    if r.service_mapping != ServiceMapping::Auto {
+        tracing::info!("[ros] service_mapping is no longer needed: services answer Fast DDS and Cyclone DDS clients alike");
+    }
+    let servers = services::Servers::create(&context.domain_participant(), ns)?;
 
     let snapshot = Snapshot { map: mapper.map().clone(), volume: None, stamp_ns: 0, frames: 0 };
     let shared = Arc::new(Shared {
@@ -317,7 +338,6 @@ pub fn start(config: &Config, mapper: Mapper) -> Result<NodeHandle, NodeError> {
         dropped: AtomicU64::new(0),
         requests: AtomicU64::new(0),
         skipped: Mutex::new(BTreeMap::new()),
-        world_frame: r.world_frame.clone().unwrap_or_else(|| "map".into()),
     });
     let needs_camera_info = config.sensor.kind == SensorKind::Depth && r.intrinsics == Intrinsics::CameraInfo;
     let live = LiveFrames::new(opts, pose_type == PoseType::Tf, r.pose_wait_s, r.tf_history_s);
@@ -459,8 +479,9 @@ fn input_loop(shared: &Shared, mut sensor: SensorSub, mut pose: PoseSub, mut liv
                 }),
                 Ok(frame) => {
                     let info = live.camera().cloned();
+                    let world = live.world_frame().unwrap_or(DEFAULT_WORLD_FRAME).to_string();
                     let mut slot = shared.slot.lock().unwrap_or_else(PoisonError::into_inner);
-                    if slot.replace((frame, info)).is_some() {
+                    if slot.replace((frame, info, world)).is_some() {
                         shared.dropped.fetch_add(1, Relaxed);
                     }
                     shared.wake.notify_one();
@@ -550,7 +571,7 @@ fn mapping_loop(shared: &Shared, mut mapper: Mapper, out: Outputs, rates: Rates,
                 slot = shared.wake.wait_timeout(slot, Duration::from_millis(100)).unwrap_or_else(PoisonError::into_inner).0;
             }
         };
-        let (frame, info) = frame;
+        let (frame, info, world) = frame;
         if let (Some(config), Some(info)) = (&camera, &info) {
             if let Err(reason) = with_camera(&mut mapper, config, info, shared.integrated.load(Relaxed), &mut warned) {
                 shared.skip(&Skipped { kind: "bad camera info", reason });
@@ -591,7 +612,6 @@ fn mapping_loop(shared: &Shared, mut mapper: Mapper, out: Outputs, rates: Rates,
         let volume = mapper.local_volume().copied();
         let snapshot = Arc::new(Snapshot { map: mapper.map().clone(), volume, stamp_ns, frames });
         *shared.snapshot.write().unwrap_or_else(PoisonError::into_inner) = snapshot.clone();
-        let world = shared.world_frame.clone();
         let header = types::Header { stamp: Time::from_ns(stamp_ns), frame_id: world.clone() };
         let now = Instant::now();
         let publish_failed = |what: &str, e: String| tracing::debug!("publishing {what}: {e}");

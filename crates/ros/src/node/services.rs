@@ -2,12 +2,16 @@
 //! thread: `get_distances`, `get_esdf_box`, `save_map`.
 
 use super::types::{GetDistancesRequest, GetDistancesResponse, GetEsdfBoxRequest, GetEsdfBoxResponse, Point, SaveMapRequest, SaveMapResponse, Time, Vector3};
+use super::live::Skipped;
+use super::rpc::Server;
 use super::{NodeError, Shared, Snapshot};
-use edtmap::config::ServiceMapping;
 use edtmap::cpu::query;
 use ros2_client::dds::rustdds::mio1::{Events, Interest, Poll, Token};
+use ros2_client::dds::rustdds::{DomainParticipant, QosPolicies};
 use ros2_client::qos::{Durability, History, WhenFull};
-use ros2_client::{Node, QosProfile, Server, ServiceTypeName};
+use ros2_client::QosProfile;
+use serde::de::DeserializeOwned;
+use serde::Serialize;
 use std::sync::atomic::Ordering::Relaxed;
 use std::time::Duration;
 
@@ -21,24 +25,24 @@ pub(super) struct Servers {
     save: Server<SaveMapRequest, SaveMapResponse>,
 }
 
-fn qos() -> QosProfile {
-    QosProfile::publisher_default().reliability_reliable(WhenFull::Wait(Duration::from_millis(100))).durability(Durability::Volatile).history(History::KeepLast { depth: 10 })
+/// Services' QoS, as ROS 2's default for services: reliable, volatile,
+/// keep last 10.
+fn qos() -> QosPolicies {
+    QosPolicies::from(QosProfile::publisher_default().reliability_reliable(WhenFull::Wait(Duration::from_millis(100))).durability(Durability::Volatile).history(History::KeepLast { depth: 10 }))
+}
+
+/// The server `NAMESPACE/edtmap/BASE` of `edtmap_msgs/srv/TY`.
+fn server<Req: DeserializeOwned, Resp: Serialize>(dp: &DomainParticipant, namespace: &str, base: &str, ty: &str) -> Result<Server<Req, Resp>, NodeError> {
+    let name = super::own_name(namespace, base)?.to_string();
+    let service = if name.starts_with('/') { name } else { format!("/{name}") };
+    Server::create(dp, &service, "edtmap_msgs", ty, &qos()).map_err(|e| NodeError::Dds(format!("service edtmap/{base}: {e}")))
 }
 
 impl Servers {
-    /// Creates the servers under `NAMESPACE/edtmap/`.
-    pub(super) fn create(node: &mut Node, namespace: &str, mapping: ServiceMapping) -> Result<Self, NodeError> {
-        let mapping = match mapping {
-            ServiceMapping::Cyclone => ros2_client::ServiceMapping::Cyclone,
-            ServiceMapping::Enhanced => ros2_client::ServiceMapping::Enhanced,
-        };
-        macro_rules! server {
-            ($base:expr, $ty:expr) => {{
-                let name = super::own_name(namespace, $base)?;
-                node.create_server(mapping, &name, &ServiceTypeName::new("edtmap_msgs", $ty), qos(), qos()).map_err(|e| NodeError::Dds(format!("service edtmap/{}: {e:?}", $base)))?
-            }};
-        }
-        Ok(Servers { distances: server!("get_distances", "GetDistances"), esdf_box: server!("get_esdf_box", "GetEsdfBox"), save: server!("save_map", "SaveMap") })
+    /// Creates the servers under `NAMESPACE/edtmap/`, answering clients of
+    /// either RMW layout ([`super::rpc`]).
+    pub(super) fn create(dp: &DomainParticipant, namespace: &str) -> Result<Self, NodeError> {
+        Ok(Servers { distances: server(dp, namespace, "get_distances", "GetDistances")?, esdf_box: server(dp, namespace, "get_esdf_box", "GetEsdfBox")?, save: server(dp, namespace, "save_map", "SaveMap")? })
     }
 
     /// Answers requests until the node stops.
@@ -65,34 +69,40 @@ impl Servers {
     }
 
     fn answer(&self, shared: &Shared) {
-        while let Ok(Some((id, req))) = self.distances.receive_request() {
-            let resp = distances(&shared.snapshot(), &req);
-            shared.requests.fetch_add(1, Relaxed);
-            if let Err(e) = self.distances.send_response(id, resp) {
-                tracing::warn!("get_distances: the answer could not be sent: {e:?}");
+        answer_all(&self.distances, "get_distances", shared, |req| distances(&shared.snapshot(), req));
+        answer_all(&self.esdf_box, "get_esdf_box", shared, |req| esdf_box(&shared.snapshot(), req));
+        answer_all(&self.save, "save_map", shared, |req| save(&shared.snapshot(), req));
+    }
+}
+
+/// Answers every request waiting on `server`; one that cannot be decoded
+/// (no reply can be addressed) or answered is counted by kind and logged
+/// the first time.
+fn answer_all<Req: DeserializeOwned, Resp: Serialize>(server: &Server<Req, Resp>, service: &str, shared: &Shared, f: impl Fn(&Req) -> Resp) {
+    while let Some(request) = server.receive() {
+        let (id, req) = match request {
+            Ok(r) => r,
+            Err(e) => {
+                shared.skip(&Skipped { kind: "bad request", reason: format!("{service}: a request that decodes in no RMW's layout: {e}") });
+                continue;
             }
+        };
+        let resp = f(&req);
+        shared.requests.fetch_add(1, Relaxed);
+        if let Err(e) = server.reply(id, &resp) {
+            shared.skip(&Skipped { kind: "reply not sent", reason: format!("{service}: {e}") });
         }
-        while let Ok(Some((id, req))) = self.esdf_box.receive_request() {
-            let resp = esdf_box(&shared.snapshot(), &req);
-            shared.requests.fetch_add(1, Relaxed);
-            if let Err(e) = self.esdf_box.send_response(id, resp) {
-                tracing::warn!("get_esdf_box: the answer could not be sent: {e:?}");
-            }
-        }
-        while let Ok(Some((id, req))) = self.save.receive_request() {
-            let snap = shared.snapshot();
-            let resp = match req.path.trim() {
-                "" => SaveMapResponse { success: false, message: "path is empty: give the file to write".into() },
-                path => match edtmap::save_map(&snap.map, std::path::Path::new(path)) {
-                    Ok(()) => SaveMapResponse { success: true, message: format!("saved the map after {} frames to {path}", snap.frames) },
-                    Err(e) => SaveMapResponse { success: false, message: e.to_string() },
-                },
-            };
-            shared.requests.fetch_add(1, Relaxed);
-            if let Err(e) = self.save.send_response(id, resp) {
-                tracing::warn!("save_map: the answer could not be sent: {e:?}");
-            }
-        }
+    }
+}
+
+/// `save_map`: the snapshot's map written atomically to the path asked.
+fn save(snap: &Snapshot, req: &SaveMapRequest) -> SaveMapResponse {
+    match req.path.trim() {
+        "" => SaveMapResponse { success: false, message: "path is empty: give the file to write".into() },
+        path => match edtmap::save_map(&snap.map, std::path::Path::new(path)) {
+            Ok(()) => SaveMapResponse { success: true, message: format!("saved the map after {} frames to {path}", snap.frames) },
+            Err(e) => SaveMapResponse { success: false, message: e.to_string() },
+        },
     }
 }
 
@@ -108,7 +118,7 @@ pub(super) fn distances(snap: &Snapshot, req: &GetDistancesRequest) -> GetDistan
         tracing::warn!("get_distances: {} points asked, at most {MAX_QUERY_POINTS} answered", req.points.len());
     }
     let points: Vec<[f64; 3]> = req.points.iter().take(MAX_QUERY_POINTS).map(xyz).collect();
-    let answers = query::distances(&snap.map, &points, req.signed);
+    let answers = query::distances(&snap.map, &points, req.signed_distance);
     GetDistancesResponse {
         map_stamp: stamp,
         distances: answers.iter().map(|a| a.distance_m).collect(),
@@ -123,7 +133,7 @@ pub(super) fn distances(snap: &Snapshot, req: &GetDistancesRequest) -> GetDistan
 pub(super) fn esdf_box(snap: &Snapshot, req: &GetEsdfBoxRequest) -> GetEsdfBoxResponse {
     let stamp = Time::from_ns(snap.stamp_ns);
     let vs = snap.map.voxel_size_m();
-    match query::distance_box(&snap.map, xyz(&req.min_corner), xyz(&req.max_corner), req.signed) {
+    match query::distance_box(&snap.map, xyz(&req.min_corner), xyz(&req.max_corner), req.signed_distance) {
         Ok(b) => {
             let origin = b.origin.centre(vs);
             let gradients = box_gradients(&b.distance_m, b.dims, vs as f32);

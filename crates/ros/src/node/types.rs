@@ -462,7 +462,7 @@ pub struct GetDistancesRequest {
     pub points: Vec<Point>,
     /// Signed distance (negative inside obstacles) instead of the distance
     /// to the nearest obstacle.
-    pub signed: bool,
+    pub signed_distance: bool,
 }
 
 /// `edtmap_msgs/GetDistances` response.
@@ -488,8 +488,8 @@ pub struct GetEsdfBoxRequest {
     pub min_corner: Point,
     /// Highest corner (excluded), metres.
     pub max_corner: Point,
-    /// Signed distances.
-    pub signed: bool,
+    /// Signed distances (negative inside obstacles).
+    pub signed_distance: bool,
 }
 
 /// `edtmap_msgs/GetEsdfBox` response.
@@ -571,4 +571,70 @@ pub(crate) fn pose_stamped(m: PoseStamped) -> Result<msg::Message, String> {
 /// `geometry_msgs/TransformStamped` → its transform.
 pub(crate) fn transform_stamped(m: TransformStamped) -> Result<msg::Message, String> {
     Ok(msg::Message::TransformStamped(m.stamped()?))
+}
+
+#[cfg(test)]
+mod tests {
+    use std::path::{Path, PathBuf};
+
+    /// Keywords of C (C23), C++ (C++23, with alternative tokens) and Python
+    /// (3.12, soft keywords included): a field named one of them breaks a
+    /// ROS 2 code generator (`rosidl_generator_c` rejects `bool signed`).
+    const KEYWORDS: &[&str] = &[
+        // C
+        "alignas", "alignof", "auto", "bool", "break", "case", "char", "const", "constexpr", "continue", "default", "do", "double", "else", "enum", "extern", "false", "float", "for", "goto", "if",
+        "inline", "int", "long", "nullptr", "register", "restrict", "return", "short", "signed", "sizeof", "static", "static_assert", "struct", "switch", "thread_local", "true", "typedef", "typeof",
+        "typeof_unqual", "union", "unsigned", "void", "volatile", "while", "_Alignas", "_Alignof", "_Atomic", "_BitInt", "_Bool", "_Complex", "_Decimal128", "_Decimal32", "_Decimal64", "_Generic",
+        "_Imaginary", "_Noreturn", "_Static_assert", "_Thread_local",
+        // C++
+        "and", "and_eq", "asm", "bitand", "bitor", "catch", "char16_t", "char32_t", "char8_t", "class", "co_await", "co_return", "co_yield", "compl", "concept", "consteval", "constinit",
+        "const_cast", "decltype", "delete", "dynamic_cast", "explicit", "export", "friend", "mutable", "namespace", "new", "noexcept", "not", "not_eq", "operator", "or", "or_eq", "private",
+        "protected", "public", "reinterpret_cast", "requires", "static_cast", "template", "this", "throw", "try", "typeid", "typename", "using", "virtual", "wchar_t", "xor", "xor_eq",
+        // Python
+        "False", "None", "True", "as", "assert", "async", "await", "def", "del", "elif", "except", "finally", "from", "global", "import", "in", "is", "lambda", "nonlocal", "pass", "raise",
+        "with", "yield", "match", "type", "_",
+    ];
+
+    fn interface_files(dir: &Path, out: &mut Vec<PathBuf>) {
+        for entry in std::fs::read_dir(dir).expect("ros/ is readable").flatten() {
+            let path = entry.path();
+            if path.is_dir() {
+                interface_files(&path, out);
+            } else if matches!(path.extension().and_then(|e| e.to_str()), Some("msg" | "srv" | "action")) {
+                out.push(path);
+            }
+        }
+    }
+
+    /// The field and constant names of a `.msg`/`.srv`/`.action` file:
+    /// the second word of each line that is not a comment or separator.
+    fn field_names(text: &str) -> Vec<String> {
+        text.lines()
+            .map(|l| l.split('#').next().unwrap_or("").trim())
+            .filter(|l| !l.is_empty() && *l != "---")
+            .filter_map(|l| l.split_whitespace().nth(1).map(|n| n.split('=').next().unwrap_or(n).to_string()))
+            .collect()
+    }
+
+    #[test]
+    fn no_interface_field_is_a_c_cpp_or_python_keyword() {
+        let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../ros");
+        let mut files = Vec::new();
+        interface_files(&root, &mut files);
+        assert!(files.len() >= 3, "interface files under {}: {files:?}", root.display());
+        let mut bad = Vec::new();
+        for f in &files {
+            let text = std::fs::read_to_string(f).expect("readable");
+            let names = field_names(&text);
+            assert!(!names.is_empty(), "{} has no fields", f.display());
+            bad.extend(names.into_iter().filter(|n| KEYWORDS.contains(&n.as_str())).map(|n| format!("{}: {n}", f.display())));
+        }
+        assert!(bad.is_empty(), "fields named like keywords: {bad:?}");
+    }
+
+    #[test]
+    fn field_names_are_read_as_the_generators_read_them() {
+        let names = field_names("# c\nuint8 STATE_FREE=2   # x\ngeometry_msgs/Point[] points\n---\nbool signed\nuint8 A = 1\n");
+        assert_eq!(names, ["STATE_FREE", "points", "signed", "A"]);
+    }
 }
