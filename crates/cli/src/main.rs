@@ -56,6 +56,8 @@ enum Command {
     Export(query::ExportArgs),
     /// What a saved map holds: size, extent, parameters.
     Info(query::InfoArgs),
+    /// Top views of a saved map as PNG: occupancy and distance at a height, their projection through the heights.
+    Picture(pictures::PictureArgs),
 }
 
 /// Logs to stderr: warnings by default (frames skipped, recordings cut
@@ -85,6 +87,7 @@ fn main() -> ExitCode {
         Command::Query(args) => query::query(&args),
         Command::Export(args) => query::export(&args),
         Command::Info(args) => query::info(&args),
+        Command::Picture(args) => pictures::picture(&args),
     };
     let result = match (result, output::finish()) {
         (Ok(()), Some(e)) => Err(anyhow::anyhow!("cannot write to standard output: {e}")),

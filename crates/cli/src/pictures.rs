@@ -1,12 +1,18 @@
-//! Slices of the latest local volume: occupancy states and the EDT.
+//! Pictures of a run and of a saved map: slices of the latest local
+//! volume (occupancy states and the EDT), top views of the whole map,
+//! point clouds and the timing chart; `edtmap picture`.
 
 use std::path::{Path, PathBuf};
 
-use anyhow::Result;
-use edtmap::{LocalVolume, VoxelIndex, VoxelState, FAR_DIST_SQ};
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use edtmap::{load_map, GlobalMap, LocalVolume, VoxelIndex, VoxelState, FAR_DIST_SQ};
+use edtmap_viz::top_view;
+use edtmap_viz::TopView;
 use serde_json::{json, Value};
 
 use crate::backend::CliMapper;
+use crate::query::finite_metres;
 use crate::report::FrameRecord;
 use edtmap_viz::plot::{Chart, Series, SeriesStyle};
 use edtmap_viz::picture::{viridis, write_slice_png, write_states_png, MapAxes, Slice, SliceStyle};
@@ -22,8 +28,19 @@ pub(crate) const OCCUPIED_PLY: &str = "occupied.ply";
 pub(crate) const EDT_PLY: &str = "edt.ply";
 /// The per-frame timing chart.
 pub(crate) const TIMING_PLOT: &str = "timing.png";
+/// Top view of the whole map: occupancy at the slices' height.
+pub(crate) const MAP_TOP_OCCUPANCY: &str = "map_top_occupancy.png";
+/// Top view of the whole map: the global EDT at the slices' height.
+pub(crate) const MAP_TOP_DISTANCE: &str = "map_top_distance.png";
+/// Top view of the whole map: each column's state through the heights.
+pub(crate) const MAP_TOP_PROJECTION: &str = "map_top_projection.png";
+/// Top view of the whole map: each column's least distance.
+pub(crate) const MAP_TOP_CLEARANCE: &str = "map_top_clearance.png";
+/// The top views of the whole map, as `edtmap run` and `edtmap picture` write them.
+pub(crate) const MAP_PICTURES: [&str; 4] = [MAP_TOP_OCCUPANCY, MAP_TOP_DISTANCE, MAP_TOP_PROJECTION, MAP_TOP_CLEARANCE];
 /// Every picture and cloud a run may write.
-pub(crate) const OUT_PICTURES: [&str; 5] = [OCCUPANCY_SLICE, EDT_SLICE, TIMING_PLOT, OCCUPIED_PLY, EDT_PLY];
+pub(crate) const OUT_PICTURES: [&str; 9] =
+    [OCCUPANCY_SLICE, EDT_SLICE, TIMING_PLOT, OCCUPIED_PLY, EDT_PLY, MAP_TOP_OCCUPANCY, MAP_TOP_DISTANCE, MAP_TOP_PROJECTION, MAP_TOP_CLEARANCE];
 
 /// The height of the pictured slices and where it came from.
 #[derive(Debug, Clone, PartialEq)]
@@ -120,6 +137,77 @@ pub(crate) fn write_slices(mapper: &CliMapper, z_m: f64, out: &Path) -> Result<V
     let style = SliceStyle { title: "local EDT (grey: unknown)".into(), unit: "m".into(), max_value: None, axes: Some(axes) };
     write_slice_png(&edt_path, Slice { width: nx, height: ny, values: &dist }, &style)?;
     Ok(vec![occ_path, edt_path])
+}
+
+/// Arguments of `edtmap picture`.
+#[derive(Args, Debug)]
+pub(crate) struct PictureArgs {
+    /// A map saved with `edtmap run --save`.
+    map: PathBuf,
+    /// Folder for the pictures, created if missing.
+    #[arg(long, default_value = "edtmap-out")]
+    out: PathBuf,
+    /// Height of the occupancy and distance views, metres (default: the
+    /// map's layer with the most observed voxels).
+    #[arg(long, value_name = "Z", allow_negative_numbers = true, value_parser = finite_metres)]
+    height: Option<f64>,
+    /// Heights the projection and clearance views summarise, metres: every
+    /// voxel layer overlapping [ZMIN, ZMAX) (default: every observed
+    /// layer). Leave the floor and the ceiling out to see the walls.
+    #[arg(long, value_name = "ZMIN,ZMAX", value_delimiter = ',', allow_hyphen_values = true)]
+    band: Vec<f64>,
+}
+
+/// Writes the top views of a saved map (see [`write_map_views`]).
+pub(crate) fn picture(args: &PictureArgs) -> Result<()> {
+    let band = match args.band[..] {
+        [] => None,
+        [lo, hi] if lo.is_finite() && hi.is_finite() && lo < hi => Some((lo, hi)),
+        _ => bail!("--band takes two finite heights in metres, the lower first: ZMIN,ZMAX (e.g. 0.1,1.8)"),
+    };
+    let map = load_map(&args.map)?;
+    let vs = map.voxel_size_m();
+    let z_m = match args.height {
+        Some(z) => z,
+        None => {
+            let layer = top_view::densest_layer(&map).with_context(|| format!("{} has no observed voxel: there is nothing to picture", args.map.display()))?;
+            (f64::from(layer) + 0.5) * vs
+        }
+    };
+    std::fs::create_dir_all(&args.out).with_context(|| format!("cannot create --out {}", args.out.display()))?;
+    let written = write_map_views(&map, z_m, band, &args.out)?;
+    if written.is_empty() {
+        bail!("{} holds no mapped block: there is nothing to picture", args.map.display());
+    }
+    for path in written {
+        outln!("wrote {}", path.display());
+    }
+    Ok(())
+}
+
+/// Writes the top views of the whole map into `out` (module docs of
+/// `edtmap_viz::top_view`): occupancy and distance in the layer holding
+/// `z_m`, and the projection and clearance through the layers `band_m`
+/// overlaps (`[min, max)` metres; default every observed layer). Nothing
+/// for a map without blocks.
+pub(crate) fn write_map_views(map: &GlobalMap, z_m: f64, band_m: Option<(f64, f64)>, out: &Path) -> Result<Vec<PathBuf>> {
+    let vs = map.voxel_size_m();
+    let layer = (z_m / vs).floor() as i32;
+    let Some(at_height) = TopView::new(map, (layer, layer)) else { return Ok(Vec::new()) };
+    let band = match band_m {
+        Some((lo, hi)) => ((lo / vs).floor() as i32, (hi / vs).ceil() as i32 - 1),
+        None => map.observed_z_range().unwrap_or((layer, layer)),
+    };
+    let through = TopView::new(map, band).with_context(|| format!("the band of heights {band_m:?} m holds no layer of {vs} m voxels"))?;
+    let height = format!("z = {:.2} m", (f64::from(layer) + 0.5) * vs);
+    let span = format!("z {:.2} to {:.2} m", f64::from(band.0) * vs, f64::from(band.1 + 1) * vs);
+    let max_m = map.params().max_distance_m as f32;
+    let paths: Vec<PathBuf> = MAP_PICTURES.iter().map(|n| out.join(n)).collect();
+    at_height.write_states_png(&paths[0], "map occupancy", &height)?;
+    at_height.write_distance_png(&paths[1], "map EDT (grey: unknown)", &height, max_m)?;
+    through.write_states_png(&paths[2], "map projection: obstacle at any height", &span)?;
+    through.write_distance_png(&paths[3], "map clearance: least distance in column", &span, max_m)?;
+    Ok(paths)
 }
 
 /// Writes `occupied.ply` (every occupied voxel of the global map, coloured

@@ -256,7 +256,7 @@ fn map_server_layer(map: &GlobalMap, args: &ExportArgs) -> Result<i32> {
 }
 
 /// Parses a height in metres: a finite number within a million metres.
-fn finite_metres(text: &str) -> std::result::Result<f64, String> {
+pub(crate) fn finite_metres(text: &str) -> std::result::Result<f64, String> {
     match text.trim().parse::<f64>() {
         Ok(v) if v.is_finite() && v.abs() <= 1e6 => Ok(v),
         Ok(v) => Err(format!("{v} is not a height: give finite metres within ±1e6")),

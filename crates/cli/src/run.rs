@@ -463,6 +463,7 @@ fn write_outputs(args: &RunArgs, mapper: &CliMapper, slice: &SliceHeight, replay
             edtmap::save_map(mapper.map(), path)?;
         }
         let mut pictures = write_slices(mapper, slice.z_m, &args.out)?;
+        pictures.extend(crate::pictures::write_map_views(mapper.map(), slice.z_m, None, &args.out)?);
         if args.ply {
             pictures.extend(write_plys(mapper, &args.out)?);
         }

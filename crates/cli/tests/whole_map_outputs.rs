@@ -237,3 +237,42 @@ fn map_server_map_of_a_3d_map_is_a_layer_at_the_height_asked() {
     let (ok, _, err) = edtmap(&["export", s(&map), s(&yaml), "--states", s(&dir.path().join("st.npy"))]);
     assert!(!ok && err.contains("--states"), "{err}");
 }
+
+/// The RGB pixels of a PNG, with its size.
+fn png_pixels(path: &Path) -> (u32, u32, Vec<[u8; 3]>) {
+    let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))));
+    let mut reader = decoder.read_info().expect("png header");
+    let mut buf = vec![0; reader.output_buffer_size().expect("size")];
+    let info = reader.next_frame(&mut buf).expect("png data");
+    assert_eq!(info.color_type, png::ColorType::Rgb);
+    (info.width, info.height, buf[..info.buffer_size()].chunks(3).map(|c| [c[0], c[1], c[2]]).collect())
+}
+
+const TOP_VIEWS: [&str; 4] = ["map_top_occupancy.png", "map_top_distance.png", "map_top_projection.png", "map_top_clearance.png"];
+
+#[test]
+fn run_and_picture_draw_top_views_of_the_whole_map() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    for scene in ["planar", "uav_pillars"] {
+        let map = saved_map(dir.path(), scene);
+        for name in TOP_VIEWS {
+            let (w, h, _) = png_pixels(&dir.path().join(format!("{scene}-run")).join(name));
+            assert!(w > 100 && h > 100, "{scene}: {name} is {w} x {h}");
+        }
+        let out = dir.path().join(format!("{scene}-pictures"));
+        let (ok, stdout, err) = edtmap(&["picture", s(&map), "--out", s(&out)]);
+        assert!(ok, "{stdout}\n{err}");
+        assert_eq!(stdout.lines().count(), 4, "{stdout}");
+        // The map has unknown, free and occupied voxels; the occupancy view
+        // shows each in its colour (grey, off-white, near black).
+        let (_, _, pixels) = png_pixels(&out.join(TOP_VIEWS[0]));
+        for colour in [[150, 150, 150], [245, 245, 235], [20, 20, 20]] {
+            assert!(pixels.iter().filter(|p| **p == colour).count() > 100, "{scene}: {colour:?}");
+        }
+    }
+    let map = dir.path().join("planar.edtmap");
+    let (ok, _, err) = edtmap(&["picture", s(&map), "--out", s(dir.path()), "--band", "2,1"]);
+    assert!(!ok && err.contains("--band"), "{err}");
+    let (ok, _, err) = edtmap(&["picture", s(&map), "--out", s(dir.path()), "--height", "nan"]);
+    assert!(!ok && err.contains("height"), "{err}");
+}

@@ -3,6 +3,9 @@
 //! * [`picture`]: a small RGB [`Canvas`](picture::Canvas) and the pictures
 //!   drawn on it: 2D slices of distances with a colour bar (viridis), and
 //!   slices of occupancy states with a legend, both with axes in metres.
+//! * [`top_view`]: top views of the whole global map ([`TopView`]): the
+//!   states and distances at a height, and their projection through a
+//!   band of heights, in cells that keep a huge map's picture small.
 //! * [`plot`]: line and scatter charts of results ([`Chart`]): per-frame
 //!   stage times, errors against voxel sizes, times against change scores.
 //!
@@ -31,6 +34,8 @@ mod error;
 mod font;
 pub mod picture;
 pub mod plot;
+pub mod top_view;
 
 pub use error::VizError;
 pub use plot::Chart;
+pub use top_view::TopView;

@@ -160,10 +160,10 @@ const PIXELS_PER_TICK: usize = 80;
 
 /// Where a map of cells goes on a canvas: under the title, right of the
 /// y axis labels, above the x axis labels and caption when it has axes.
-struct MapLayout {
+pub(crate) struct MapLayout {
     left: usize,
     top: usize,
-    scale: usize,
+    pub(crate) scale: usize,
     map_w: usize,
     map_h: usize,
     /// Room under the map for the x labels and the caption, pixels.
@@ -178,7 +178,7 @@ struct MapLayout {
 impl MapLayout {
     /// The layout of `cells_x` x `cells_y` cells, each drawn as a square of
     /// the largest scale that keeps the map within 512 pixels.
-    fn new(cells_x: usize, cells_y: usize, axes: Option<&MapAxes>) -> Self {
+    pub(crate) fn new(cells_x: usize, cells_y: usize, axes: Option<&MapAxes>) -> Self {
         let scale = (512 / cells_x.max(cells_y)).max(1);
         let (map_w, map_h) = (cells_x * scale, cells_y * scale);
         let text_h = font::HEIGHT * TEXT_SCALE;
@@ -207,7 +207,7 @@ impl MapLayout {
     }
 
     /// Top left pixel of cell `(x, y)` of a map `cells_y` cells high, `y` upwards.
-    fn cell(&self, x: usize, y: usize, cells_y: usize) -> (usize, usize) {
+    pub(crate) fn cell(&self, x: usize, y: usize, cells_y: usize) -> (usize, usize) {
         (self.left + x * self.scale, self.top + (cells_y - 1 - y) * self.scale)
     }
 
