@@ -1,0 +1,288 @@
+"""`edtmap node` against ROS 2 itself: rclpy on rmw_fastrtps_cpp (ROS 2's
+default RMW), from PyPI wheels (requirements-ros.txt), over loopback.
+
+The test is a robot: it publishes a wall as sensor_msgs/PointCloud2 and
+its pose as nav_msgs/Odometry in frame `odom`, both best effort as
+drivers do, with no `world_frame` in the node's config. It subscribes
+with default QoS to /edtmap/distance_slice, /edtmap/occupancy_grid and
+/edtmap/frame_stats, then joins /edtmap/occupancy_grid late with
+transient-local QoS (as Nav2's costmaps and RViz's Map display do), and
+calls /edtmap/get_distances with edtmap_msgs built from ros/edtmap_msgs by
+the wheels' generators. Every distance is checked against a brute-force
+distance between voxel centres; every output must be in frame `odom`.
+
+Run:  python -m pytest -q tests/interop/test_node_rclpy.py
+(EDTMAP_BIN: the binary, by default target/debug/edtmap from
+`cargo build -p edtmap-cli`; the test skips without it or without rclpy.)
+"""
+import ctypes
+import math
+import os
+import shutil
+import struct
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parent.parent
+# A domain of its own per run, loopback only; before rclpy starts.
+DOMAIN = 20 + os.getpid() % 80
+os.environ.update(ROS_DOMAIN_ID=str(DOMAIN), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", RMW_IMPLEMENTATION="rmw_fastrtps_cpp")
+
+rclpy = pytest.importorskip("rclpy", reason="rclpy is not installed (pip install -r tests/interop/requirements-ros.txt)")
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data  # noqa: E402
+from nav_msgs.msg import OccupancyGrid, Odometry  # noqa: E402
+from sensor_msgs.msg import PointCloud2, PointField  # noqa: E402
+from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
+
+BINARY = Path(os.environ.get("EDTMAP_BIN", ROOT / "target" / "debug" / "edtmap"))
+VOXEL_M = 0.1
+CUTOFF_M = 1.0
+FRAME = "odom"
+
+NODE_CONFIG = f"""\
+[sensor]
+kind = "points"
+construction = "raycast"
+min_range_m = 0.1
+max_range_m = 20.0
+
+[occupancy]
+voxel_size_m = {VOXEL_M}
+local_size_m = [6.0, 6.0, 3.0]
+
+[global]
+max_distance_m = {CUTOFF_M}
+connectivity = 26
+
+[ros]
+sensor_topic = "/points"
+pose_topic = "/odom"
+pose_type = "odometry"
+localhost_only = true
+slice_hz = 50.0
+slice_height_m = 1.05
+pose_wait_s = 2.0
+"""
+
+
+# --- the scene: the plane x = 2.05 m seen from the origin ---------------------
+
+def f32(v):
+    return struct.unpack("<f", struct.pack("<f", v))[0]
+
+
+def wall_points():
+    """Four points per voxel of the wall, none on a voxel boundary."""
+    return [(f32(2.05), f32(-1.475 + 0.05 * j), f32(0.025 + 0.05 * k)) for k in range(40) for j in range(60)]
+
+
+def voxel_of(p):
+    return tuple(math.floor(c / VOXEL_M) for c in p)
+
+
+def brute_distance(v, occupied):
+    """Distance between the centres of voxel `v` and the nearest occupied voxel."""
+    return math.sqrt(min((o[0] - v[0]) ** 2 + (o[1] - v[1]) ** 2 + (o[2] - v[2]) ** 2 for o in occupied)) * VOXEL_M
+
+
+def stamp(t):
+    from builtin_interfaces.msg import Time
+    sec = int(t)
+    return Time(sec=sec, nanosec=int(round((t - sec) * 1e9)))
+
+
+def cloud_msg(points, t):
+    m = PointCloud2()
+    m.header.stamp, m.header.frame_id = stamp(t), "lidar"
+    m.height, m.width = 1, len(points)
+    m.fields = [PointField(name=n, offset=4 * i, datatype=PointField.FLOAT32, count=1) for i, n in enumerate("xyz")]
+    m.is_bigendian, m.point_step, m.row_step, m.is_dense = False, 12, 12 * len(points), True
+    m.data = b"".join(struct.pack("<fff", *p) for p in points)
+    return m
+
+
+def odom_msg(t):
+    """odom -> lidar, identity."""
+    m = Odometry()
+    m.header.stamp, m.header.frame_id, m.child_frame_id = stamp(t), FRAME, "lidar"
+    m.pose.pose.orientation.w = 1.0
+    return m
+
+
+def floats(cloud):
+    names = [f.name for f in cloud.fields]
+    n = cloud.point_step // 4
+    values = struct.unpack(f"<{len(cloud.data) // 4}f", bytes(cloud.data))
+    return names, [values[i:i + n] for i in range(0, len(values), n)]
+
+
+# --- edtmap_msgs, built by the wheels' generators -------------------------------
+
+@pytest.fixture(scope="module")
+def edtmap_msgs(tmp_path_factory):
+    """Builds ros/edtmap_msgs with cmake and the rosidl wheels (no colcon)
+    into a temporary prefix and imports its services."""
+    if shutil.which("cmake") is None or shutil.which("c++") is None:
+        pytest.skip("building edtmap_msgs needs cmake and a C++ compiler")
+    base = tmp_path_factory.mktemp("edtmap_msgs")
+    build, prefix = base / "build", base / "install"
+    venv = Path(sys.prefix)
+    env = dict(os.environ, AMENT_PREFIX_PATH=str(venv), PATH=f"{venv / 'bin'}{os.pathsep}{os.environ.get('PATH', '')}")
+    configure = ["cmake", "-S", str(ROOT / "ros" / "edtmap_msgs"), "-B", str(build), f"-DCMAKE_PREFIX_PATH={venv}",
+                 f"-DCMAKE_INSTALL_PREFIX={prefix}", f"-DPython3_EXECUTABLE={sys.executable}", "-DBUILD_TESTING=OFF",
+                 f"-DCMAKE_PROJECT_INCLUDE={HERE / 'wheel_python_includes.cmake'}",
+                 f"-DCMAKE_INSTALL_RPATH={prefix / 'lib'};{venv / 'lib'}"]
+    for cmd in (configure, ["cmake", "--build", str(build), "-j2", "--target", "install"]):
+        r = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=600)
+        assert r.returncode == 0, f"{' '.join(cmd)}:\n{r.stdout[-4000:]}\n{r.stderr[-4000:]}"
+    lib = prefix / "lib"
+    # rclpy finds a package's type support through the ament index and
+    # LD_LIBRARY_PATH, read when the type is first used.
+    os.environ["AMENT_PREFIX_PATH"] = f"{prefix}{os.pathsep}{os.environ.get('AMENT_PREFIX_PATH', venv)}"
+    os.environ["LD_LIBRARY_PATH"] = f"{lib}{os.pathsep}{os.environ.get('LD_LIBRARY_PATH', '')}"
+    for name in ("rosidl_generator_c", "rosidl_typesupport_c", "rosidl_typesupport_fastrtps_c", "rosidl_typesupport_introspection_c", "rosidl_generator_py"):
+        ctypes.CDLL(str(lib / f"libedtmap_msgs__{name}.so"), mode=ctypes.RTLD_GLOBAL)
+    sys.path.insert(0, str(next(lib.glob("python3*/site-packages"))))
+    from edtmap_msgs.srv import GetDistances
+    return GetDistances
+
+
+# --- the node ---------------------------------------------------------------------
+
+@pytest.fixture
+def node(tmp_path):
+    if not os.access(BINARY, os.X_OK):
+        pytest.skip(f"{BINARY} is missing: cargo build -p edtmap-cli (or set EDTMAP_BIN)")
+    (tmp_path / "node.toml").write_text(NODE_CONFIG)
+    with open(tmp_path / "node.stdout", "wb") as out, open(tmp_path / "node.stderr", "wb") as err:
+        proc = subprocess.Popen([str(BINARY.resolve()), "-v", "node", "--config", "node.toml"], cwd=tmp_path,
+                                stdin=subprocess.DEVNULL, stdout=out, stderr=err)
+    try:
+        yield proc, tmp_path
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        proc.wait()
+
+
+def test_node_maps_what_rclpy_publishes_and_answers_it(node, edtmap_msgs):
+    proc, log_dir = node
+    try:
+        exercise(proc, edtmap_msgs)
+    except BaseException:
+        print(f"--- edtmap node stderr (domain {DOMAIN}) ---\n{(log_dir / 'node.stderr').read_text(errors='replace')}")
+        raise
+
+
+def exercise(proc, GetDistances):
+    rclpy.init()
+    ros = rclpy.create_node("edtmap_rclpy_test")
+    try:
+        run(proc, ros, GetDistances)
+    finally:
+        ros.destroy_node()
+        rclpy.shutdown()
+
+
+def spin_until(proc, ros, what, pred, timeout_s, every=None):
+    """Spins until `pred()`; `every()` is called every 0.25 s meanwhile."""
+    deadline = time.monotonic() + timeout_s
+    next_call = time.monotonic()
+    while time.monotonic() < deadline:
+        if every is not None and time.monotonic() >= next_call:
+            every()
+            next_call = time.monotonic() + 0.25
+        rclpy.spin_once(ros, timeout_sec=0.02)
+        if pred():
+            return
+        if proc.poll() is not None:
+            pytest.fail(f"edtmap node exited early with status {proc.returncode}")
+    pytest.fail(f"timed out after {timeout_s} s waiting for {what}")
+
+
+def run(proc, ros, GetDistances):
+    got = {"slice": None, "grid": None, "stats": None, "late": None}
+
+    def keep(key):
+        return lambda m: got.__setitem__(key, m)
+
+    pub_points = ros.create_publisher(PointCloud2, "/points", qos_profile_sensor_data)
+    pub_odom = ros.create_publisher(Odometry, "/odom", qos_profile_sensor_data)
+    ros.create_subscription(PointCloud2, "/edtmap/distance_slice", keep("slice"), 10)
+    ros.create_subscription(OccupancyGrid, "/edtmap/occupancy_grid", keep("grid"), 10)
+    ros.create_subscription(DiagnosticArray, "/edtmap/frame_stats", keep("stats"), 10)
+    client = ros.create_client(GetDistances, "/edtmap/get_distances")
+
+    spin_until(proc, ros, "the node's /points and /odom subscriptions",
+               lambda: pub_points.get_subscription_count() > 0 and pub_odom.get_subscription_count() > 0, 30)
+    wall = wall_points()
+    sent = []
+
+    def send_frame():
+        t = round(1.0 + 0.1 * len(sent), 3)
+        pub_odom.publish(odom_msg(t))
+        pub_odom.publish(odom_msg(t + 0.05))
+        pub_points.publish(cloud_msg(wall, t))
+        sent.append(t)
+
+    spin_until(proc, ros, "a distance slice, an occupancy grid and frame stats (the node maps frames)",
+               lambda: all(got[k] is not None for k in ("slice", "grid", "stats")), 60, every=send_frame)
+
+    occupied = sorted({voxel_of(p) for p in wall})
+    # Frames: every output in the poses' frame, as no world_frame is set.
+    assert [got[k].header.frame_id for k in ("slice", "grid", "stats")] == [FRAME] * 3
+
+    # The slice: each observed voxel of the layer with its distance.
+    names, points = floats(got["slice"])
+    assert names == ["x", "y", "z", "distance"], names
+    assert len(points) > 100, len(points)
+    bad = [(p, min(brute_distance(voxel_of(p[:3]), occupied), CUTOFF_M)) for p in points
+           if abs(p[3] - min(brute_distance(voxel_of(p[:3]), occupied), CUTOFF_M)) > 1e-4]
+    assert not bad, f"{len(bad)} slice distances differ from brute force, e.g. {bad[:5]}"
+
+    # The grid: 100 on the wall's voxels of the layer, 0 free, -1 unknown.
+    grid = got["grid"]
+    check_grid(grid, occupied)
+
+    # A subscriber that joins late, as a costmap does, gets the latest grid.
+    late_qos = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    ros.create_subscription(OccupancyGrid, "/edtmap/occupancy_grid", keep("late"), late_qos)
+    spin_until(proc, ros, "the occupancy grid on a late transient-local subscription", lambda: got["late"] is not None, 15)
+    assert got["late"].header.frame_id == FRAME
+    check_grid(got["late"], occupied)
+
+    # get_distances, as rclpy on Fast DDS calls it.
+    assert client.wait_for_service(timeout_sec=15), "get_distances is not available to rclpy"
+    queries = [(1.55, 0.05, 1.05), (1.95, 0.05, 1.05), (1.25, -0.65, 0.75), (0.55, 0.05, 0.25), (2.05, 0.05, 1.05)]
+    request = GetDistances.Request()
+    from geometry_msgs.msg import Point
+    request.points = [Point(x=p[0], y=p[1], z=p[2]) for p in queries]
+    request.signed_distance = False
+    future = client.call_async(request)
+    spin_until(proc, ros, "the get_distances reply", future.done, 15)
+    reply = future.result()
+    assert len(reply.distances) == len(queries) == len(reply.states) == len(reply.saturated)
+    for p, d, state in zip(queries, reply.distances, reply.states):
+        # Voxel centres: the interpolation gives the voxel's own distance.
+        want = min(brute_distance(voxel_of(p), occupied), CUTOFF_M)
+        assert abs(d - want) < 1e-5, (p, d, want)
+        assert state == (GetDistances.Request.STATE_OCCUPIED if want == 0 else GetDistances.Request.STATE_FREE), (p, state)
+
+
+def check_grid(grid, occupied):
+    info = grid.info
+    assert abs(info.resolution - VOXEL_M) < 1e-6
+    layer = math.floor(info.origin.position.z / VOXEL_M)
+    ox, oy = round(info.origin.position.x / VOXEL_M), round(info.origin.position.y / VOXEL_M)
+    walls = {(o[0], o[1]) for o in occupied if o[2] == layer}
+    cells = {}
+    for r in range(info.height):
+        for c in range(info.width):
+            cells[(ox + c, oy + r)] = grid.data[r * info.width + c]
+    assert {v for v, cell in cells.items() if cell == 100} == walls & set(cells), "occupied cells differ from the wall's voxels"
+    assert sum(1 for cell in cells.values() if cell == 0) > 100
