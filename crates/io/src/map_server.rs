@@ -96,7 +96,7 @@ fn check_grid(yaml: &Path, grid: &OccupancyGrid2d<'_>) -> Result<(), IoError> {
     if grid.width == 0 || grid.height == 0 || grid.width.checked_mul(grid.height) != Some(grid.states.len()) {
         return bad(format!("a map of {} x {} cells needs that many states, got {}", grid.width, grid.height, grid.states.len()));
     }
-    if !(grid.resolution_m.is_finite() && grid.resolution_m > 0.0) || !grid.origin_m.iter().all(|o| o.is_finite()) {
+    if !(grid.resolution_m.is_finite() && grid.resolution_m > 0.0) || grid.origin_m.iter().any(|o| !o.is_finite()) {
         return bad(format!("resolution {} m and origin {:?} m must be finite, the resolution positive", grid.resolution_m, grid.origin_m));
     }
     Ok(())

@@ -99,9 +99,8 @@ impl TopView {
                 }
                 // An occupied voxel is its own nearest obstacle.
                 let d = if state == VoxelState::Occupied { 0.0 } else { voxel_distance_m(map, v) };
-                if !(self.distance_m[i] <= d) {
-                    self.distance_m[i] = d;
-                }
+                // NaN (nothing observed yet) gives way to any distance.
+                self.distance_m[i] = if self.distance_m[i].is_nan() { d } else { self.distance_m[i].min(d) };
             }
         }
     }
