@@ -68,6 +68,9 @@ LEAN_CHILD = textwrap.dedent("""
     want_dte = ndimage.distance_transform_edt(grid)
     want_edt = edt.edt(grid)
     want_obstacles = ndimage.distance_transform_edt(grid).astype(np.float32)
+    # Without any zero, SciPy measures to a virtual zero before the first row.
+    ones = np.ones_like(grid)
+    want_ones = ndimage.distance_transform_edt(ones, sampling=(2, 1, 3))
     edtmap.edt(np.ascontiguousarray(grid[:9, :9, :9]))  # starts the threads before the limit
     # The float64 output (64 MB) fits, the field besides it (64 MB more) not.
     soft = vm_size() + (100 << 20)
@@ -75,6 +78,7 @@ LEAN_CHILD = textwrap.dedent("""
     assert np.array_equal(edtmap.distance_transform_edt(grid), want_dte)
     assert np.array_equal(edtmap.edt(grid), want_edt)
     assert np.array_equal(edtmap.obstacle_distance(grid == 0), want_obstacles)
+    assert np.array_equal(edtmap.distance_transform_edt(ones, sampling=(2, 1, 3)), want_ones)
     print("equal")
 """)
 

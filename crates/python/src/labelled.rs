@@ -262,7 +262,7 @@ fn line_pass<T, B, S>(
         while b < n && !labels.ends(&lab[b - 1], &lab[b]) {
             b += 1;
         }
-        let before = (a > 0 || border).then(|| a as f64 - 1.0);
+        let before = (a > 0 || border).then_some(a as f64 - 1.0);
         let after = (b < n || border).then_some(b as f64);
         run(&f[a..b], a, w2, before, after, &mut out[a..b], env);
         a = b;

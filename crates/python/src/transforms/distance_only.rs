@@ -145,11 +145,8 @@ impl Job<'_> {
                 g.coords(t * CHUNK + j, &mut c);
                 c[0] += 1;
                 let mut sum = 0.0;
-                for k in 0..g.shape.len() {
-                    let mut d = c[k] as f64;
-                    if g.sampled {
-                        d *= g.spacing[k];
-                    }
+                for (&c, &w) in c.iter().zip(&g.spacing) {
+                    let d = if g.sampled { c as f64 * w } else { c as f64 };
                     sum += d * d;
                 }
                 *o = sum.sqrt();
