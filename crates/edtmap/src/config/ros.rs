@@ -110,6 +110,11 @@ pub struct RosSection {
     /// How long a sensor message waits for a pose at its stamp, seconds;
     /// then it is dropped and counted (`missing transform`).
     pub pose_wait_s: f64,
+    /// For this long after the node starts, while discovery settles, a
+    /// sensor message whose transform has not come keeps waiting (the
+    /// newest few) until this much time has passed since the start,
+    /// seconds; then `pose_wait_s` alone applies.
+    pub startup_pose_wait_s: f64,
     /// Transform history kept, seconds.
     pub tf_history_s: f64,
     /// Metres per unit of 16-bit depth images.
@@ -161,6 +166,7 @@ impl Default for RosSection {
             sensor_in_body: None,
             max_pose_gap_s: super::RECORDING_MAX_POSE_GAP_S,
             pose_wait_s: 0.5,
+            startup_pose_wait_s: 2.0,
             tf_history_s: 10.0,
             depth_scale_m: 0.001,
             intrinsics: Intrinsics::CameraInfo,
@@ -207,6 +213,7 @@ impl RosSection {
         }
         POSE_GAP_S.f64("max_pose_gap_s", self.max_pose_gap_s)?;
         POSE_WAIT_S.f64("pose_wait_s", self.pose_wait_s)?;
+        POSE_WAIT_S.f64("startup_pose_wait_s", self.startup_pose_wait_s)?;
         TF_HISTORY_S.f64("tf_history_s", self.tf_history_s)?;
         DEPTH_SCALE_M.f32("depth_scale_m", self.depth_scale_m)?;
         RATE_HZ.f64("esdf_pointcloud_hz", self.esdf_pointcloud_hz)?;
@@ -256,6 +263,8 @@ mod tests {
         assert!(topic.expect_err("space").to_string().contains("sensor_topic"));
         let wait = RosSection { pose_wait_s: -1.0, ..Default::default() }.validate();
         assert!(wait.expect_err("negative").to_string().contains("pose_wait_s"));
+        let startup = RosSection { startup_pose_wait_s: f64::NAN, ..Default::default() }.validate();
+        assert!(startup.expect_err("NaN").to_string().contains("startup_pose_wait_s"));
         let odom_on_tf = RosSection { pose_type: Some(PoseType::Odometry), ..Default::default() }.validate();
         assert!(odom_on_tf.expect_err("odometry on /tf").to_string().contains("pose_type"));
         let odom = RosSection { pose_topic: "/odom".into(), ..Default::default() };

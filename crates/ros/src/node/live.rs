@@ -2,6 +2,13 @@
 //! arrival order) until the pose source has passed its stamp, then takes
 //! its pose exactly as a recording's replay would; one that waits longer
 //! than `pose_wait_s` is given up with the lookup's reason.
+//!
+//! While discovery settles after the node starts, the transforms often
+//! come later than the first sensor messages (`/tf_static` is matched
+//! only once its publisher is discovered). For `startup_pose_wait_s` from
+//! the start, a message past its own wait keeps waiting until that
+//! window ends, the newest [`MAX_STARTUP_WAITING`] of them; then the
+//! per-message wait alone applies.
 
 use crate::msg::{CameraInfo, Message};
 use crate::poses::{measurement, Poses};
@@ -12,6 +19,9 @@ use std::time::{Duration, Instant};
 
 /// Most sensor messages waiting for a pose; more drop the oldest.
 pub(crate) const MAX_PENDING: usize = 64;
+/// Most messages kept past their own wait during the startup window; more
+/// give up the oldest.
+pub(crate) const MAX_STARTUP_WAITING: usize = 4;
 
 /// What happened to a sensor message that did not become a frame.
 #[derive(Debug, Clone, PartialEq)]
@@ -36,6 +46,8 @@ pub(crate) struct LiveFrames {
     poses: Poses,
     pending: VecDeque<Pending>,
     wait: Duration,
+    /// The end of the startup window.
+    startup_until: Instant,
     history_s: f64,
     newest_pose_s: f64,
     camera: Option<CameraInfo>,
@@ -46,10 +58,19 @@ pub(crate) struct LiveFrames {
 }
 
 impl LiveFrames {
-    /// Frames placed by `opts`; `is_tf` when poses come from `/tf`.
+    /// Frames placed by `opts`; `is_tf` when poses come from `/tf`. No
+    /// startup window until [`Self::with_startup`].
     pub(crate) fn new(opts: RosOptions, is_tf: bool, wait_s: f64, history_s: f64) -> Self {
         let poses = Poses::new(is_tf, &opts);
-        LiveFrames { opts, poses, pending: VecDeque::new(), wait: Duration::from_secs_f64(wait_s), history_s, newest_pose_s: f64::NEG_INFINITY, camera: None, pose_frame: None, world_frame: None }
+        let wait = Duration::try_from_secs_f64(wait_s).unwrap_or(Duration::ZERO);
+        LiveFrames { opts, poses, pending: VecDeque::new(), wait, startup_until: Instant::now(), history_s, newest_pose_s: f64::NEG_INFINITY, camera: None, pose_frame: None, world_frame: None }
+    }
+
+    /// A startup window of `wait_s` from `started`, during which messages
+    /// wait for their transforms up to its end.
+    pub(crate) fn with_startup(mut self, started: Instant, wait_s: f64) -> Self {
+        self.startup_until = started + Duration::try_from_secs_f64(wait_s).unwrap_or(Duration::ZERO);
+        self
     }
 
     /// Adds a pose message (`is_static` for `/tf_static`).
@@ -124,13 +145,17 @@ impl LiveFrames {
     /// gap, an unknown frame).
     pub(crate) fn ready(&mut self, now: Instant) -> Vec<Result<Frame, Skipped>> {
         let mut out = Vec::new();
+        let starting = now < self.startup_until;
         while let Some(p) = self.pending.front() {
             let passed = self.poses.latest(&p.frame_id, &self.opts).is_some_and(|latest| latest >= p.stamp_s);
             let expired = now.saturating_duration_since(p.arrived) >= self.wait;
-            if !passed && !expired {
+            // Past their own wait, the oldest messages form a prefix of the queue.
+            let held = starting && expired && self.pending.iter().take(MAX_STARTUP_WAITING + 1).take_while(|q| now.saturating_duration_since(q.arrived) >= self.wait).count() <= MAX_STARTUP_WAITING;
+            if !passed && (!expired || held) {
                 break;
             }
             let Some(p) = self.pending.pop_front() else { break };
+            let waited = now.saturating_duration_since(p.arrived).as_secs_f64();
             out.push(match self.poses.sensor_pose(p.stamp_s, &p.frame_id, &self.opts) {
                 Ok(t_world_sensor) => {
                     self.world_frame = self.fixed_frame(&p.frame_id).or(self.world_frame.take());
@@ -138,7 +163,7 @@ impl LiveFrames {
                 }
                 Err(e) => Err(Skipped {
                     kind: "missing transform",
-                    reason: format!("no pose for the message at stamp {:.6} s in frame {:?} after waiting {:.3} s: {e}", p.stamp_s, p.frame_id, self.wait.as_secs_f64()),
+                    reason: format!("no pose for the message at stamp {:.6} s in frame {:?} after waiting {waited:.3} s: {e}", p.stamp_s, p.frame_id),
                 }),
             });
         }
@@ -203,6 +228,37 @@ mod tests {
         let skipped = out[0].as_ref().expect_err("no pose");
         assert_eq!(skipped.kind, "missing transform");
         assert!(skipped.reason.contains("lidar"), "{}", skipped.reason);
+    }
+
+    #[test]
+    fn at_startup_a_message_waits_for_its_transform_until_the_window_ends() {
+        let t0 = Instant::now();
+        let mut live = LiveFrames::new(opts(), true, 0.5, 10.0).with_startup(t0, 2.0);
+        // Discovery: the cloud comes 1.5 s before the first transforms.
+        live.add_sensor(cloud(1.0), t0).expect("decodes");
+        assert!(live.ready(t0 + Duration::from_millis(1500)).is_empty(), "kept past pose_wait_s during the startup window");
+        live.add_pose(&tf("base_link", "lidar", 0.0, 0.25), true).expect("static");
+        live.add_pose(&tf("map", "base_link", 0.5, 1.0), false).expect("pose");
+        live.add_pose(&tf("map", "base_link", 1.5, 1.0), false).expect("pose");
+        let frames = live.ready(t0 + Duration::from_millis(1600));
+        assert_eq!(frames.len(), 1);
+        let frame = frames[0].as_ref().expect("placed once its transform came");
+        assert!((frame.t_world_sensor.translation.vector - Vector3::new(1.25, 0.0, 0.0)).norm() < 1e-12);
+
+        // Ten messages with no transform: the newest few wait, the older are given up.
+        let mut live = LiveFrames::new(opts(), true, 0.5, 10.0).with_startup(t0, 2.0);
+        for i in 0..10 {
+            live.add_sensor(cloud(f64::from(i)), t0).expect("decodes");
+        }
+        let out = live.ready(t0 + Duration::from_millis(600));
+        assert_eq!(out.len(), 10 - MAX_STARTUP_WAITING);
+        assert!(out.iter().all(|r| r.as_ref().is_err_and(|s| s.kind == "missing transform")));
+        assert_eq!(live.pending(), MAX_STARTUP_WAITING);
+        // After the window, the per-message wait alone applies.
+        assert_eq!(live.ready(t0 + Duration::from_millis(2000)).len(), MAX_STARTUP_WAITING);
+        live.add_sensor(cloud(20.0), t0 + Duration::from_millis(2000)).expect("decodes");
+        assert!(live.ready(t0 + Duration::from_millis(2400)).is_empty());
+        assert_eq!(live.ready(t0 + Duration::from_millis(2500)).len(), 1);
     }
 
     #[test]

@@ -340,7 +340,7 @@ pub fn start(config: &Config, mapper: Mapper) -> Result<NodeHandle, NodeError> {
         skipped: Mutex::new(BTreeMap::new()),
     });
     let needs_camera_info = config.sensor.kind == SensorKind::Depth && r.intrinsics == Intrinsics::CameraInfo;
-    let live = LiveFrames::new(opts, pose_type == PoseType::Tf, r.pose_wait_s, r.tf_history_s);
+    let live = LiveFrames::new(opts, pose_type == PoseType::Tf, r.pose_wait_s, r.tf_history_s).with_startup(Instant::now(), r.startup_pose_wait_s);
     let mut threads = Vec::new();
     let s = shared.clone();
     threads.push(std::thread::Builder::new().name("edtmap-input".into()).spawn(move || input_loop(&s, sensor_sub, pose_sub, live, needs_camera_info)).map_err(|e| NodeError::Dds(format!("input thread: {e}")))?);
