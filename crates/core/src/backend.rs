@@ -206,6 +206,34 @@ pub struct IntegrateReport {
     pub region_voxels: usize,
     /// Wavefront counters (all zero in exact mode).
     pub waves: WaveCounts,
+    /// Counters of the separable passes (all zero in wavefront mode and
+    /// on a GPU).
+    pub exact: ExactCounts,
+}
+
+/// Counters of one exact integration on the CPU, by pass (x, y, z: the
+/// separable EDT's `g1`, `g2` and the global EDT itself): what changed and
+/// what the passes read to find it.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct ExactCounts {
+    /// Voxels that became obstacles (distance 0) in the global EDT.
+    pub obstacles_added: usize,
+    /// Of those, the ones that had no obstacle among their 26 neighbours
+    /// before (squared distance above 3 voxels²): new islands, whose
+    /// nearest-obstacle region reaches further than a surface's new edge.
+    pub obstacles_added_apart: usize,
+    /// Voxels that stopped being obstacles.
+    pub obstacles_removed: usize,
+    /// Entries each pass changed (pass z: the global EDT's changed voxels).
+    pub changed: [usize; 3],
+    /// Of those, entries whose nearest obstacle alone changed, at the
+    /// same squared distance.
+    pub nearest_only: [usize; 3],
+    /// Outputs each pass recomputed from all their inputs (rescans).
+    pub rescanned: [usize; 3],
+    /// Outputs each pass read: the rescanned ones, those the lowering
+    /// walks and the bisections read.
+    pub visited: [usize; 3],
 }
 
 /// Counters of one wavefront integration.

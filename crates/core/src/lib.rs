@@ -44,7 +44,7 @@ pub mod sensor;
 mod state;
 mod volume;
 
-pub use backend::{Backend, BackendError, BatchEdt, DeviceCounters, IntegrateJob, IntegrateReport, Integration, WaveCounts};
+pub use backend::{Backend, BackendError, BatchEdt, DeviceCounters, ExactCounts, IntegrateJob, IntegrateReport, Integration, WaveCounts};
 pub use fuse::{fuse, read_states, FuseReport};
 pub use observations::Observations;
 pub use region::Region;

@@ -257,6 +257,7 @@ impl WriteBack {
             changed_blocks: self.changed_blocks,
             region_voxels,
             waves,
+            exact: crate::ExactCounts::default(),
         }
     }
 }

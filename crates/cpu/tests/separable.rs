@@ -7,8 +7,9 @@
 //! outside earlier windows, and sometimes hand the backend a map it has not
 //! seen (a clone), so the cache is rebuilt from the map. The blocks the
 //! update reports changed must be exactly those where a voxel changed, and
-//! the voxels it counts and their change in distance those found by
-//! comparing the maps.
+//! the voxels it counts (and among them those whose nearest obstacle alone
+//! changed) and their change in distance those found by comparing the
+//! maps, as the obstacles it counts added and removed are.
 
 use edtmap_core::region::{Packing, Region};
 use edtmap_core::stages::exact::{recompute_exact, ExactBuffers};
@@ -135,7 +136,7 @@ fn check(cutoff_tenths: u32, steps: Vec<(u8, u32, u32, u32)>, clone_at: usize) -
             let d = if o == NO_OFFSET { f64::INFINITY } else { o.iter().map(|&c| f64::from(c).powi(2)).sum() };
             d.min(f64::from(cutoff.max_dist_sq)).sqrt()
         };
-        let (mut changed, mut sum) = (0, 0.0);
+        let (mut changed, mut sum, mut nearest_only) = (0, 0.0, 0);
         for &k in &differ {
             for o in 0..BLOCK_VOXELS {
                 let at = |m: &EdtMap| m.get(k).map_or(NO_OFFSET, |b| b.to_nearest[o]);
@@ -143,10 +144,24 @@ fn check(cutoff_tenths: u32, steps: Vec<(u8, u32, u32, u32)>, clone_at: usize) -
                 if was != now {
                     changed += 1;
                     sum += (capped(now) - capped(was)).abs();
+                    nearest_only += usize::from(before.get(k).map(|b| b.dist_sq(o)) == map.get(k).map(|b| b.dist_sq(o)));
                 }
             }
         }
         prop_assert_eq!(report.voxels_changed, changed, "step {}: voxels changed", i);
+        // Of those, the ones whose nearest obstacle alone changed; the
+        // obstacles that appeared (apart: no obstacle among their 26
+        // neighbours before) and vanished.
+        prop_assert_eq!((report.exact.changed[2], report.exact.nearest_only[2]), (changed, nearest_only), "step {}: nearest only", i);
+        let added: Vec<VoxelIndex> = world.set.iter().copied().filter(|&v| before.entry(v).0 != 0).collect();
+        let apart = added.iter().filter(|&&v| before.entry(v).0 > 3).count();
+        let removed = before.iter().flat_map(|(k, b)| (0..BLOCK_VOXELS).filter(move |&o| b.dist_sq(o) == 0).map(move |o| k.voxel(o))).filter(|v| !world.set.contains(v)).count();
+        prop_assert_eq!(
+            (report.exact.obstacles_added, report.exact.obstacles_added_apart, report.exact.obstacles_removed),
+            (added.len(), apart, removed),
+            "step {}: obstacles added, apart, removed",
+            i
+        );
         prop_assert!((report.change_sum_vox - sum).abs() <= 1e-9 * sum.max(1.0), "step {}: change sum {} against {}", i, report.change_sum_vox, sum);
         let want = reference(&world, cutoff);
         prop_assert_eq!(map.len(), want.len(), "step {}: blocks", i);

@@ -4,7 +4,7 @@ use crate::MapError;
 use edtmap_core::sensor::{Frame, Sensor};
 use edtmap_core::stages::{local_field, BatchEdtStage, IntegrationStage, OccupancyStage, OgmOptions};
 use edtmap_core::{
-    read_states, Backend, BlockKey, EdtField, EdtParams, GlobalMap, GlobalParams, Grid3, IntegrateReport, IntegrationMode, LocalVolume, OccupancyParams, Region, VolumeParams,
+    read_states, Backend, BlockKey, EdtField, EdtParams, ExactCounts, GlobalMap, GlobalParams, Grid3, IntegrateReport, IntegrationMode, LocalVolume, OccupancyParams, Region, VolumeParams,
     VoxelIndex, VoxelState, WaveCounts,
 };
 use edtmap_cpu::query::{self, Distance, PointState};
@@ -80,6 +80,9 @@ pub struct FrameStats {
     pub integrate_region_voxels: usize,
     /// Wavefront counters (frontiers A, B, C, levels).
     pub waves: WaveCounts,
+    /// Exact mode's counters (obstacles added and removed; per pass,
+    /// entries changed, changed at the same distance, rescanned, read).
+    pub exact: ExactCounts,
     /// Blocks of the global map: occupancy, EDT and fixed obstacles.
     pub map_blocks: usize,
     /// Memory those blocks hold, bytes.
@@ -247,6 +250,7 @@ impl<B: Backend> Mapper<B> {
             change_score_m: merged.change_sum_vox * self.params.voxel_size_m / mapped_voxels as f64,
             integrate_region_voxels: merged.region_voxels,
             waves: merged.waves,
+            exact: merged.exact,
             map_blocks: self.map.occupancy().len() + self.map.edt().len() + self.map.fixed_obstacles().len(),
             map_bytes: self.map.bytes(),
         })

@@ -54,7 +54,7 @@
 use crate::awake::{awake, share_out};
 use crate::edt::envelope::{envelope, sweep_row, EnvelopeScratch, Line};
 use edtmap_core::{
-    BlockKey, BlockMap, Cutoff, EdtBlock, EdtMap, IntegrateReport, MapStamp, Obstacles, SharedBlock, VoxelIndex, WaveCounts, BLOCK_SIDE, BLOCK_VOXELS, FAR_DIST_SQ, NO_OFFSET,
+    BlockKey, BlockMap, Cutoff, EdtBlock, EdtMap, ExactCounts, IntegrateReport, MapStamp, Obstacles, SharedBlock, VoxelIndex, WaveCounts, BLOCK_SIDE, BLOCK_VOXELS, FAR_DIST_SQ, NO_OFFSET,
     NO_SITE, UNREACHABLE_DIST_SQ,
 };
 use rayon::prelude::*;
@@ -126,21 +126,46 @@ fn update_in_pool(map: &mut EdtMap, obstacles: &Obstacles<'_>, blocks: &[BlockKe
     // Obstacles that appeared or vanished: the map's against `obstacles`,
     // one mask per block. The map's obstacles are its `g1` entries at 0
     // (a third of the bytes of its EDT blocks, and compared 16 at a time).
-    let g1 = &cache.g1;
-    let flips: Dirty = share_out(blocks.iter().copied(), blocks.len() >= 2 * MIN_TASKS, || (), |(), key| {
-        let mut m = obstacles.block_bits(key);
+    let (g1, edt): (_, &EdtMap) = (&cache.g1, map);
+    let found = share_out(blocks.iter().copied(), blocks.len() >= 2 * MIN_TASKS, || (), |(), key| {
+        let now = obstacles.block_bits(key);
+        let mut m = now;
         if let Some(b) = g1.get(&key) {
             for (w, o) in m.iter_mut().zip(mask_where(b, |&d| d == 0)) {
                 *w ^= o;
             }
         }
-        m.iter().any(|&w| w != 0).then_some((key, m))
-    })
-    .into_iter()
-    .flatten()
-    .collect();
+        // Counted for the report: obstacles that appeared (flipped and
+        // there now), those of them with no obstacle among their 26
+        // neighbours before, and those that vanished.
+        let mut counts = [0; 3];
+        let old = edt.get(key);
+        for (i, (&f, &o)) in m.iter().zip(&now).enumerate() {
+            let mut added = f & o;
+            counts[0] += added.count_ones() as usize;
+            counts[2] += (f & !o).count_ones() as usize;
+            while added != 0 {
+                let at = 64 * i + added.trailing_zeros() as usize;
+                added &= added - 1;
+                counts[1] += usize::from(old.is_none_or(|b| b.dist_sq(at) > 3));
+            }
+        }
+        (counts[0] + counts[2] != 0).then_some((key, m, counts))
+    });
+    let mut counts = [0; 3];
+    let flips: Dirty = found
+        .into_iter()
+        .flatten()
+        .map(|(key, m, c)| {
+            for (t, c) in counts.iter_mut().zip(c) {
+                *t += c;
+            }
+            (key, m)
+        })
+        .collect();
     let dirty = flips.iter().map(|(&k, &m)| (k, m, None)).collect();
-    let report = run_passes(map, &pass, cache, dirty, &flips, true);
+    let mut report = run_passes(map, &pass, cache, dirty, &flips, true);
+    [report.exact.obstacles_added, report.exact.obstacles_added_apart, report.exact.obstacles_removed] = counts;
     cache.valid_for = Some((map.stamp(), cutoff));
     cache.roots = Some(roots);
     report
@@ -264,10 +289,10 @@ fn run_passes(map: &mut EdtMap, pass: &Pass<'_>, cache: &mut SeparableCache, dir
     // Pass x: the rows through the obstacles that changed.
     let edt: &EdtMap = map;
     let (value1, value2) = (g1_value, g2_value);
-    let (dirty1, _) = drive(&mut Cached { map: g1, none: NONE }, 0, dirty, None::<&Rescan>, pass, |s, seg, _, out| pass.row(edt, flips, seg, s, out), value1, |_, _| 0.0);
+    let (dirty1, x) = drive(&mut Cached { map: g1, none: NONE }, 0, dirty, None::<&Rescan>, pass, |s, seg, _, out| pass.row(edt, flips, seg, s, out), value1, |_, _| 0.0);
     // Pass y: the columns through the g1 entries that changed.
     let g1: &FxHashMap<_, _> = g1;
-    let (dirty2, _) = drive(&mut Cached { map: g2, none: NONE2 }, 1, dirty1, Some(&LowerY { g1 }), pass, |s, seg, col, out| pass.column(g1, col, seg, s, out), value2, |_, _| 0.0);
+    let (dirty2, y) = drive(&mut Cached { map: g2, none: NONE2 }, 1, dirty1, Some(&LowerY { g1 }), pass, |s, seg, col, out| pass.column(g1, col, seg, s, out), value2, |_, _| 0.0);
     if !last {
         return IntegrateReport::default();
     }
@@ -278,17 +303,25 @@ fn run_passes(map: &mut EdtMap, pass: &Pass<'_>, cache: &mut SeparableCache, dir
     // loaded again after every write of the lowering.)
     let (exact, max) = (&pass.roots.exact[..], pass.max);
     let truncated = move |d: u32| root(exact, d.min(max));
-    let (changed, stats) = drive(map, 2, dirty2, Some(&LowerZ { g2 }), pass, |s, seg, col, out| pass.depth(g2, col, seg, s, out), |v: Out| v.0, |o: Out, n: Out| {
+    let (changed, z) = drive(map, 2, dirty2, Some(&LowerZ { g2 }), pass, |s, seg, col, out| pass.depth(g2, col, seg, s, out), |v: Out| v.0, |o: Out, n: Out| {
         (truncated(n.0) - truncated(o.0)).abs()
     });
     let mut changed_blocks: Vec<BlockKey> = changed.into_iter().map(|c| c.0).collect();
     changed_blocks.sort_unstable();
+    let passes = [x, y, z];
     IntegrateReport {
-        voxels_changed: stats.changed,
-        change_sum_vox: stats.sum,
+        voxels_changed: z.changed,
+        change_sum_vox: z.sum,
         changed_blocks,
-        region_voxels: stats.visited,
+        region_voxels: z.visited,
         waves: WaveCounts::default(),
+        exact: ExactCounts {
+            changed: passes.map(|p| p.changed),
+            nearest_only: passes.map(|p| p.same),
+            rescanned: passes.map(|p| p.rescanned),
+            visited: passes.map(|p| p.visited),
+            ..ExactCounts::default()
+        },
     }
 }
 
@@ -412,18 +445,28 @@ fn warm<T>(b: &T) {
     std::hint::black_box(b);
 }
 
-/// What one pass changed.
+/// What one pass changed, and what it read to find it.
 #[derive(Debug, Default, Clone, Copy)]
 struct Stats {
+    /// Entries changed.
     changed: usize,
+    /// Of those, entries whose value stayed (only where it comes from
+    /// changed).
+    same: usize,
+    /// The pass's `amount` summed over the changed entries.
     sum: f64,
+    /// Outputs rescanned.
+    rescanned: usize,
+    /// Outputs read.
     visited: usize,
 }
 
 impl Stats {
     fn add(&mut self, o: Stats) {
         self.changed += o.changed;
+        self.same += o.same;
         self.sum += o.sum;
+        self.rescanned += o.rescanned;
         self.visited += o.visited;
     }
 }
@@ -931,6 +974,7 @@ where
                         L::write(block, o, new);
                         mask[o / 64] |= 1 << (o % 64);
                         st.changed += 1;
+                        st.same += usize::from(value(old) == value(new));
                         st.sum += amount(old, new);
                         if L::FEEDS_NEXT {
                             note(changed, o, old, new);
@@ -1008,6 +1052,7 @@ where
                         scan(s, *seg, col, out);
                         let first = seg.lo - reach;
                         st.visited += out.len();
+                        st.rescanned += out.len();
                         let mut j = blocks.partition_point(|x| x.0 < first.div_euclid(side));
                         by_block(seg.line, axis, first, out.len(), |key, o0, stride, range| {
                             while blocks[j].0 != key.0[axis] {
@@ -1200,6 +1245,7 @@ fn walk<L: Layer, Lo: Lower<L::Value>>(
                     L::write(block, o, new);
                     mask[o / 64] |= 1 << (o % 64);
                     st.changed += 1;
+                    st.same += usize::from(key.is_some_and(|k| k.0 == dq));
                     st.sum += amount(old, new);
                     if L::FEEDS_NEXT {
                         note(how, o, old, new);
