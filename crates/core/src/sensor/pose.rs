@@ -39,7 +39,7 @@ pub fn check_pose(t: &Isometry3<f64>) -> Result<(), CoreError> {
 }
 
 /// The rotation of a 3 × 3 matrix and its deviation |RᵀR − I| (largest
-/// entry). Within [`ROTATION_NOTED`] the matrix's own quaternion is taken;
+/// entry). Within [`ROTATION_NOTED`] the matrix's own quaternion is taken (normalised);
 /// up to [`ROTATION_TOLERANCE`] the matrix is first projected onto the
 /// nearest rotation (the orthogonal polar factor, `U Vᵀ` of its SVD);
 /// beyond it, or with a negative determinant, it is refused.
@@ -55,10 +55,11 @@ pub fn rotation_from_matrix(r: &Matrix3<f64>) -> Result<(UnitQuaternion<f64>, f6
              write the pose's rotation with more digits, or re-orthonormalise it"
         )));
     }
-    if deviation <= ROTATION_NOTED {
-        return Ok((UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(*r)), deviation));
-    }
-    Ok((UnitQuaternion::from_rotation_matrix(&nearest_rotation(r)), deviation))
+    let rotation = if deviation <= ROTATION_NOTED { Rotation3::from_matrix_unchecked(*r) } else { nearest_rotation(r) };
+    // The matrix's quaternion has a norm off by about the deviation:
+    // normalised, it is a unit quaternion to the last bit, and a reader
+    // given it back (Python, a recording) keeps it bit for bit.
+    Ok((UnitQuaternion::from_quaternion(*UnitQuaternion::from_rotation_matrix(&rotation).quaternion()), deviation))
 }
 
 /// The rotation nearest to `r` in the Frobenius norm: `U Vᵀ` of its SVD,
