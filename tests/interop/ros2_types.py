@@ -210,6 +210,8 @@ class GetDistances_Request(IdlStruct, typename="edtmap_msgs::srv::dds_::GetDista
 class GetDistances_Response(IdlStruct, typename="edtmap_msgs::srv::dds_::GetDistances_Response_"):
     client_guid: uint64 = 0  # request header, echoed
     seq: int64 = 0           # request header, echoed
+    success: bool = False
+    message: str = ""
     map_stamp: Time = field(default_factory=Time)
     distances: sequence[float64] = field(default_factory=list)
     gradients: sequence[Vector3] = field(default_factory=list)

@@ -282,6 +282,7 @@ def run(proc, ros, GetDistances):
     future = client.call_async(request)
     spin_until(proc, ros, "the get_distances reply", future.done, 15)
     reply = future.result()
+    assert reply.success, reply.message
     assert len(reply.distances) == len(queries) == len(reply.states) == len(reply.saturated)
     for p, d, state in zip(queries, reply.distances, reply.states):
         # Voxel centres: the interpolation gives the voxel's own distance.

@@ -222,6 +222,7 @@ fn drive(d: &Path, domain: u16, frames: u64, sensor_topic: &str) {
     let id = distances.send_request(req).expect("request");
     let resp = wait(Duration::from_secs(20), || distances.receive_response().ok().flatten().filter(|(rid, _)| *rid == id).map(|(_, r)| r)).expect("get_distances answers");
     let want = edtmap::cpu::query::distances(&map, &query.iter().map(|p| [p.x, p.y, p.z]).collect::<Vec<_>>(), false);
+    assert!(resp.success, "{}", resp.message);
     assert_eq!(resp.distances.len(), want.len());
     for (i, w) in want.iter().enumerate() {
         let same = resp.distances[i].to_bits() == w.distance_m.to_bits() || (resp.distances[i].is_nan() && w.distance_m.is_nan());

@@ -22,6 +22,8 @@ mod rpc;
 mod services;
 pub mod types;
 
+pub use services::{QueryLimits, MAX_BOX_VOXELS, MAX_QUERY_POINTS};
+
 use crate::msg::{CameraInfo, Message};
 use crate::RosOptions;
 use edtmap::config::{Config, Intrinsics, OccupiedScope, PoseType, SensorKind, ServiceMapping};
@@ -325,7 +327,8 @@ pub fn start(config: &Config, mapper: Mapper) -> Result<NodeHandle, NodeError> {
     if r.service_mapping != ServiceMapping::Auto {
         tracing::info!("[ros] service_mapping is no longer needed: services answer Fast DDS and Cyclone DDS clients alike");
     }
-    let servers = services::Servers::create(&context.domain_participant(), ns)?;
+    let budget = mapper.params().max_memory_bytes.map_or_else(edtmap_core::MemoryBudget::from_system, edtmap_core::MemoryBudget::with_limit);
+    let servers = services::Servers::create(&context.domain_participant(), ns, services::QueryLimits::of_budget(budget.limit_bytes()))?;
 
     let snapshot = Snapshot { map: mapper.map().clone(), volume: None, stamp_ns: 0, frames: 0 };
     let shared = Arc::new(Shared {

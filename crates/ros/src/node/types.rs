@@ -468,6 +468,10 @@ pub struct GetDistancesRequest {
 /// `edtmap_msgs/GetDistances` response.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct GetDistancesResponse {
+    /// Whether the points were answered (false: too many for one call).
+    pub success: bool,
+    /// Why not, when they were not.
+    pub message: String,
     /// Stamp of the latest frame the answers include.
     pub map_stamp: Time,
     /// Distance per point, metres; NaN outside the mapped range.
