@@ -26,11 +26,36 @@ pub(crate) const MAX_STARTUP_WAITING: usize = 4;
 /// What happened to a sensor message that did not become a frame.
 #[derive(Debug, Clone, PartialEq)]
 pub(crate) struct Skipped {
-    /// A short kind for counting (`missing transform`, `bad message`,
-    /// `pose queue full`).
+    /// A short kind for counting and logging once (`missing transform`,
+    /// `bad message: ...` per malformation, `pose queue full`).
     pub(crate) kind: &'static str,
     /// The whole reason.
     pub(crate) reason: String,
+}
+
+/// The kind a malformed sensor message is counted and logged under, one
+/// per malformation, from the decoder's reason.
+pub(crate) fn malformation(reason: &str) -> &'static str {
+    const KINDS: [(&str, &[&str], &str); 12] = [
+        ("PointCloud2", &["has no field"], "bad message: PointCloud2 without x, y or z"),
+        ("PointCloud2", &["unknown datatype"], "bad message: PointCloud2 field of unknown datatype"),
+        ("PointCloud2", &["exceeds point_step"], "bad message: PointCloud2 point_step < its fields"),
+        ("PointCloud2", &["row_step"], "bad message: PointCloud2 row_step < width × point_step"),
+        ("PointCloud2", &["bytes of data"], "bad message: PointCloud2 data shorter than its points"),
+        ("Image", &["encoding"], "bad message: Image encoding not a depth"),
+        ("Image", &["is empty"], "bad message: Image empty"),
+        ("Image", &["step"], "bad message: Image step < width × pixel"),
+        ("Image", &["needs"], "bad message: Image data shorter than its rows"),
+        ("LaserScan", &["no ranges"], "bad message: LaserScan without ranges"),
+        ("LaserScan", &["angle", "turn"], "bad message: LaserScan angles"),
+        ("LaserScan", &[""], "bad message: LaserScan other"),
+    ];
+    for (prefix, words, kind) in KINDS {
+        if reason.starts_with(prefix) && words.iter().any(|w| reason.contains(w)) {
+            return kind;
+        }
+    }
+    "bad message: other"
 }
 
 struct Pending {
@@ -122,7 +147,7 @@ impl LiveFrames {
     /// does not decode is skipped at once. The stamp is taken as it is
     /// (0 included: simulated time starts there), in the poses' clock.
     pub(crate) fn add_sensor(&mut self, msg: Message, now: Instant) -> Result<(), Skipped> {
-        let (measurement, stamp_ns, frame_id) = measurement(msg, self.opts.depth_scale_m).map_err(|reason| Skipped { kind: "bad message", reason })?;
+        let (measurement, stamp_ns, frame_id) = measurement(msg, self.opts.depth_scale_m).map_err(|reason| Skipped { kind: malformation(&reason), reason })?;
         let stamp_s = stamp_ns as f64 * 1e-9;
         self.pending.push_back(Pending { measurement, stamp_s, frame_id, arrived: now });
         if self.pending.len() > MAX_PENDING {
@@ -267,12 +292,43 @@ mod tests {
         let t0 = Instant::now();
         let mut bad = PointCloud2::from_points(Header::default(), &[[1.0, 0.0, 0.0]]);
         bad.point_step = 7;
-        assert_eq!(live.add_sensor(Message::PointCloud2(bad), t0).expect_err("bad step").kind, "bad message");
+        assert_eq!(live.add_sensor(Message::PointCloud2(bad), t0).expect_err("bad step").kind, "bad message: PointCloud2 point_step < its fields");
         for i in 0..MAX_PENDING {
             live.add_sensor(cloud(i as f64), t0).expect("queued");
         }
         assert_eq!(live.add_sensor(cloud(99.0), t0).expect_err("full").kind, "pose queue full");
         assert_eq!(live.pending(), MAX_PENDING);
+    }
+
+    #[test]
+    fn each_malformation_has_its_own_kind() {
+        use crate::msg::{Image, LaserScanMsg};
+        let good = PointCloud2::from_points(Header::default(), &[[1.0, 0.0, 0.0], [2.0, 0.0, 0.0]]);
+        let cloud = |f: &dyn Fn(&mut PointCloud2)| {
+            let mut c = good.clone();
+            f(&mut c);
+            Message::PointCloud2(c)
+        };
+        let image = |encoding: &str, width: u32, step: u32, bytes: usize| Message::Image(Image { header: Header::default(), height: 2, width, encoding: encoding.into(), is_bigendian: false, step, data: vec![0; bytes] });
+        let scan = |ranges: Vec<f32>, angle_increment: f32| Message::LaserScan(LaserScanMsg { header: Header::default(), angle_min: 0.0, angle_max: 1.0, angle_increment, time_increment: 0.0, scan_time: 0.0, range_min: 0.1, range_max: 10.0, ranges, intensities: Vec::new() });
+        let bad = [
+            cloud(&|c| c.fields.clear()),
+            cloud(&|c| c.fields[0].datatype = 99),
+            cloud(&|c| c.point_step = 7),
+            cloud(&|c| c.row_step = 1),
+            cloud(&|c| c.data.truncate(5)),
+            image("rgb8", 2, 4, 8),
+            image("16UC1", 0, 4, 8),
+            image("16UC1", 2, 3, 8),
+            image("16UC1", 2, 4, 7),
+            scan(Vec::new(), 0.1),
+            scan(vec![1.0; 4], 0.0),
+        ];
+        let mut live = LiveFrames::new(opts(), true, 0.5, 10.0);
+        let kinds: Vec<&str> = bad.into_iter().map(|m| live.add_sensor(m, Instant::now()).expect_err("malformed").kind).collect();
+        let distinct: std::collections::BTreeSet<&str> = kinds.iter().copied().collect();
+        assert_eq!(distinct.len(), kinds.len(), "{kinds:?}");
+        assert!(kinds.iter().all(|k| k.starts_with("bad message: ") && *k != "bad message: other" && *k != "bad message: LaserScan other"), "{kinds:?}");
     }
 
     #[test]

@@ -401,7 +401,7 @@ fn drain<M: 'static + serde::de::DeserializeOwned>(sub: &Subscription<M>, shared
         match sub.take() {
             Ok(Some((m, _))) => f(m),
             Ok(None) => break,
-            Err(e) => shared.skip(&Skipped { kind: "bad message", reason: format!("undecodable sample: {e:?}") }),
+            Err(e) => shared.skip(&Skipped { kind: "bad message: undecodable CDR", reason: format!("undecodable sample: {e:?}") }),
         }
     }
 }
