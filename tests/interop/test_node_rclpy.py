@@ -303,3 +303,118 @@ def check_grid(grid, occupied):
             cells[(ox + c, oy + r)] = grid.data[r * info.width + c]
     assert {v for v, cell in cells.items() if cell == 100} == walls & set(cells), "occupied cells differ from the wall's voxels"
     assert sum(1 for cell in cells.values() if cell == 0) > 100
+
+
+# --- a large ESDF cloud to a default-QoS subscriber ----------------------------
+
+# configs/ros2_lidar.toml's map (0.2 m voxels, a 40 x 40 x 8 m window, a
+# 2 m cutoff), poses from /odom, the ESDF cloud at 2 Hz.
+LIDAR_CONFIG = """\
+[sensor]
+kind = "points"
+construction = "raycast"
+min_range_m = 0.5
+max_range_m = 40.0
+
+[occupancy]
+voxel_size_m = 0.2
+local_size_m = [40.0, 40.0, 8.0]
+
+[global]
+max_distance_m = 2.0
+connectivity = 26
+
+[ros]
+sensor_topic = "/points"
+pose_topic = "/odom"
+pose_type = "odometry"
+localhost_only = true
+esdf_pointcloud_hz = 2.0
+slice_hz = 0.0
+occupied_pointcloud_hz = 0.0
+pose_wait_s = 2.0
+"""
+
+
+def cylinder_points():
+    """A wall around the sensor: a cylinder of radius 12 m, 8 m high."""
+    n_around, n_up = 760, 80
+    return [(f32(12.0 * math.cos(2 * math.pi * i / n_around)), f32(12.0 * math.sin(2 * math.pi * i / n_around)), f32(-3.95 + 0.1 * k))
+            for k in range(n_up) for i in range(n_around)]
+
+
+def packed_cloud(points, t):
+    m = cloud_msg([], t)
+    m.width, m.row_step = len(points), 12 * len(points)
+    m.data = struct.pack(f"<{3 * len(points)}f", *(c for p in points for c in p))
+    return m
+
+
+@pytest.fixture
+def lidar_node(tmp_path):
+    if not os.access(BINARY, os.X_OK):
+        unavailable(f"{BINARY} is missing: cargo build -p edtmap-cli (or set EDTMAP_BIN)")
+    (tmp_path / "node.toml").write_text(LIDAR_CONFIG + os.environ.get("EDTMAP_ESDF_CONFIG_EXTRA", ""))
+    with open(tmp_path / "node.stdout", "wb") as out, open(tmp_path / "node.stderr", "wb") as err:
+        proc = subprocess.Popen([str(BINARY.resolve()), "node", "--config", "node.toml"], cwd=tmp_path,
+                                stdin=subprocess.DEVNULL, stdout=out, stderr=err)
+    try:
+        yield proc, tmp_path
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        proc.wait()
+
+
+def test_esdf_pointcloud_reaches_a_default_qos_subscriber(lidar_node):
+    """The ESDF cloud of configs/ros2_lidar.toml's map around a wall,
+    published at 2 Hz, to an rclpy subscriber with default QoS (reliable,
+    keep last 10): prints the delivery ratio over 10 s and the time from
+    the first frame to the first cloud, and requires that clouds arrive.
+    RustDDS sends a sample's fragments in one burst and Fast DDS's reader
+    socket drops what overflows its buffer, so the larger the cloud the
+    fewer arrive; `esdf_pointcloud_z_m`'s default height band keeps it
+    small (EDTMAP_ESDF_CONFIG_EXTRA adds [ros] lines, e.g.
+    `esdf_pointcloud_z_m = [-1000.0, 1000.0]` for the whole window)."""
+    proc, _ = lidar_node
+    rclpy.init()
+    ros = rclpy.create_node("edtmap_rclpy_esdf")
+    try:
+        received = []
+        ros.create_subscription(PointCloud2, "/edtmap/esdf_pointcloud", lambda m: received.append((time.monotonic(), len(m.data))), 10)
+        pub_points = ros.create_publisher(PointCloud2, "/points", qos_profile_sensor_data)
+        pub_odom = ros.create_publisher(Odometry, "/odom", qos_profile_sensor_data)
+        spin_until(proc, ros, "the node's /points and /odom subscriptions",
+                   lambda: pub_points.get_subscription_count() > 0 and pub_odom.get_subscription_count() > 0, 30)
+        wall = cylinder_points()
+        sent = []
+
+        def send_frame():
+            t = round(1.0 + 0.1 * len(sent), 3)
+            pub_odom.publish(odom_msg(t))
+            pub_odom.publish(odom_msg(t + 0.05))
+            pub_points.publish(packed_cloud(wall, t))
+            sent.append(time.monotonic())
+
+        first_sent = time.monotonic()
+        deadline = first_sent + 20.0
+        while not received and time.monotonic() < deadline:
+            if not sent or time.monotonic() - sent[-1] > 0.5:
+                send_frame()
+            rclpy.spin_once(ros, timeout_sec=0.02)
+        first_latency = received[0][0] - first_sent if received else float("inf")
+        # Then 10 s at 2 Hz: 20 clouds published.
+        received.clear()
+        start = time.monotonic()
+        while time.monotonic() - start < 10.0:
+            if time.monotonic() - sent[-1] > 0.2:
+                send_frame()
+            rclpy.spin_once(ros, timeout_sec=0.02)
+        ratio = len(received) / 20.0
+        size = max((n for _, n in received), default=0)
+        print(f"\nesdf_pointcloud to a default-QoS rclpy subscriber: {len(received)}/20 delivered in 10 s (ratio {ratio:.2f}), "
+              f"{size} bytes each, first after {first_latency:.2f} s")
+        assert received, f"no ESDF cloud arrived in 10 s (the first after {first_latency:.2f} s)"
+    finally:
+        ros.destroy_node()
+        rclpy.shutdown()

@@ -124,6 +124,10 @@ pub struct RosSection {
     pub intrinsics: Intrinsics,
     /// `/edtmap/esdf_pointcloud` rate, Hz (0: never).
     pub esdf_pointcloud_hz: f64,
+    /// Heights of the voxels `/edtmap/esdf_pointcloud` holds, `[lowest,
+    /// highest]`, metres, world frame: by default a ground robot's 0 to
+    /// 2 m, so the cloud stays small enough for a default-QoS subscriber.
+    pub esdf_pointcloud_z_m: [f64; 2],
     /// `/edtmap/occupied_pointcloud` rate, Hz (0: never).
     pub occupied_pointcloud_hz: f64,
     /// What the occupied cloud covers: `window` or `map`.
@@ -171,6 +175,7 @@ impl Default for RosSection {
             depth_scale_m: 0.001,
             intrinsics: Intrinsics::CameraInfo,
             esdf_pointcloud_hz: 2.0,
+            esdf_pointcloud_z_m: [0.0, 2.0],
             occupied_pointcloud_hz: 1.0,
             occupied_scope: OccupiedScope::Window,
             slice_hz: 2.0,
@@ -217,6 +222,10 @@ impl RosSection {
         TF_HISTORY_S.f64("tf_history_s", self.tf_history_s)?;
         DEPTH_SCALE_M.f32("depth_scale_m", self.depth_scale_m)?;
         RATE_HZ.f64("esdf_pointcloud_hz", self.esdf_pointcloud_hz)?;
+        WORLD_M.all("esdf_pointcloud_z_m", &self.esdf_pointcloud_z_m)?;
+        if self.esdf_pointcloud_z_m[0] > self.esdf_pointcloud_z_m[1] {
+            return Err(invalid("esdf_pointcloud_z_m", format!("{:?}", self.esdf_pointcloud_z_m), "must be [lowest, highest] with lowest <= highest"));
+        }
         RATE_HZ.f64("occupied_pointcloud_hz", self.occupied_pointcloud_hz)?;
         RATE_HZ.f64("slice_hz", self.slice_hz)?;
         WORLD_M.f64("slice_height_m", self.slice_height_m)?;

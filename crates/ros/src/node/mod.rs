@@ -502,6 +502,7 @@ struct Rates {
     slice: Option<Duration>,
     scope: OccupiedScope,
     slice_height_m: f64,
+    esdf_z_m: [f64; 2],
     clearing: Option<(f64, Duration)>,
     clearing_save: Option<PathBuf>,
 }
@@ -512,7 +513,7 @@ impl Rates {
         let r = &config.ros;
         let clearing = (r.map_clearing_radius_m > 0.0).then(|| (r.map_clearing_radius_m, Duration::from_secs_f64(r.map_clearing_period_s)));
         let clearing_save = r.map_clearing_save.clone();
-        Rates { esdf: period(r.esdf_pointcloud_hz), occupied: period(r.occupied_pointcloud_hz), slice: period(r.slice_hz), scope: r.occupied_scope, slice_height_m: r.slice_height_m, clearing, clearing_save }
+        Rates { esdf: period(r.esdf_pointcloud_hz), occupied: period(r.occupied_pointcloud_hz), slice: period(r.slice_hz), scope: r.occupied_scope, slice_height_m: r.slice_height_m, esdf_z_m: r.esdf_pointcloud_z_m, clearing, clearing_save }
     }
 }
 
@@ -620,7 +621,7 @@ fn mapping_loop(shared: &Shared, mut mapper: Mapper, out: Outputs, rates: Rates,
         let publish_failed = |what: &str, e: String| tracing::debug!("publishing {what}: {e}");
         if let Some(volume) = &volume {
             if due(rates.esdf, &mut last_esdf, now) {
-                if let Err(e) = out.esdf.publish(outputs::esdf_cloud(&snapshot.map, volume, header.clone())) {
+                if let Err(e) = out.esdf.publish(outputs::esdf_cloud(&snapshot.map, volume, rates.esdf_z_m, header.clone())) {
                     publish_failed("esdf_pointcloud", format!("{e:?}"));
                 }
             }

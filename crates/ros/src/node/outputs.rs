@@ -38,15 +38,16 @@ fn window_voxels(map: &GlobalMap, volume: &LocalVolume, mut f: impl FnMut(VoxelI
 }
 
 /// `/edtmap/esdf_pointcloud`: x, y, z, distance (metres) of every observed
-/// voxel of the window within the cutoff (nvblox's convention).
-pub(crate) fn esdf_cloud(map: &GlobalMap, volume: &LocalVolume, header: Header) -> PointCloud2 {
+/// voxel of the window within the cutoff (nvblox's convention) whose
+/// centre's height is within `[z_m[0], z_m[1]]`.
+pub(crate) fn esdf_cloud(map: &GlobalMap, volume: &LocalVolume, z_m: [f64; 2], header: Header) -> PointCloud2 {
     let vs = map.voxel_size_m();
     let mut points = Vec::new();
     window_voxels(map, volume, |v| {
         if matches!(voxel_state(map, v), PointState::Free | PointState::Occupied) {
             let (d, saturated) = voxel_distance(map, v, false);
-            if !saturated {
-                let c = v.centre(vs);
+            let c = v.centre(vs);
+            if !saturated && (z_m[0]..=z_m[1]).contains(&c[2]) {
                 points.extend([c[0] as f32, c[1] as f32, c[2] as f32, d as f32]);
             }
         }
@@ -150,7 +151,7 @@ mod tests {
         let volume = *mapper.local_volume().expect("volume");
         let map = mapper.map();
         let occupied: Vec<VoxelIndex> = wall.iter().filter_map(|p| VoxelIndex::containing([f64::from(p[0]), f64::from(p[1]), f64::from(p[2])], vs)).collect();
-        let msg = esdf_cloud(map, &volume, Header::default());
+        let msg = esdf_cloud(map, &volume, [f64::MIN, f64::MAX], Header::default());
         assert_eq!(msg.point_step, 16);
         let values: Vec<f32> = msg.data.chunks(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
         assert!(msg.width > 100, "{} points", msg.width);
@@ -161,6 +162,13 @@ mod tests {
             assert!((f64::from(p[3]) - brute).abs() < 1e-5, "{p:?}: {} vs {brute}", p[3]);
             assert!(brute <= cutoff + 1e-9);
         }
+        // A height band keeps exactly the voxels of the cloud within it.
+        let band = [-0.1, 0.1];
+        let banded = esdf_cloud(map, &volume, band, Header::default());
+        let within: Vec<&[f32]> = values.chunks(4).filter(|p| (band[0]..=band[1]).contains(&f64::from(p[2]))).collect();
+        let banded_values: Vec<f32> = banded.data.chunks(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
+        assert!(banded.width > 0 && banded.width < msg.width, "{} of {}", banded.width, msg.width);
+        assert_eq!(banded_values, within.concat());
         let occ = occupied_cloud(map, Some(&volume), Header::default());
         assert_eq!(occ.width as usize, occupied.len());
         let (slice_cloud, grid) = slice(map, &volume, 0.05, Header::default());
