@@ -5,6 +5,9 @@
  * valgrind.
  *
  *   test_edtmap_c REFERENCE.bin TMPDIR */
+/* nanosleep under -std=c11. */
+#define _POSIX_C_SOURCE 200809L
+
 #include <edtmap.h>
 
 #include <math.h>
@@ -13,6 +16,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #include "wall.h"
 
@@ -49,7 +53,7 @@ static void* fail_elsewhere(void* arg) {
 struct reader {
     edtmap_mapper* mapper;
     volatile int* stop;
-    long queries;
+    volatile long queries;
     int failures;
 };
 
@@ -166,6 +170,26 @@ int main(int argc, char** argv) {
         memcpy(scaled, WALL_IDENTITY, sizeof scaled);
         scaled[0] = 2.0;
         FAILS(edtmap_integrate_points(m, cloud, WALL_POINTS, scaled, 1.0, NULL), EDTMAP_INVALID_ARGUMENT, "t_world_sensor");
+        /* Published ground truth: orthonormal only to about 2e-4; taken
+         * as its nearest rotation, the wall maps where the exact pose
+         * maps it. A 2 % scale is not a rotation. */
+        double published[16];
+        memcpy(published, WALL_IDENTITY, sizeof published);
+        published[0] += 1e-4;
+        published[1] -= 1e-4;
+        published[6] += 1e-4;
+        edtmap_mapper* pm = NULL;
+        OK(edtmap_mapper_new(&p, &pm));
+        OK(edtmap_integrate_points(pm, cloud, WALL_POINTS, published, 1.0, NULL));
+        for (int i = 5; i < 20; ++i) {
+            const double probe[3] = {(i + 0.5) * 0.1, 0.05, 0.05};
+            double pd = 0.0;
+            OK(edtmap_mapper_query(pm, probe, 1, false, &pd, NULL, NULL));
+            CHECK(fabs(pd - (20 - i) * 0.1) < 1e-9, "published pose, voxel %d: distance %.17g", i, pd);
+        }
+        published[0] = 1.02;
+        FAILS(edtmap_integrate_points(pm, cloud, WALL_POINTS, published, 1.0, NULL), EDTMAP_INVALID_ARGUMENT, "not orthonormal");
+        edtmap_mapper_free(pm);
     }
     {
         float depth[4] = {1, 1, 1, 1};
@@ -307,6 +331,16 @@ int main(int argc, char** argv) {
     for (int k = 0; k < 4; ++k) {
         readers[k] = (struct reader){m, &stop, 0, 0};
         CHECK(pthread_create(&threads[k], NULL, read_loop, &readers[k]) == 0, "pthread_create");
+    }
+    /* Every reader is querying before the frames start (a loaded machine,
+     * or a sanitizer build, starts threads late). */
+    for (int k = 0, waited_ms = 0; k < 4; ++k) {
+        while (readers[k].queries == 0 && waited_ms < 60000) {
+            struct timespec ms = {0, 1000000};
+            nanosleep(&ms, NULL);
+            ++waited_ms;
+        }
+        CHECK(readers[k].queries > 0, "reader %d never ran a query", k);
     }
     for (int f = 1; f <= 6; ++f) {
         double pose[16];
