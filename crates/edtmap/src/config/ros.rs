@@ -274,6 +274,8 @@ mod tests {
         assert!(wait.expect_err("negative").to_string().contains("pose_wait_s"));
         let startup = RosSection { startup_pose_wait_s: f64::NAN, ..Default::default() }.validate();
         assert!(startup.expect_err("NaN").to_string().contains("startup_pose_wait_s"));
+        let band = RosSection { esdf_pointcloud_z_m: [2.0, 0.0], ..Default::default() }.validate();
+        assert!(band.expect_err("upside down").to_string().contains("esdf_pointcloud_z_m"));
         let odom_on_tf = RosSection { pose_type: Some(PoseType::Odometry), ..Default::default() }.validate();
         assert!(odom_on_tf.expect_err("odometry on /tf").to_string().contains("pose_type"));
         let odom = RosSection { pose_topic: "/odom".into(), ..Default::default() };
