@@ -71,9 +71,10 @@ fn sigint_and_sigterm_keep_the_frames_integrated() {
         let log = log.join().expect("log");
         assert_eq!(status.code(), Some(code), "{name}: {log}");
         assert!(log.contains("interrupted by") && log.contains("integrated frames"), "{name}: {log}");
-        let report: serde_json::Value = serde_json::from_slice(&std::fs::read(out.join("report.json")).expect("report")).expect("json");
+        let report: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(out.join("report.json")).expect("report")).expect("json");
         let frames = report["frames"].as_array().map(Vec::len).expect("frames");
-        assert!(frames >= 3 && frames < 100000, "{name}: {frames} frames");
+        assert!((3..100000).contains(&frames), "{name}: {frames} frames");
         assert_eq!(report["interrupted"]["signal"], name);
         assert_eq!(report["interrupted"]["frames"].as_u64(), Some(frames as u64));
         for picture in ["occupancy_slice.png", "edt_slice.png", "timing.png"] {
@@ -84,11 +85,25 @@ fn sigint_and_sigterm_keep_the_frames_integrated() {
         let again = dir.path().join("again");
         let run = common::run_in(
             dir.path(),
-            &["run", "--scene", "room", "--frames", &frames.to_string(), "--out", again.to_str().expect("utf-8"), "--save", again.join("map.edtmap").to_str().expect("utf-8")],
+            &[
+                "run",
+                "--scene",
+                "room",
+                "--frames",
+                &frames.to_string(),
+                "--out",
+                again.to_str().expect("utf-8"),
+                "--save",
+                again.join("map.edtmap").to_str().expect("utf-8"),
+            ],
             Duration::from_secs(300),
         );
         assert!(run.status.success(), "{}", run.stderr);
-        assert!(std::fs::read(out.join("map.edtmap")).expect("map") == std::fs::read(again.join("map.edtmap")).expect("map"), "{name}: the saved map differs");
+        assert!(
+            std::fs::read(out.join("map.edtmap")).expect("map")
+                == std::fs::read(again.join("map.edtmap")).expect("map"),
+            "{name}: the saved map differs"
+        );
     }
 }
 
@@ -104,7 +119,8 @@ fn a_second_signal_stops_at_once_leaving_no_partial_file() {
     assert_eq!(status.code(), Some(130), "{log}");
     // Whatever was written is whole: no temporary is left, and a report,
     // if it got written, parses.
-    let left: Vec<String> = std::fs::read_dir(&out).expect("out").flatten().map(|e| e.file_name().to_string_lossy().into_owned()).collect();
+    let left: Vec<String> =
+        std::fs::read_dir(&out).expect("out").flatten().map(|e| e.file_name().to_string_lossy().into_owned()).collect();
     assert!(left.iter().all(|n| !n.ends_with(".tmp")), "{left:?}");
     if let Ok(bytes) = std::fs::read(out.join("report.json")) {
         serde_json::from_slice::<serde_json::Value>(&bytes).expect("a whole report");
@@ -132,6 +148,18 @@ fn an_interrupted_recording_is_closed_and_replays() {
     assert!(err.contains("closed and replayable"), "{err}");
     let out = dir.path().join("out");
     let config = dir.path().join("planar.toml");
-    let run = common::run_in(dir.path(), &["run", "--config", config.to_str().expect("utf-8"), "--dataset", mcap.to_str().expect("utf-8"), "--out", out.to_str().expect("utf-8")], Duration::from_secs(600));
+    let run = common::run_in(
+        dir.path(),
+        &[
+            "run",
+            "--config",
+            config.to_str().expect("utf-8"),
+            "--dataset",
+            mcap.to_str().expect("utf-8"),
+            "--out",
+            out.to_str().expect("utf-8"),
+        ],
+        Duration::from_secs(600),
+    );
     assert!(run.status.success(), "{}", run.stderr);
 }

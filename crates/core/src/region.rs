@@ -10,7 +10,10 @@
 //! is deterministic. The 32-bit index limits the region, never the map.
 
 use crate::edt_map::offset_dist_sq;
-use crate::{BlockKey, CoreError, Cutoff, EdtBlock, EdtMap, Grid3, LocalVolume, Obstacles, SharedBlock, VoxelIndex, BLOCK_SIDE, BLOCK_VOXELS, FAR_DIST_SQ, NO_OBSTACLE, NO_OFFSET};
+use crate::{
+    BlockKey, CoreError, Cutoff, EdtBlock, EdtMap, Grid3, LocalVolume, Obstacles, SharedBlock, VoxelIndex, BLOCK_SIDE,
+    BLOCK_VOXELS, FAR_DIST_SQ, NO_OBSTACLE, NO_OFFSET,
+};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 
@@ -82,13 +85,18 @@ impl Region {
 
     /// The box made of whole blocks from key `lo` to key `hi` inclusive.
     pub fn of_blocks((lo, hi): ([i32; 3], [i32; 3])) -> Region {
-        Region { origin: lo.map(|b| b * BLOCK_SIDE), dims: [0, 1, 2].map(|a| ((hi[a] - lo[a] + 1) * BLOCK_SIDE) as usize) }
+        Region {
+            origin: lo.map(|b| b * BLOCK_SIDE),
+            dims: [0, 1, 2].map(|a| ((hi[a] - lo[a] + 1) * BLOCK_SIDE) as usize),
+        }
     }
 
     /// The smallest box holding every block of `keys`, `None` for none.
     pub fn bounding(keys: &[BlockKey]) -> Option<Region> {
         let first = keys.first()?.0;
-        let (lo, hi) = keys.iter().fold((first, first), |(lo, hi), k| ([0, 1, 2].map(|a| lo[a].min(k.0[a])), [0, 1, 2].map(|a| hi[a].max(k.0[a]))));
+        let (lo, hi) = keys.iter().fold((first, first), |(lo, hi), k| {
+            ([0, 1, 2].map(|a| lo[a].min(k.0[a])), [0, 1, 2].map(|a| hi[a].max(k.0[a])))
+        });
         Some(Region::of_blocks((lo, hi)))
     }
 
@@ -102,7 +110,10 @@ impl Region {
     /// Whether every voxel of block `key` lies in this box.
     pub fn contains_block(&self, key: BlockKey) -> bool {
         let first = key.first_voxel().0;
-        (0..3).all(|a| first[a] >= self.origin[a] && i64::from(first[a]) + i64::from(BLOCK_SIDE) <= i64::from(self.origin[a]) + self.dims[a] as i64)
+        (0..3).all(|a| {
+            first[a] >= self.origin[a]
+                && i64::from(first[a]) + i64::from(BLOCK_SIDE) <= i64::from(self.origin[a]) + self.dims[a] as i64
+        })
     }
 
     /// The blocks this box overlaps.
@@ -128,7 +139,10 @@ impl Packing {
     pub fn new(region: Region, cutoff: Cutoff) -> Result<Self, CoreError> {
         let source = region.grown(cutoff.reach);
         if source.len() >= u32::MAX as usize {
-            return Err(CoreError::TooLarge { dims: source.dims, reason: "integration region beyond 2^32 voxels; lower max_distance_m or the local volume" });
+            return Err(CoreError::TooLarge {
+                dims: source.dims,
+                reason: "integration region beyond 2^32 voxels; lower max_distance_m or the local volume",
+            });
         }
         Ok(Packing { region, source, cutoff })
     }
@@ -194,7 +208,8 @@ pub fn read_region_except(map: &EdtMap, p: &Packing, keep: Option<&Region>, old:
             return 0..0;
         }
         let lo = (i64::from(k.origin[0]) - i64::from(p.region.origin[0])).clamp(0, nx as i64) as usize;
-        let hi = (i64::from(k.origin[0]) + k.dims[0] as i64 - i64::from(p.region.origin[0])).clamp(0, nx as i64) as usize;
+        let hi =
+            (i64::from(k.origin[0]) + k.dims[0] as i64 - i64::from(p.region.origin[0])).clamp(0, nx as i64) as usize;
         lo..hi.max(lo)
     };
     old.par_chunks_mut(nx * ny).enumerate().for_each(|(z, old)| {
@@ -270,7 +285,13 @@ pub fn write_back(map: &mut EdtMap, p: &Packing, candidates: &[BlockKey], old: &
 }
 
 /// [`write_back`] with the new values given by `cur(region_linear)`.
-pub fn write_back_with(map: &mut EdtMap, p: &Packing, candidates: &[BlockKey], old: &[u64], cur: impl Fn(usize) -> u64 + Sync) -> WriteBack {
+pub fn write_back_with(
+    map: &mut EdtMap,
+    p: &Packing,
+    candidates: &[BlockKey],
+    old: &[u64],
+    cur: impl Fn(usize) -> u64 + Sync,
+) -> WriteBack {
     write_back_where(map, p, candidates, |_, i, _| old[i], |_, i, _| cur(i))
 }
 
@@ -286,7 +307,11 @@ pub fn write_back_where(
 ) -> WriteBack {
     let truncated = |v: u64| {
         let reach = f64::from(p.cutoff.max_dist_sq).sqrt();
-        if v == FAR { reach } else { ((v >> 32) as f64).sqrt().min(reach) }
+        if v == FAR {
+            reach
+        } else {
+            ((v >> 32) as f64).sqrt().min(reach)
+        }
     };
     let per_block: Vec<(usize, usize, f64)> = candidates
         .par_iter()
@@ -331,13 +356,22 @@ pub fn write_back_where(
 /// the same map and the same report as [`write_back_where`] given the
 /// packed values, in a third of the time (a GPU's write-back, where the
 /// device's words are offsets already).
-pub fn write_back_offsets(map: &mut EdtMap, p: &Packing, candidates: &[BlockKey], new: impl Fn(usize, &mut [[i16; 3]; BLOCK_VOXELS]) + Sync) -> WriteBack {
+pub fn write_back_offsets(
+    map: &mut EdtMap,
+    p: &Packing,
+    candidates: &[BlockKey],
+    new: impl Fn(usize, &mut [[i16; 3]; BLOCK_VOXELS]) + Sync,
+) -> WriteBack {
     let max = p.cutoff.max_dist_sq;
     let reach = f64::from(max).sqrt();
     let within = |o: [i16; 3]| if offset_dist_sq(o) <= max { o } else { NO_OFFSET };
     let truncated = |o: [i16; 3]| {
         let d = offset_dist_sq(o);
-        if d == FAR_DIST_SQ { reach } else { f64::from(d).sqrt().min(reach) }
+        if d == FAR_DIST_SQ {
+            reach
+        } else {
+            f64::from(d).sqrt().min(reach)
+        }
     };
     let stored = map.take_shared(candidates);
     let per_block: Vec<(usize, f64, Option<SharedBlock<EdtBlock>>)> = stored
@@ -395,7 +429,8 @@ fn for_region_voxels(p: &Packing, key: BlockKey, mut f: impl FnMut(usize, usize)
         for y in ys.clone() {
             for x in xs.clone() {
                 let c = [x as usize, y as usize, z as usize];
-                let offset = (x + r.origin[0] - first[0]) + 8 * ((y + r.origin[1] - first[1]) + 8 * (z + r.origin[2] - first[2]));
+                let offset = (x + r.origin[0] - first[0])
+                    + 8 * ((y + r.origin[1] - first[1]) + 8 * (z + r.origin[2] - first[2]));
                 f(r.linear(c), offset as usize);
             }
         }
@@ -408,7 +443,11 @@ mod tests {
 
     #[test]
     fn block_count_counts_the_listed_blocks() {
-        for r in [Region { origin: [-3, 4, -20], dims: [10, 7, 3] }, Region { origin: [0, 0, 0], dims: [8, 8, 8] }, Region { origin: [-1, -9, 7], dims: [1, 17, 2] }] {
+        for r in [
+            Region { origin: [-3, 4, -20], dims: [10, 7, 3] },
+            Region { origin: [0, 0, 0], dims: [8, 8, 8] },
+            Region { origin: [-1, -9, 7], dims: [1, 17, 2] },
+        ] {
             assert_eq!(r.block_count(), r.blocks().len(), "{r:?}");
         }
     }
@@ -481,7 +520,7 @@ mod tests {
                 .map(|i| {
                     let o = [0, 1, 2].map(|_| next(11) as i16 - 5);
                     // A third of the blocks go far; a voxel is unchanged now and then.
-                    if (i / crate::BLOCK_VOXELS) % 3 == 0 || offset_dist_sq(o) > 30 || next(4) == 0 { NO_OFFSET } else { o }
+                    if (i / crate::BLOCK_VOXELS).is_multiple_of(3) || offset_dist_sq(o) > 30 || next(4) == 0 { NO_OFFSET } else { o }
                 })
                 .collect();
             let (mut a, mut b) = (map.clone(), map);

@@ -10,9 +10,7 @@ use proptest::prelude::*;
 /// Weighted squared distance between the voxels `a` and `b` of `grid`.
 fn weighted<T>(grid: &Grid3<T>, a: usize, b: usize, w: [f64; 3]) -> f64 {
     let (ca, cb) = (grid.coords(a), grid.coords(b));
-    (0..3)
-        .map(|k| (w[k] * ca[k].abs_diff(cb[k]) as f64).powi(2))
-        .sum()
+    (0..3).map(|k| (w[k] * ca[k].abs_diff(cb[k]) as f64).powi(2)).sum()
 }
 
 /// Exhaustive minimum of `Σ w_k² d_k²` over the obstacles, per voxel, in
@@ -26,9 +24,7 @@ fn brute_int(grid: &Grid3<bool>, w: [u32; 3]) -> Vec<Option<u128>> {
                 .iter()
                 .map(|&s| {
                     let s = grid.coords(s);
-                    (0..3)
-                        .map(|k| u128::from(w[k]).pow(2) * (c[k].abs_diff(s[k]) as u128).pow(2))
-                        .sum()
+                    (0..3).map(|k| u128::from(w[k]).pow(2) * (c[k].abs_diff(s[k]) as u128).pow(2)).sum()
                 })
                 .min()
         })
@@ -36,7 +32,7 @@ fn brute_int(grid: &Grid3<bool>, w: [u32; 3]) -> Vec<Option<u128>> {
 }
 
 fn check_int(grid: &Grid3<bool>, w: [u32; 3]) {
-    let (dist, near) = edt_weighted_int(grid.as_slice(), grid.dims(), |&o| o, w).unwrap();
+    let (dist, near) = edt_weighted_int(grid.as_slice(), grid.dims(), |&o| o, w).expect("a weighted EDT of the grid");
     let wf = w.map(f64::from);
     for (i, want) in brute_int(grid, w).into_iter().enumerate() {
         match want {
@@ -45,72 +41,38 @@ fn check_int(grid: &Grid3<bool>, w: [u32; 3]) {
                 assert_eq!(near[i], NO_SITE);
             }
             Some(want) => {
-                assert_eq!(
-                    u128::from(dist[i]),
-                    want,
-                    "voxel {:?} dims {:?} w {w:?}",
-                    grid.coords(i),
-                    grid.dims()
-                );
+                assert_eq!(u128::from(dist[i]), want, "voxel {:?} dims {:?} w {w:?}", grid.coords(i), grid.dims());
                 let site = near[i] as usize;
-                assert!(
-                    grid.as_slice()[site],
-                    "nearest of {:?} is no obstacle",
-                    grid.coords(i)
-                );
-                assert_eq!(
-                    weighted(grid, i, site, wf),
-                    want as f64,
-                    "nearest of {:?}",
-                    grid.coords(i)
-                );
+                assert!(grid.as_slice()[site], "nearest of {:?} is no obstacle", grid.coords(i));
+                assert_eq!(weighted(grid, i, site, wf), want as f64, "nearest of {:?}", grid.coords(i));
             }
         }
     }
 }
 
 fn check_real(grid: &Grid3<bool>, w: [f64; 3]) {
-    let (dist, near) = edt_weighted_real(grid.as_slice(), grid.dims(), |&o| o, w).unwrap();
+    let (dist, near) = edt_weighted_real(grid.as_slice(), grid.dims(), |&o| o, w).expect("a weighted EDT of the grid");
     let sites: Vec<usize> = (0..grid.len()).filter(|&i| grid.as_slice()[i]).collect();
     for i in 0..grid.len() {
-        let want = sites
-            .iter()
-            .map(|&s| weighted(grid, i, s, w))
-            .fold(f64::INFINITY, f64::min);
+        let want = sites.iter().map(|&s| weighted(grid, i, s, w)).fold(f64::INFINITY, f64::min);
         if sites.is_empty() {
             assert_eq!(dist[i], f64::INFINITY);
             assert_eq!(near[i], NO_SITE);
             continue;
         }
         let tol = 1e-12 * want.max(1.0);
-        assert!(
-            (dist[i] - want).abs() <= tol,
-            "voxel {:?}: {} vs {want}",
-            grid.coords(i),
-            dist[i]
-        );
+        assert!((dist[i] - want).abs() <= tol, "voxel {:?}: {} vs {want}", grid.coords(i), dist[i]);
         let site = near[i] as usize;
         assert!(grid.as_slice()[site]);
-        assert!(
-            (weighted(grid, i, site, w) - want).abs() <= tol,
-            "nearest of {:?}",
-            grid.coords(i)
-        );
+        assert!((weighted(grid, i, site, w) - want).abs() <= tol, "nearest of {:?}", grid.coords(i));
     }
 }
 
 #[test]
 fn integer_weights_on_edge_cases() {
-    for dims in [
-        [1, 1, 1],
-        [7, 1, 1],
-        [1, 9, 1],
-        [1, 1, 6],
-        [5, 4, 3],
-        [17, 3, 1],
-    ] {
+    for dims in [[1, 1, 1], [7, 1, 1], [1, 9, 1], [1, 1, 6], [5, 4, 3], [17, 3, 1]] {
         for fill in [0.0, 1.0, 0.05] {
-            let grid = random_grid(dims, fill, 7).unwrap();
+            let grid = random_grid(dims, fill, 7).expect("a random grid");
             for w in [[1, 1, 1], [3, 1, 2], [1, 7, 1], [2, 2, 5]] {
                 check_int(&grid, w);
             }
@@ -120,13 +82,11 @@ fn integer_weights_on_edge_cases() {
 
 #[test]
 fn unit_integer_weights_equal_the_isotropic_transform() {
-    let grid = random_grid([33, 21, 14], 0.02, 11).unwrap();
-    let iso = edt_with(&grid, |&o| o, ScanLayout::default()).unwrap();
-    let (dist, _) = edt_weighted_int(grid.as_slice(), grid.dims(), |&o| o, [1, 1, 1]).unwrap();
-    assert!(dist
-        .iter()
-        .zip(iso.dist_sq_vox())
-        .all(|(&a, &b)| a == u64::from(b)));
+    let grid = random_grid([33, 21, 14], 0.02, 11).expect("a random grid");
+    let iso = edt_with(&grid, |&o| o, ScanLayout::default()).expect("the isotropic EDT");
+    let (dist, _) =
+        edt_weighted_int(grid.as_slice(), grid.dims(), |&o| o, [1, 1, 1]).expect("a weighted EDT of the grid");
+    assert!(dist.iter().zip(iso.dist_sq_vox()).all(|(&a, &b)| a == u64::from(b)));
 }
 
 #[test]
@@ -153,7 +113,7 @@ proptest! {
         fill in 0.0f64..0.15, seed in any::<u64>(),
         w in prop::array::uniform3(1u32..9),
     ) {
-        let grid = random_grid([nx, ny, nz], fill, seed).unwrap();
+        let grid = random_grid([nx, ny, nz], fill, seed).expect("a random grid");
         check_int(&grid, w);
     }
 
@@ -163,7 +123,7 @@ proptest! {
         fill in 0.0f64..0.15, seed in any::<u64>(),
         w in prop::array::uniform3(0.01f64..10.0),
     ) {
-        let grid = random_grid([nx, ny, nz], fill, seed).unwrap();
+        let grid = random_grid([nx, ny, nz], fill, seed).expect("a random grid");
         check_real(&grid, w);
     }
 }

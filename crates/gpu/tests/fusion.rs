@@ -15,7 +15,8 @@ use nalgebra::{Isometry3, Translation3, UnitQuaternion};
 
 /// Every block of `map`, sorted, as bits.
 fn snapshot(map: &OccupancyMap) -> Vec<(BlockKey, Vec<u32>)> {
-    let mut blocks: Vec<(BlockKey, Vec<u32>)> = map.iter().map(|(k, b)| (k, b.log_odds.iter().map(|l| l.to_bits()).collect())).collect();
+    let mut blocks: Vec<(BlockKey, Vec<u32>)> =
+        map.iter().map(|(k, b)| (k, b.log_odds.iter().map(|l| l.to_bits()).collect())).collect();
     blocks.sort_by_key(|b| b.0);
     blocks
 }
@@ -37,10 +38,15 @@ fn device_fusion_is_the_cpus_frame_after_frame() {
     let mut held = Vec::new();
     for frame in 0..40 {
         // A 36 x 30 x 20 volume (not block-aligned) drifting along x and back.
-        let shift = [(frame % 12) as i32 * 3 - 10, -7, 2 - (frame % 3) as i32];
+        let shift = [(frame % 12) * 3 - 10, -7, 2 - (frame % 3)];
         let vol = LocalVolume { origin: VoxelIndex(shift), dims: [36, 30, 20], voxel_size_m: 0.1 };
-        let centre = [0.1 * (f64::from(shift[0]) + 18.0), 0.1 * (f64::from(shift[1]) + 15.0), 0.1 * (f64::from(shift[2]) + 10.0)];
-        let pose = Isometry3::from_parts(Translation3::new(centre[0], centre[1], centre[2]), UnitQuaternion::identity());
+        let centre = [
+            0.1 * (f64::from(shift[0]) + 18.0),
+            0.1 * (f64::from(shift[1]) + 15.0),
+            0.1 * (f64::from(shift[2]) + 10.0),
+        ];
+        let pose =
+            Isometry3::from_parts(Translation3::new(centre[0], centre[1], centre[2]), UnitQuaternion::identity());
         // Few directions, so voxels are seen again and again.
         let rays: Vec<SensorRay> = (0..400)
             .map(|_| {

@@ -286,7 +286,10 @@ fn newer_version_is_named() {
     fix_crc(&mut bytes);
     let path = dir.path().join("future.edtmap");
     fs::write(&path, &bytes).expect("write");
-    assert_eq!(map_file_error(&path), MapFileError::NewerVersion { found: MAP_FORMAT_VERSION + 1, supported: MAP_FORMAT_VERSION });
+    assert_eq!(
+        map_file_error(&path),
+        MapFileError::NewerVersion { found: MAP_FORMAT_VERSION + 1, supported: MAP_FORMAT_VERSION }
+    );
     let message = read_map(&path).expect_err("newer").to_string();
     assert!(message.contains("future.edtmap"), "{message}");
     assert!(message.contains("written by a newer edtmap: format version 2, this build reads up to 1"), "{message}");
@@ -338,7 +341,10 @@ fn absurd_counts_are_refused_before_allocating() {
         let mut bytes = original.clone();
         bytes[occ..occ + 8].copy_from_slice(&value.to_le_bytes());
         fix_crc(&mut bytes);
-        assert!(matches!(decode_err(&bytes), MapFileError::Corrupt(m) if m.contains("occupancy section")), "count {value}");
+        assert!(
+            matches!(decode_err(&bytes), MapFileError::Corrupt(m) if m.contains("occupancy section")),
+            "count {value}"
+        );
     }
     let mut bytes = original.clone();
     bytes[PARAMS_LEN_AT..PARAMS_LEN_AT + 4].copy_from_slice(&u32::MAX.to_le_bytes());
@@ -356,7 +362,8 @@ fn duplicate_and_unsorted_keys_are_corrupt() {
     fix_crc(&mut bytes);
     assert!(matches!(decode_err(&bytes), MapFileError::Corrupt(m) if m.contains("duplicate block key")));
     let mut bytes = original.clone();
-    bytes[first..second + OCC_RECORD].copy_from_slice(&[&original[second..second + OCC_RECORD], &original[first..second]].concat());
+    bytes[first..second + OCC_RECORD]
+        .copy_from_slice(&[&original[second..second + OCC_RECORD], &original[first..second]].concat());
     fix_crc(&mut bytes);
     assert!(matches!(decode_err(&bytes), MapFileError::Corrupt(m) if m.contains("out of order")));
 }
@@ -386,7 +393,7 @@ fn edt_entry_that_disagrees_with_its_obstacle_is_corrupt() {
     let block = map.edt.get_or_insert(key);
     assert!(block.set(key, 0, 4, VoxelIndex([v.0[0] + 1, v.0[1] - 2, v.0[2]])).is_err());
     let cutoff = map.global_params.cutoff(map.voxel_size_m).expect("valid");
-    let beyond = (cutoff.reach + 1) as i32;
+    let beyond = cutoff.reach + 1;
     block.set(key, 0, (beyond * beyond) as u32, VoxelIndex([v.0[0] + beyond, v.0[1], v.0[2]])).expect("in range");
     assert!(matches!(encode_map(&map), Err(MapFileError::Corrupt(m)) if m.contains("beyond the cutoff")));
 }
@@ -405,7 +412,10 @@ fn edt_entry_whose_obstacle_is_out_of_the_offsets_range_is_corrupt() {
     bytes[nearest_at..nearest_at + 4].copy_from_slice(&(v.0[0] + 40_000).to_le_bytes());
     fix_crc(&mut bytes);
     let err = decode_err(&bytes);
-    assert!(matches!(&err, MapFileError::Corrupt(m) if m.contains("EDT voxel [8, -16, 24]: its nearest obstacle") && m.contains("more than 32767 voxels away")), "{err}");
+    assert!(
+        matches!(&err, MapFileError::Corrupt(m) if m.contains("EDT voxel [8, -16, 24]: its nearest obstacle") && m.contains("more than 32767 voxels away")),
+        "{err}"
+    );
 }
 
 #[test]
@@ -418,7 +428,8 @@ fn invalid_parameters_are_refused() {
         assert!(matches!(decode_err(&bytes), MapFileError::InvalidParams(m) if m.contains(field)), "{voxel_size_m}");
     }
     // Same-length edits of the parameter text.
-    for (from, to, field) in [("prob_hit = 0.65", "prob_hit = 0.45", "prob_hit"), ("prob_hit", "prob_hot", "prob_hot")] {
+    for (from, to, field) in [("prob_hit = 0.65", "prob_hit = 0.45", "prob_hit"), ("prob_hit", "prob_hot", "prob_hot")]
+    {
         let mut bytes = original.clone();
         let at = original.windows(from.len()).position(|w| w == from.as_bytes()).expect("in the text");
         bytes[at..at + to.len()].copy_from_slice(to.as_bytes());

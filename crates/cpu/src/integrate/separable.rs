@@ -54,8 +54,8 @@
 use crate::awake::{awake, share_out};
 use crate::edt::envelope::{envelope, sweep_row, EnvelopeScratch, Line};
 use edtmap_core::{
-    BlockKey, BlockMap, Cutoff, EdtBlock, EdtMap, ExactCounts, IntegrateReport, MapStamp, Obstacles, SharedBlock, VoxelIndex, WaveCounts, BLOCK_SIDE, BLOCK_VOXELS, FAR_DIST_SQ, NO_OFFSET,
-    NO_SITE, UNREACHABLE_DIST_SQ,
+    BlockKey, BlockMap, Cutoff, EdtBlock, EdtMap, ExactCounts, IntegrateReport, MapStamp, Obstacles, SharedBlock,
+    VoxelIndex, WaveCounts, BLOCK_SIDE, BLOCK_VOXELS, FAR_DIST_SQ, NO_OFFSET, NO_SITE, UNREACHABLE_DIST_SQ,
 };
 use rayon::prelude::*;
 use rustc_hash::FxHashMap;
@@ -110,11 +110,23 @@ impl SeparableCache {
 /// The pool's other threads are kept [`awake`] meanwhile: between its ten
 /// or so loops they fell asleep, and each loop then waited for a wake-up
 /// (3dmatch-seq01 at 2 m: 8.93 → 8.60 ms a frame).
-pub fn update_exact(map: &mut EdtMap, obstacles: &Obstacles<'_>, blocks: &[BlockKey], cutoff: Cutoff, cache: &mut SeparableCache) -> IntegrateReport {
+pub fn update_exact(
+    map: &mut EdtMap,
+    obstacles: &Obstacles<'_>,
+    blocks: &[BlockKey],
+    cutoff: Cutoff,
+    cache: &mut SeparableCache,
+) -> IntegrateReport {
     awake(|| update_in_pool(map, obstacles, blocks, cutoff, cache))
 }
 
-fn update_in_pool(map: &mut EdtMap, obstacles: &Obstacles<'_>, blocks: &[BlockKey], cutoff: Cutoff, cache: &mut SeparableCache) -> IntegrateReport {
+fn update_in_pool(
+    map: &mut EdtMap,
+    obstacles: &Obstacles<'_>,
+    blocks: &[BlockKey],
+    cutoff: Cutoff,
+    cache: &mut SeparableCache,
+) -> IntegrateReport {
     let roots = match cache.roots.take() {
         Some(r) if r.max == cutoff.max_dist_sq => r,
         _ => Roots::new(cutoff.max_dist_sq),
@@ -127,31 +139,36 @@ fn update_in_pool(map: &mut EdtMap, obstacles: &Obstacles<'_>, blocks: &[BlockKe
     // one mask per block. The map's obstacles are its `g1` entries at 0
     // (a third of the bytes of its EDT blocks, and compared 16 at a time).
     let (g1, edt): (_, &EdtMap) = (&cache.g1, map);
-    let found = share_out(blocks.iter().copied(), blocks.len() >= 2 * MIN_TASKS, || (), |(), key| {
-        let now = obstacles.block_bits(key);
-        let mut m = now;
-        if let Some(b) = g1.get(&key) {
-            for (w, o) in m.iter_mut().zip(mask_where(b, |&d| d == 0)) {
-                *w ^= o;
+    let found = share_out(
+        blocks.iter().copied(),
+        blocks.len() >= 2 * MIN_TASKS,
+        || (),
+        |(), key| {
+            let now = obstacles.block_bits(key);
+            let mut m = now;
+            if let Some(b) = g1.get(&key) {
+                for (w, o) in m.iter_mut().zip(mask_where(b, |&d| d == 0)) {
+                    *w ^= o;
+                }
             }
-        }
-        // Counted for the report: obstacles that appeared (flipped and
-        // there now), those of them with no obstacle among their 26
-        // neighbours before, and those that vanished.
-        let mut counts = [0; 3];
-        let old = edt.get(key);
-        for (i, (&f, &o)) in m.iter().zip(&now).enumerate() {
-            let mut added = f & o;
-            counts[0] += added.count_ones() as usize;
-            counts[2] += (f & !o).count_ones() as usize;
-            while added != 0 {
-                let at = 64 * i + added.trailing_zeros() as usize;
-                added &= added - 1;
-                counts[1] += usize::from(old.is_none_or(|b| b.dist_sq(at) > 3));
+            // Counted for the report: obstacles that appeared (flipped and
+            // there now), those of them with no obstacle among their 26
+            // neighbours before, and those that vanished.
+            let mut counts = [0; 3];
+            let old = edt.get(key);
+            for (i, (&f, &o)) in m.iter().zip(&now).enumerate() {
+                let mut added = f & o;
+                counts[0] += added.count_ones() as usize;
+                counts[2] += (f & !o).count_ones() as usize;
+                while added != 0 {
+                    let at = 64 * i + added.trailing_zeros() as usize;
+                    added &= added - 1;
+                    counts[1] += usize::from(old.is_none_or(|b| b.dist_sq(at) > 3));
+                }
             }
-        }
-        (counts[0] + counts[2] != 0).then_some((key, m, counts))
-    });
+            (counts[0] + counts[2] != 0).then_some((key, m, counts))
+        },
+    );
     let mut counts = [0; 3];
     let flips: Dirty = found
         .into_iter()
@@ -178,7 +195,9 @@ fn rebuild(map: &mut EdtMap, pass: &Pass<'_>, cache: &mut SeparableCache) {
         .iter()
         .collect::<Vec<_>>()
         .par_iter()
-        .filter_map(|&(key, block)| Some(obstacle_bits(block)).filter(|m| m.iter().any(|&w| w != 0)).map(|m| (key, m, None)))
+        .filter_map(|&(key, block)| {
+            Some(obstacle_bits(block)).filter(|m| m.iter().any(|&w| w != 0)).map(|m| (key, m, None))
+        })
         .collect();
     run_passes(map, pass, cache, obstacles, &Dirty::default(), false);
 }
@@ -284,15 +303,40 @@ fn transpose_bits(mut x: u64) -> u64 {
 
 /// The three passes from the rows through `dirty` (obstacles flipped where
 /// `flips` says); the last, into `map`, only when `last`.
-fn run_passes(map: &mut EdtMap, pass: &Pass<'_>, cache: &mut SeparableCache, dirty: Marked, flips: &Dirty, last: bool) -> IntegrateReport {
+fn run_passes(
+    map: &mut EdtMap,
+    pass: &Pass<'_>,
+    cache: &mut SeparableCache,
+    dirty: Marked,
+    flips: &Dirty,
+    last: bool,
+) -> IntegrateReport {
     let SeparableCache { g1, g2, .. } = cache;
     // Pass x: the rows through the obstacles that changed.
     let edt: &EdtMap = map;
     let (value1, value2) = (g1_value, g2_value);
-    let (dirty1, x) = drive(&mut Cached { map: g1, none: NONE }, 0, dirty, None::<&Rescan>, pass, |s, seg, _, out| pass.row(edt, flips, seg, s, out), value1, |_, _| 0.0);
+    let (dirty1, x) = drive(
+        &mut Cached { map: g1, none: NONE },
+        0,
+        dirty,
+        None::<&Rescan>,
+        pass,
+        |s, seg, _, out| pass.row(edt, flips, seg, s, out),
+        value1,
+        |_, _| 0.0,
+    );
     // Pass y: the columns through the g1 entries that changed.
     let g1: &FxHashMap<_, _> = g1;
-    let (dirty2, y) = drive(&mut Cached { map: g2, none: NONE2 }, 1, dirty1, Some(&LowerY { g1 }), pass, |s, seg, col, out| pass.column(g1, col, seg, s, out), value2, |_, _| 0.0);
+    let (dirty2, y) = drive(
+        &mut Cached { map: g2, none: NONE2 },
+        1,
+        dirty1,
+        Some(&LowerY { g1 }),
+        pass,
+        |s, seg, col, out| pass.column(g1, col, seg, s, out),
+        value2,
+        |_, _| 0.0,
+    );
     if !last {
         return IntegrateReport::default();
     }
@@ -303,9 +347,16 @@ fn run_passes(map: &mut EdtMap, pass: &Pass<'_>, cache: &mut SeparableCache, dir
     // loaded again after every write of the lowering.)
     let (exact, max) = (&pass.roots.exact[..], pass.max);
     let truncated = move |d: u32| root(exact, d.min(max));
-    let (changed, z) = drive(map, 2, dirty2, Some(&LowerZ { g2 }), pass, |s, seg, col, out| pass.depth(g2, col, seg, s, out), |v: Out| v.0, |o: Out, n: Out| {
-        (truncated(n.0) - truncated(o.0)).abs()
-    });
+    let (changed, z) = drive(
+        map,
+        2,
+        dirty2,
+        Some(&LowerZ { g2 }),
+        pass,
+        |s, seg, col, out| pass.depth(g2, col, seg, s, out),
+        |v: Out| v.0,
+        |o: Out, n: Out| (truncated(n.0) - truncated(o.0)).abs(),
+    );
     let mut changed_blocks: Vec<BlockKey> = changed.into_iter().map(|c| c.0).collect();
     changed_blocks.sort_unstable();
     let passes = [x, y, z];
@@ -484,7 +535,13 @@ fn others(axis: usize) -> [usize; 2] {
 /// positions of `line` along `axis` from `first` cross: the block's key,
 /// the offset in it of the first of them, the offset step along `axis`,
 /// and which of the `n` positions lie in it.
-fn by_block(line: [i32; 3], axis: usize, first: i32, n: usize, mut f: impl FnMut(BlockKey, usize, usize, Range<usize>)) {
+fn by_block(
+    line: [i32; 3],
+    axis: usize,
+    first: i32,
+    n: usize,
+    mut f: impl FnMut(BlockKey, usize, usize, Range<usize>),
+) {
     let stride = [1, 8, 64][axis];
     let mut i = 0;
     while i < n {
@@ -610,12 +667,20 @@ impl Lower<i16> for Rescan {
 
 /// Squared distance of a `g1` entry, `UNREACHABLE_DIST_SQ` for none.
 fn g1_value(o: i16) -> u32 {
-    if o == NONE { UNREACHABLE_DIST_SQ } else { (i32::from(o) * i32::from(o)) as u32 }
+    if o == NONE {
+        UNREACHABLE_DIST_SQ
+    } else {
+        (i32::from(o) * i32::from(o)) as u32
+    }
 }
 
 /// Squared distance of a `g2` entry, `UNREACHABLE_DIST_SQ` for none.
 fn g2_value(o: [i16; 2]) -> u32 {
-    if o[0] == NONE { UNREACHABLE_DIST_SQ } else { (i32::from(o[0]).pow(2) + i32::from(o[1]).pow(2)) as u32 }
+    if o[0] == NONE {
+        UNREACHABLE_DIST_SQ
+    } else {
+        (i32::from(o[0]).pow(2) + i32::from(o[1]).pow(2)) as u32
+    }
 }
 
 /// Pass y follows pass x: the nearest entry of a column is a `g1` entry.
@@ -715,7 +780,11 @@ impl Sparse {
                 // t is dropped when that is no later than where t starts
                 // to beat the one below it (t owns no x), or, first on the
                 // stack, before x = 0 (t owns no x of the range).
-                let gone = if self.stack.len() == 1 { num < 0 } else { i128::from(num) * i128::from(t.den) <= i128::from(t.num) * i128::from(den) };
+                let gone = if self.stack.len() == 1 {
+                    num < 0
+                } else {
+                    i128::from(num) * i128::from(t.den) <= i128::from(t.num) * i128::from(den)
+                };
                 if gone {
                     self.stack.pop();
                     continue;
@@ -808,11 +877,16 @@ where
     // Each task's plan, from the old outputs.
     let (side, stride) = (BLOCK_SIDE, [1, 8, 64][axis]);
     let view: &L = layer;
-    let planned: Vec<Plan> = share_out(&tasks, shared(tasks.len(), keys.len()), || (Vec::new(), Scratch::default()), |(found, scratch), r| {
+    let planned: Vec<Plan> = share_out(
+        &tasks,
+        shared(tasks.len(), keys.len()),
+        || (Vec::new(), Scratch::default()),
+        |(found, scratch), r| {
             let ks = &keys[r.clone()];
             // Each block's dirty voxels by line and how they changed, looked
             // up once for its 64 lines.
-            let masks: Vec<([u8; 64], Option<&Changed>)> = dirty[r.clone()].iter().map(|e| (line_bits(&e.1, axis), e.2.as_deref())).collect();
+            let masks: Vec<([u8; 64], Option<&Changed>)> =
+                dirty[r.clone()].iter().map(|e| (line_bits(&e.1, axis), e.2.as_deref())).collect();
             for c in masks.iter().filter_map(|m| m.1) {
                 warm(c);
             }
@@ -857,7 +931,8 @@ where
                 let mut line = [0; 3];
                 (line[b], line[d]) = (ks[0].0[b] * side + u as i32, ks[0].0[d] * side + v as i32);
                 let o_line = local(axis, u, v, 0);
-                let (first_segment, first_lower, first_risen) = (plan.segments.len(), plan.lower.len(), plan.risen.len());
+                let (first_segment, first_lower, first_risen) =
+                    (plan.segments.len(), plan.lower.len(), plan.risen.len());
                 // The line's dirty entries, position and reach: the lowered
                 // ones of passes y and z go straight to their lowering
                 // ranges (in ascending order, as they must), the others to
@@ -890,23 +965,35 @@ where
                         plan_follow(&mut plan, key, found, (reach, pass.max));
                     }
                 }
-                plan.lines.push(LineWork { line, segments: first_segment..plan.segments.len(), lower: first_lower..plan.lower.len(), risen: first_risen..plan.risen.len() });
+                plan.lines.push(LineWork {
+                    line,
+                    segments: first_segment..plan.segments.len(),
+                    lower: first_lower..plan.lower.len(),
+                    risen: first_risen..plan.risen.len(),
+                });
             }
             // The blocks written: those the segments' outputs, the risen
             // entries' runs (where their outputs to rescan are searched
             // for, and the rescans write) and the lowering ranges cross.
-            let spans = plan.segments.iter().map(|s| (s.lo - reach, s.hi + reach)).chain(plan.spans.iter().copied()).chain(plan.lower.iter().map(|&(a, z, _)| (a, z)));
+            let spans = plan
+                .segments
+                .iter()
+                .map(|s| (s.lo - reach, s.hi + reach))
+                .chain(plan.spans.iter().copied())
+                .chain(plan.lower.iter().map(|&(a, z, _)| (a, z)));
             merged(spans.map(|(a, z)| (a.div_euclid(side), z.div_euclid(side))), &mut scratch.ranges);
             plan.owned.extend(scratch.ranges.iter().flat_map(|&(a, z)| a..=z));
             plan
-        });
+        },
+    );
     // Take every task's blocks out of the layer.
     let key_of = |r: &Range<usize>, c: i32| {
         let mut k = keys[r.start].0;
         k[axis] = c;
         BlockKey(k)
     };
-    let all: Vec<BlockKey> = tasks.iter().zip(&planned).flat_map(|(r, p)| p.owned.iter().map(move |&c| key_of(r, c))).collect();
+    let all: Vec<BlockKey> =
+        tasks.iter().zip(&planned).flat_map(|(r, p)| p.owned.iter().map(move |&c| key_of(r, c))).collect();
     let mut taken: Vec<Option<L::Taken>> = layer.take(&all).into_iter().map(Some).collect();
     // Each task's plan with its share of them.
     let mut work: Vec<(Plan, &mut [Option<L::Taken>])> = Vec::with_capacity(planned.len());
@@ -921,54 +1008,60 @@ where
     let view: &L = layer;
     type Written<L> = Vec<(i32, Option<<L as Layer>::Back>, Mask, Option<Box<Changed>>)>;
     let stats: Vec<(Stats, Written<L>)> = share_out(
-            work,
-            shared(tasks.len(), keys.len()),
-            || (Scratch::default(), Vec::new(), Vec::new(), Sparse::default(), Vec::new(), Vec::new()),
-            |(s, out, entries, sparse, rescan, index), (plan, slots)| {
-                let mut st = Stats { visited: plan.visited, ..Stats::default() };
-                // The task's blocks made writable here, on its thread.
-                let mut owned: Owned<L::Block> = plan.owned.iter().zip(slots.iter_mut()).map(|(&c, t)| (c, view.own(t.take().expect("one block per key")), [0u64; 8], None)).collect();
-                let blocks = &mut owned;
-                // The task's blocks asked for first: the lowering walks each
-                // line a few outputs at a time, a cache line apart, and
-                // waited on one miss after another (pass z on 3dmatch-seq01
-                // at 2 m: some 15-20 % of the integration).
-                for b in blocks.iter() {
-                    warm(&*b.1);
+        work,
+        shared(tasks.len(), keys.len()),
+        || (Scratch::default(), Vec::new(), Vec::new(), Sparse::default(), Vec::new(), Vec::new()),
+        |(s, out, entries, sparse, rescan, index), (plan, slots)| {
+            let mut st = Stats { visited: plan.visited, ..Stats::default() };
+            // The task's blocks made writable here, on its thread.
+            let mut owned: Owned<L::Block> = plan
+                .owned
+                .iter()
+                .zip(slots.iter_mut())
+                .map(|(&c, t)| (c, view.own(t.take().expect("one block per key")), [0u64; 8], None))
+                .collect();
+            let blocks = &mut owned;
+            // The task's blocks asked for first: the lowering walks each
+            // line a few outputs at a time, a cache line apart, and
+            // waited on one miss after another (pass z on 3dmatch-seq01
+            // at 2 m: some 15-20 % of the integration).
+            for b in blocks.iter() {
+                warm(&*b.1);
+            }
+            // The previous pass's blocks along the task's line of blocks
+            // from `from` to `to`, looked up once: along its dirty
+            // blocks, where the lowered entries lie, and, once a line
+            // is rescanned, along its blocks grown by the reach, where
+            // the rescans read.
+            let (first, last) = plan.dirty;
+            let column = |from: i32, to: i32| -> Vec<Option<&Lo::In>> {
+                follow.map_or_else(Vec::new, |lo| {
+                    let mut k = first.0;
+                    (from..=to)
+                        .map(|c| {
+                            k[axis] = c;
+                            lo.input(BlockKey(k))
+                        })
+                        .collect()
+                })
+            };
+            let inputs = column(first.0[axis], last);
+            let inputs = Column { base: first.0[axis], blocks: &inputs };
+            let mut wide: Option<(i32, Vec<Option<&Lo::In>>)> = None;
+            // Keeps how the entry at `o` changed, for the next pass.
+            let note = |changed: &mut Option<Box<Changed>>, o: usize, old: L::Value, new: L::Value| {
+                let (vo, vn) = (value(old), value(new));
+                let f = vo.min(vn);
+                let w = if f > pass.max { 0 } else { pass.roots.floor(pass.max - f) };
+                let c = changed.get_or_insert_with(|| Box::new(Changed { radius: [0; BLOCK_VOXELS], lowered: [0; 8] }));
+                c.radius[o] = w;
+                if vn < vo {
+                    c.lowered[o / 64] |= 1 << (o % 64);
                 }
-                // The previous pass's blocks along the task's line of blocks
-                // from `from` to `to`, looked up once: along its dirty
-                // blocks, where the lowered entries lie, and, once a line
-                // is rescanned, along its blocks grown by the reach, where
-                // the rescans read.
-                let (first, last) = plan.dirty;
-                let column = |from: i32, to: i32| -> Vec<Option<&Lo::In>> {
-                    follow.map_or_else(Vec::new, |lo| {
-                        let mut k = first.0;
-                        (from..=to)
-                            .map(|c| {
-                                k[axis] = c;
-                                lo.input(BlockKey(k))
-                            })
-                            .collect()
-                    })
-                };
-                let inputs = column(first.0[axis], last);
-                let inputs = Column { base: first.0[axis], blocks: &inputs };
-                let mut wide: Option<(i32, Vec<Option<&Lo::In>>)> = None;
-                // Keeps how the entry at `o` changed, for the next pass.
-                let note = |changed: &mut Option<Box<Changed>>, o: usize, old: L::Value, new: L::Value| {
-                    let (vo, vn) = (value(old), value(new));
-                    let f = vo.min(vn);
-                    let w = if f > pass.max { 0 } else { pass.roots.floor(pass.max - f) };
-                    let c = changed.get_or_insert_with(|| Box::new(Changed { radius: [0; BLOCK_VOXELS], lowered: [0; 8] }));
-                    c.radius[o] = w;
-                    if vn < vo {
-                        c.lowered[o / 64] |= 1 << (o % 64);
-                    }
-                };
-                // Writes `new` over `old` at `o` of block `j` if it differs.
-                let replace = |blocks: &mut Owned<L::Block>, j: usize, o: usize, old: L::Value, new: L::Value, st: &mut Stats| {
+            };
+            // Writes `new` over `old` at `o` of block `j` if it differs.
+            let replace =
+                |blocks: &mut Owned<L::Block>, j: usize, o: usize, old: L::Value, new: L::Value, st: &mut Stats| {
                     let (_, block, mask, changed) = &mut blocks[j];
                     if old != new {
                         L::write(block, o, new);
@@ -981,100 +1074,126 @@ where
                         }
                     }
                 };
-                // Writes `new` at `o` of block `j` if it differs.
-                let put = |blocks: &mut Owned<L::Block>, j: usize, o: usize, new: L::Value, st: &mut Stats| {
-                    let old = L::read(&blocks[j].1, o);
-                    replace(blocks, j, o, old, new, st);
+            // Writes `new` at `o` of block `j` if it differs.
+            let put = |blocks: &mut Owned<L::Block>, j: usize, o: usize, new: L::Value, st: &mut Stats| {
+                let old = L::read(&blocks[j].1, o);
+                replace(blocks, j, o, old, new, st);
+            };
+            // Each block's place among the task's blocks, by coordinate
+            // along the axis from the first (for the risen entries'
+            // searches, so not in pass x).
+            let c0 = blocks.first().map_or(0, |x| x.0);
+            index.clear();
+            if follow.is_some() {
+                index.resize(blocks.last().map_or(0, |x| (x.0 - c0 + 1) as usize), usize::MAX);
+                for (j, x) in blocks.iter().enumerate() {
+                    index[(x.0 - c0) as usize] = j;
+                }
+            }
+            for lw in &plan.lines {
+                let o_line = local(axis, lw.line[b].rem_euclid(side) as usize, lw.line[d].rem_euclid(side) as usize, 0);
+                // The outputs to rescan: planned (pass x), or those of
+                // the risen entries, searched for among the old outputs
+                // now that the blocks are warm (in the planning, the
+                // same searches were cache misses one after another).
+                let segments: &[Segment] = match follow {
+                    None => &plan.segments[lw.segments.clone()],
+                    Some(lo) => {
+                        // The old output at q: every one searched lies
+                        // in a risen entry's reach, so in the task's
+                        // blocks.
+                        let key = |q: i32| {
+                            let j = *index.get(usize::try_from(q.div_euclid(side) - c0).ok()?)?;
+                            lo.key(q, L::read(&blocks.get(j)?.1, o_line + q.rem_euclid(side) as usize * stride))
+                        };
+                        // How far from output q the inputs reach that
+                        // can be nearest to it, q's old nearest input
+                        // at p: output q is at most `u = (q - p)² + f`,
+                        // `f` the input at p now (risen entries lie in
+                        // the dirty blocks), so no input further than
+                        // `floor(sqrt(u))` is nearest to it, nor ties
+                        // with what is. Most inputs of a rescan were the
+                        // reach on each side of its few outputs.
+                        let bound = |p: i32, qs: [i32; 2]| {
+                            let (f, _) = lo.entry(
+                                inputs.at(p.div_euclid(side)).flatten(),
+                                o_line + p.rem_euclid(side) as usize * stride,
+                            );
+                            // (Capped at the cutoff: an output beyond it
+                            // is far whichever input is nearest; so
+                            // capped, `q -+ bound` only grows with q.)
+                            qs.map(|q| {
+                                let u =
+                                    (u64::from(f) + u64::from((q - p).unsigned_abs()).pow(2)).min(u64::from(pass.max));
+                                i32::from(pass.roots.floor(u as u32)).min(reach)
+                            })
+                        };
+                        st.visited += rescans(key, bound, lw.line, &plan.risen[lw.risen.clone()], reach, rescan);
+                        rescan
+                    }
                 };
-                // Each block's place among the task's blocks, by coordinate
-                // along the axis from the first (for the risen entries'
-                // searches, so not in pass x).
-                let c0 = blocks.first().map_or(0, |x| x.0);
-                index.clear();
-                if follow.is_some() {
-                    index.resize(blocks.last().map_or(0, |x| (x.0 - c0 + 1) as usize), usize::MAX);
-                    for (j, x) in blocks.iter().enumerate() {
-                        index[(x.0 - c0) as usize] = j;
-                    }
+                if let Some(lo) = follow {
+                    // First the outputs the lowered entries lower, from
+                    // the old outputs: the rescans below overwrite
+                    // their own outputs, which this leaves to them.
+                    st.add(lower_line::<L, Lo, _, _>(
+                        blocks,
+                        lo,
+                        inputs,
+                        (&plan.lower[lw.lower.clone()], &plan.entries),
+                        lw.line,
+                        (o_line, stride),
+                        (segments, reach),
+                        (cap, pass.max),
+                        (entries, sparse),
+                        &amount,
+                        &note,
+                    ));
                 }
-                for lw in &plan.lines {
-                    let o_line = local(axis, lw.line[b].rem_euclid(side) as usize, lw.line[d].rem_euclid(side) as usize, 0);
-                    // The outputs to rescan: planned (pass x), or those of
-                    // the risen entries, searched for among the old outputs
-                    // now that the blocks are warm (in the planning, the
-                    // same searches were cache misses one after another).
-                    let segments: &[Segment] = match follow {
-                        None => &plan.segments[lw.segments.clone()],
-                        Some(lo) => {
-                            // The old output at q: every one searched lies
-                            // in a risen entry's reach, so in the task's
-                            // blocks.
-                            let key = |q: i32| {
-                                let j = *index.get(usize::try_from(q.div_euclid(side) - c0).ok()?)?;
-                                lo.key(q, L::read(&blocks.get(j)?.1, o_line + q.rem_euclid(side) as usize * stride))
-                            };
-                            // How far from output q the inputs reach that
-                            // can be nearest to it, q's old nearest input
-                            // at p: output q is at most `u = (q - p)² + f`,
-                            // `f` the input at p now (risen entries lie in
-                            // the dirty blocks), so no input further than
-                            // `floor(sqrt(u))` is nearest to it, nor ties
-                            // with what is. Most inputs of a rescan were the
-                            // reach on each side of its few outputs.
-                            let bound = |p: i32, qs: [i32; 2]| {
-                                let (f, _) = lo.entry(inputs.at(p.div_euclid(side)).flatten(), o_line + p.rem_euclid(side) as usize * stride);
-                                // (Capped at the cutoff: an output beyond it
-                                // is far whichever input is nearest; so
-                                // capped, `q -+ bound` only grows with q.)
-                                qs.map(|q| {
-                                    let u = (u64::from(f) + u64::from((q - p).unsigned_abs()).pow(2)).min(u64::from(pass.max));
-                                    i32::from(pass.roots.floor(u as u32)).min(reach)
-                                })
-                            };
-                            st.visited += rescans(key, bound, lw.line, &plan.risen[lw.risen.clone()], reach, rescan);
-                            rescan
+                if !segments.is_empty() && wide.is_none() {
+                    let grow = (reach + side - 1) / side;
+                    let (from, to) =
+                        (blocks.first().map_or(0, |x| x.0) - grow, blocks.last().map_or(0, |x| x.0) + grow);
+                    wide = Some((from, column(from, to)));
+                }
+                let col = wide
+                    .as_ref()
+                    .map_or(Column { base: 0, blocks: &[] }, |(base, v)| Column { base: *base, blocks: v });
+                for seg in segments {
+                    out.clear();
+                    scan(s, *seg, col, out);
+                    let first = seg.lo - reach;
+                    st.visited += out.len();
+                    st.rescanned += out.len();
+                    let mut j = blocks.partition_point(|x| x.0 < first.div_euclid(side));
+                    by_block(seg.line, axis, first, out.len(), |key, o0, stride, range| {
+                        while blocks[j].0 != key.0[axis] {
+                            j += 1;
                         }
-                    };
-                    if let Some(lo) = follow {
-                        // First the outputs the lowered entries lower, from
-                        // the old outputs: the rescans below overwrite
-                        // their own outputs, which this leaves to them.
-                        st.add(lower_line::<L, Lo, _, _>(blocks, lo, inputs, (&plan.lower[lw.lower.clone()], &plan.entries), lw.line, (o_line, stride), (segments, reach), (cap, pass.max), (entries, sparse), &amount, &note));
-                    }
-                    if !segments.is_empty() && wide.is_none() {
-                        let grow = (reach + side - 1) / side;
-                        let (from, to) = (blocks.first().map_or(0, |x| x.0) - grow, blocks.last().map_or(0, |x| x.0) + grow);
-                        wide = Some((from, column(from, to)));
-                    }
-                    let col = wide.as_ref().map_or(Column { base: 0, blocks: &[] }, |(base, v)| Column { base: *base, blocks: v });
-                    for seg in segments {
-                        out.clear();
-                        scan(s, *seg, col, out);
-                        let first = seg.lo - reach;
-                        st.visited += out.len();
-                        st.rescanned += out.len();
-                        let mut j = blocks.partition_point(|x| x.0 < first.div_euclid(side));
-                        by_block(seg.line, axis, first, out.len(), |key, o0, stride, range| {
-                            while blocks[j].0 != key.0[axis] {
-                                j += 1;
-                            }
-                            for (k, &new) in out[range].iter().enumerate() {
-                                put(blocks, j, o0 + k * stride, new, &mut st);
-                            }
-                        });
-                    }
+                        for (k, &new) in out[range].iter().enumerate() {
+                            put(blocks, j, o0 + k * stride, new, &mut st);
+                        }
+                    });
                 }
-                // Which blocks to keep, read while they are in this core's
-                // cache, and those to keep made ready to put back (a serial
-                // loop over them all took 0.1-0.2 ms). The plan and the
-                // blocks not kept freed here, on the thread that used them.
-                drop(plan);
-                (st, owned.into_iter().map(|(c, b, mask, changed)| (c, (!view.empty(&b)).then(|| L::give(b)), mask, changed)).collect())
-            },
-        );
+            }
+            // Which blocks to keep, read while they are in this core's
+            // cache, and those to keep made ready to put back (a serial
+            // loop over them all took 0.1-0.2 ms). The plan and the
+            // blocks not kept freed here, on the thread that used them.
+            drop(plan);
+            (
+                st,
+                owned
+                    .into_iter()
+                    .map(|(c, b, mask, changed)| (c, (!view.empty(&b)).then(|| L::give(b)), mask, changed))
+                    .collect(),
+            )
+        },
+    );
     // Put the blocks back; the changed voxels are the next pass's dirty ones.
     drop(dirty);
-    let mut next = Marked::with_capacity(stats.iter().flat_map(|s| &s.1).filter(|e| e.2.iter().any(|&w| w != 0)).count());
+    let mut next =
+        Marked::with_capacity(stats.iter().flat_map(|s| &s.1).filter(|e| e.2.iter().any(|&w| w != 0)).count());
     let mut back = Vec::with_capacity(stats.iter().flat_map(|s| &s.1).filter(|e| e.1.is_some()).count());
     let mut total = Stats::default();
     for (r, (st, blocks)) in tasks.iter().zip(stats) {
@@ -1106,7 +1225,12 @@ where
 /// `sparse`: the thread's working memory.
 #[allow(clippy::too_many_arguments)]
 #[inline(never)]
-fn lower_line<L: Layer, Lo: Lower<L::Value>, A: Fn(L::Value, L::Value) -> f64, N: Fn(&mut Option<Box<Changed>>, usize, L::Value, L::Value)>(
+fn lower_line<
+    L: Layer,
+    Lo: Lower<L::Value>,
+    A: Fn(L::Value, L::Value) -> f64,
+    N: Fn(&mut Option<Box<Changed>>, usize, L::Value, L::Value),
+>(
     blocks: &mut Owned<L::Block>,
     lo: &Lo,
     inputs: Column<'_, Lo::In>,
@@ -1125,11 +1249,18 @@ fn lower_line<L: Layer, Lo: Lower<L::Value>, A: Fn(L::Value, L::Value) -> f64, N
     for &(a, z, ref ps) in ranges {
         let ps = &positions[ps.clone()];
         entries.clear();
-        entries.extend(ps.iter().map(|&p| lo.entry(inputs.at(p.div_euclid(side)).flatten(), o_line + p.rem_euclid(side) as usize * stride)));
+        entries.extend(ps.iter().map(|&p| {
+            lo.entry(inputs.at(p.div_euclid(side)).flatten(), o_line + p.rem_euclid(side) as usize * stride)
+        }));
         sparse.build(a, z, ps.iter().zip(entries.iter()).map(|(&p, &(f, _))| (p, f)));
         let (ca, ja) = (i64::from(a.div_euclid(side)), blocks.partition_point(|x| x.0 < a.div_euclid(side)));
         // Block and offset of the output at q.
-        let slot = |q: i64| (ja + (q.div_euclid(i64::from(side)) - ca) as usize, o_line + q.rem_euclid(i64::from(side)) as usize * stride);
+        let slot = |q: i64| {
+            (
+                ja + (q.div_euclid(i64::from(side)) - ca) as usize,
+                o_line + q.rem_euclid(i64::from(side)) as usize * stride,
+            )
+        };
         // The old output at q (block j, offset o): its squared distance
         // capped just past the cutoff, and its key.
         let old_at = |blocks: &Owned<L::Block>, (j, o): (usize, usize), q: i64| {
@@ -1138,7 +1269,8 @@ fn lower_line<L: Layer, Lo: Lower<L::Value>, A: Fn(L::Value, L::Value) -> f64, N
             (key.map_or(cap, |k| i64::from(k.0).min(cap)), key, old)
         };
         for piece in sparse.pieces() {
-            let clear = !segments.iter().any(|g| i64::from(g.lo - reach) <= piece.e && piece.s <= i64::from(g.hi + reach));
+            let clear =
+                !segments.iter().any(|g| i64::from(g.lo - reach) <= piece.e && piece.s <= i64::from(g.hi + reach));
             // The old outputs less the piece, capped, are concave along
             // the line (each old output is a least parabola; two
             // parabolas differ by a line), so the outputs the piece beats
@@ -1182,7 +1314,19 @@ fn lower_line<L: Layer, Lo: Lower<L::Value>, A: Fn(L::Value, L::Value) -> f64, N
             let entry = entries[piece.index].1;
             let make = |q: i32, d: u32| lo.make(line, q, piece.p as i32, d, entry);
             let keep = |q: i64| clear || !rescanned(q);
-            st.add(walk::<L, Lo>(blocks, lo, &piece, l, (ja, ca), (o_line, stride), (cap, max), keep, make, amount, note));
+            st.add(walk::<L, Lo>(
+                blocks,
+                lo,
+                &piece,
+                l,
+                (ja, ca),
+                (o_line, stride),
+                (cap, max),
+                keep,
+                make,
+                amount,
+                note,
+            ));
         }
     }
     st
@@ -1321,7 +1465,12 @@ fn plan_rescan(plan: &mut Plan, line: [i32; 3], found: &[(i32, i32)], reach: i32
 /// kept for [`rescans`] with where its outputs can be. `key(q)`: the
 /// squared distance and position of the entry the old output at `q` came
 /// from.
-fn plan_follow(plan: &mut Plan, key: impl Fn(i32) -> Option<(u32, i32)>, found: &[(i32, i32)], (reach, max): (i32, u32)) {
+fn plan_follow(
+    plan: &mut Plan,
+    key: impl Fn(i32) -> Option<(u32, i32)>,
+    found: &[(i32, i32)],
+    (reach, max): (i32, u32),
+) {
     let first_risen = plan.risen.len();
     for &(p, w) in found {
         // Where the outputs from `p` can be: the entry's old value is more
@@ -1335,7 +1484,9 @@ fn plan_follow(plan: &mut Plan, key: impl Fn(i32) -> Option<(u32, i32)>, found: 
             plan.visited += 1;
             let (pp, s, w) = (i64::from(p), i64::from(s), i64::from(w));
             let (f, least) = (i64::from(d) - (pp - s) * (pp - s), i64::from(max) + 1 - (w + 1) * (w + 1));
-            let Some(run) = half_line(pp - w, pp + w, |q| (q - s) * (q - s) + f >= (q - pp) * (q - pp) + least) else { continue };
+            let Some(run) = half_line(pp - w, pp + w, |q| (q - s) * (q - s) + f >= (q - pp) * (q - pp) + least) else {
+                continue;
+            };
             (from, to) = (run.0 as i32, run.1 as i32);
         }
         plan.risen.push((p, from, to));
@@ -1378,7 +1529,14 @@ fn plan_lowered(plan: &mut Plan, first: usize, p: i32, w: i32) {
 /// outputs can be, from [`plan_follow`]; ascending), found among
 /// the old outputs (`key(q)` as there), runs less than twice the reach
 /// apart merged. Returns how many outputs it read.
-fn rescans(key: impl Fn(i32) -> Option<(u32, i32)>, bound: impl Fn(i32, [i32; 2]) -> [i32; 2], line: [i32; 3], risen: &[(i32, i32, i32)], reach: i32, out: &mut Vec<Segment>) -> usize {
+fn rescans(
+    key: impl Fn(i32) -> Option<(u32, i32)>,
+    bound: impl Fn(i32, [i32; 2]) -> [i32; 2],
+    line: [i32; 3],
+    risen: &[(i32, i32, i32)],
+    reach: i32,
+    out: &mut Vec<Segment>,
+) -> usize {
     out.clear();
     let mut visited = 0;
     // Along a line the sites of the outputs never decrease (of two
@@ -1393,7 +1551,12 @@ fn rescans(key: impl Fn(i32) -> Option<(u32, i32)>, bound: impl Fn(i32, [i32; 2]
     // the outputs between two runs, whose nearest input did not rise,
     // are given the whole reach.
     let mut run: Option<(i32, i32, i32, i32)> = None;
-    let segment = |(s, e, l, r): (i32, i32, i32, i32)| Segment { line, lo: s + reach, hi: e - reach, margin: (l.clamp(0, reach), r.clamp(0, reach)) };
+    let segment = |(s, e, l, r): (i32, i32, i32, i32)| Segment {
+        line,
+        lo: s + reach,
+        hi: e - reach,
+        margin: (l.clamp(0, reach), r.clamp(0, reach)),
+    };
     let mut add = |out: &mut Vec<Segment>, (q0, q1): (i32, i32), [b0, b1]: [i32; 2]| {
         run = match run {
             Some((s, e, l, r)) if q0 - e <= 2 * reach => {
@@ -1574,7 +1737,15 @@ impl Scratch {
     /// it has them) along `axis` from `base` on `line` into `off` (as
     /// offsets along x and y) and `f` (their squared distances, none for
     /// none).
-    fn gather<T: Copy>(&mut self, layer: &FxHashMap<BlockKey, Box<[T; BLOCK_VOXELS]>>, col: Column<'_, [T; BLOCK_VOXELS]>, line: [i32; 3], axis: usize, base: i32, offsets: impl Fn(T) -> [i16; 2]) {
+    fn gather<T: Copy>(
+        &mut self,
+        layer: &FxHashMap<BlockKey, Box<[T; BLOCK_VOXELS]>>,
+        col: Column<'_, [T; BLOCK_VOXELS]>,
+        line: [i32; 3],
+        axis: usize,
+        base: i32,
+        offsets: impl Fn(T) -> [i16; 2],
+    ) {
         let n = self.f.len();
         self.off.clear();
         self.off.resize(n, NONE2);
@@ -1627,7 +1798,11 @@ const ROOTS_MAX: u32 = 1 << 18;
 impl Roots {
     fn new(max: u32) -> Roots {
         let top = if max <= ROOTS_MAX { max as usize + 1 } else { 0 };
-        Roots { max, floor: (0..top as u32).map(isqrt).collect(), exact: (0..top as u32).map(|v| f64::from(v).sqrt()).collect() }
+        Roots {
+            max,
+            floor: (0..top as u32).map(isqrt).collect(),
+            exact: (0..top as u32).map(|v| f64::from(v).sqrt()).collect(),
+        }
     }
 
     fn floor(&self, v: u32) -> u16 {
@@ -1666,13 +1841,24 @@ impl Pass<'_> {
         let flags = &s.flags;
         sweep_row(|i| flags[i], 0, &mut s.out_f, &mut s.out_site);
         for i in margin.0 as usize..n - margin.1 as usize {
-            out.push(if s.out_site[i] == NO_SITE || s.out_f[i] > self.max { NONE } else { (s.out_site[i] as i32 - i as i32) as i16 });
+            out.push(if s.out_site[i] == NO_SITE || s.out_f[i] > self.max {
+                NONE
+            } else {
+                (s.out_site[i] as i32 - i as i32) as i16
+            });
         }
     }
 
     /// Pass y on column `line` from `lo - reach` to `hi + reach`: offsets
     /// to the slice's nearest obstacle, from `g1`.
-    fn column(&self, g1: &FxHashMap<BlockKey, Box<G1Block>>, col: Column<'_, G1Block>, seg: Segment, s: &mut Scratch, out: &mut Vec<[i16; 2]>) {
+    fn column(
+        &self,
+        g1: &FxHashMap<BlockKey, Box<G1Block>>,
+        col: Column<'_, G1Block>,
+        seg: Segment,
+        s: &mut Scratch,
+        out: &mut Vec<[i16; 2]>,
+    ) {
         let (line, margin) = (seg.line, seg.margin);
         let (base, n) = seg.inputs(self.reach);
         s.reset(n);
@@ -1690,7 +1876,14 @@ impl Pass<'_> {
 
     /// Pass z on line `line` from `lo - reach` to `hi + reach`: distances
     /// and nearest obstacles, from `g2`.
-    fn depth(&self, g2: &FxHashMap<BlockKey, Box<G2Block>>, col: Column<'_, G2Block>, seg: Segment, s: &mut Scratch, out: &mut Vec<Out>) {
+    fn depth(
+        &self,
+        g2: &FxHashMap<BlockKey, Box<G2Block>>,
+        col: Column<'_, G2Block>,
+        seg: Segment,
+        s: &mut Scratch,
+        out: &mut Vec<Out>,
+    ) {
         let (line, margin) = (seg.line, seg.margin);
         let (base, n) = seg.inputs(self.reach);
         s.reset(n);
@@ -1758,9 +1951,9 @@ mod tests {
         #[test]
         fn line_bits_are_the_voxels_of_each_line(m in prop::array::uniform8(any::<u64>()), axis in 0usize..3) {
             let bits = line_bits(&m, axis);
-            for l in 0..64 {
+            for (l, line) in bits.iter().enumerate() {
                 for t in 0..8 {
-                    prop_assert_eq!(bits[l] >> t & 1 == 1, bit(&m, local(axis, l % 8, l / 8, t)), "axis {} line {} t {}", axis, l, t);
+                    prop_assert_eq!(line >> t & 1 == 1, bit(&m, local(axis, l % 8, l / 8, t)), "axis {} line {} t {}", axis, l, t);
                 }
             }
         }
