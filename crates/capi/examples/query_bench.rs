@@ -30,7 +30,11 @@ fn wall() -> Vec<[f32; 3]> {
     let mut points = Vec::new();
     for iz in 0..200 {
         for iy in 0..300 {
-            points.push([2.05f32, (-3.0 + 0.02 * f64::from(iy) + 0.01) as f32, (-2.0 + 0.02 * f64::from(iz) + 0.01) as f32]);
+            points.push([
+                2.05f32,
+                (-3.0 + 0.02 * f64::from(iy) + 0.01) as f32,
+                (-2.0 + 0.02 * f64::from(iz) + 0.01) as f32,
+            ]);
         }
     }
     points
@@ -55,7 +59,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let t = Instant::now();
     for f in 0..frames {
         let pose = Isometry3::from_parts(Translation3::new(0.0, 0.02 * f64::from(f), 0.0), UnitQuaternion::identity());
-        let frame = Frame { stamp_s: f64::from(f), t_world_sensor: pose, measurement: Measurement::Points(PointCloud { points: cloud.clone() }) };
+        let frame = Frame {
+            stamp_s: f64::from(f),
+            t_world_sensor: pose,
+            measurement: Measurement::Points(PointCloud { points: cloud.clone() }),
+        };
         mapper.integrate_frame(&frame)?;
     }
     let per_frame = t.elapsed().as_nanos() as f64 / f64::from(frames);

@@ -34,7 +34,11 @@ fn wall() -> Vec<[f32; 3]> {
     let mut points = Vec::new();
     for iz in 0..100 {
         for iy in 0..150 {
-            points.push([2.05f32, (-1.5 + 0.02 * f64::from(iy) + 0.01) as f32, (-1.0 + 0.02 * f64::from(iz) + 0.01) as f32]);
+            points.push([
+                2.05f32,
+                (-1.5 + 0.02 * f64::from(iy) + 0.01) as f32,
+                (-1.0 + 0.02 * f64::from(iz) + 0.01) as f32,
+            ]);
         }
     }
     points
@@ -50,7 +54,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let config = Config::parse(CONFIG, "wall_reference")?;
     let (sensor, params) = config.mapper_params()?;
     let mut mapper = Mapper::new_on(CpuBackend::default(), sensor, params)?;
-    let frame = Frame { stamp_s: 0.0, t_world_sensor: Isometry3::identity(), measurement: Measurement::Points(PointCloud { points: wall() }) };
+    let frame = Frame {
+        stamp_s: 0.0,
+        t_world_sensor: Isometry3::identity(),
+        measurement: Measurement::Points(PointCloud { points: wall() }),
+    };
     mapper.integrate_frame(&frame)?;
     let q = queries();
     let answers: Vec<_> = q.iter().map(|&p| mapper.distance(p)).collect();

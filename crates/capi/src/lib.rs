@@ -120,8 +120,11 @@ impl edtmap_sensor {
 
 impl edtmap_backend {
     /// Every value with its C name, in the order of their numbers from 0.
-    const VALUES: [(Self, &'static str); 3] =
-        [(Self::EDTMAP_BACKEND_CPU, "EDTMAP_BACKEND_CPU"), (Self::EDTMAP_BACKEND_GPU, "EDTMAP_BACKEND_GPU"), (Self::EDTMAP_BACKEND_AUTO, "EDTMAP_BACKEND_AUTO")];
+    const VALUES: [(Self, &'static str); 3] = [
+        (Self::EDTMAP_BACKEND_CPU, "EDTMAP_BACKEND_CPU"),
+        (Self::EDTMAP_BACKEND_GPU, "EDTMAP_BACKEND_GPU"),
+        (Self::EDTMAP_BACKEND_AUTO, "EDTMAP_BACKEND_AUTO"),
+    ];
 }
 
 /// Explicit parameters of a mapper ([`edtmap_mapper_new`]); fill them with
@@ -265,7 +268,11 @@ impl From<MapError> for Failure {
 /// last error; `what` names the function in the message.
 fn guard(what: &str, f: impl FnOnce() -> Result<()>) -> edtmap_status {
     let outcome = catch_unwind(AssertUnwindSafe(f)).unwrap_or_else(|panic| {
-        let why = panic.downcast_ref::<&str>().map(|s| s.to_string()).or_else(|| panic.downcast_ref::<String>().cloned()).unwrap_or_default();
+        let why = panic
+            .downcast_ref::<&str>()
+            .map(|s| s.to_string())
+            .or_else(|| panic.downcast_ref::<String>().cloned())
+            .unwrap_or_default();
         Err(Failure(edtmap_status::EDTMAP_PANIC, format!("edtmap panicked (a bug; please report it): {why}")))
     });
     match outcome {
@@ -315,10 +322,16 @@ fn check_ptr<T>(ptr: *const T, len: usize, name: &str) -> Result<()> {
         };
     }
     if !(ptr as usize).is_multiple_of(std::mem::align_of::<T>()) {
-        return fail(edtmap_status::EDTMAP_INVALID_ARGUMENT, format!("{name} is not aligned to {} bytes", std::mem::align_of::<T>()));
+        return fail(
+            edtmap_status::EDTMAP_INVALID_ARGUMENT,
+            format!("{name} is not aligned to {} bytes", std::mem::align_of::<T>()),
+        );
     }
     if len.checked_mul(std::mem::size_of::<T>()).is_none_or(|b| b > isize::MAX as usize) {
-        return fail(edtmap_status::EDTMAP_INVALID_ARGUMENT, format!("{name}: {len} elements is more than memory holds"));
+        return fail(
+            edtmap_status::EDTMAP_INVALID_ARGUMENT,
+            format!("{name}: {len} elements is more than memory holds"),
+        );
     }
     Ok(())
 }
@@ -329,7 +342,9 @@ unsafe fn path<'a>(ptr: *const c_char, name: &str) -> Result<&'a Path> {
         return fail(edtmap_status::EDTMAP_NULL_ARGUMENT, format!("{name} is null"));
     }
     // SAFETY: the caller passes a NUL-terminated string.
-    let text = unsafe { CStr::from_ptr(ptr) }.to_str().or_else(|_| fail(edtmap_status::EDTMAP_INVALID_ARGUMENT, format!("{name} is not UTF-8")))?;
+    let text = unsafe { CStr::from_ptr(ptr) }
+        .to_str()
+        .or_else(|_| fail(edtmap_status::EDTMAP_INVALID_ARGUMENT, format!("{name} is not UTF-8")))?;
     Ok(Path::new(text))
 }
 
@@ -359,8 +374,12 @@ fn enum_value<T: Copy>(field: &str, raw: u32, values: &[(T, &str)]) -> Result<T>
     match values.get(raw as usize) {
         Some((value, _)) => Ok(*value),
         None => {
-            let accepted: Vec<String> = values.iter().enumerate().map(|(i, (_, name))| format!("{name} ({i})")).collect();
-            fail(edtmap_status::EDTMAP_INVALID_ARGUMENT, format!("{field} = {raw}: must be one of {}", accepted.join(", ")))
+            let accepted: Vec<String> =
+                values.iter().enumerate().map(|(i, (_, name))| format!("{name} ({i})")).collect();
+            fail(
+                edtmap_status::EDTMAP_INVALID_ARGUMENT,
+                format!("{field} = {raw}: must be one of {}", accepted.join(", ")),
+            )
         }
     }
 }
@@ -388,7 +407,10 @@ fn open_backend(b: edtmap_backend) -> Result<Box<dyn Backend + Send>> {
             _ => Ok(Box::new(CpuBackend::default())),
         },
         #[cfg(not(feature = "gpu"))]
-        edtmap_backend::EDTMAP_BACKEND_GPU => fail(edtmap_status::EDTMAP_BACKEND, "this build of libedtmap_c has no GPU backend; build it with the `gpu` feature (cmake -DEDTMAP_GPU=ON)"),
+        edtmap_backend::EDTMAP_BACKEND_GPU => fail(
+            edtmap_status::EDTMAP_BACKEND,
+            "this build of libedtmap_c has no GPU backend; build it with the `gpu` feature (cmake -DEDTMAP_GPU=ON)",
+        ),
         #[cfg(not(feature = "gpu"))]
         edtmap_backend::EDTMAP_BACKEND_AUTO => Ok(Box::new(CpuBackend::default())),
     }
@@ -443,7 +465,14 @@ fn config_of(p: &edtmap_params) -> Result<Config> {
     });
     match kind {
         edtmap_sensor::EDTMAP_SENSOR_DEPTH => {
-            for (k, v) in [("fx", json!(p.fx)), ("fy", json!(p.fy)), ("cx", json!(p.cx)), ("cy", json!(p.cy)), ("width", json!(p.width)), ("height", json!(p.height))] {
+            for (k, v) in [
+                ("fx", json!(p.fx)),
+                ("fy", json!(p.fy)),
+                ("cx", json!(p.cx)),
+                ("cy", json!(p.cy)),
+                ("width", json!(p.width)),
+                ("height", json!(p.height)),
+            ] {
                 sensor[k] = v;
             }
         }
@@ -517,7 +546,10 @@ pub unsafe extern "C" fn edtmap_params_default(out: *mut edtmap_params) -> edtma
 /// A mapper with the parameters `params` into `*out` (free it with
 /// [`edtmap_mapper_free`]).
 #[no_mangle]
-pub unsafe extern "C" fn edtmap_mapper_new(params: *const edtmap_params, out: *mut *mut edtmap_mapper) -> edtmap_status {
+pub unsafe extern "C" fn edtmap_mapper_new(
+    params: *const edtmap_params,
+    out: *mut *mut edtmap_mapper,
+) -> edtmap_status {
     guard("edtmap_mapper_new", || {
         check_out(out)?;
         // SAFETY: the caller passes a valid `edtmap_params` or null.
@@ -533,7 +565,11 @@ pub unsafe extern "C" fn edtmap_mapper_new(params: *const edtmap_params, out: *m
 /// `edtmap run --config`) on `backend` (an `edtmap_backend` value; any
 /// other number is `EDTMAP_INVALID_ARGUMENT`) into `*out`.
 #[no_mangle]
-pub unsafe extern "C" fn edtmap_mapper_from_config(config_path: *const c_char, backend: u32, out: *mut *mut edtmap_mapper) -> edtmap_status {
+pub unsafe extern "C" fn edtmap_mapper_from_config(
+    config_path: *const c_char,
+    backend: u32,
+    out: *mut *mut edtmap_mapper,
+) -> edtmap_status {
     guard("edtmap_mapper_from_config", || {
         check_out(out)?;
         let backend = enum_value("backend", backend, &edtmap_backend::VALUES)?;
@@ -549,7 +585,12 @@ pub unsafe extern "C" fn edtmap_mapper_from_config(config_path: *const c_char, b
 /// map saved at `map_path` (by [`edtmap_mapper_save`] or `edtmap run
 /// --save`), into `*out`.
 #[no_mangle]
-pub unsafe extern "C" fn edtmap_mapper_resume(config_path: *const c_char, map_path: *const c_char, backend: u32, out: *mut *mut edtmap_mapper) -> edtmap_status {
+pub unsafe extern "C" fn edtmap_mapper_resume(
+    config_path: *const c_char,
+    map_path: *const c_char,
+    backend: u32,
+    out: *mut *mut edtmap_mapper,
+) -> edtmap_status {
     guard("edtmap_mapper_resume", || {
         check_out(out)?;
         let backend = enum_value("backend", backend, &edtmap_backend::VALUES)?;
@@ -579,17 +620,27 @@ unsafe fn pose(t_world_sensor: *const f64) -> Result<nalgebra::Isometry3<f64>> {
     // SAFETY: the caller passes 16 doubles or null.
     let v = unsafe { slice(t_world_sensor, 16, "t_world_sensor") }?;
     if let Some(x) = v.iter().find(|x| !x.is_finite()) {
-        return fail(edtmap_status::EDTMAP_INVALID_ARGUMENT, format!("t_world_sensor holds {x}; every value must be finite"));
+        return fail(
+            edtmap_status::EDTMAP_INVALID_ARGUMENT,
+            format!("t_world_sensor holds {x}; every value must be finite"),
+        );
     }
     let mut m = [[0.0; 4]; 4];
     for (r, row) in m.iter_mut().enumerate() {
         row.copy_from_slice(&v[4 * r..4 * r + 4]);
     }
-    edtmap::sensor::pose_from_matrix(&m).or_else(|e| fail(edtmap_status::EDTMAP_INVALID_ARGUMENT, format!("t_world_sensor: {e}")))
+    edtmap::sensor::pose_from_matrix(&m)
+        .or_else(|e| fail(edtmap_status::EDTMAP_INVALID_ARGUMENT, format!("t_world_sensor: {e}")))
 }
 
 /// Integrates a frame and fills `stats` when it is not null.
-unsafe fn integrate(mapper: *const edtmap_mapper, t_world_sensor: *const f64, stamp_s: f64, stats: *mut edtmap_frame_stats, measurement: impl FnOnce(&edtmap_mapper) -> Result<Measurement>) -> Result<()> {
+unsafe fn integrate(
+    mapper: *const edtmap_mapper,
+    t_world_sensor: *const f64,
+    stamp_s: f64,
+    stats: *mut edtmap_frame_stats,
+    measurement: impl FnOnce(&edtmap_mapper) -> Result<Measurement>,
+) -> Result<()> {
     // SAFETY: the caller passes a mapper from this library or null.
     let m = unsafe { handle(mapper, "mapper") }?;
     // SAFETY: as in `pose`.
@@ -631,7 +682,9 @@ pub unsafe extern "C" fn edtmap_integrate_points(
     stats: *mut edtmap_frame_stats,
 ) -> edtmap_status {
     guard("edtmap_integrate_points", || {
-        let len = n_points.checked_mul(3).ok_or(Failure(edtmap_status::EDTMAP_INVALID_ARGUMENT, format!("n_points = {n_points} is too many")))?;
+        let len = n_points
+            .checked_mul(3)
+            .ok_or(Failure(edtmap_status::EDTMAP_INVALID_ARGUMENT, format!("n_points = {n_points} is too many")))?;
         // SAFETY: the caller passes 3 n_points floats.
         let values = unsafe { slice(xyz, len, "xyz") }?;
         let points = values.as_chunks::<3>().0.to_vec();
@@ -679,7 +732,10 @@ pub unsafe extern "C" fn edtmap_integrate_depth_u16(
 ) -> edtmap_status {
     guard("edtmap_integrate_depth_u16", || {
         if !(metres_per_unit.is_finite() && metres_per_unit > 0.0) {
-            return fail(edtmap_status::EDTMAP_INVALID_ARGUMENT, format!("metres_per_unit = {metres_per_unit}; it must be a positive number"));
+            return fail(
+                edtmap_status::EDTMAP_INVALID_ARGUMENT,
+                format!("metres_per_unit = {metres_per_unit}; it must be a positive number"),
+            );
         }
         let n = width as usize * height as usize;
         // SAFETY: the caller passes width × height values.
@@ -752,8 +808,17 @@ fn state_code(s: PointState) -> u8 {
 /// Distances (and gradients and states where those buffers are not null)
 /// of `n` points of `map`, in parallel.
 #[allow(clippy::too_many_arguments)]
-unsafe fn query_into(map: &GlobalMap, points: *const f64, n: usize, signed: bool, distances: *mut f64, gradients: *mut f64, states: *mut u8) -> Result<()> {
-    let len3 = n.checked_mul(3).ok_or(Failure(edtmap_status::EDTMAP_INVALID_ARGUMENT, format!("n = {n} is too many")))?;
+unsafe fn query_into(
+    map: &GlobalMap,
+    points: *const f64,
+    n: usize,
+    signed: bool,
+    distances: *mut f64,
+    gradients: *mut f64,
+    states: *mut u8,
+) -> Result<()> {
+    let len3 =
+        n.checked_mul(3).ok_or(Failure(edtmap_status::EDTMAP_INVALID_ARGUMENT, format!("n = {n} is too many")))?;
     // SAFETY: the caller passes 3 n doubles.
     let pts = unsafe { slice(points, len3, "points") }?.as_chunks::<3>().0;
     // SAFETY: the caller passes n doubles to write.
@@ -773,18 +838,19 @@ unsafe fn query_into(map: &GlobalMap, points: *const f64, n: usize, signed: bool
     let chunk = n.div_ceil(rayon::current_num_threads()).clamp(64, QUERY_CHUNK);
     let grad_chunks = grad.as_mut().map(|g| g.par_chunks_mut(3 * chunk));
     let state_chunks = state.as_mut().map(|s| s.par_chunks_mut(chunk));
-    let answer = |(pts, dist): (&[[f64; 3]], &mut [f64]), mut grad: Option<&mut [f64]>, mut state: Option<&mut [u8]>| {
-        for (i, p) in pts.iter().enumerate() {
-            let d = query::distance(map, *p, signed);
-            dist[i] = d.distance_m;
-            if let Some(g) = grad.as_deref_mut() {
-                g[3 * i..3 * i + 3].copy_from_slice(&d.gradient);
+    let answer =
+        |(pts, dist): (&[[f64; 3]], &mut [f64]), mut grad: Option<&mut [f64]>, mut state: Option<&mut [u8]>| {
+            for (i, p) in pts.iter().enumerate() {
+                let d = query::distance(map, *p, signed);
+                dist[i] = d.distance_m;
+                if let Some(g) = grad.as_deref_mut() {
+                    g[3 * i..3 * i + 3].copy_from_slice(&d.gradient);
+                }
+                if let Some(s) = state.as_deref_mut() {
+                    s[i] = state_code(d.state);
+                }
             }
-            if let Some(s) = state.as_deref_mut() {
-                s[i] = state_code(d.state);
-            }
-        }
-    };
+        };
     let base = pts.par_chunks(chunk).zip(dist.par_chunks_mut(chunk));
     match (grad_chunks, state_chunks) {
         (Some(g), Some(s)) => base.zip(g).zip(s).for_each(|((b, g), s)| answer(b, Some(g), Some(s))),
@@ -843,19 +909,33 @@ pub unsafe extern "C" fn edtmap_map_query(
 
 /// The body of the two `export_box` functions.
 #[allow(clippy::too_many_arguments)]
-unsafe fn export_box(map: &GlobalMap, min_m: *const f64, max_m: *const f64, signed: bool, distances: *mut f32, states: *mut u8, capacity: usize, info: *mut edtmap_box) -> Result<()> {
+unsafe fn export_box(
+    map: &GlobalMap,
+    min_m: *const f64,
+    max_m: *const f64,
+    signed: bool,
+    distances: *mut f32,
+    states: *mut u8,
+    capacity: usize,
+    info: *mut edtmap_box,
+) -> Result<()> {
     // SAFETY: the caller passes 3 doubles each.
     let (lo, hi) = unsafe { (slice(min_m, 3, "min_m")?, slice(max_m, 3, "max_m")?) };
-    let dense = query::distance_box(map, [lo[0], lo[1], lo[2]], [hi[0], hi[1], hi[2]], signed).or_else(|e| fail(edtmap_status::EDTMAP_INVALID_ARGUMENT, e.to_string()))?;
+    let dense = query::distance_box(map, [lo[0], lo[1], lo[2]], [hi[0], hi[1], hi[2]], signed)
+        .or_else(|e| fail(edtmap_status::EDTMAP_INVALID_ARGUMENT, e.to_string()))?;
     let n = dense.distance_m.len();
-    let shape = edtmap_box { dims: dense.dims.map(|d| d as u64), origin: dense.origin.0, voxel_size_m: map.voxel_size_m() };
+    let shape =
+        edtmap_box { dims: dense.dims.map(|d| d as u64), origin: dense.origin.0, voxel_size_m: map.voxel_size_m() };
     // SAFETY: the caller passes a writable `edtmap_box` or null.
     unsafe { put(info, shape, "info") }?;
     if distances.is_null() && states.is_null() {
         return Ok(());
     }
     if capacity < n {
-        return fail(edtmap_status::EDTMAP_INVALID_ARGUMENT, format!("capacity {capacity} is less than the box's {n} voxels"));
+        return fail(
+            edtmap_status::EDTMAP_INVALID_ARGUMENT,
+            format!("capacity {capacity} is less than the box's {n} voxels"),
+        );
     }
     // SAFETY: the caller passes `capacity` elements each.
     unsafe { slice_mut(distances, n, "distances") }?.copy_from_slice(&dense.distance_m);
@@ -980,11 +1060,19 @@ mod tests {
 
     #[test]
     fn out_of_range_values_name_the_field_and_the_values() {
-        let Err(Failure(status, message)) = enum_value("edtmap_params.sensor", 42, &edtmap_sensor::VALUES) else { panic!("42 is no sensor") };
+        let Err(Failure(status, message)) = enum_value("edtmap_params.sensor", 42, &edtmap_sensor::VALUES) else {
+            panic!("42 is no sensor")
+        };
         assert_eq!(status, edtmap_status::EDTMAP_INVALID_ARGUMENT);
-        assert!(message.contains("edtmap_params.sensor = 42") && message.contains("EDTMAP_SENSOR_PLANAR (3)"), "{message}");
+        assert!(
+            message.contains("edtmap_params.sensor = 42") && message.contains("EDTMAP_SENSOR_PLANAR (3)"),
+            "{message}"
+        );
         let Err(Failure(_, message)) = flag("edtmap_params.exact", 0x7f) else { panic!("0x7f is no flag") };
-        assert!(message.contains("edtmap_params.exact = 127") && message.contains("0 (false) or 1 (true)"), "{message}");
+        assert!(
+            message.contains("edtmap_params.exact = 127") && message.contains("0 (false) or 1 (true)"),
+            "{message}"
+        );
         assert!(flag("f", 1).is_ok_and(|b| b) && flag("f", 0).is_ok_and(|b| !b));
     }
 }

@@ -14,21 +14,32 @@
 //!   node_player RECORDING.mcap SENSOR_TOPIC DOMAIN [FRAMES]
 
 use edtmap_ros::msg::Message;
-use edtmap_ros::node::types::{CameraInfo, DiagnosticArray, GetDistancesRequest, GetDistancesResponse, Image, LaserScan, Point, PointCloud2, TfMessage, TransformStamped};
+use edtmap_ros::node::types::{
+    CameraInfo, DiagnosticArray, GetDistancesRequest, GetDistancesResponse, Image, LaserScan, Point, PointCloud2,
+    TfMessage, TransformStamped,
+};
 use ros2_client::dds::rustdds::DomainParticipantBuilder;
 use ros2_client::qos::{Durability, History, WhenFull};
-use ros2_client::{Context, MessageTypeName, Name, Node, NodeName, NodeOptions, QosProfile, ServiceMapping, ServiceTypeName};
+use ros2_client::{
+    Context, MessageTypeName, Name, Node, NodeName, NodeOptions, QosProfile, ServiceMapping, ServiceTypeName,
+};
 use std::net::{IpAddr, Ipv4Addr};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 fn qos() -> QosProfile {
-    QosProfile::publisher_default().reliability_reliable(WhenFull::Wait(Duration::from_millis(500))).durability(Durability::Volatile).history(History::KeepLast { depth: 20 })
+    QosProfile::publisher_default()
+        .reliability_reliable(WhenFull::Wait(Duration::from_millis(500)))
+        .durability(Durability::Volatile)
+        .history(History::KeepLast { depth: 20 })
 }
 
 fn context(domain: u16) -> Context {
-    let p = DomainParticipantBuilder::new(domain).with_only_networks([IpAddr::V4(Ipv4Addr::LOCALHOST)]).build().expect("participant");
+    let p = DomainParticipantBuilder::new(domain)
+        .with_only_networks([IpAddr::V4(Ipv4Addr::LOCALHOST)])
+        .build()
+        .expect("participant");
     Context::from_domain_participant(p).expect("context")
 }
 
@@ -41,7 +52,12 @@ fn publisher<M: ros2_client::Message>(node: &mut Node, full: &str, pkg: &str, ty
     node.create_publisher::<M>(&t, Some(qos())).expect("publisher")
 }
 
-fn subscription<M: ros2_client::Message + 'static>(node: &mut Node, full: &str, pkg: &str, ty: &str) -> ros2_client::Subscription<M> {
+fn subscription<M: ros2_client::Message + 'static>(
+    node: &mut Node,
+    full: &str,
+    pkg: &str,
+    ty: &str,
+) -> ros2_client::Subscription<M> {
     let t = node.create_topic(&name(full), MessageTypeName::new(pkg, ty), &qos()).expect("topic");
     node.create_subscription::<M>(&t, Some(qos())).expect("subscription")
 }
@@ -85,7 +101,9 @@ fn main() {
     let (path, sensor_topic, domain) = (&args[1], args[2].as_str(), args[3].parse::<u16>().expect("domain"));
     let max_frames: usize = args.get(4).map_or(usize::MAX, |f| f.parse().expect("frames"));
     let ctx = context(domain);
-    let mut node = ctx.new_node(NodeName::new("/", "player").expect("name"), NodeOptions::new().enable_rosout(false)).expect("node");
+    let mut node = ctx
+        .new_node(NodeName::new("/", "player").expect("name"), NodeOptions::new().enable_rosout(false))
+        .expect("node");
     let parent = sensor_topic.rsplit_once('/').map_or("", |p| p.0);
     let clouds = publisher::<PointCloud2>(&mut node, sensor_topic, "sensor_msgs", "PointCloud2");
     let images = publisher::<Image>(&mut node, sensor_topic, "sensor_msgs", "Image");
@@ -116,12 +134,28 @@ fn main() {
     let flag = mapping.clone();
     let queries = std::thread::spawn(move || {
         let ctx = context(domain);
-        let mut node = ctx.new_node(NodeName::new("/", "planner").expect("name"), NodeOptions::new().enable_rosout(false)).expect("node");
+        let mut node = ctx
+            .new_node(NodeName::new("/", "planner").expect("name"), NodeOptions::new().enable_rosout(false))
+            .expect("node");
         let client = node
-            .create_client::<GetDistancesRequest, GetDistancesResponse>(ServiceMapping::Cyclone, &name("/edtmap/get_distances"), &ServiceTypeName::new("edtmap_msgs", "GetDistances"), qos(), qos())
+            .create_client::<GetDistancesRequest, GetDistancesResponse>(
+                ServiceMapping::Cyclone,
+                &name("/edtmap/get_distances"),
+                &ServiceTypeName::new("edtmap_msgs", "GetDistances"),
+                qos(),
+                qos(),
+            )
             .expect("client");
         std::thread::sleep(Duration::from_secs(2));
-        let points = |n: usize| (0..n).map(|i| Point { x: (i % 97) as f64 * 0.1 - 4.8, y: (i % 89) as f64 * 0.1 - 4.4, z: (i % 23) as f64 * 0.1 }).collect::<Vec<_>>();
+        let points = |n: usize| {
+            (0..n)
+                .map(|i| Point {
+                    x: (i % 97) as f64 * 0.1 - 4.8,
+                    y: (i % 89) as f64 * 0.1 - 4.4,
+                    z: (i % 23) as f64 * 0.1,
+                })
+                .collect::<Vec<_>>()
+        };
         let sets = [(1usize, points(1)), (1000, points(1000)), (100_000, points(100_000))];
         let mut times: Vec<Vec<f64>> = vec![Vec::new(); 3];
         let mut lost = 0;
@@ -142,13 +176,22 @@ fn main() {
         Message::Image(i) => images.publish(i.into()).expect("image"),
         Message::CameraInfo(i) => infos.publish(i.into()).expect("info"),
         Message::LaserScan(s) => scans.publish(s.into()).expect("scan"),
-        Message::Tf(ts) => tf.publish(TfMessage { transforms: ts.iter().map(TransformStamped::from).collect() }).expect("tf"),
+        Message::Tf(ts) => {
+            tf.publish(TfMessage { transforms: ts.iter().map(TransformStamped::from).collect() }).expect("tf")
+        }
         _ => {}
     };
     let mut latencies = Vec::new();
     // The node's map and kept bytes after each frame.
     let mut memory: Vec<u64> = Vec::new();
-    let value = |s: &DiagnosticArray, key: &str| s.status.iter().flat_map(|st| &st.values).find(|kv| kv.key == key).and_then(|kv| kv.value.parse::<u64>().ok()).unwrap_or(0);
+    let value = |s: &DiagnosticArray, key: &str| {
+        s.status
+            .iter()
+            .flat_map(|st| &st.values)
+            .find(|kv| kv.key == key)
+            .and_then(|kv| kv.value.parse::<u64>().ok())
+            .unwrap_or(0)
+    };
     let (mut mapped, mut lost_frames) = (0u64, 0u64);
     let start = Instant::now();
     for (stamp_ns, messages) in &frames {
@@ -180,7 +223,14 @@ fn main() {
     let elapsed = start.elapsed().as_secs_f64();
     mapping.store(false, Ordering::Relaxed);
     let (mut times, lost_queries) = queries.join().expect("query thread");
-    let q = |k: usize, t: &mut Vec<Vec<f64>>| format!("{{\"calls\": {}, \"median_ms\": {:.3}, \"p95_ms\": {:.3}}}", t[k].len(), percentile(&mut t[k], 0.5), percentile(&mut t[k], 0.95));
+    let q = |k: usize, t: &mut Vec<Vec<f64>>| {
+        format!(
+            "{{\"calls\": {}, \"median_ms\": {:.3}, \"p95_ms\": {:.3}}}",
+            t[k].len(),
+            percentile(&mut t[k], 0.5),
+            percentile(&mut t[k], 0.95)
+        )
+    };
     let at = |f: f64| memory.get(((memory.len().max(1) - 1) as f64 * f) as usize).copied().unwrap_or(0);
     let memory_json = format!("[{}, {}, {}, {}]", at(0.25), at(0.5), at(0.75), at(1.0));
     println!(

@@ -73,7 +73,10 @@ pub(crate) fn run(args: &EdtArgs) -> Result<()> {
     )?;
     // One transform has nothing to keep part-way: a signal stops at once,
     // leaving no partial output.
-    let dirs: Vec<&Path> = outputs.iter().map(|(_, p)| p.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."))).collect();
+    let dirs: Vec<&Path> = outputs
+        .iter()
+        .map(|(_, p)| p.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new(".")))
+        .collect();
     interrupt::catch(OnFirst::Abandon, &dirs);
     let grid = file.read()?;
     let scan = match args.layout {

@@ -72,7 +72,10 @@ fn stop_now() -> ! {
     for dir in OUTPUT_DIRS.lock().unwrap_or_else(PoisonError::into_inner).iter() {
         edtmap_io::files::remove_own_temporaries(dir);
     }
-    let _ = std::io::Write::write_all(&mut std::io::stderr(), format!("edtmap: {}: stopped at once, no partial file left\n", name(signal)).as_bytes());
+    let _ = std::io::Write::write_all(
+        &mut std::io::stderr(),
+        format!("edtmap: {}: stopped at once, no partial file left\n", name(signal)).as_bytes(),
+    );
     // SAFETY: _exit ends the process without running destructors or
     // flushing buffers, which other threads may be using.
     unsafe { libc::_exit(128 + signal) }

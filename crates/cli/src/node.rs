@@ -63,7 +63,8 @@ pub(crate) fn run(args: &NodeArgs) -> Result<()> {
         Some(path) => Some(edtmap::load_map(path).with_context(|| format!("--map {}", path.display()))?),
         None => None,
     };
-    let mapper = node::mapper(&config, map, crate::memory::max_bytes()).with_context(|| args.config.display().to_string())?;
+    let mapper =
+        node::mapper(&config, map, crate::memory::max_bytes()).with_context(|| args.config.display().to_string())?;
     catch_signals();
     let handle = node::start(&config, mapper).with_context(|| args.config.display().to_string())?;
     let started = Instant::now();
@@ -85,7 +86,14 @@ pub(crate) fn run(args: &NodeArgs) -> Result<()> {
         }
         if last_report.elapsed() >= Duration::from_secs(10) {
             last_report = Instant::now();
-            tracing::info!("{} frames integrated, {} received, {} dropped, skipped {:?}, {} requests", stats.integrated, stats.received, stats.dropped, stats.skipped, stats.requests);
+            tracing::info!(
+                "{} frames integrated, {} received, {} dropped, skipped {:?}, {} requests",
+                stats.integrated,
+                stats.received,
+                stats.dropped,
+                stats.skipped,
+                stats.requests
+            );
         }
     };
     let stats = handle.stop()?;

@@ -14,9 +14,9 @@ use serde_json::{json, Value};
 use crate::backend::CliMapper;
 use crate::query::finite_metres;
 use crate::report::FrameRecord;
-use edtmap_viz::plot::{Chart, Series, SeriesStyle};
-use edtmap_viz::picture::{viridis, write_slice_png, write_states_png, MapAxes, Slice, SliceStyle};
 use edtmap_io::ply::{write_ply, ColouredPoint};
+use edtmap_viz::picture::{viridis, write_slice_png, write_states_png, MapAxes, Slice, SliceStyle};
+use edtmap_viz::plot::{Chart, Series, SeriesStyle};
 
 /// The occupancy slice `edtmap run` writes in `--out`.
 pub(crate) const OCCUPANCY_SLICE: &str = "occupancy_slice.png";
@@ -39,8 +39,17 @@ pub(crate) const MAP_TOP_CLEARANCE: &str = "map_top_clearance.png";
 /// The top views of the whole map, as `edtmap run` and `edtmap picture` write them.
 pub(crate) const MAP_PICTURES: [&str; 4] = [MAP_TOP_OCCUPANCY, MAP_TOP_DISTANCE, MAP_TOP_PROJECTION, MAP_TOP_CLEARANCE];
 /// Every picture and cloud a run may write.
-pub(crate) const OUT_PICTURES: [&str; 9] =
-    [OCCUPANCY_SLICE, EDT_SLICE, TIMING_PLOT, OCCUPIED_PLY, EDT_PLY, MAP_TOP_OCCUPANCY, MAP_TOP_DISTANCE, MAP_TOP_PROJECTION, MAP_TOP_CLEARANCE];
+pub(crate) const OUT_PICTURES: [&str; 9] = [
+    OCCUPANCY_SLICE,
+    EDT_SLICE,
+    TIMING_PLOT,
+    OCCUPIED_PLY,
+    EDT_PLY,
+    MAP_TOP_OCCUPANCY,
+    MAP_TOP_DISTANCE,
+    MAP_TOP_PROJECTION,
+    MAP_TOP_CLEARANCE,
+];
 
 /// The height of the pictured slices and where it came from.
 #[derive(Debug, Clone, PartialEq)]
@@ -123,7 +132,8 @@ pub(crate) fn write_slices(mapper: &CliMapper, z_m: f64, out: &Path) -> Result<V
     let [nx, ny, _] = volume.dims;
     let z = layer_of(volume, z_m);
     let [ox, oy, _] = volume.origin.0.map(f64::from);
-    let axes = MapAxes { origin_m: [ox * vs, oy * vs], cell_m: vs, position: format!("z = {:.2} m", layer_centre(volume, z)) };
+    let axes =
+        MapAxes { origin_m: [ox * vs, oy * vs], cell_m: vs, position: format!("z = {:.2} m", layer_centre(volume, z)) };
     let plane = z * nx * ny..(z + 1) * nx * ny;
     let states = &mapper.local_states().as_slice()[plane.clone()];
     let occ_path = out.join(OCCUPANCY_SLICE);
@@ -134,7 +144,8 @@ pub(crate) fn write_slices(mapper: &CliMapper, z_m: f64, out: &Path) -> Result<V
         .map(|(i, s)| if *s == VoxelState::Unknown { f32::NAN } else { edt.distance_vox(i) * vs as f32 })
         .collect();
     let edt_path = out.join(EDT_SLICE);
-    let style = SliceStyle { title: "local EDT (grey: unknown)".into(), unit: "m".into(), max_value: None, axes: Some(axes) };
+    let style =
+        SliceStyle { title: "local EDT (grey: unknown)".into(), unit: "m".into(), max_value: None, axes: Some(axes) };
     write_slice_png(&edt_path, Slice { width: nx, height: ny, values: &dist }, &style)?;
     Ok(vec![occ_path, edt_path])
 }
@@ -170,7 +181,9 @@ pub(crate) fn picture(args: &PictureArgs) -> Result<()> {
     let z_m = match args.height {
         Some(z) => z,
         None => {
-            let layer = top_view::densest_layer(&map).with_context(|| format!("{} has no observed voxel: there is nothing to picture", args.map.display()))?;
+            let layer = top_view::densest_layer(&map).with_context(|| {
+                format!("{} has no observed voxel: there is nothing to picture", args.map.display())
+            })?;
             (f64::from(layer) + 0.5) * vs
         }
     };
@@ -190,7 +203,12 @@ pub(crate) fn picture(args: &PictureArgs) -> Result<()> {
 /// `z_m`, and the projection and clearance through the layers `band_m`
 /// overlaps (`[min, max)` metres; default every observed layer). Nothing
 /// for a map without blocks.
-pub(crate) fn write_map_views(map: &GlobalMap, z_m: f64, band_m: Option<(f64, f64)>, out: &Path) -> Result<Vec<PathBuf>> {
+pub(crate) fn write_map_views(
+    map: &GlobalMap,
+    z_m: f64,
+    band_m: Option<(f64, f64)>,
+    out: &Path,
+) -> Result<Vec<PathBuf>> {
     let vs = map.voxel_size_m();
     let layer = (z_m / vs).floor() as i32;
     let Some(at_height) = TopView::new(map, (layer, layer)) else { return Ok(Vec::new()) };
@@ -198,7 +216,8 @@ pub(crate) fn write_map_views(map: &GlobalMap, z_m: f64, band_m: Option<(f64, f6
         Some((lo, hi)) => ((lo / vs).floor() as i32, (hi / vs).ceil() as i32 - 1),
         None => map.observed_z_range().unwrap_or((layer, layer)),
     };
-    let through = TopView::new(map, band).with_context(|| format!("the band of heights {band_m:?} m holds no layer of {vs} m voxels"))?;
+    let through = TopView::new(map, band)
+        .with_context(|| format!("the band of heights {band_m:?} m holds no layer of {vs} m voxels"))?;
     let height = format!("z = {:.2} m", (f64::from(layer) + 0.5) * vs);
     let span = format!("z {:.2} to {:.2} m", f64::from(band.0) * vs, f64::from(band.1 + 1) * vs);
     let max_m = map.params().max_distance_m as f32;
@@ -227,8 +246,10 @@ pub(crate) fn write_plys(mapper: &CliMapper, out: &Path) -> Result<Vec<PathBuf>>
         }
     }
     let (lo, hi) = occupied.iter().fold((f32::MAX, f32::MIN), |(lo, hi), p| (lo.min(p[2]), hi.max(p[2])));
-    let by_height: Vec<ColouredPoint> =
-        occupied.iter().map(|&xyz| ColouredPoint { xyz, rgb: viridis(if hi > lo { (xyz[2] - lo) / (hi - lo) } else { 0.0 }) }).collect();
+    let by_height: Vec<ColouredPoint> = occupied
+        .iter()
+        .map(|&xyz| ColouredPoint { xyz, rgb: viridis(if hi > lo { (xyz[2] - lo) / (hi - lo) } else { 0.0 }) })
+        .collect();
     let occ_path = out.join(OCCUPIED_PLY);
     write_ply(&occ_path, &by_height, "edtmap occupied voxels, coloured by height")?;
     let mut edt_points = Vec::new();
@@ -247,7 +268,8 @@ pub(crate) fn write_plys(mapper: &CliMapper, out: &Path) -> Result<Vec<PathBuf>>
         }
     }
     let edt_path = out.join(EDT_PLY);
-    let comment = format!("edtmap EDT of the last local volume, coloured by distance 0 to {} m", map.params().max_distance_m);
+    let comment =
+        format!("edtmap EDT of the last local volume, coloured by distance 0 to {} m", map.params().max_distance_m);
     write_ply(&edt_path, &edt_points, &comment)?;
     Ok(vec![occ_path, edt_path])
 }
@@ -263,9 +285,14 @@ pub(crate) fn write_timing_plot(frames: &[FrameRecord], backend: &str, out: &Pat
     let series = |name: &str, get: fn(&FrameRecord) -> f64| {
         Series::new(name, frames.iter().map(|f| (f.index as f64, get(f))), SeriesStyle::Line)
     };
-    let mut chart = Chart::new(format!("time per frame ({backend})")).x_label("frame").y_label("ms").series(series("occupancy", |f| f.ogm_ms));
+    let mut chart = Chart::new(format!("time per frame ({backend})"))
+        .x_label("frame")
+        .y_label("ms")
+        .series(series("occupancy", |f| f.ogm_ms));
     if frames.iter().all(|f| f.batch_edt_ms.is_some()) {
-        chart = chart.series(series("batch EDT", |f| f.batch_edt_ms.unwrap_or(0.0))).series(series("integration", |f| f.integrate_ms));
+        chart = chart
+            .series(series("batch EDT", |f| f.batch_edt_ms.unwrap_or(0.0)))
+            .series(series("integration", |f| f.integrate_ms));
     } else {
         chart = chart.series(series("EDT update", |f| f.integrate_ms));
     }
@@ -306,8 +333,11 @@ mod tests {
         // Unknown everywhere: the middle layer, nothing observed.
         assert_eq!(densest_layer(&vec![VoxelState::Unknown; 9 * 9 * 7], dims), (3, 0));
         // Two equal balls: the lower equator.
-        let two: Vec<VoxelState> =
-            ball(dims, [2, 2, 1], 1).into_iter().zip(ball(dims, [6, 6, 5], 1)).map(|(a, b)| if a == VoxelState::Unknown { b } else { a }).collect();
+        let two: Vec<VoxelState> = ball(dims, [2, 2, 1], 1)
+            .into_iter()
+            .zip(ball(dims, [6, 6, 5], 1))
+            .map(|(a, b)| if a == VoxelState::Unknown { b } else { a })
+            .collect();
         assert_eq!(densest_layer(&two, dims), (1, 5));
     }
 

@@ -50,7 +50,12 @@ pub(crate) struct ExportArgs {
     ///
     /// Default: the mapped box that `edtmap info` prints (every allocated
     /// block of the map, whole).
-    #[arg(long = "box", value_name = "XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX", value_delimiter = ',', allow_hyphen_values = true)]
+    #[arg(
+        long = "box",
+        value_name = "XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX",
+        value_delimiter = ',',
+        allow_hyphen_values = true
+    )]
     bounds: Vec<f64>,
     /// Output: float32 distances in metres, shape (nz, ny, nx); saturated voxels hold max_distance_m.
     ///
@@ -95,8 +100,20 @@ pub(crate) struct InfoArgs {
 pub(crate) fn info(args: &InfoArgs) -> Result<()> {
     let map = load_map(&args.map)?;
     let vs = map.voxel_size_m();
-    outln!("{}: voxel {vs} m, cutoff {} m, connectivity {}, integration {:?}", args.map.display(), map.params().max_distance_m, u8::from(map.params().connectivity), map.params().mode);
-    outln!("blocks: {} occupancy, {} EDT, {} fixed; {:.1} MB", map.occupancy().len(), map.edt().len(), map.fixed_obstacles().len(), map.bytes() as f64 / 1e6);
+    outln!(
+        "{}: voxel {vs} m, cutoff {} m, connectivity {}, integration {:?}",
+        args.map.display(),
+        map.params().max_distance_m,
+        u8::from(map.params().connectivity),
+        map.params().mode
+    );
+    outln!(
+        "blocks: {} occupancy, {} EDT, {} fixed; {:.1} MB",
+        map.occupancy().len(),
+        map.edt().len(),
+        map.fixed_obstacles().len(),
+        map.bytes() as f64 / 1e6
+    );
     if let Some((lo, hi)) = mapped_box_m(&map) {
         outln!("mapped box (m): {:.2},{:.2},{:.2} to {:.2},{:.2},{:.2}", lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]);
     }
@@ -146,7 +163,13 @@ pub(crate) fn query(args: &QueryArgs) -> Result<()> {
             writeln!(
                 out,
                 "{},{},{},{:.6},{gx:.6},{gy:.6},{gz:.6},{},{},{}",
-                p[0], p[1], p[2], a.distance_m, state_name(a.state), a.observed, a.saturated
+                p[0],
+                p[1],
+                p[2],
+                a.distance_m,
+                state_name(a.state),
+                a.observed,
+                a.saturated
             )?;
         }
         out.flush()
@@ -179,12 +202,20 @@ pub(crate) fn export(args: &ExportArgs) -> Result<()> {
     let map = load_map(&args.map)?;
     let (min_m, max_m) = export_box(&map, args)?;
     let (lo, hi) = query_box(args, (min_m, max_m), map.voxel_size_m());
-    let dense = distance_box(&map, lo, hi, args.signed).context(if args.bounds.is_empty() { "the mapped box (no --box given): give a smaller --box" } else { "--box" })?;
+    let dense = distance_box(&map, lo, hi, args.signed).context(if args.bounds.is_empty() {
+        "the mapped box (no --box given): give a smaller --box"
+    } else {
+        "--box"
+    })?;
     let [nx, ny, nz] = dense.dims;
     let layout = ArrayLayout::new(vec![nz, ny, nx], ArrayOrder::C).context("empty box")?;
     npy::write_distances(&args.output, &layout, &dense.distance_m)?;
     let origin = dense.origin.centre(map.voxel_size_m());
-    outln!("wrote {} ({nz} x {ny} x {nx} voxels; element [0, 0, 0] is world voxel {:?}, centre {origin:?} m)", args.output.display(), dense.origin.0);
+    outln!(
+        "wrote {} ({nz} x {ny} x {nx} voxels; element [0, 0, 0] is world voxel {:?}, centre {origin:?} m)",
+        args.output.display(),
+        dense.origin.0
+    );
     if let Some(path) = &args.states {
         npy::write_bytes(path, &layout, &dense.state)?;
         outln!("wrote {}", path.display());
@@ -197,7 +228,10 @@ pub(crate) fn export(args: &ExportArgs) -> Result<()> {
 
 /// Whether export's `OUT` names a map_server YAML.
 fn is_map_server(output: &Path) -> bool {
-    output.extension().and_then(|e| e.to_str()).is_some_and(|e| e.eq_ignore_ascii_case("yaml") || e.eq_ignore_ascii_case("yml"))
+    output
+        .extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case("yaml") || e.eq_ignore_ascii_case("yml"))
 }
 
 /// Writes one layer of the map over the box's x and y as a map_server
@@ -205,7 +239,10 @@ fn is_map_server(output: &Path) -> bool {
 /// cells unknown.
 fn export_map_server(args: &ExportArgs) -> Result<()> {
     if args.states.is_some() || args.signed {
-        bail!("--states and --signed are for .npy boxes: {} writes a map_server map of states only", args.output.display());
+        bail!(
+            "--states and --signed are for .npy boxes: {} writes a map_server map of states only",
+            args.output.display()
+        );
     }
     let map = load_map(&args.map)?;
     let vs = map.voxel_size_m();
@@ -217,15 +254,23 @@ fn export_map_server(args: &ExportArgs) -> Result<()> {
     let what = if args.bounds.is_empty() { "the mapped box (no --box given): give a smaller --box" } else { "--box" };
     let dense = distance_box(&map, [min_m[0], min_m[1], z[0]], [max_m[0], max_m[1], z[1]], false).context(what)?;
     let [width, height, _] = dense.dims;
-    let states: Vec<VoxelState> = dense.state.iter().map(|&s| match s {
-        3 => VoxelState::Occupied,
-        2 => VoxelState::Free,
-        _ => VoxelState::Unknown,
-    }).collect();
+    let states: Vec<VoxelState> = dense
+        .state
+        .iter()
+        .map(|&s| match s {
+            3 => VoxelState::Occupied,
+            2 => VoxelState::Free,
+            _ => VoxelState::Unknown,
+        })
+        .collect();
     let origin_m = [0, 1].map(|a| f64::from(dense.origin.0[a]) * vs);
     let grid = OccupancyGrid2d { width, height, states: &states, resolution_m: vs, origin_m };
     let image = write_map_server(&args.output, &grid)?;
-    outln!("wrote {} ({width} x {height} cells of {vs} m at z = {:.3} m, lower left corner {origin_m:?} m)", image.display(), (f64::from(layer) + 0.5) * vs);
+    outln!(
+        "wrote {} ({width} x {height} cells of {vs} m at z = {:.3} m, lower left corner {origin_m:?} m)",
+        image.display(),
+        (f64::from(layer) + 0.5) * vs
+    );
     outln!("wrote {}", args.output.display());
     Ok(())
 }
@@ -236,7 +281,8 @@ fn map_server_layer(map: &GlobalMap, args: &ExportArgs) -> Result<i32> {
     let vs = map.voxel_size_m();
     let observed = map.observed_z_range();
     if let Some(z) = args.height {
-        let layer = VoxelIndex::containing([0.0, 0.0, z], vs).with_context(|| format!("--height {z} m is beyond the map's voxel index range"))?;
+        let layer = VoxelIndex::containing([0.0, 0.0, z], vs)
+            .with_context(|| format!("--height {z} m is beyond the map's voxel index range"))?;
         if let Some((lo, hi)) = observed.filter(|(lo, hi)| !(*lo..=*hi).contains(&layer.0[2])) {
             tracing::warn!("--height {z} m is outside the observed heights (z from {:.3} to {:.3} m): the map is all unknown there", f64::from(lo) * vs, f64::from(hi + 1) * vs);
         }
@@ -268,7 +314,9 @@ pub(crate) fn finite_metres(text: &str) -> std::result::Result<f64, String> {
 fn export_box(map: &GlobalMap, args: &ExportArgs) -> Result<([f64; 3], [f64; 3])> {
     match args.bounds[..] {
         [x0, y0, z0, x1, y1, z1] => Ok(([x0, y0, z0], [x1, y1, z1])),
-        _ => mapped_box_m(map).with_context(|| format!("{} holds no mapped block, so there is no box to export by default: give --box", args.map.display())),
+        _ => mapped_box_m(map).with_context(|| {
+            format!("{} holds no mapped block, so there is no box to export by default: give --box", args.map.display())
+        }),
     }
 }
 
@@ -293,7 +341,12 @@ pub(crate) fn sidecar_path(output: &Path) -> PathBuf {
 }
 
 /// The sidecar's text (docs/FORMAT.md, "Exported boxes").
-fn sidecar_json(map: &GlobalMap, dense: &DistanceBox, args: &ExportArgs, (min_m, max_m): ([f64; 3], [f64; 3])) -> String {
+fn sidecar_json(
+    map: &GlobalMap,
+    dense: &DistanceBox,
+    args: &ExportArgs,
+    (min_m, max_m): ([f64; 3], [f64; 3]),
+) -> String {
     let vs = map.voxel_size_m();
     let [nx, ny, nz] = dense.dims;
     let corner = dense.origin.0.map(|i| f64::from(i) * vs);
@@ -359,7 +412,8 @@ fn read_points(path: &Path, voxel_size_m: f64) -> Result<Vec<[f64; 3]>> {
         if std::mem::take(&mut first) && is_header(line) {
             continue;
         }
-        let point = parse_point(line, limit_m, voxel_size_m).map_err(|e| anyhow!("{}: line {}: {e}", path.display(), n + 1))?;
+        let point =
+            parse_point(line, limit_m, voxel_size_m).map_err(|e| anyhow!("{}: line {}: {e}", path.display(), n + 1))?;
         points.push(point);
     }
     Ok(points)
@@ -378,7 +432,10 @@ fn parse_point(line: &str, limit_m: f64, voxel_size_m: f64) -> Result<[f64; 3], 
     let fields: Vec<&str> = line.split(',').collect();
     if fields.len() != 3 {
         let found = fields.len();
-        return Err(format!("{line:?} has {found} comma-separated field{}, expected 3 numbers x,y,z", if found == 1 { "" } else { "s" }));
+        return Err(format!(
+            "{line:?} has {found} comma-separated field{}, expected 3 numbers x,y,z",
+            if found == 1 { "" } else { "s" }
+        ));
     }
     let mut point = [0.0; 3];
     for ((slot, field), axis) in point.iter_mut().zip(&fields).zip(["x", "y", "z"]) {

@@ -70,11 +70,18 @@ pub(crate) fn record(args: &RecordArgs) -> Result<()> {
     writer.finish()?;
     edtmap_io::files::write_atomic(&config_path, replay_config(text, &sensor, args)?.as_bytes())?;
     outln!("wrote {} ({written} frames on {topic}, poses on {ODOM} and {TF})", args.out.display());
-    outln!("wrote {}: edtmap run --config {} --dataset {}", config_path.display(), config_path.display(), args.out.display());
+    outln!(
+        "wrote {}: edtmap run --config {} --dataset {}",
+        config_path.display(),
+        config_path.display(),
+        args.out.display()
+    );
     match interrupt::requested() {
-        Some(signal) if written < frames => {
-            Err(Interrupted { signal, what: format!("the recording holds the first {written} of {frames} frames, closed and replayable") }.into())
+        Some(signal) if written < frames => Err(Interrupted {
+            signal,
+            what: format!("the recording holds the first {written} of {frames} frames, closed and replayable"),
         }
+        .into()),
         _ => Ok(()),
     }
 }
@@ -85,10 +92,21 @@ fn frame_messages(scene: &Scene, sensor: &Sensor, i: usize) -> Result<Vec<(&'sta
     let frame = scene.frame(sensor, i).with_context(|| format!("simulating frame {i}"))?;
     let stamp_ns = (frame.stamp_s * 1e9).round() as i64;
     let log_ns = u64::try_from(stamp_ns).unwrap_or(0);
-    let pose = StampedTransform { header: header(stamp_ns, "map"), child_frame: "sensor".into(), transform: frame.t_world_sensor };
+    let pose = StampedTransform {
+        header: header(stamp_ns, "map"),
+        child_frame: "sensor".into(),
+        transform: frame.t_world_sensor,
+    };
     let mut out = vec![(ODOM, Message::Odometry(pose.clone()), log_ns), (TF, Message::Tf(vec![pose]), log_ns)];
     if let Sensor::Depth(c) = sensor {
-        let info = CameraInfo { header: header(stamp_ns, "sensor"), height: c.height, width: c.width, distortion_model: "plumb_bob".into(), d: vec![0.0; 5], k: [c.fx, 0.0, c.cx, 0.0, c.fy, c.cy, 0.0, 0.0, 1.0] };
+        let info = CameraInfo {
+            header: header(stamp_ns, "sensor"),
+            height: c.height,
+            width: c.width,
+            distortion_model: "plumb_bob".into(),
+            d: vec![0.0; 5],
+            k: [c.fx, 0.0, c.cx, 0.0, c.fy, c.cy, 0.0, 0.0, 1.0],
+        };
         out.push(("/camera/depth/camera_info", Message::CameraInfo(info), log_ns));
     }
     out.push((sensor_topic(sensor), sensor_message(sensor, &frame, stamp_ns)?, log_ns));
@@ -152,13 +170,25 @@ fn sensor_message(sensor: &Sensor, frame: &Frame, stamp_ns: i64) -> Result<Messa
                 DepthData::Metres(v) => ("32FC1", 4, v.iter().flat_map(|d| d.to_le_bytes()).collect()),
                 DepthData::U16 { values, .. } => ("16UC1", 2, values.iter().flat_map(|d| d.to_le_bytes()).collect()),
             };
-            Message::Image(Image { header: h, height: img.height, width: img.width, encoding: encoding.into(), is_bigendian: false, step: img.width * bytes, data })
+            Message::Image(Image {
+                header: h,
+                height: img.height,
+                width: img.width,
+                encoding: encoding.into(),
+                is_bigendian: false,
+                step: img.width * bytes,
+                data,
+            })
         }
         (Measurement::Lidar(scan), Sensor::Lidar(lidar)) => {
             let bins = lidar.azimuth_bins;
             let points = scan.ranges.iter().enumerate().map(|(i, &r)| {
                 let ok = r.is_finite() && r >= lidar.range.min_m && r <= lidar.range.max_m;
-                if ok { lidar.direction(i / bins, i % bins).map(|c| c as f32 * r) } else { [f32::NAN; 3] }
+                if ok {
+                    lidar.direction(i / bins, i % bins).map(|c| c as f32 * r)
+                } else {
+                    [f32::NAN; 3]
+                }
             });
             Message::PointCloud2(PointCloud2::from_points(h, &points.collect::<Vec<_>>()))
         }
@@ -199,5 +229,10 @@ fn replay_config(text: &str, sensor: &Sensor, args: &RecordArgs) -> Result<Strin
     dataset.insert("pose_topic".into(), ODOM.into());
     table.insert("dataset".into(), toml::Value::Table(dataset));
     let body = toml::to_string(&table).context("config")?;
-    Ok(format!("# Replays {} (edtmap record --scene {}):\n# edtmap run --config THIS --dataset {}\n\n{body}", args.out.display(), args.scene, args.out.display()))
+    Ok(format!(
+        "# Replays {} (edtmap record --scene {}):\n# edtmap run --config THIS --dataset {}\n\n{body}",
+        args.out.display(),
+        args.scene,
+        args.out.display()
+    ))
 }

@@ -47,7 +47,12 @@ impl FrameRecord {
             "changed_blocks": self.changed_blocks,
         });
         if let Some(obj) = v.as_object_mut() {
-            for (key, value) in [("batch_edt_ms", self.batch_edt_ms), ("precision", self.precision), ("recall", self.recall), ("strict_recall", self.strict_recall)] {
+            for (key, value) in [
+                ("batch_edt_ms", self.batch_edt_ms),
+                ("precision", self.precision),
+                ("recall", self.recall),
+                ("strict_recall", self.strict_recall),
+            ] {
                 if let Some(x) = value {
                     obj.insert(key.into(), json!(x));
                 }
@@ -95,7 +100,10 @@ pub(crate) fn report(header: Map<String, Value>, frames: &[FrameRecord]) -> Valu
     }
     summary.insert("integrate_ms".into(), stats(&col(|f| Some(f.integrate_ms))));
     summary.insert("total_ms".into(), stats(&col(|f| Some(f.total_ms))));
-    let keys = frames.first().map(|f| f.global.iter().chain(&f.edt_errors).map(|(k, _)| *k).collect::<Vec<_>>()).unwrap_or_default();
+    let keys = frames
+        .first()
+        .map(|f| f.global.iter().chain(&f.edt_errors).map(|(k, _)| *k).collect::<Vec<_>>())
+        .unwrap_or_default();
     for key in keys {
         summary.insert(key.into(), stats(&frames.iter().filter_map(|f| f.field(key)).collect::<Vec<_>>()));
     }

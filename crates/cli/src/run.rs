@@ -6,10 +6,10 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context, Result};
 use clap::{Args, ValueEnum};
 use edtmap::config::{Config, ConstructionName, OnError};
-use edtmap::region::Region;
-use edtmap::eval::{edt_errors, edt_extent, EdtErrors, OccupancyScores};
-use edtmap::sensor::{Frame, Sensor};
 use edtmap::cpu::CpuBackend;
+use edtmap::eval::{edt_errors, edt_extent, EdtErrors, OccupancyScores};
+use edtmap::region::Region;
+use edtmap::sensor::{Frame, Sensor};
 use edtmap::{Connectivity, FrameStats, IntegrationMode, Mapper, MapperParams};
 use edtmap_sim::{Scene, SceneName};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -114,8 +114,12 @@ fn load_config(args: &RunArgs) -> Result<(Config, String)> {
     let (mut config, origin) = match (&args.config, &args.scene) {
         (Some(path), _) => (Config::load(path)?, path.display().to_string()),
         (None, Some(scene)) => {
-            let text = builtin_config(scene).with_context(|| format!("unknown scene {scene:?}: choose one of {}", scene_names()))?;
-            (Config::parse(text, &format!("built-in configs/{scene}.toml"))?, format!("configs/{scene}.toml (built in)"))
+            let text = builtin_config(scene)
+                .with_context(|| format!("unknown scene {scene:?}: choose one of {}", scene_names()))?;
+            (
+                Config::parse(text, &format!("built-in configs/{scene}.toml"))?,
+                format!("configs/{scene}.toml (built in)"),
+            )
         }
         (None, None) => bail!("give --scene NAME ({}) or --config FILE", scene_names()),
     };
@@ -170,7 +174,10 @@ pub(crate) fn finish(outcome: &RunOutcome) -> Result<()> {
     match outcome.interrupted {
         Some(signal) => {
             let n = outcome.frames.len();
-            let what = format!("stopped after {n} integrated frame{}; the report, pictures and map of them are written", if n == 1 { "" } else { "s" });
+            let what = format!(
+                "stopped after {n} integrated frame{}; the report, pictures and map of them are written",
+                if n == 1 { "" } else { "s" }
+            );
             Err(Interrupted { signal, what }.into())
         }
         None => Ok(()),
@@ -187,7 +194,8 @@ pub(crate) fn execute(args: &RunArgs, progress: bool) -> Result<RunOutcome> {
     let setup = Setup::new(args)?;
     let mut mapper = open_mapper(args, &setup)?;
     prepare_out(args)?;
-    let save_dir = args.save.as_deref().and_then(Path::parent).map(|d| if d.as_os_str().is_empty() { Path::new(".") } else { d });
+    let save_dir =
+        args.save.as_deref().and_then(Path::parent).map(|d| if d.as_os_str().is_empty() { Path::new(".") } else { d });
     interrupt::catch(OnFirst::Finish, &[Some(args.out.as_path()), save_dir].into_iter().flatten().collect::<Vec<_>>());
     let replayed = replay(args, &setup, &mut mapper, progress)?;
     if let Some(warning) = setup.source.pose_warning() {
@@ -204,7 +212,13 @@ pub(crate) fn execute(args: &RunArgs, progress: bool) -> Result<RunOutcome> {
     }
     let pictures = write_outputs(args, &mapper, &slice, &replayed)?;
     check_stopped(args, &setup.config, &replayed)?;
-    Ok(RunOutcome { frames: replayed.records, report_path, pictures, backend: mapper.backend().name(), interrupted: replayed.interrupted })
+    Ok(RunOutcome {
+        frames: replayed.records,
+        report_path,
+        pictures,
+        backend: mapper.backend().name(),
+        interrupted: replayed.interrupted,
+    })
 }
 
 /// What a run maps and with what, settled before the mapper is built.
@@ -253,7 +267,8 @@ fn open_source(args: &RunArgs, config: &mut Config, origin: &str) -> Result<(Sou
         }
         None => {
             let name = args.scene.clone().or_else(|| config.scene.as_ref().map(|s| s.name.clone()));
-            let name = name.with_context(|| format!("{origin} has no [scene] section: give --scene NAME or --dataset PATH"))?;
+            let name =
+                name.with_context(|| format!("{origin} has no [scene] section: give --scene NAME or --dataset PATH"))?;
             let (source, n) = Source::scene(&name, config)?;
             Ok((source, name, n))
         }
@@ -350,12 +365,21 @@ fn replay(args: &RunArgs, setup: &Setup, mapper: &mut CliMapper, progress: bool)
 
 /// Integrates frame `i` of `name`; a failure says whether the backend
 /// failed (fatal) or the frame was refused.
-fn integrate(mapper: &mut CliMapper, frame: Frame, i: usize, name: &str) -> std::result::Result<(Frame, FrameStats), Failure> {
+fn integrate(
+    mapper: &mut CliMapper,
+    frame: Frame,
+    i: usize,
+    name: &str,
+) -> std::result::Result<(Frame, FrameStats), Failure> {
     match mapper.integrate_frame(&frame) {
         Ok(stats) => Ok((frame, stats)),
         Err(e) => {
             let kind = if e.is_backend_failure() { FailureKind::Fatal } else { FailureKind::Frame };
-            Err(Failure { index: i, message: format!("frame {i} (stamp {:.6} s) of {name}: {e:#}", frame.stamp_s), kind })
+            Err(Failure {
+                index: i,
+                message: format!("frame {i} (stamp {:.6} s) of {name}: {e:#}", frame.stamp_s),
+                kind,
+            })
         }
     }
 }
@@ -389,7 +413,9 @@ fn stages(setup: &Setup, mapper: &CliMapper) -> serde_json::Value {
 
 /// Whether `failure` ends the run rather than skipping its frame.
 fn stops_the_run(failure: &Failure, setup: &Setup) -> bool {
-    failure.kind != FailureKind::Frame || setup.config.dataset.on_error == OnError::Stop || matches!(setup.source, Source::Scene(_))
+    failure.kind != FailureKind::Frame
+        || setup.config.dataset.on_error == OnError::Stop
+        || matches!(setup.source, Source::Scene(_))
 }
 
 /// The report's record of frame `index`, after which the map holds
@@ -405,14 +431,21 @@ fn frame_record(index: usize, frame: &Frame, stats: &FrameStats, occupancy_block
         voxels_updated: stats.voxels_updated,
         voxels_changed: stats.voxels_changed,
         changed_blocks: stats.changed_blocks.len(),
-        global: [global_fields(stats, occupancy_blocks), vec![("sensor_bytes", frame.measurement.bytes() as f64)]].concat(),
+        global: [global_fields(stats, occupancy_blocks), vec![("sensor_bytes", frame.measurement.bytes() as f64)]]
+            .concat(),
         ..Default::default()
     }
 }
 
 /// `--eval`: occupancy scores against a scene's ground truth, and the EDT
 /// errors. Recordings have no ground truth: only the EDT is checked.
-fn evaluate(rec: &mut FrameRecord, setup: &Setup, frame: &Frame, mapper: &CliMapper, truth: &mut (Vec<bool>, Vec<bool>)) -> Result<()> {
+fn evaluate(
+    rec: &mut FrameRecord,
+    setup: &Setup,
+    frame: &Frame,
+    mapper: &CliMapper,
+    truth: &mut (Vec<bool>, Vec<bool>),
+) -> Result<()> {
     if let Source::Scene(scene) = &setup.source {
         let scores = score(scene, &setup.sensor, frame, mapper, truth);
         (rec.precision, rec.recall, rec.strict_recall) = (scores.precision(), scores.recall(), scores.strict_recall());
@@ -422,7 +455,13 @@ fn evaluate(rec: &mut FrameRecord, setup: &Setup, frame: &Frame, mapper: &CliMap
 }
 
 /// `report.json`'s header: what ran, on what, and how it ended.
-fn report_header(args: &RunArgs, setup: &Setup, mapper: &CliMapper, slice: &SliceHeight, replayed: &Replayed) -> Map<String, serde_json::Value> {
+fn report_header(
+    args: &RunArgs,
+    setup: &Setup,
+    mapper: &CliMapper,
+    slice: &SliceHeight,
+    replayed: &Replayed,
+) -> Map<String, serde_json::Value> {
     let (sensor, params) = (&setup.sensor, &setup.params);
     let mut header = Map::new();
     header.insert("edtmap_version".into(), json!(env!("CARGO_PKG_VERSION")));
@@ -438,7 +477,8 @@ fn report_header(args: &RunArgs, setup: &Setup, mapper: &CliMapper, slice: &Slic
     let peak = crate::memory::peak_rss_bytes();
     let window_voxels = mapper.local_volume().map(|v| v.len()).filter(|&n| n > 0);
     header.insert("peak_rss_bytes".into(), json!(peak));
-    header.insert("peak_bytes_per_window_voxel".into(), json!(peak.zip(window_voxels).map(|(b, n)| b as f64 / n as f64)));
+    header
+        .insert("peak_bytes_per_window_voxel".into(), json!(peak.zip(window_voxels).map(|(b, n)| b as f64 / n as f64)));
     header.insert("integration".into(), json!(params.global.mode));
     header.insert("connectivity".into(), json!(params.global.connectivity));
     header.insert("max_distance_m".into(), json!(params.global.max_distance_m));
@@ -599,7 +639,10 @@ fn device_fields(c: edtmap::DeviceCounters) -> [(&'static str, f64); 9] {
 fn edt_error_fields(mapper: &CliMapper) -> Result<Vec<(&'static str, f64)>> {
     let map = mapper.map();
     let mut out = Vec::new();
-    let regions = [("local", mapper.local_volume().map(|v| Region { origin: v.origin.0, dims: v.dims })), ("global", edt_extent(map))];
+    let regions = [
+        ("local", mapper.local_volume().map(|v| Region { origin: v.origin.0, dims: v.dims })),
+        ("global", edt_extent(map)),
+    ];
     for (name, region) in regions {
         let e = match region {
             Some(r) => edt_errors(map, &r)?,
@@ -616,7 +659,13 @@ fn edt_error_fields(mapper: &CliMapper) -> Result<Vec<(&'static str, f64)>> {
 }
 
 /// Occupancy scores of the mapper's local volume against the scene.
-fn score(scene: &Scene, sensor: &Sensor, frame: &Frame, mapper: &CliMapper, buffers: &mut (Vec<bool>, Vec<bool>)) -> OccupancyScores {
+fn score(
+    scene: &Scene,
+    sensor: &Sensor,
+    frame: &Frame,
+    mapper: &CliMapper,
+    buffers: &mut (Vec<bool>, Vec<bool>),
+) -> OccupancyScores {
     match mapper.local_volume() {
         Some(volume) => {
             scene.ground_truth(volume, frame.stamp_s, &mut buffers.0);
@@ -648,10 +697,15 @@ fn write_json(path: &Path, value: &serde_json::Value) -> Result<()> {
 pub(crate) fn print_summary(outcome: &RunOutcome) {
     let f = &outcome.frames;
     // The same median as report.json's summary.
-    let median = |g: fn(&FrameRecord) -> Option<f64>| median(&f.iter().filter_map(g).collect::<Vec<_>>()).unwrap_or(f64::NAN);
+    let median =
+        |g: fn(&FrameRecord) -> Option<f64>| median(&f.iter().filter_map(g).collect::<Vec<_>>()).unwrap_or(f64::NAN);
     // Only the stages that ran: exact mode has no batch EDT of its own.
     let stages = match f.iter().all(|r| r.batch_edt_ms.is_some()) {
-        true => format!("batch EDT median {:.2} ms, integration median {:.2} ms", median(|r| r.batch_edt_ms), median(|r| Some(r.integrate_ms))),
+        true => format!(
+            "batch EDT median {:.2} ms, integration median {:.2} ms",
+            median(|r| r.batch_edt_ms),
+            median(|r| Some(r.integrate_ms))
+        ),
         false => format!("EDT update median {:.2} ms", median(|r| Some(r.integrate_ms))),
     };
     outln!(
@@ -672,7 +726,9 @@ pub(crate) fn print_summary(outcome: &RunOutcome) {
         let v: Vec<f64> = f.iter().filter_map(|r| r.field(key)).collect();
         (!v.is_empty()).then(|| v.iter().sum::<f64>() / v.len() as f64)
     };
-    if let (Some(l), Some(g), Some(gm)) = (field_mean("local_rms_m"), field_mean("global_rms_m"), field_mean("global_max_m")) {
+    if let (Some(l), Some(g), Some(gm)) =
+        (field_mean("local_rms_m"), field_mean("global_rms_m"), field_mean("global_max_m"))
+    {
         outln!("EDT vs exact EDT of the map (mean over frames): local RMS {l:.5} m, global RMS {g:.5} m, global max {gm:.4} m");
     }
     outln!("wrote {}", outcome.report_path.display());
@@ -680,4 +736,3 @@ pub(crate) fn print_summary(outcome: &RunOutcome) {
         outln!("wrote {}", p.display());
     }
 }
-

@@ -80,9 +80,20 @@ impl Source {
     }
 
     /// The first `n` frames, or failures in their place.
-    pub(crate) fn frames<'a>(&'a self, sensor: &'a Sensor, n: usize, name: &'a str) -> Box<dyn Iterator<Item = Result<Frame, Failure>> + 'a> {
+    pub(crate) fn frames<'a>(
+        &'a self,
+        sensor: &'a Sensor,
+        n: usize,
+        name: &'a str,
+    ) -> Box<dyn Iterator<Item = Result<Frame, Failure>> + 'a> {
         match self {
-            Source::Scene(scene) => Box::new((0..n).map(move |i| scene.frame(sensor, i).map_err(|e| Failure { index: i, message: format!("simulating frame {i}: {e}"), kind: FailureKind::Fatal }))),
+            Source::Scene(scene) => Box::new((0..n).map(move |i| {
+                scene.frame(sensor, i).map_err(|e| Failure {
+                    index: i,
+                    message: format!("simulating frame {i}: {e}"),
+                    kind: FailureKind::Fatal,
+                })
+            })),
             Source::Recording(r) => Box::new(r.frames(n, name).map(|r| {
                 r.map_err(|e| {
                     let kind = if e.damage { FailureKind::Damage } else { FailureKind::Frame };
@@ -97,7 +108,13 @@ impl Source {
 /// number of frames.
 pub(crate) fn build_scene(name: &str, config: &Config) -> Result<(Scene, usize)> {
     let scene_name: SceneName = name.parse().map_err(|e| anyhow::anyhow!("{e}"))?;
-    let section = config.scene.clone().unwrap_or_else(|| edtmap::config::SceneSection { name: name.into(), frames: None, seed: 7, range_noise_m: 0.0, dropout: 0.0 });
+    let section = config.scene.clone().unwrap_or_else(|| edtmap::config::SceneSection {
+        name: name.into(),
+        frames: None,
+        seed: 7,
+        range_noise_m: 0.0,
+        dropout: 0.0,
+    });
     let options = SceneOptions { seed: section.seed, range_noise_m: section.range_noise_m, dropout: section.dropout };
     let scene = Scene::new(scene_name, &options).context("[scene]")?;
     let n = section.frames.unwrap_or_else(|| scene.default_frames());
@@ -107,7 +124,9 @@ pub(crate) fn build_scene(name: &str, config: &Config) -> Result<(Scene, usize)>
 /// Refuses a recording whose sensor is not the config's.
 pub(crate) fn check_kind(source: &Source, sensor: &Sensor, path: &Path, origin: &str) -> Result<()> {
     match source.kind() {
-        Some(kind) if kind != sensor.kind() => bail!("{} holds {kind} frames but {origin}'s [sensor] is a {}", path.display(), sensor.kind()),
+        Some(kind) if kind != sensor.kind() => {
+            bail!("{} holds {kind} frames but {origin}'s [sensor] is a {}", path.display(), sensor.kind())
+        }
         _ => Ok(()),
     }
 }

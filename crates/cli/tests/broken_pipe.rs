@@ -10,7 +10,14 @@ use std::process::Stdio;
 
 /// Runs `args` in `dir`, reads one line of stdout and closes the pipe.
 fn head_1(dir: &std::path::Path, args: &[&str]) -> common::Run {
-    let mut child = bin().args(args).current_dir(dir).stdin(Stdio::null()).stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().expect("start");
+    let mut child = bin()
+        .args(args)
+        .current_dir(dir)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("start");
     let stdout = child.stdout.take().expect("stdout");
     let mut first = String::new();
     BufReader::new(stdout).read_line(&mut first).expect("one line");
@@ -46,10 +53,21 @@ fn a_full_stdout_is_an_error() {
         eprintln!("skipped: no /dev/full");
         return;
     };
-    let child = bin().args(["demo", "--frames", "2", "--out", "o"]).current_dir(dir.path()).stdin(Stdio::null()).stdout(full).stderr(Stdio::piped()).spawn().expect("start");
+    let child = bin()
+        .args(["demo", "--frames", "2", "--out", "o"])
+        .current_dir(dir.path())
+        .stdin(Stdio::null())
+        .stdout(full)
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("start");
     let run = finish(child, SHORT);
     assert_eq!(run.code(), Some(1), "{}", run.stderr);
-    assert!(run.stderr.contains("cannot write to standard output") && !run.stderr.contains("panicked"), "{}", run.stderr);
+    assert!(
+        run.stderr.contains("cannot write to standard output") && !run.stderr.contains("panicked"),
+        "{}",
+        run.stderr
+    );
     // The job's files were still written whole.
     let info = run_in(dir.path(), &["info", "o/map.edtmap"], SHORT);
     assert_eq!(info.code(), Some(0), "{}", info.stderr);

@@ -13,14 +13,24 @@ fn write_grid(path: &Path) {
     let shape = [9u64, 11, 13];
     let data: Vec<u8> = (0..9 * 11 * 13).map(|i: usize| u8::from((i * 2_654_435_761) % 11 == 4)).collect();
     let file = fs::File::create(path).expect("create npy");
-    let mut w = npyz::WriteOptions::<u8>::new().default_dtype().shape(&shape).writer(std::io::BufWriter::new(file)).begin_nd().expect("header");
+    let mut w = npyz::WriteOptions::<u8>::new()
+        .default_dtype()
+        .shape(&shape)
+        .writer(std::io::BufWriter::new(file))
+        .begin_nd()
+        .expect("header");
     w.extend(data).expect("data");
     w.finish().expect("finish");
 }
 
 fn edt(dir: &Path, backend: &str, out: &str, hide_adapters: bool) -> Output {
     let mut cmd = Command::new(env!("CARGO_BIN_EXE_edtmap"));
-    cmd.arg("edt").arg(dir.join("in.npy")).arg(dir.join(out)).arg("--nearest").arg(dir.join(format!("idx-{out}"))).args(["--backend", backend]);
+    cmd.arg("edt")
+        .arg(dir.join("in.npy"))
+        .arg(dir.join(out))
+        .arg("--nearest")
+        .arg(dir.join(format!("idx-{out}")))
+        .args(["--backend", backend]);
     if hide_adapters {
         cmd.env("WGPU_BACKEND", "metal");
     }
@@ -42,7 +52,10 @@ fn no_adapter_gpu_fails_clearly_and_auto_uses_the_cpu() {
     assert!(String::from_utf8_lossy(&auto.stderr).contains("using the CPU"));
     let cpu = edt(dir.path(), "cpu", "cpu.npy", true);
     assert!(cpu.status.success());
-    assert_eq!(fs::read(dir.path().join("auto.npy")).expect("auto"), fs::read(dir.path().join("cpu.npy")).expect("cpu"));
+    assert_eq!(
+        fs::read(dir.path().join("auto.npy")).expect("auto"),
+        fs::read(dir.path().join("cpu.npy")).expect("cpu")
+    );
 }
 
 #[test]
@@ -60,7 +73,11 @@ fn gpu_gives_the_cpu_answers_when_an_adapter_exists() {
     assert!(cpu.status.success());
     for name in ["gpu.npy", "idx-gpu.npy"] {
         let cpu_name = name.replace("gpu", "cpu");
-        assert_eq!(fs::read(dir.path().join(name)).expect("gpu"), fs::read(dir.path().join(cpu_name)).expect("cpu"), "{name}");
+        assert_eq!(
+            fs::read(dir.path().join(name)).expect("gpu"),
+            fs::read(dir.path().join(cpu_name)).expect("cpu"),
+            "{name}"
+        );
     }
 }
 
@@ -75,7 +92,18 @@ fn gpu_reports_count_device_traffic() {
     let run = |backend: &str| {
         let out = dir.path().join(backend);
         let done = Command::new(env!("CARGO_BIN_EXE_edtmap"))
-            .args(["run", "--scene", "planar", "--frames", "3", "--integration", "wavefront", "--backend", backend, "--out"])
+            .args([
+                "run",
+                "--scene",
+                "planar",
+                "--frames",
+                "3",
+                "--integration",
+                "wavefront",
+                "--backend",
+                backend,
+                "--out",
+            ])
             .arg(&out)
             .output()
             .expect("edtmap runs");
@@ -93,7 +121,10 @@ fn gpu_reports_count_device_traffic() {
     for frame in report["frames"].as_array().expect("frames") {
         let field = |k: &str| frame[k].as_f64().unwrap_or_else(|| panic!("{k} missing in {frame}"));
         assert!(field("gpu_downloaded_bytes") >= 8.0 * voxels as f64, "{frame}");
-        assert!(field("gpu_uploaded_bytes") > 0.0 && field("gpu_dispatches") >= 7.0 && field("gpu_submissions") >= 1.0, "{frame}");
+        assert!(
+            field("gpu_uploaded_bytes") > 0.0 && field("gpu_dispatches") >= 7.0 && field("gpu_submissions") >= 1.0,
+            "{frame}"
+        );
         // Vulkan reports its allocations; the device times are there (0
         // on an adapter without timestamps).
         assert!(field("gpu_memory_bytes") > 0.0, "{frame}");

@@ -51,7 +51,8 @@ fn ply_vertices(path: &std::path::Path) -> usize {
     let end = b"end_header\n";
     let at = bytes.windows(end.len()).position(|w| w == end).expect("header") + end.len();
     let header = std::str::from_utf8(&bytes[..at]).expect("ascii header");
-    let n: usize = header.lines().find_map(|l| l.strip_prefix("element vertex ")).expect("vertex count").parse().expect("number");
+    let n: usize =
+        header.lines().find_map(|l| l.strip_prefix("element vertex ")).expect("vertex count").parse().expect("number");
     assert_eq!(bytes.len() - at, 15 * n, "{}", path.display());
     n
 }
@@ -59,10 +60,19 @@ fn ply_vertices(path: &std::path::Path) -> usize {
 #[test]
 fn replays_the_3dmatch_frames_and_the_velodyne_pair() {
     let tmp = tempfile::tempdir().expect("temp dir");
-    for (config, name, frames, sensor) in [("velodyne.toml", "velodyne-pair", 2, "point cloud"), ("3dmatch.toml", "3dmatch-seq01", 5, "depth camera")] {
-        let dir = if name == "velodyne-pair" { repo_data(name) } else if let Some(dir) = data(name) { dir } else { continue };
+    for (config, name, frames, sensor) in
+        [("velodyne.toml", "velodyne-pair", 2, "point cloud"), ("3dmatch.toml", "3dmatch-seq01", 5, "depth camera")]
+    {
+        let dir = if name == "velodyne-pair" {
+            repo_data(name)
+        } else if let Some(dir) = data(name) {
+            dir
+        } else {
+            continue;
+        };
         let out = tmp.path().join(name);
-        let o = run(config, &dir, &out, &["--eval", "--ply", "--save", out.join("map.edtmap").to_str().expect("utf-8")]);
+        let o =
+            run(config, &dir, &out, &["--eval", "--ply", "--save", out.join("map.edtmap").to_str().expect("utf-8")]);
         assert!(o.status.success(), "{name}: {}", String::from_utf8_lossy(&o.stderr));
         let r = report(&out);
         assert_eq!(r["frames"].as_array().map(Vec::len), Some(frames), "{name}");
@@ -73,12 +83,19 @@ fn replays_the_3dmatch_frames_and_the_velodyne_pair() {
         }
         // occupied.ply holds exactly the saved map's occupied voxels.
         let map = edtmap::load_map(&out.join("map.edtmap")).expect("saved map");
-        let occupied = map.occupancy().iter().flat_map(|(_, b)| b.log_odds.iter()).filter(|&&v| map.log_odds().state(v) == edtmap::VoxelState::Occupied).count();
+        let occupied = map
+            .occupancy()
+            .iter()
+            .flat_map(|(_, b)| b.log_odds.iter())
+            .filter(|&&v| map.log_odds().state(v) == edtmap::VoxelState::Occupied)
+            .count();
         assert_eq!(ply_vertices(&out.join("occupied.ply")), occupied, "{name}");
         assert!(ply_vertices(&out.join("edt.ply")) > 1000, "{name}");
         // Every field of the report is in its schema, docs/REPORT.md.
         let schema = std::fs::read_to_string(root().join("docs/REPORT.md")).expect("docs/REPORT.md");
-        let keys = [&r, &r["frames"][0], &r["summary"]].into_iter().flat_map(|o| o.as_object().expect("object").keys().cloned().collect::<Vec<_>>());
+        let keys = [&r, &r["frames"][0], &r["summary"]]
+            .into_iter()
+            .flat_map(|o| o.as_object().expect("object").keys().cloned().collect::<Vec<_>>());
         for key in keys {
             assert!(schema.contains(&format!("`{key}`")), "report field {key} is not in docs/REPORT.md");
         }
@@ -109,7 +126,9 @@ fn dataset_mistakes_are_refused_with_the_reason() {
 
 /// An ascii PCD of a small wall at x = 3 m.
 fn wall_pcd(data_line: &str) -> String {
-    let points: Vec<String> = (0..40).flat_map(|i| (0..10).map(move |k| format!("3 {} {}", -1.0 + 0.05 * i as f64, 0.1 * k as f64))).collect();
+    let points: Vec<String> = (0..40)
+        .flat_map(|i| (0..10).map(move |k| format!("3 {} {}", -1.0 + 0.05 * i as f64, 0.1 * k as f64)))
+        .collect();
     format!("VERSION .7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH {n}\nHEIGHT 1\nPOINTS {n}\n{data_line}\n{}\n", points.join("\n"), n = points.len())
 }
 
@@ -118,7 +137,9 @@ fn a_bad_cloud_is_skipped_or_stops_the_run_keeping_the_others() {
     let tmp = tempfile::tempdir().expect("temp dir");
     let dir = tmp.path().join("clouds");
     std::fs::create_dir(&dir).expect("dir");
-    for (name, data) in [("000000.pcd", "DATA ascii"), ("000001.pcd", "DATA binary_compressed"), ("000002.pcd", "DATA ascii")] {
+    for (name, data) in
+        [("000000.pcd", "DATA ascii"), ("000001.pcd", "DATA binary_compressed"), ("000002.pcd", "DATA ascii")]
+    {
         std::fs::write(dir.join(name), wall_pcd(data)).expect("pcd");
     }
     std::fs::write(dir.join("poses.txt"), "1 0 0 0 0 1 0 0 0 0 1 0\n".repeat(3)).expect("poses");
@@ -128,15 +149,30 @@ fn a_bad_cloud_is_skipped_or_stops_the_run_keeping_the_others() {
     assert!(o.status.success(), "{err}");
     assert!(err.contains("000001.pcd") && err.contains("binary_compressed"), "{err}");
     let r = report(&out);
-    assert_eq!(r["frames"].as_array().map(|f| f.iter().map(|x| x["index"].as_u64()).collect::<Vec<_>>()), Some(vec![Some(0), Some(2)]));
+    assert_eq!(
+        r["frames"].as_array().map(|f| f.iter().map(|x| x["index"].as_u64()).collect::<Vec<_>>()),
+        Some(vec![Some(0), Some(2)])
+    );
     assert!(r["skipped"][0]["reason"].as_str().is_some_and(|s| s.contains("000001.pcd")), "{}", r["skipped"]);
     // With on_error = "stop": the first frame is kept and written, the run fails naming the file.
-    let config = std::fs::read_to_string(root().join("configs/velodyne.toml")).expect("config") + "\n[dataset]\non_error = \"stop\"\n";
+    let config = std::fs::read_to_string(root().join("configs/velodyne.toml")).expect("config")
+        + "\n[dataset]\non_error = \"stop\"\n";
     let stop = tmp.path().join("stop.toml");
     std::fs::write(&stop, config).expect("config");
-    let o = Command::new(env!("CARGO_BIN_EXE_edtmap")).args(["run", "--config"]).arg(&stop).arg("--dataset").arg(&dir).arg("--out").arg(&out).output().expect("runs");
+    let o = Command::new(env!("CARGO_BIN_EXE_edtmap"))
+        .args(["run", "--config"])
+        .arg(&stop)
+        .arg("--dataset")
+        .arg(&dir)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .expect("runs");
     let err = String::from_utf8_lossy(&o.stderr);
-    assert!(!o.status.success() && err.contains("000001.pcd") && err.contains("the 1 frame before it is integrated"), "{err}");
+    assert!(
+        !o.status.success() && err.contains("000001.pcd") && err.contains("the 1 frame before it is integrated"),
+        "{err}"
+    );
     assert_eq!(report(&out)["frames"].as_array().map(Vec::len), Some(1));
 }
 
@@ -146,7 +182,10 @@ fn a_bad_cloud_is_skipped_or_stops_the_run_keeping_the_others() {
 fn kitti_line(angle: f64, noise: f64, x: f64) -> String {
     let (s, c) = angle.sin_cos();
     let r = [[c + noise, -s, 0.0], [s, c - noise, noise], [0.0, 0.0, 1.0 + noise]];
-    format!("{} {} {} {x} {} {} {} 0 {} {} {} 0\n", r[0][0], r[0][1], r[0][2], r[1][0], r[1][1], r[1][2], r[2][0], r[2][1], r[2][2])
+    format!(
+        "{} {} {} {x} {} {} {} 0 {} {} {} 0\n",
+        r[0][0], r[0][1], r[0][2], r[1][0], r[1][1], r[1][2], r[2][0], r[2][1], r[2][2]
+    )
 }
 
 #[test]
@@ -174,7 +213,13 @@ fn published_poses_are_projected_with_one_warning_and_bad_ones_refused() {
     let o = run("velodyne.toml", &dir, &tmp.path().join("refused"), &[]);
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success(), "{err}");
-    assert!(err.contains("poses.txt") && err.contains("line 2") && err.contains("not orthonormal") && err.contains("accepted up to 1e-2"), "{err}");
+    assert!(
+        err.contains("poses.txt")
+            && err.contains("line 2")
+            && err.contains("not orthonormal")
+            && err.contains("accepted up to 1e-2"),
+        "{err}"
+    );
 }
 
 #[test]

@@ -8,11 +8,7 @@ use std::process::{Command, Output};
 use npyz::{AutoSerialize, Order, WriterBuilder};
 
 fn edtmap(args: &[&Path]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_edtmap"))
-        .arg("edt")
-        .args(args)
-        .output()
-        .expect("edtmap runs")
+    Command::new(env!("CARGO_BIN_EXE_edtmap")).arg("edt").args(args).output().expect("edtmap runs")
 }
 
 fn write_npy<T: AutoSerialize + Clone>(path: &Path, shape: &[u64], order: Order, data: &[T]) {
@@ -61,8 +57,7 @@ fn check_against_oracle(shape: &[usize], obstacles: &[bool], out: &Path, idx: &P
     let shape64: Vec<u64> = shape.iter().map(|&n| n as u64).collect();
     assert_eq!(dshape, shape64);
     assert_eq!(ishape, [shape64.clone(), vec![shape.len() as u64]].concat());
-    let sites: Vec<Vec<usize>> =
-        (0..obstacles.len()).filter(|&i| obstacles[i]).map(|i| unravel(i, shape)).collect();
+    let sites: Vec<Vec<usize>> = (0..obstacles.len()).filter(|&i| obstacles[i]).map(|i| unravel(i, shape)).collect();
     for i in 0..obstacles.len() {
         let p = unravel(i, shape);
         let best = sites.iter().map(|s| dist_sq(&p, s)).min();
@@ -142,8 +137,7 @@ fn big_endian_integers_are_read() {
     let (input, out, idx) = (case.path("in.npy"), case.path("out.npy"), case.path("idx.npy"));
     let obstacles = pattern(4 * 5 * 6);
     // '>i4' written by hand: header then big-endian data.
-    let values: Vec<u8> =
-        obstacles.iter().flat_map(|&o| (if o { 0x0100_0000i32 } else { 0 }).to_be_bytes()).collect();
+    let values: Vec<u8> = obstacles.iter().flat_map(|&o| (if o { 0x0100_0000i32 } else { 0 }).to_be_bytes()).collect();
     write_raw_npy(&input, "'>i4'", "(4, 5, 6)", false, &values);
     let o = edtmap(&[&input, &out, Path::new("--nearest"), &idx]);
     assert!(o.status.success(), "stderr: {}", String::from_utf8_lossy(&o.stderr));

@@ -60,7 +60,8 @@ fn run(config: &Path, data: &Path, out: &Path) -> Output {
 fn assert_all_frames(out: &Path, o: &Output, what: &str) {
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "{what}: {err}");
-    let r: serde_json::Value = serde_json::from_slice(&std::fs::read(out.join("report.json")).expect("report")).expect("json");
+    let r: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("report.json")).expect("report")).expect("json");
     assert_eq!(r["frames"].as_array().map(Vec::len), Some(3), "{what}: {err}");
     assert!(r["skipped"].as_array().is_some_and(Vec::is_empty), "{what}: {}", r["skipped"]);
 }
@@ -91,7 +92,10 @@ fn assert_wall(out: &Path, f: f32, what: &str) {
     let tol = 0.08;
     assert!(x[0] > depth - tol && x[1] < depth + tol, "{what}: wall x in {x:?}, want {depth}");
     assert!((y - half_w).abs() < tol, "{what}: wall half width {y}, want {half_w}");
-    assert!((z[0] - (1.0 - half_h)).abs() < tol && (z[1] - (1.0 + half_h)).abs() < tol, "{what}: wall z in {z:?}, want 1 ± {half_h}");
+    assert!(
+        (z[0] - (1.0 - half_h)).abs() < tol && (z[1] - (1.0 + half_h)).abs() < tol,
+        "{what}: wall z in {z:?}, want 1 ± {half_h}"
+    );
 }
 
 #[test]
@@ -105,7 +109,14 @@ fn a_folders_own_intrinsics_and_image_size_map_it_over_the_configs() {
     let o = run(&shipped, &right, &out_right);
     assert_all_frames(&out_right, &o, "the folder's intrinsics");
     let err = String::from_utf8_lossy(&o.stderr);
-    for want in ["camera-intrinsics.txt", "120 x 68", "640 x 480", "570.342", "using the recording's", "intrinsics = \"config\""] {
+    for want in [
+        "camera-intrinsics.txt",
+        "120 x 68",
+        "640 x 480",
+        "570.342",
+        "using the recording's",
+        "intrinsics = \"config\"",
+    ] {
         assert!(err.contains(want), "{want:?} not in the warning: {err}");
     }
     assert_wall(&out_right, 100.0, "f = 100");
@@ -124,9 +135,16 @@ fn a_folders_own_intrinsics_and_image_size_map_it_over_the_configs() {
     // [dataset] intrinsics = "config": [sensor] wins over the folder's file.
     let text = std::fs::read_to_string(&shipped).expect("config");
     let mut text = text.replace("fx = 570.342", "fx = 200.0").replace("fy = 570.342", "fy = 200.0");
-    text = text.replace("cx = 320.0", "cx = 60.0").replace("cy = 240.0", "cy = 34.0").replace("width = 640", "width = 120").replace("height = 480", "height = 68");
+    text = text
+        .replace("cx = 320.0", "cx = 60.0")
+        .replace("cy = 240.0", "cy = 34.0")
+        .replace("width = 640", "width = 120")
+        .replace("height = 480", "height = 68");
     let text = text.replace("[dataset]\n", "[dataset]\nintrinsics = \"config\"\n");
-    assert!(text.contains("fx = 200.0") && text.contains("height = 68") && text.contains("intrinsics = \"config\""), "{text}");
+    assert!(
+        text.contains("fx = 200.0") && text.contains("height = 68") && text.contains("intrinsics = \"config\""),
+        "{text}"
+    );
     let config = tmp.path().join("config.toml");
     std::fs::write(&config, text).expect("config");
     let out_config = tmp.path().join("out-config");

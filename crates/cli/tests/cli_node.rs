@@ -8,7 +8,10 @@ mod common;
 
 use common::{bin, finish, run_in};
 use edtmap_ros::msg::Message;
-use edtmap_ros::node::types::{CameraInfo, DiagnosticArray, GetDistancesRequest, GetDistancesResponse, GetEsdfBoxRequest, GetEsdfBoxResponse, Image, LaserScan, Point, PointCloud2, TfMessage, TransformStamped};
+use edtmap_ros::node::types::{
+    CameraInfo, DiagnosticArray, GetDistancesRequest, GetDistancesResponse, GetEsdfBoxRequest, GetEsdfBoxResponse,
+    Image, LaserScan, Point, PointCloud2, TfMessage, TransformStamped,
+};
 use ros2_client::dds::rustdds::DomainParticipantBuilder;
 use ros2_client::qos::{Durability, History, WhenFull};
 use ros2_client::{Context, MessageTypeName, Name, NodeName, NodeOptions, QosProfile, ServiceMapping, ServiceTypeName};
@@ -20,7 +23,10 @@ use std::time::{Duration, Instant};
 const MIN: Duration = Duration::from_secs(60);
 
 fn qos() -> QosProfile {
-    QosProfile::publisher_default().reliability_reliable(WhenFull::Wait(Duration::from_millis(500))).durability(Durability::Volatile).history(History::KeepLast { depth: 20 })
+    QosProfile::publisher_default()
+        .reliability_reliable(WhenFull::Wait(Duration::from_millis(500)))
+        .durability(Durability::Volatile)
+        .history(History::KeepLast { depth: 20 })
 }
 
 /// Waits up to `limit` for `f` to give something.
@@ -36,7 +42,13 @@ fn wait<T>(limit: Duration, mut f: impl FnMut() -> Option<T>) -> Option<T> {
 }
 
 fn frames_in(stats: &DiagnosticArray) -> u64 {
-    stats.status.iter().flat_map(|s| &s.values).find(|kv| kv.key == "frames").and_then(|kv| kv.value.parse().ok()).unwrap_or(0)
+    stats
+        .status
+        .iter()
+        .flat_map(|s| &s.values)
+        .find(|kv| kv.key == "frames")
+        .and_then(|kv| kv.value.parse().ok())
+        .unwrap_or(0)
 }
 
 /// Records `scene`, replays it with `edtmap run`, publishes it to a node
@@ -46,7 +58,11 @@ fn live_equals_replay(scene: &str, frames: u64, sensor_topic: &str, edit: fn(Str
     let d = dir.path();
     let rec = run_in(d, &["record", "--scene", scene, "--frames", &frames.to_string(), "rec.mcap"], MIN);
     assert_eq!(rec.code(), Some(0), "{}", rec.stderr);
-    let replay = run_in(d, &["run", "--config", "rec.toml", "--dataset", "rec.mcap", "--out", "replay", "--save", "replay.edtmap"], MIN);
+    let replay = run_in(
+        d,
+        &["run", "--config", "rec.toml", "--dataset", "rec.mcap", "--out", "replay", "--save", "replay.edtmap"],
+        MIN,
+    );
     assert_eq!(replay.code(), Some(0), "{}", replay.stderr);
 
     // The node's config: the recording's, with [ros] for the live topics.
@@ -55,8 +71,11 @@ fn live_equals_replay(scene: &str, frames: u64, sensor_topic: &str, edit: fn(Str
     config.push_str(&format!("\n[ros]\nsensor_topic = \"{sensor_topic}\"\npose_topic = \"/tf\"\nworld_frame = \"map\"\nlocalhost_only = true\nesdf_pointcloud_hz = 100.0\npose_wait_s = 5.0\n"));
     std::fs::write(d.join("node.toml"), config).expect("write config");
     let mut cmd = bin();
-    cmd.args(["-v", "node", "--config", "node.toml", "--save", "node.edtmap"]).current_dir(d).env("ROS_DOMAIN_ID", domain.to_string());
-    let child = cmd.stdin(Stdio::null()).stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().expect("the node starts");
+    cmd.args(["-v", "node", "--config", "node.toml", "--save", "node.edtmap"])
+        .current_dir(d)
+        .env("ROS_DOMAIN_ID", domain.to_string());
+    let child =
+        cmd.stdin(Stdio::null()).stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().expect("the node starts");
     let pid = child.id();
     let outcome = std::panic::catch_unwind(|| drive(d, domain as u16, frames, sensor_topic));
     // SIGINT: the node saves its map and exits.
@@ -68,8 +87,16 @@ fn live_equals_replay(scene: &str, frames: u64, sensor_topic: &str, edit: fn(Str
     }
     assert_eq!(run.code(), Some(0), "{}\n{}", run.stdout, run.stderr);
     assert!(run.stdout.contains(&format!("{frames} frames integrated")), "{}", run.stdout);
-    let (live, replayed) = (std::fs::read(d.join("node.edtmap")).expect("node map"), std::fs::read(d.join("replay.edtmap")).expect("replay map"));
-    assert!(live == replayed, "{scene}: the live map differs from the replay's ({} and {} bytes)", live.len(), replayed.len());
+    let (live, replayed) = (
+        std::fs::read(d.join("node.edtmap")).expect("node map"),
+        std::fs::read(d.join("replay.edtmap")).expect("replay map"),
+    );
+    assert!(
+        live == replayed,
+        "{scene}: the live map differs from the replay's ({} and {} bytes)",
+        live.len(),
+        replayed.len()
+    );
 }
 
 #[test]
@@ -94,10 +121,17 @@ fn a_published_laser_scan_recording_maps_like_its_replay() {
 
 /// Publishes the recording to the node and checks what it answers.
 fn drive(d: &Path, domain: u16, frames: u64, sensor_topic: &str) {
-    let participant = DomainParticipantBuilder::new(domain).with_only_networks([IpAddr::V4(Ipv4Addr::LOCALHOST)]).build().expect("participant");
+    let participant = DomainParticipantBuilder::new(domain)
+        .with_only_networks([IpAddr::V4(Ipv4Addr::LOCALHOST)])
+        .build()
+        .expect("participant");
     let context = Context::from_domain_participant(participant).expect("context");
-    let mut node = context.new_node(NodeName::new("/", "player").expect("name"), NodeOptions::new().enable_rosout(false)).expect("node");
-    let topic = |node: &mut ros2_client::Node, ns: &str, base: &str, pkg: &str, ty: &str| node.create_topic(&Name::new(ns, base).expect("name"), MessageTypeName::new(pkg, ty), &qos()).expect("topic");
+    let mut node = context
+        .new_node(NodeName::new("/", "player").expect("name"), NodeOptions::new().enable_rosout(false))
+        .expect("node");
+    let topic = |node: &mut ros2_client::Node, ns: &str, base: &str, pkg: &str, ty: &str| {
+        node.create_topic(&Name::new(ns, base).expect("name"), MessageTypeName::new(pkg, ty), &qos()).expect("topic")
+    };
     let sensor_name = sensor_topic.trim_start_matches('/');
     let (ns, base) = match sensor_name.rsplit_once('/') {
         Some((ns, base)) => (format!("/{ns}"), base.to_string()),
@@ -118,8 +152,24 @@ fn drive(d: &Path, domain: u16, frames: u64, sensor_topic: &str) {
     let t = topic(&mut node, "/edtmap", "esdf_pointcloud", "sensor_msgs", "PointCloud2");
     let esdf = node.create_subscription::<PointCloud2>(&t, Some(qos())).expect("subscription");
     let srv = |base: &str| Name::new("/edtmap", base).expect("name");
-    let distances = node.create_client::<GetDistancesRequest, GetDistancesResponse>(ServiceMapping::Cyclone, &srv("get_distances"), &ServiceTypeName::new("edtmap_msgs", "GetDistances"), qos(), qos()).expect("client");
-    let boxes = node.create_client::<GetEsdfBoxRequest, GetEsdfBoxResponse>(ServiceMapping::Cyclone, &srv("get_esdf_box"), &ServiceTypeName::new("edtmap_msgs", "GetEsdfBox"), qos(), qos()).expect("client");
+    let distances = node
+        .create_client::<GetDistancesRequest, GetDistancesResponse>(
+            ServiceMapping::Cyclone,
+            &srv("get_distances"),
+            &ServiceTypeName::new("edtmap_msgs", "GetDistances"),
+            qos(),
+            qos(),
+        )
+        .expect("client");
+    let boxes = node
+        .create_client::<GetEsdfBoxRequest, GetEsdfBoxResponse>(
+            ServiceMapping::Cyclone,
+            &srv("get_esdf_box"),
+            &ServiceTypeName::new("edtmap_msgs", "GetEsdfBox"),
+            qos(),
+            qos(),
+        )
+        .expect("client");
 
     // The recording's poses (/tf) and clouds, in order.
     let reader = edtmap_ros::mcap::McapReader::open(&d.join("rec.mcap")).expect("recording");
@@ -130,7 +180,9 @@ fn drive(d: &Path, domain: u16, frames: u64, sensor_topic: &str) {
     for raw in reader.messages(&topics) {
         let raw = raw.expect("message");
         match Message::decode(&raw.msg_type, &raw.data, raw.encoding).expect("decodes") {
-            Message::Tf(ts) => pending_tf = Some(TfMessage { transforms: ts.iter().map(TransformStamped::from).collect() }),
+            Message::Tf(ts) => {
+                pending_tf = Some(TfMessage { transforms: ts.iter().map(TransformStamped::from).collect() })
+            }
             m @ Message::CameraInfo(_) => pending.push(m),
             m => {
                 pending.push(m);
@@ -153,7 +205,8 @@ fn drive(d: &Path, domain: u16, frames: u64, sensor_topic: &str) {
         Message::LaserScan(s) => Some(s.header.stamp_ns),
         _ => None,
     };
-    let stamps: Vec<i64> = by_frame.iter().map(|(_, ms)| ms.iter().find_map(stamp_of).expect("a stamped sensor message")).collect();
+    let stamps: Vec<i64> =
+        by_frame.iter().map(|(_, ms)| ms.iter().find_map(stamp_of).expect("a stamped sensor message")).collect();
 
     // Discovery on loopback: give both participants a moment, then send
     // each frame once its predecessor is mapped (paced: nothing drops).
@@ -207,7 +260,23 @@ fn drive(d: &Path, domain: u16, frames: u64, sensor_topic: &str) {
         k if k == last => &map,
         k => {
             let n = (k + 1).to_string();
-            let part = run_in(d, &["run", "--config", "rec.toml", "--dataset", "rec.mcap", "--frames", &n, "--out", "part", "--save", "part.edtmap"], MIN);
+            let part = run_in(
+                d,
+                &[
+                    "run",
+                    "--config",
+                    "rec.toml",
+                    "--dataset",
+                    "rec.mcap",
+                    "--frames",
+                    &n,
+                    "--out",
+                    "part",
+                    "--save",
+                    "part.edtmap",
+                ],
+                MIN,
+            );
             assert_eq!(part.code(), Some(0), "{}", part.stderr);
             partial = edtmap::load_map(&d.join("part.edtmap")).expect("partial replay map");
             &partial
@@ -216,16 +285,25 @@ fn drive(d: &Path, domain: u16, frames: u64, sensor_topic: &str) {
     let values: Vec<f32> = cloud.data.chunks(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
     // Points near the mapped voxels (off their centres, so gradients
     // interpolate), and some far from anything.
-    let mut query: Vec<Point> = values.chunks(4).step_by(7).take(300).map(|p| Point { x: f64::from(p[0]) + 0.031, y: f64::from(p[1]) - 0.047, z: f64::from(p[2]) + 0.012 }).collect();
+    let mut query: Vec<Point> = values
+        .chunks(4)
+        .step_by(7)
+        .take(300)
+        .map(|p| Point { x: f64::from(p[0]) + 0.031, y: f64::from(p[1]) - 0.047, z: f64::from(p[2]) + 0.012 })
+        .collect();
     query.extend((0..50).map(|i| Point { x: 1e3 + f64::from(i), y: -7.0, z: f64::NAN.min(1.0) }));
     let req = GetDistancesRequest { points: query.clone(), signed_distance: false };
     let id = distances.send_request(req).expect("request");
-    let resp = wait(Duration::from_secs(20), || distances.receive_response().ok().flatten().filter(|(rid, _)| *rid == id).map(|(_, r)| r)).expect("get_distances answers");
+    let resp = wait(Duration::from_secs(20), || {
+        distances.receive_response().ok().flatten().filter(|(rid, _)| *rid == id).map(|(_, r)| r)
+    })
+    .expect("get_distances answers");
     let want = edtmap::cpu::query::distances(&map, &query.iter().map(|p| [p.x, p.y, p.z]).collect::<Vec<_>>(), false);
     assert!(resp.success, "{}", resp.message);
     assert_eq!(resp.distances.len(), want.len());
     for (i, w) in want.iter().enumerate() {
-        let same = resp.distances[i].to_bits() == w.distance_m.to_bits() || (resp.distances[i].is_nan() && w.distance_m.is_nan());
+        let same = resp.distances[i].to_bits() == w.distance_m.to_bits()
+            || (resp.distances[i].is_nan() && w.distance_m.is_nan());
         assert!(same, "point {i}: {} vs {}", resp.distances[i], w.distance_m);
         assert_eq!([resp.gradients[i].x, resp.gradients[i].y, resp.gradients[i].z], w.gradient, "point {i}");
         assert_eq!(resp.states[i], w.state as u8, "point {i}");
@@ -237,7 +315,11 @@ fn drive(d: &Path, domain: u16, frames: u64, sensor_topic: &str) {
     // RustDDS loses replies over 64 kB on loopback (see the README).
     let vs = map.voxel_size_m();
     let (lo, hi) = ([-7.0 * vs, -7.0 * vs, 0.0], [7.0 * vs, 7.0 * vs, 5.0 * vs]);
-    let req = GetEsdfBoxRequest { min_corner: Point { x: lo[0], y: lo[1], z: lo[2] }, max_corner: Point { x: hi[0], y: hi[1], z: hi[2] }, signed_distance: false };
+    let req = GetEsdfBoxRequest {
+        min_corner: Point { x: lo[0], y: lo[1], z: lo[2] },
+        max_corner: Point { x: hi[0], y: hi[1], z: hi[2] },
+        signed_distance: false,
+    };
     let id = boxes.send_request(req).expect("request");
     let resp = wait(Duration::from_secs(20), || match boxes.receive_response() {
         Ok(r) => r.filter(|(rid, _)| *rid == id).map(|(_, r)| r),
@@ -266,7 +348,8 @@ fn drive(d: &Path, domain: u16, frames: u64, sensor_topic: &str) {
 /// skipped.
 fn closing_numbers(stdout: &str) -> [u64; 4] {
     let line = stdout.lines().find(|l| l.starts_with("edtmap node stopped")).expect("closing line");
-    let nums: Vec<u64> = line.split(|c: char| !c.is_ascii_digit()).filter(|s| !s.is_empty()).filter_map(|s| s.parse().ok()).collect();
+    let nums: Vec<u64> =
+        line.split(|c: char| !c.is_ascii_digit()).filter(|s| !s.is_empty()).filter_map(|s| s.parse().ok()).collect();
     [nums[0], nums[1], nums[2], nums[3]]
 }
 
@@ -282,8 +365,11 @@ fn flooded_node(d: &Path, frames: usize, extra: &str, salt: u32) -> (common::Run
     config.push_str(extra);
     std::fs::write(d.join("node.toml"), config).expect("write config");
     let mut cmd = bin();
-    cmd.args(["node", "--config", "node.toml", "--save", "node.edtmap"]).current_dir(d).env("ROS_DOMAIN_ID", domain.to_string());
-    let child = cmd.stdin(Stdio::null()).stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().expect("the node starts");
+    cmd.args(["node", "--config", "node.toml", "--save", "node.edtmap"])
+        .current_dir(d)
+        .env("ROS_DOMAIN_ID", domain.to_string());
+    let child =
+        cmd.stdin(Stdio::null()).stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().expect("the node starts");
     let pid = child.id();
     let outcome = std::panic::catch_unwind(|| flood(d, domain as u16));
     std::thread::sleep(Duration::from_secs(1));
@@ -311,7 +397,11 @@ fn a_flood_drops_frames_and_bad_messages_are_skipped_by_kind_keeping_the_map() {
     assert_eq!(skipped, 4, "{}\n{}", run.stdout, run.stderr);
     assert_eq!(integrated + dropped + skipped, received, "{}", run.stdout);
     // Each malformation is its own kind, counted and logged once with its own description.
-    let kinds = ["bad message: PointCloud2 point_step < its fields", "bad message: PointCloud2 data shorter than its points", "bad message: PointCloud2 without x, y or z"];
+    let kinds = [
+        "bad message: PointCloud2 point_step < its fields",
+        "bad message: PointCloud2 data shorter than its points",
+        "bad message: PointCloud2 without x, y or z",
+    ];
     for kind in kinds {
         assert!(run.stdout.contains(&format!("\"{kind}\": 1")), "{kind}: {}", run.stdout);
         assert_eq!(run.stderr.matches(&format!("({kind};")).count(), 1, "{kind}: {}", run.stderr);
@@ -326,13 +416,29 @@ fn map_clearing_bounds_the_map_and_keeps_its_edt_exact() {
     let dir = tempfile::tempdir().expect("temp dir");
     let (_, full) = flooded_node(&subdir(dir.path(), "full"), 30, "", 53);
     let cleared_dir = subdir(dir.path(), "cleared");
-    let (_, cleared) = flooded_node(&cleared_dir, 30, "map_clearing_radius_m = 3.0\nmap_clearing_period_s = 0.01\nmap_clearing_save = \"before_clearing.edtmap\"\n", 67);
+    let (_, cleared) = flooded_node(
+        &cleared_dir,
+        30,
+        "map_clearing_radius_m = 3.0\nmap_clearing_period_s = 0.01\nmap_clearing_save = \"before_clearing.edtmap\"\n",
+        67,
+    );
     // What was forgotten was saved first: the last save holds more than the map kept.
     let saved = edtmap::load_map(&cleared_dir.join("before_clearing.edtmap")).expect("saved before clearing");
-    assert!(saved.occupancy().len() > cleared.occupancy().len(), "{} saved, {} kept", saved.occupancy().len(), cleared.occupancy().len());
+    assert!(
+        saved.occupancy().len() > cleared.occupancy().len(),
+        "{} saved, {} kept",
+        saved.occupancy().len(),
+        cleared.occupancy().len()
+    );
     // A ball of 3 m holds at most (4/3)π(3 + 1.4)³ / 1.6³ ≈ 87 blocks of 1.6 m.
-    assert!(cleared.occupancy().len() <= 87 && full.occupancy().len() > 2 * cleared.occupancy().len(), "{} blocks cleared, {} without", cleared.occupancy().len(), full.occupancy().len());
-    let errors = edtmap::eval::edt_errors(&cleared, &edtmap::eval::edt_extent(&cleared).expect("an EDT")).expect("exact EDT");
+    assert!(
+        cleared.occupancy().len() <= 87 && full.occupancy().len() > 2 * cleared.occupancy().len(),
+        "{} blocks cleared, {} without",
+        cleared.occupancy().len(),
+        full.occupancy().len()
+    );
+    let errors =
+        edtmap::eval::edt_errors(&cleared, &edtmap::eval::edt_extent(&cleared).expect("an EDT")).expect("exact EDT");
     assert!(errors.max_m == 0.0 && errors.wrong_fraction == 0.0, "{errors:?}");
 }
 
@@ -345,14 +451,33 @@ fn subdir(dir: &Path, name: &str) -> std::path::PathBuf {
 
 /// Publishes the whole recording at once, then bad messages.
 fn flood(d: &Path, domain: u16) {
-    let participant = DomainParticipantBuilder::new(domain).with_only_networks([IpAddr::V4(Ipv4Addr::LOCALHOST)]).build().expect("participant");
+    let participant = DomainParticipantBuilder::new(domain)
+        .with_only_networks([IpAddr::V4(Ipv4Addr::LOCALHOST)])
+        .build()
+        .expect("participant");
     let context = Context::from_domain_participant(participant).expect("context");
-    let mut node = context.new_node(NodeName::new("/", "flood").expect("name"), NodeOptions::new().enable_rosout(false)).expect("node");
-    let t = node.create_topic(&Name::new("/", "points").expect("name"), MessageTypeName::new("sensor_msgs", "PointCloud2"), &qos()).expect("topic");
+    let mut node = context
+        .new_node(NodeName::new("/", "flood").expect("name"), NodeOptions::new().enable_rosout(false))
+        .expect("node");
+    let t = node
+        .create_topic(
+            &Name::new("/", "points").expect("name"),
+            MessageTypeName::new("sensor_msgs", "PointCloud2"),
+            &qos(),
+        )
+        .expect("topic");
     let points = node.create_publisher::<PointCloud2>(&t, Some(qos())).expect("publisher");
-    let t = node.create_topic(&Name::new("/", "tf").expect("name"), MessageTypeName::new("tf2_msgs", "TFMessage"), &qos()).expect("topic");
+    let t = node
+        .create_topic(&Name::new("/", "tf").expect("name"), MessageTypeName::new("tf2_msgs", "TFMessage"), &qos())
+        .expect("topic");
     let tf = node.create_publisher::<TfMessage>(&t, Some(qos())).expect("publisher");
-    let t = node.create_topic(&Name::new("/edtmap", "frame_stats").expect("name"), MessageTypeName::new("diagnostic_msgs", "DiagnosticArray"), &qos()).expect("topic");
+    let t = node
+        .create_topic(
+            &Name::new("/edtmap", "frame_stats").expect("name"),
+            MessageTypeName::new("diagnostic_msgs", "DiagnosticArray"),
+            &qos(),
+        )
+        .expect("topic");
     let stats = node.create_subscription::<DiagnosticArray>(&t, Some(qos())).expect("subscription");
     let reader = edtmap_ros::mcap::McapReader::open(&d.join("rec.mcap")).expect("recording");
     let topics = ["/tf".to_string(), "/points".to_string()];
@@ -365,7 +490,9 @@ fn flood(d: &Path, domain: u16) {
     let mut last_cloud = None;
     for m in messages {
         match m {
-            Message::Tf(ts) => tf.publish(TfMessage { transforms: ts.iter().map(TransformStamped::from).collect() }).expect("tf"),
+            Message::Tf(ts) => {
+                tf.publish(TfMessage { transforms: ts.iter().map(TransformStamped::from).collect() }).expect("tf")
+            }
             Message::PointCloud2(c) => {
                 let c: PointCloud2 = c.into();
                 last_cloud = Some(c.clone());

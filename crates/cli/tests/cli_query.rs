@@ -16,7 +16,8 @@ fn s(p: &Path) -> &str {
 fn saved_map_answers_queries_and_exports() {
     let dir = tempfile::tempdir().expect("tempdir");
     let map = dir.path().join("map.edtmap");
-    let (ok, out, err) = edtmap(&["run", "--scene", "planar", "--frames", "6", "--out", s(dir.path()), "--save", s(&map)]);
+    let (ok, out, err) =
+        edtmap(&["run", "--scene", "planar", "--frames", "6", "--out", s(dir.path()), "--save", s(&map)]);
     assert!(ok, "{out}\n{err}");
     let frontiers = dir.path().join("frontiers.csv");
     let (ok, info, err) = edtmap(&["info", s(&map), "--frontiers", s(&frontiers)]);
@@ -32,7 +33,11 @@ fn saved_map_answers_queries_and_exports() {
     assert_eq!(lines[0], "x,y,z,distance_m,grad_x,grad_y,grad_z,state,observed,saturated");
     assert_eq!(lines.len(), 3, "{csv}");
     let far: Vec<&str> = lines[2].split(',').collect();
-    assert_eq!((far[7], far[9]), ("outside", "true"), "a point far outside the mapped area reads the cutoff, saturated");
+    assert_eq!(
+        (far[7], far[9]),
+        ("outside", "true"),
+        "a point far outside the mapped area reads the cutoff, saturated"
+    );
 
     let npy = dir.path().join("box.npy");
     let states = dir.path().join("states.npy");

@@ -31,14 +31,21 @@ fn cloud_at(t: f64) -> Message {
         .flat_map(|i| (0..30).map(move |k| Point3::new(2.0, -2.0 + 0.05 * i as f64 + 0.5 * t, 0.05 * k as f64)))
         .map(|p| (t_sensor_world * p).coords.map(|v| v as f32).into())
         .collect();
-    Message::PointCloud2(PointCloud2::from_points(Header { stamp_ns: (t * 1e9) as i64, frame_id: "lidar".into() }, &pts))
+    Message::PointCloud2(PointCloud2::from_points(
+        Header { stamp_ns: (t * 1e9) as i64, frame_id: "lidar".into() },
+        &pts,
+    ))
 }
 
 fn recording() -> Vec<Msg> {
     let mut msgs = Vec::new();
     for k in 0..=40 {
         let t = 0.05 * k as f64;
-        let odom = StampedTransform { header: Header { stamp_ns: (t * 1e9) as i64, frame_id: "odom".into() }, child_frame: "base_link".into(), transform: body_at(t) };
+        let odom = StampedTransform {
+            header: Header { stamp_ns: (t * 1e9) as i64, frame_id: "odom".into() },
+            child_frame: "base_link".into(),
+            transform: body_at(t),
+        };
         msgs.push(Msg::new("/odom", Message::Odometry(odom), t));
         if k % 4 == 2 {
             msgs.push(Msg::new("/points", cloud_at(t), t + 0.001));
@@ -130,7 +137,11 @@ fn bag_and_mcap_lidar_recordings_map_the_wall() {
         let xs = occupied_x(dir.path());
         assert!(xs.len() > 500, "{container:?}: {} occupied voxels", xs.len());
         // The wall at x = 2 m lies on a voxel face: the voxels either side.
-        assert!(xs.iter().all(|x| (x - 2.0).abs() <= 0.1), "{container:?}: occupied off the wall: {:?}", xs.iter().filter(|x| (*x - 2.0).abs() > 0.1).take(5).collect::<Vec<_>>());
+        assert!(
+            xs.iter().all(|x| (x - 2.0).abs() <= 0.1),
+            "{container:?}: occupied off the wall: {:?}",
+            xs.iter().filter(|x| (*x - 2.0).abs() > 0.1).take(5).collect::<Vec<_>>()
+        );
     }
 }
 
@@ -179,15 +190,27 @@ fn frames_without_poses_are_skipped_or_stop_the_run() {
     assert_eq!(frames(&r), Some(5));
     let skipped = r["skipped"].as_array().expect("skipped");
     assert_eq!(skipped.len(), 5);
-    assert!(skipped[0]["reason"].as_str().is_some_and(|s| s.contains("after the last pose") && s.contains("message 5")), "{}", skipped[0]);
+    assert!(
+        skipped[0]["reason"].as_str().is_some_and(|s| s.contains("after the last pose") && s.contains("message 5")),
+        "{}",
+        skipped[0]
+    );
     let out = run(dir.path(), &rec, &format!("{CONFIG}on_error = \"stop\"\n"));
     let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success() && stderr.contains("after the last pose") && stderr.contains("the 5 frames before it"), "{stderr}");
+    assert!(
+        !out.status.success() && stderr.contains("after the last pose") && stderr.contains("the 5 frames before it"),
+        "{stderr}"
+    );
     assert_eq!(frames(&report(dir.path())), Some(5));
     // A topic the recording does not have.
     let out = run(dir.path(), &rec, &CONFIG.replace("\"/points\"", "\"/velodyne_points\""));
     let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success() && stderr.contains("/velodyne_points") && stderr.contains("/points (sensor_msgs/PointCloud2)"), "{stderr}");
+    assert!(
+        !out.status.success()
+            && stderr.contains("/velodyne_points")
+            && stderr.contains("/points (sensor_msgs/PointCloud2)"),
+        "{stderr}"
+    );
 }
 
 fn edtmap(args: &[&str], dir: &Path) -> Output {
@@ -204,11 +227,18 @@ fn recorded_scenes_replay_into_the_scenes_own_map() {
         let rec = format!("{scene}.{ext}");
         let out = edtmap(&["record", "--scene", scene, "--frames", "6", "--force", &rec], dir.path());
         assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-        let out = edtmap(&["run", "--config", &format!("{scene}.toml"), "--dataset", &rec, "--out", "rec", "--save", "rec.edtmap"], dir.path());
+        let out = edtmap(
+            &["run", "--config", &format!("{scene}.toml"), "--dataset", &rec, "--out", "rec", "--save", "rec.edtmap"],
+            dir.path(),
+        );
         assert!(out.status.success(), "{rec}: {}", String::from_utf8_lossy(&out.stderr));
-        let out = edtmap(&["run", "--scene", scene, "--frames", "6", "--out", "sim", "--save", "sim.edtmap"], dir.path());
+        let out =
+            edtmap(&["run", "--scene", scene, "--frames", "6", "--out", "sim", "--save", "sim.edtmap"], dir.path());
         assert!(out.status.success());
-        let (a, b) = (std::fs::read(dir.path().join("rec.edtmap")).expect("map"), std::fs::read(dir.path().join("sim.edtmap")).expect("map"));
+        let (a, b) = (
+            std::fs::read(dir.path().join("rec.edtmap")).expect("map"),
+            std::fs::read(dir.path().join("sim.edtmap")).expect("map"),
+        );
         assert!(a == b, "{rec}: the replayed map differs from the scene's");
     }
 }

@@ -24,20 +24,33 @@ fn path(p: &Path) -> &str {
 #[test]
 fn negative_slice_height_is_a_value() {
     let dir = tempfile::tempdir().expect("tempdir");
-    let (ok, stdout, stderr) = edtmap(&["run", "--scene", "planar", "--frames", "2", "--slice-height", "-0.4", "--out", path(dir.path())]);
+    let (ok, stdout, stderr) =
+        edtmap(&["run", "--scene", "planar", "--frames", "2", "--slice-height", "-0.4", "--out", path(dir.path())]);
     assert!(ok, "{stdout}\n{stderr}");
     let slice = &report(dir.path())["slice"];
     assert_eq!(slice["from"], "--slice-height");
     assert_eq!(slice["requested_m"], -0.4);
     assert!(slice["z_m"].is_number(), "{slice}");
-    let (ok, _, stderr) = edtmap(&["run", "--scene", "planar", "--frames", "1", "--slice-height", "nan", "--out", path(dir.path())]);
+    let (ok, _, stderr) =
+        edtmap(&["run", "--scene", "planar", "--frames", "1", "--slice-height", "nan", "--out", path(dir.path())]);
     assert!(!ok && stderr.contains("--slice-height") && stderr.contains("finite"), "{stderr}");
 }
 
 #[test]
 fn default_slice_is_the_densest_observed_layer_and_is_logged() {
     let dir = tempfile::tempdir().expect("tempdir");
-    let (ok, stdout, stderr) = edtmap(&["-v", "run", "--scene", "room", "--frames", "2", "--construction", "raycast", "--out", path(dir.path())]);
+    let (ok, stdout, stderr) = edtmap(&[
+        "-v",
+        "run",
+        "--scene",
+        "room",
+        "--frames",
+        "2",
+        "--construction",
+        "raycast",
+        "--out",
+        path(dir.path()),
+    ]);
     assert!(ok, "{stdout}\n{stderr}");
     let slice = &report(dir.path())["slice"];
     assert_eq!(slice["from"], "densest observed layer");
@@ -61,11 +74,14 @@ fn printed_medians_are_report_medians() {
     }
     // Exact mode has no batch EDT stage: none is printed or reported.
     assert!(!stdout.contains("batch EDT") && summary.get("batch_edt_ms").is_none(), "{stdout}");
-    let (ok, stdout, stderr) = edtmap(&["run", "--scene", "planar", "--frames", "4", "--integration", "wavefront", "--out", path(dir.path())]);
+    let (ok, stdout, stderr) =
+        edtmap(&["run", "--scene", "planar", "--frames", "4", "--integration", "wavefront", "--out", path(dir.path())]);
     assert!(ok, "{stdout}\n{stderr}");
     let r = report(dir.path());
     assert!(r["stages"]["batch_edt_ms"].is_string(), "{}", r["stages"]);
-    for (printed, key) in [("occupancy", "ogm_ms"), ("batch EDT", "batch_edt_ms"), ("integration", "integrate_ms"), ("total", "total_ms")] {
+    for (printed, key) in
+        [("occupancy", "ogm_ms"), ("batch EDT", "batch_edt_ms"), ("integration", "integrate_ms"), ("total", "total_ms")]
+    {
         let median = r["summary"][key]["median"].as_f64().expect("median");
         let text = format!("{printed} median {median:.2} ms");
         assert!(stdout.contains(&text), "{text:?} not in {stdout}");
@@ -80,7 +96,8 @@ fn eval_on_a_recording_says_there_is_no_occupancy_score() {
     assert!(ok, "{stdout}\n{stderr}");
     let out = dir.path().join("out");
     let config = dir.path().join("planar.toml");
-    let (ok, stdout, stderr) = edtmap(&["run", "--config", path(&config), "--dataset", path(&mcap), "--eval", "--out", path(&out)]);
+    let (ok, stdout, stderr) =
+        edtmap(&["run", "--config", path(&config), "--dataset", path(&mcap), "--eval", "--out", path(&out)]);
     assert!(ok, "{stdout}\n{stderr}");
     assert!(stderr.contains("--eval") && stderr.contains("ground truth") && stderr.contains("EDT error"), "{stderr}");
     assert!(stdout.contains("EDT vs exact EDT") && !stdout.contains("precision"), "{stdout}");

@@ -48,7 +48,8 @@ const TUM_TIMES: [f64; FRAMES] = [10.0, 10.5, 11.0];
 /// ROS cloud stamps, seconds.
 const ROS_TIMES: [f64; FRAMES] = [0.1, 0.5, 0.9];
 /// Replays the ROS recordings: a LiDAR's clouds placed by odometry.
-const ROS_CONFIG: &str = "[sensor]\nkind = \"points\"\nconstruction = \"raycast\"\nmin_range_m = 0.2\nmax_range_m = 10.0\n\n\
+const ROS_CONFIG: &str =
+    "[sensor]\nkind = \"points\"\nconstruction = \"raycast\"\nmin_range_m = 0.2\nmax_range_m = 10.0\n\n\
     [occupancy]\nvoxel_size_m = 0.1\nlocal_size_m = [8.0, 8.0, 4.0]\n\n[global]\nmax_distance_m = 1.0\n\n\
     [dataset]\nsensor_topic = \"/points\"\npose_topic = \"/odom\"\n";
 const IDENTITY: &str = "1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n";
@@ -110,11 +111,16 @@ fn ros_recording(path: &Path, container: Container, fault: Fault) {
         if matches!(fault, Fault::NoPose(k) if (t - ROS_TIMES[k]).abs() < 0.2) {
             continue;
         }
-        let odom = StampedTransform { header: header(t, "odom"), child_frame: "base_link".into(), transform: Isometry3::identity() };
+        let odom = StampedTransform {
+            header: header(t, "odom"),
+            child_frame: "base_link".into(),
+            transform: Isometry3::identity(),
+        };
         msgs.push(Msg::new("/odom", Message::Odometry(odom), t));
     }
     for (k, t) in ROS_TIMES.into_iter().enumerate() {
-        let mut cloud = Msg::new("/points", Message::PointCloud2(PointCloud2::from_points(header(t, "lidar"), &wall())), t + 0.001);
+        let mut cloud =
+            Msg::new("/points", Message::PointCloud2(PointCloud2::from_points(header(t, "lidar"), &wall())), t + 0.001);
         cloud.truncate_payload = fault == Fault::Corrupt(k);
         msgs.push(cloud);
     }
@@ -203,7 +209,11 @@ fn recording(dir: &Path, kind: Kind, fault: Fault) -> (PathBuf, String) {
 /// `text` with `[dataset] on_error = policy`, written beside `dir`.
 fn config_with(dir: &Path, text: &str, policy: &str) -> PathBuf {
     let line = format!("on_error = \"{policy}\"\n");
-    let text = if text.contains("[dataset]\n") { text.replace("[dataset]\n", &format!("[dataset]\n{line}")) } else { format!("{text}\n[dataset]\n{line}") };
+    let text = if text.contains("[dataset]\n") {
+        text.replace("[dataset]\n", &format!("[dataset]\n{line}"))
+    } else {
+        format!("{text}\n[dataset]\n{line}")
+    };
     let path = dir.join(format!("{policy}.toml"));
     std::fs::write(&path, text).expect("config");
     path
@@ -251,14 +261,21 @@ fn check(kind: Kind, fault: Fault) {
                 assert!(o.status.success(), "{what} {policy}: {err}");
                 assert!(err.contains("left out"), "{what} {policy}: {err}");
                 assert_eq!(indices(&r["frames"]), all, "{what} {policy}");
-                assert!(r["skipped"].as_array().is_some_and(Vec::is_empty) && r["stopped"].is_null(), "{what} {policy}: {r}");
+                assert!(
+                    r["skipped"].as_array().is_some_and(Vec::is_empty) && r["stopped"].is_null(),
+                    "{what} {policy}: {r}"
+                );
             }
             (Fault::Corrupt(k) | Fault::NoPose(k), "skip") => {
                 assert!(o.status.success(), "{what} {policy}: {err}");
                 let rest: Vec<u64> = all.iter().copied().filter(|&i| i != k as u64).collect();
                 assert_eq!(indices(&r["frames"]), rest, "{what} {policy}");
                 assert_eq!(indices(&r["skipped"]), vec![k as u64], "{what} {policy}: {}", r["skipped"]);
-                assert!(r["skipped"][0]["reason"].as_str().is_some_and(|s| s.contains(&named)), "{what} {policy}: {}", r["skipped"]);
+                assert!(
+                    r["skipped"][0]["reason"].as_str().is_some_and(|s| s.contains(&named)),
+                    "{what} {policy}: {}",
+                    r["skipped"]
+                );
                 assert!(out.join("occupancy_slice.png").is_file(), "{what} {policy}");
             }
             (Fault::Corrupt(k) | Fault::NoPose(k), _) => {
@@ -266,7 +283,11 @@ fn check(kind: Kind, fault: Fault) {
                 let before: Vec<u64> = (0..k as u64).collect();
                 assert_eq!(indices(&r["frames"]), before, "{what} {policy}");
                 assert_eq!(r["stopped"]["index"].as_u64(), Some(k as u64), "{what} {policy}: {r}");
-                assert!(r["stopped"]["reason"].as_str().is_some_and(|s| s.contains(&named)), "{what} {policy}: {}", r["stopped"]);
+                assert!(
+                    r["stopped"]["reason"].as_str().is_some_and(|s| s.contains(&named)),
+                    "{what} {policy}: {}",
+                    r["stopped"]
+                );
                 if k > 0 {
                     // The frames before the stop are kept and written.
                     assert!(err.contains("the 1 frame before it is integrated"), "{what} {policy}: {err}");

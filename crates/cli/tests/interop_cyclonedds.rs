@@ -39,7 +39,13 @@ impl Done {
 /// after `limit` the whole group is killed (pytest and the node it started).
 fn run_limited(mut cmd: Command, limit: Duration) -> Result<Done, String> {
     let shown = format!("{cmd:?}");
-    let mut child = cmd.stdin(Stdio::null()).stdout(Stdio::piped()).stderr(Stdio::piped()).process_group(0).spawn().map_err(|e| format!("{shown} did not start: {e}"))?;
+    let mut child = cmd
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .process_group(0)
+        .spawn()
+        .map_err(|e| format!("{shown} did not start: {e}"))?;
     let read = |pipe: Option<Box<dyn Read + Send>>| {
         std::thread::spawn(move || {
             let mut bytes = Vec::new();
@@ -81,7 +87,11 @@ fn has_requirements(python: &Path, requirements: &Path) -> bool {
     let check = "import sys, importlib.metadata as m\n\
                  pins = [line.split('#')[0].strip().partition('==') for line in open(sys.argv[1])]\n\
                  sys.exit(any(name and m.version(name.strip()) != want.strip() for name, _, want in pins))\n";
-    run_limited(command(python, &[OsStr::new("-c"), OsStr::new(check), requirements.as_os_str()]), Duration::from_secs(60)).is_ok_and(|d| d.status.success())
+    run_limited(
+        command(python, &[OsStr::new("-c"), OsStr::new(check), requirements.as_os_str()]),
+        Duration::from_secs(60),
+    )
+    .is_ok_and(|d| d.status.success())
 }
 
 /// The interpreter to run pytest with, or why there is none.
@@ -104,7 +114,15 @@ fn python(root: &Path) -> Result<PathBuf, String> {
             made.output()
         ));
     }
-    let pip = [OsStr::new("-m"), OsStr::new("pip"), OsStr::new("install"), OsStr::new("--disable-pip-version-check"), OsStr::new("-q"), OsStr::new("-r"), requirements.as_os_str()];
+    let pip = [
+        OsStr::new("-m"),
+        OsStr::new("pip"),
+        OsStr::new("install"),
+        OsStr::new("--disable-pip-version-check"),
+        OsStr::new("-q"),
+        OsStr::new("-r"),
+        requirements.as_os_str(),
+    ];
     let installed = run_limited(command(&python, &pip), SETUP_LIMIT)?;
     if !installed.status.success() || !has_requirements(&python, &requirements) {
         return Err(format!(
@@ -133,6 +151,16 @@ fn the_node_interoperates_with_cyclonedds() {
     cmd.current_dir(&root).env("EDTMAP_BIN", env!("CARGO_BIN_EXE_edtmap")).env("PYTHONDONTWRITEBYTECODE", "1");
     let started = Instant::now();
     let done = run_limited(cmd, PYTEST_LIMIT).unwrap_or_else(|e| panic!("pytest with {}: {e}", python.display()));
-    assert!(done.status.success(), "the interop tests failed ({}), {:.1} s:\n{}", done.status, started.elapsed().as_secs_f64(), done.output());
-    eprintln!("interop tests passed in {:.1} s: {}", started.elapsed().as_secs_f64(), done.stdout.lines().last().unwrap_or_default());
+    assert!(
+        done.status.success(),
+        "the interop tests failed ({}), {:.1} s:\n{}",
+        done.status,
+        started.elapsed().as_secs_f64(),
+        done.output()
+    );
+    eprintln!(
+        "interop tests passed in {:.1} s: {}",
+        started.elapsed().as_secs_f64(),
+        done.stdout.lines().last().unwrap_or_default()
+    );
 }

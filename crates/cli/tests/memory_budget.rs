@@ -12,7 +12,11 @@ fn a_tiny_voxel_size_is_refused_at_once() {
     let dir = tempfile::tempdir().expect("tempdir");
     let start = Instant::now();
     // 3·10⁸ voxels: some 14 GB in exact mode, more than the budget given.
-    let run = run_in(dir.path(), &["run", "--scene", "uav_pillars", "--frames", "2", "--voxel-size", "0.01", "--max-memory", "8G"], SHORT);
+    let run = run_in(
+        dir.path(),
+        &["run", "--scene", "uav_pillars", "--frames", "2", "--voxel-size", "0.01", "--max-memory", "8G"],
+        SHORT,
+    );
     assert_refused(&run, &["1000×1000×300", "--voxel-size", "--max-memory"]);
     assert!(start.elapsed() < Duration::from_secs(60), "refused before allocating");
     let run = run_in(dir.path(), &["run", "--scene", "uav_pillars", "--frames", "2", "--voxel-size", "0.001"], SHORT);
@@ -25,12 +29,22 @@ fn a_huge_local_volume_in_the_config_is_refused() {
     for scene in ["uav_pillars", "room", "planar"] {
         let text: String = shipped_config(scene)
             .lines()
-            .map(|l| if l.starts_with("local_size_m") { "local_size_m = [200.0, 200.0, 50.0]".to_string() } else { l.to_string() })
+            .map(|l| {
+                if l.starts_with("local_size_m") {
+                    "local_size_m = [200.0, 200.0, 50.0]".to_string()
+                } else {
+                    l.to_string()
+                }
+            })
             .collect::<Vec<_>>()
             .join("\n");
         let config = dir.path().join(format!("{scene}.toml"));
         std::fs::write(&config, text).expect("write");
-        let run = run_in(dir.path(), &["run", "--config", config.to_str().expect("utf-8"), "--frames", "2", "--max-memory", "4G"], SHORT);
+        let run = run_in(
+            dir.path(),
+            &["run", "--config", config.to_str().expect("utf-8"), "--frames", "2", "--max-memory", "4G"],
+            SHORT,
+        );
         assert_refused(&run, &["200×200×50 m", "local_size_m", "4.0 GiB"]);
     }
 }
@@ -79,7 +93,8 @@ fn edt_respects_the_address_space_limit() {
     let dir = tempfile::tempdir().expect("tempdir");
     sparse_grid(&dir.path().join("big.npy"));
     let mut cmd = std::process::Command::new("prlimit");
-    cmd.args(["--as=8000000000", "--", env!("CARGO_BIN_EXE_edtmap"), "edt", "big.npy", "out.npy"]).current_dir(dir.path());
+    cmd.args(["--as=8000000000", "--", env!("CARGO_BIN_EXE_edtmap"), "edt", "big.npy", "out.npy"])
+        .current_dir(dir.path());
     let run = common::wait_for(cmd, SHORT);
     assert_refused(&run, &["big.npy", "RLIMIT_AS"]);
 }
@@ -88,13 +103,19 @@ fn edt_respects_the_address_space_limit() {
 fn a_huge_frame_count_reserves_nothing() {
     let dir = tempfile::tempdir().expect("tempdir");
     let rec = dir.path().join("r.mcap");
-    let run = run_in(dir.path(), &["record", "--scene", "planar", "--frames", "2", rec.to_str().expect("utf-8")], SHORT);
+    let run =
+        run_in(dir.path(), &["record", "--scene", "planar", "--frames", "2", rec.to_str().expect("utf-8")], SHORT);
     assert_eq!(run.code(), Some(0), "{}", run.stderr);
     for n in ["18446744073709551615", "100000000"] {
-        let run = run_in(dir.path(), &["run", "--config", "r.toml", "--dataset", "r.mcap", "--frames", n, "--out", "o"], SHORT);
+        let run = run_in(
+            dir.path(),
+            &["run", "--config", "r.toml", "--dataset", "r.mcap", "--frames", n, "--out", "o"],
+            SHORT,
+        );
         assert_refused(&run, &[n, "has 2 frames"]);
     }
-    let run = run_in(dir.path(), &["record", "--scene", "planar", "--frames", "100000000000", "--force", "r.mcap"], SHORT);
+    let run =
+        run_in(dir.path(), &["record", "--scene", "planar", "--frames", "100000000000", "--force", "r.mcap"], SHORT);
     assert_refused(&run, &["--frames", "free"]);
     let run = run_in(dir.path(), &["run", "--config", "r.toml", "--dataset", "r.mcap", "--out", "o"], SHORT);
     assert_eq!(run.code(), Some(0), "the refused recording left the earlier one whole: {}", run.stderr);

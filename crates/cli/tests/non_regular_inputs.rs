@@ -19,8 +19,14 @@ fn devices_are_refused_wherever_a_file_is_read() {
     let saved = run_in(d, &["run", "--scene", "planar", "--frames", "1", "--out", "o", "--save", "m.edtmap"], SHORT);
     assert_eq!(saved.code(), Some(0), "{}", saved.stderr);
     for dev in ["/dev/zero", "/dev/urandom"] {
-        assert_refused(&run_in(d, &["run", "--scene", "planar", "--config", dev, "--frames", "1", "--out", "o"], SHORT), &[dev, "character device"]);
-        assert_refused(&run_in(d, &["run", "--scene", "planar", "--prior", dev, "--frames", "1", "--out", "o"], SHORT), &[dev, "character device"]);
+        assert_refused(
+            &run_in(d, &["run", "--scene", "planar", "--config", dev, "--frames", "1", "--out", "o"], SHORT),
+            &[dev, "character device"],
+        );
+        assert_refused(
+            &run_in(d, &["run", "--scene", "planar", "--prior", dev, "--frames", "1", "--out", "o"], SHORT),
+            &[dev, "character device"],
+        );
         assert_refused(&run_in(d, &["info", dev], SHORT), &[dev, "character device"]);
         assert_refused(&run_in(d, &["query", "m.edtmap", "--points", dev], SHORT), &[dev, "character device"]);
         assert_refused(&run_in(d, &["edt", dev, "out.npy"], SHORT), &[dev, "character device"]);
@@ -38,12 +44,27 @@ fn fifos_are_refused_without_blocking() {
         return;
     }
     assert_refused(&run_in(d, &["edt", "fifo.npy", "out.npy"], SHORT), &["fifo.npy", "FIFO"]);
-    assert_refused(&run_in(d, &["run", "--scene", "planar", "--config", "fifo.toml", "--frames", "1", "--out", "o"], SHORT), &["fifo.toml", "FIFO"]);
+    assert_refused(
+        &run_in(d, &["run", "--scene", "planar", "--config", "fifo.toml", "--frames", "1", "--out", "o"], SHORT),
+        &["fifo.toml", "FIFO"],
+    );
     // A FIFO named like a frame of a cloud folder.
     let clouds = d.join("clouds");
     std::fs::create_dir(&clouds).expect("mkdir");
     assert!(mkfifo(&clouds.join("000000.pcd")));
     std::fs::write(clouds.join("poses.txt"), "1 0 0 0 0 1 0 0 0 0 1 0\n").expect("poses");
-    let run = run_in(d, &["run", "--config", concat!(env!("CARGO_MANIFEST_DIR"), "/../../configs/velodyne.toml"), "--dataset", "clouds", "--out", "o"], SHORT);
+    let run = run_in(
+        d,
+        &[
+            "run",
+            "--config",
+            concat!(env!("CARGO_MANIFEST_DIR"), "/../../configs/velodyne.toml"),
+            "--dataset",
+            "clouds",
+            "--out",
+            "o",
+        ],
+        SHORT,
+    );
     assert_refused(&run, &["000000.pcd", "FIFO"]);
 }

@@ -7,7 +7,8 @@ use common::{assert_refused, run_in, SHORT};
 use std::path::Path;
 
 fn grid(path: &Path) {
-    std::fs::write(path, common::npy_u8("(4, 4)", &[0, 0, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0])).expect("write grid");
+    std::fs::write(path, common::npy_u8("(4, 4)", &[0, 0, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0]))
+        .expect("write grid");
 }
 
 #[cfg(unix)]
@@ -43,7 +44,8 @@ fn two_outputs_that_are_one_file_are_refused() {
     let run = run_in(d, &["edt", "in.npy", "same.npy", "--nearest", "./same.npy"], SHORT);
     assert_refused(&run, &["same.npy", "--nearest"]);
     assert!(!d.join("same.npy").exists());
-    let run = run_in(d, &["run", "--scene", "planar", "--frames", "1", "--out", "out", "--save", "out/report.json"], SHORT);
+    let run =
+        run_in(d, &["run", "--scene", "planar", "--frames", "1", "--out", "out", "--save", "out/report.json"], SHORT);
     assert_refused(&run, &["report.json", "--save"]);
     // The input may be replaced by the output: it is read first, and the
     // output is put in place whole.

@@ -29,7 +29,17 @@ fn saved() -> &'static Saved {
     SAVED.get_or_init(|| {
         let dir = tempfile::tempdir().expect("tempdir");
         let map = dir.path().join("map.edtmap");
-        let o = edtmap(&["run", "--scene", "planar", "--frames", "4", "--out", s(&dir.path().join("out")), "--save", s(&map)]);
+        let o = edtmap(&[
+            "run",
+            "--scene",
+            "planar",
+            "--frames",
+            "4",
+            "--out",
+            s(&dir.path().join("out")),
+            "--save",
+            s(&map),
+        ]);
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         let info = String::from_utf8(edtmap(&["info", s(&map)]).stdout).expect("utf-8");
         // "PATH: voxel 0.1 m, cutoff 2 m, ..."
@@ -116,7 +126,8 @@ fn a_good_file_with_bom_header_comments_and_blank_lines_gives_every_row() {
     let o = query(text.as_bytes(), false);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let csv = String::from_utf8(o.stdout).expect("utf-8");
-    let rows: Vec<Vec<f64>> = csv.lines().skip(1).map(|l| l.split(',').take(3).map(|f| f.parse().expect("number")).collect()).collect();
+    let rows: Vec<Vec<f64>> =
+        csv.lines().skip(1).map(|l| l.split(',').take(3).map(|f| f.parse().expect("number")).collect()).collect();
     assert_eq!(rows, [vec![1.5, -2.0, 0.3], vec![-1.25, 0.5, 0.5], vec![0.0, 0.0, 0.0]], "{csv}");
     // A BOM before a data line: the line is read, not dropped.
     let o = query("\u{feff}1,2,3\n".as_bytes(), false);
@@ -178,10 +189,17 @@ fn export_sidecar_locates_the_array_in_the_world() {
         assert!(origin - vs / 2.0 <= lo[a] + 1e-9 && lo[a] < origin + vs / 2.0, "{text}");
     }
     let shape: Vec<u64> = (0..3).rev().map(|a| (last[a] - first[a] + 1.0) as u64).collect();
-    let json_shape: Vec<u64> = json["shape"].as_array().expect("shape").iter().map(|v| v.as_u64().expect("n")).collect();
+    let json_shape: Vec<u64> =
+        json["shape"].as_array().expect("shape").iter().map(|v| v.as_u64().expect("n")).collect();
     assert_eq!(json_shape, shape, "(nz, ny, nx): {text}");
-    assert!((num(&json["voxel_size_m"]) - vs).abs() < 1e-12 && (num(&json["max_distance_m"]) - saved.cutoff_m).abs() < 1e-12);
-    assert_eq!((json["dtype"].as_str(), json["states_dtype"].as_str(), json["signed"].as_bool()), (Some("float32"), Some("uint8"), Some(false)));
+    assert!(
+        (num(&json["voxel_size_m"]) - vs).abs() < 1e-12
+            && (num(&json["max_distance_m"]) - saved.cutoff_m).abs() < 1e-12
+    );
+    assert_eq!(
+        (json["dtype"].as_str(), json["states_dtype"].as_str(), json["signed"].as_bool()),
+        (Some("float32"), Some("uint8"), Some(false))
+    );
     assert_eq!(json["axis_order"], serde_json::json!(["z", "y", "x"]));
     assert_eq!((json["distances"].as_str(), json["states"].as_str()), (Some("box.npy"), Some("states.npy")));
     // The array itself has that shape.
@@ -190,7 +208,15 @@ fn export_sidecar_locates_the_array_in_the_world() {
     assert_eq!(array.shape(), &shape[..]);
     // The sidecar named as another output is refused before anything is written.
     let other = dir.path().join("other.npy");
-    let o = edtmap(&["export", s(&saved.map), "--box", &spec, s(&other), "--states", s(&dir.path().join("other.npy.json"))]);
+    let o = edtmap(&[
+        "export",
+        s(&saved.map),
+        "--box",
+        &spec,
+        s(&other),
+        "--states",
+        s(&dir.path().join("other.npy.json")),
+    ]);
     assert_eq!(o.status.code(), Some(1), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(!other.exists());
 }

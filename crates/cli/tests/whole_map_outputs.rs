@@ -25,7 +25,10 @@ fn saved_map(dir: &Path, scene: &str) -> PathBuf {
 /// The numbers after `prefix` on the line of `text` that starts with it.
 fn numbers_after(text: &str, prefix: &str) -> Vec<f64> {
     let line = text.lines().find_map(|l| l.strip_prefix(prefix)).unwrap_or_else(|| panic!("no {prefix:?} in {text}"));
-    line.split(|c: char| !(c.is_ascii_digit() || c == '.' || c == '-')).filter(|t| !t.is_empty()).map(|t| t.parse().expect("number")).collect()
+    line.split(|c: char| !(c.is_ascii_digit() || c == '.' || c == '-'))
+        .filter(|t| !t.is_empty())
+        .map(|t| t.parse().expect("number"))
+        .collect()
 }
 
 #[test]
@@ -43,11 +46,17 @@ fn export_without_a_box_covers_the_mapped_box() {
     let states = dir.path().join("all_states.npy");
     let (ok, out, err) = edtmap(&["export", s(&map), s(&npy), "--states", s(&states)]);
     assert!(ok, "{out}\n{err}");
-    let sidecar: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.path().join("all.npy.json")).expect("sidecar")).expect("json");
-    let corner = |k: &str| -> Vec<f64> { sidecar["box_m"][k].as_array().expect("box").iter().map(|v| v.as_f64().expect("number")).collect() };
+    let sidecar: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("all.npy.json")).expect("sidecar")).expect("json");
+    let corner = |k: &str| -> Vec<f64> {
+        sidecar["box_m"][k].as_array().expect("box").iter().map(|v| v.as_f64().expect("number")).collect()
+    };
     let (lo, hi) = (corner("min"), corner("max"));
     for a in 0..3 {
-        assert!((lo[a] - mapped[a]).abs() < 0.006 && (hi[a] - mapped[a + 3]).abs() < 0.006, "box {lo:?}..{hi:?}, info {mapped:?}");
+        assert!(
+            (lo[a] - mapped[a]).abs() < 0.006 && (hi[a] - mapped[a + 3]).abs() < 0.006,
+            "box {lo:?}..{hi:?}, info {mapped:?}"
+        );
     }
     // The whole map is in the box: every free and occupied voxel that
     // `info` counts is there, with its state.
@@ -84,7 +93,13 @@ fn frontiers_of_a_planar_map_stay_in_its_plane() {
     let array = npyz::NpyFile::new(&bytes[..]).expect("npy");
     let [nz, ny, nx] = <[u64; 3]>::try_from(array.shape()).expect("3D").map(|n| n as i64);
     let values: Vec<u8> = array.into_vec().expect("u8 states");
-    let at = |x: i64, y: i64, z: i64| if (0..nx).contains(&x) && (0..ny).contains(&y) { values[((z * ny + y) * nx + x) as usize] } else { 0 };
+    let at = |x: i64, y: i64, z: i64| {
+        if (0..nx).contains(&x) && (0..ny).contains(&y) {
+            values[((z * ny + y) * nx + x) as usize]
+        } else {
+            0
+        }
+    };
     let layers: Vec<i64> = (0..nz).filter(|&z| (0..ny).any(|y| (0..nx).any(|x| at(x, y, z) >= 2))).collect();
     assert_eq!(layers.len(), 1, "the planar scene observes one layer");
     let z = layers[0];
@@ -98,7 +113,8 @@ fn frontiers_of_a_planar_map_stay_in_its_plane() {
     let free = numbers_after(&info, "voxels: ")[0] as usize;
     assert!(brute > 0 && brute < free, "in-plane frontiers are the rim of the free area: {brute} of {free}");
     assert_eq!(reported, brute, "{info}");
-    let listed: Vec<String> = std::fs::read_to_string(&frontiers).expect("csv").lines().skip(1).map(String::from).collect();
+    let listed: Vec<String> =
+        std::fs::read_to_string(&frontiers).expect("csv").lines().skip(1).map(String::from).collect();
     assert_eq!(listed.len(), brute);
     let heights: std::collections::BTreeSet<&str> = listed.iter().map(|l| l.rsplit(',').next().expect("z")).collect();
     assert_eq!(heights.len(), 1, "every frontier lies in the scan plane");
@@ -118,14 +134,18 @@ struct LoadedMap {
 fn load_map_server(yaml: &Path) -> LoadedMap {
     let text = std::fs::read_to_string(yaml).expect("yaml");
     let value = |key: &str| -> String {
-        let line = text.lines().find_map(|l| l.strip_prefix(&format!("{key}:"))).unwrap_or_else(|| panic!("no {key} in {text}"));
+        let line = text
+            .lines()
+            .find_map(|l| l.strip_prefix(&format!("{key}:")))
+            .unwrap_or_else(|| panic!("no {key} in {text}"));
         line.trim().to_string()
     };
     let number = |key: &str| value(key).parse::<f64>().unwrap_or_else(|e| panic!("{key}: {e}"));
     assert_eq!(value("mode"), "trinary");
     assert_eq!(value("negate"), "0");
     let (occupied_thresh, free_thresh) = (number("occupied_thresh"), number("free_thresh"));
-    let origin: Vec<f64> = value("origin").trim_matches(['[', ']']).split(',').map(|t| t.trim().parse().expect("origin number")).collect();
+    let origin: Vec<f64> =
+        value("origin").trim_matches(['[', ']']).split(',').map(|t| t.trim().parse().expect("origin number")).collect();
     let image = yaml.parent().expect("folder").join(value("image").trim_matches('"'));
     let bytes = std::fs::read(image).expect("pgm");
     // P5, then width, height and maxval as whitespace-separated tokens
@@ -199,18 +219,34 @@ fn map_server_map_of_a_planar_map_matches_its_voxels() {
     let mapped = numbers_after(&info, "mapped box (m): ");
     assert_eq!(loaded.resolution, 0.1);
     assert_eq!(loaded.origin, [mapped[0], mapped[1], 0.0]);
-    assert_eq!((loaded.width, loaded.height), (((mapped[3] - mapped[0]) / 0.1).round() as usize, ((mapped[4] - mapped[1]) / 0.1).round() as usize));
+    assert_eq!(
+        (loaded.width, loaded.height),
+        (((mapped[3] - mapped[0]) / 0.1).round() as usize, ((mapped[4] - mapped[1]) / 0.1).round() as usize)
+    );
 
     // The planar scene's scan plane: the one observed layer.
     let frontiers = dir.path().join("f.csv");
     assert!(edtmap(&["info", s(&map), "--frontiers", s(&frontiers)]).0);
-    let z: f64 = std::fs::read_to_string(&frontiers).expect("csv").lines().nth(1).expect("a frontier").rsplit(',').next().expect("z").parse().expect("z");
+    let z: f64 = std::fs::read_to_string(&frontiers)
+        .expect("csv")
+        .lines()
+        .nth(1)
+        .expect("a frontier")
+        .rsplit(',')
+        .next()
+        .expect("z")
+        .parse()
+        .expect("z");
     let truth = queried_states(dir.path(), &map, &loaded, z);
     let mismatches = loaded.cells.iter().zip(&truth).filter(|(a, b)| **a != b.as_str()).count();
     assert_eq!(mismatches, 0, "every cell reads as the voxel at its centre");
     let count = |state: &str| loaded.cells.iter().filter(|c| **c == state).count();
     let counts = numbers_after(&info, "voxels: ");
-    assert_eq!((count("free"), count("occupied")), (counts[0] as usize, counts[1] as usize), "the map holds every observed voxel");
+    assert_eq!(
+        (count("free"), count("occupied")),
+        (counts[0] as usize, counts[1] as usize),
+        "the map holds every observed voxel"
+    );
 
     // Orientation: an occupied voxel, found by query, is black at its
     // row (counted from the top, the largest y) and column.
@@ -240,7 +276,9 @@ fn map_server_map_of_a_3d_map_is_a_layer_at_the_height_asked() {
 
 /// The RGB pixels of a PNG, with its size.
 fn png_pixels(path: &Path) -> (u32, u32, Vec<[u8; 3]>) {
-    let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))));
+    let decoder = png::Decoder::new(std::io::BufReader::new(
+        std::fs::File::open(path).unwrap_or_else(|e| panic!("{}: {e}", path.display())),
+    ));
     let mut reader = decoder.read_info().expect("png header");
     let mut buf = vec![0; reader.output_buffer_size().expect("size")];
     let info = reader.next_frame(&mut buf).expect("png data");
@@ -248,7 +286,8 @@ fn png_pixels(path: &Path) -> (u32, u32, Vec<[u8; 3]>) {
     (info.width, info.height, buf[..info.buffer_size()].chunks(3).map(|c| [c[0], c[1], c[2]]).collect())
 }
 
-const TOP_VIEWS: [&str; 4] = ["map_top_occupancy.png", "map_top_distance.png", "map_top_projection.png", "map_top_clearance.png"];
+const TOP_VIEWS: [&str; 4] =
+    ["map_top_occupancy.png", "map_top_distance.png", "map_top_projection.png", "map_top_clearance.png"];
 
 #[test]
 fn run_and_picture_draw_top_views_of_the_whole_map() {

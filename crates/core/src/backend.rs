@@ -14,7 +14,10 @@
 
 use crate::fixed_ray::FixedRay;
 use crate::projection::ProjectJob;
-use crate::{BlockKey, CoreError, Cutoff, EdtField, EdtMap, FuseReport, Grid3, LocalVolume, LogOdds, Observations, Obstacles, OccupancyMap, Region};
+use crate::{
+    BlockKey, CoreError, Cutoff, EdtField, EdtMap, FuseReport, Grid3, LocalVolume, LogOdds, Observations, Obstacles,
+    OccupancyMap, Region,
+};
 
 /// Errors a backend can raise besides those of the data it is given.
 #[derive(Debug, thiserror::Error, Clone, PartialEq, Eq)]
@@ -251,8 +254,6 @@ pub struct WaveCounts {
     /// Successful lowerings (a voxel can be lowered more than once).
     pub lowered: usize,
 }
-
-
 
 impl<B: BatchEdt + ?Sized> BatchEdt for Box<B> {
     fn batch_edt(&mut self, mask: &Grid3<bool>, out: &mut EdtField) -> Result<(), BackendError> {

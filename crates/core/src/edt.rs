@@ -47,21 +47,14 @@ impl EdtField {
         }
         let diag_sq: u64 = dims.iter().map(|&n| (n as u64 - 1).pow(2)).sum();
         if diag_sq >= u64::from(UNREACHABLE_DIST_SQ) {
-            return Err(CoreError::TooLarge {
-                dims,
-                reason: "squared diagonal does not fit in 32 bits",
-            });
+            return Err(CoreError::TooLarge { dims, reason: "squared diagonal does not fit in 32 bits" });
         }
         Ok(count)
     }
 
     /// Assembles a field from per-voxel squared distances and nearest
     /// obstacle indices (both in linear order).
-    pub fn from_parts(
-        dims: [usize; 3],
-        dist_sq_vox: Vec<u32>,
-        nearest: Vec<u32>,
-    ) -> Result<Self, CoreError> {
+    pub fn from_parts(dims: [usize; 3], dist_sq_vox: Vec<u32>, nearest: Vec<u32>) -> Result<Self, CoreError> {
         let expected = Self::check_dims(dims)?;
         for actual in [dist_sq_vox.len(), nearest.len()] {
             if actual != expected {

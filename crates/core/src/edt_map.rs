@@ -123,7 +123,8 @@ fn mismatch(dist_sq: u32, nearest: VoxelIndex, voxel: VoxelIndex) -> String {
     } else if nearest == NO_OBSTACLE {
         format!("holds dist_sq {dist_sq} but names no nearest obstacle")
     } else {
-        let actual: u128 = (0..3).map(|a| u128::from((i64::from(voxel.0[a]) - i64::from(nearest.0[a])).unsigned_abs()).pow(2)).sum();
+        let actual: u128 =
+            (0..3).map(|a| u128::from((i64::from(voxel.0[a]) - i64::from(nearest.0[a])).unsigned_abs()).pow(2)).sum();
         format!("holds dist_sq {dist_sq} but its nearest obstacle {:?} lies at dist_sq {actual}", nearest.0)
     }
 }

@@ -98,7 +98,14 @@ pub fn fixed_scale(dims: [usize; 3]) -> Result<u32, CoreError> {
 /// the segment's end was not clipped (the ray leaves that voxel beyond
 /// `free_end`). The hit is `floor(end)`'s voxel when `is_return` and it lies
 /// inside. Any non-finite input gives [`FixedRay::EMPTY`].
-pub fn setup_ray(origin: [f64; 3], free_end: [f64; 3], end: [f64; 3], is_return: bool, dims: [usize; 3], q: u32) -> FixedRay {
+pub fn setup_ray(
+    origin: [f64; 3],
+    free_end: [f64; 3],
+    end: [f64; 3],
+    is_return: bool,
+    dims: [usize; 3],
+    q: u32,
+) -> FixedRay {
     if !origin.iter().chain(&free_end).chain(&end).all(|v| v.is_finite()) {
         return FixedRay::EMPTY;
     }
@@ -238,7 +245,10 @@ pub fn walk_cells(ray: &FixedRay, dims: [usize; 3], q: u32, mut visit: impl FnMu
 fn scale_fits(dims: [usize; 3], q: u32) -> bool {
     let max = dims.iter().max().map_or(0, |&n| n as u64);
     let count = dims.iter().try_fold(1u64, |acc, &n| acc.checked_mul(n as u64));
-    q >= 1 && dims.iter().all(|&n| n >= 1) && (max + 1) * u64::from(q) <= MAX_FIXED && count.is_some_and(|c| c <= u64::from(u32::MAX))
+    q >= 1
+        && dims.iter().all(|&n| n >= 1)
+        && (max + 1) * u64::from(q) <= MAX_FIXED
+        && count.is_some_and(|c| c <= u64::from(u32::MAX))
 }
 
 /// One axis of a walk (rules 1–2 of [`walk`]).
@@ -295,7 +305,13 @@ pub const RAYS_PER_TASK: usize = 256;
 /// (metres) before the return: the surface is located to a voxel, so a
 /// voxel the ray crosses just before it may hold part of the surface. The
 /// return's own voxel is the hit.
-pub fn prepare_rays(obs_volume: &LocalVolume, t_world_sensor: &Isometry3<f64>, rays: &[SensorRay], free_margin_m: f32, out: &mut Vec<FixedRay>) -> Result<u32, CoreError> {
+pub fn prepare_rays(
+    obs_volume: &LocalVolume,
+    t_world_sensor: &Isometry3<f64>,
+    rays: &[SensorRay],
+    free_margin_m: f32,
+    out: &mut Vec<FixedRay>,
+) -> Result<u32, CoreError> {
     let (dims, inv) = (obs_volume.dims, 1.0 / obs_volume.voxel_size_m);
     let q = fixed_scale(dims)?;
     let corner = Vector3::from(obs_volume.min_corner_m());
@@ -348,7 +364,11 @@ mod tests {
 
     impl Frac {
         fn new(num: i128, den: i128) -> Frac {
-            if den < 0 { Frac(-num, -den) } else { Frac(num, den) }
+            if den < 0 {
+                Frac(-num, -den)
+            } else {
+                Frac(num, den)
+            }
         }
         fn cmp(self, o: Frac) -> Ordering {
             (self.0 * o.1).cmp(&(o.0 * self.1))
@@ -372,15 +392,21 @@ mod tests {
             }
             let (a, b) = (Frac::new(min - s, d), Frac::new(max - s, d));
             let (a, b) = if a.cmp(b) == Ordering::Greater { (b, a) } else { (a, b) };
-            if a.cmp(lo) == Ordering::Greater { lo = a }
-            if b.cmp(hi) == Ordering::Less { hi = b }
+            if a.cmp(lo) == Ordering::Greater {
+                lo = a
+            }
+            if b.cmp(hi) == Ordering::Less {
+                hi = b
+            }
         }
         let (zero, one) = (Frac(0, 1), Frac(1, 1));
         if open {
             // t in (lo, hi) ∩ [0, 1]. Infinite bounds compare correctly
             // with finite ones (den 0, numerator ±1), but not with each other.
             let finite = lo.1 != 0 && hi.1 != 0;
-            (!finite || lo.cmp(hi) == Ordering::Less) && lo.cmp(one) == Ordering::Less && hi.cmp(zero) == Ordering::Greater
+            (!finite || lo.cmp(hi) == Ordering::Less)
+                && lo.cmp(one) == Ordering::Less
+                && hi.cmp(zero) == Ordering::Greater
         } else {
             let lo = if lo.cmp(zero) == Ordering::Less { zero } else { lo };
             let hi = if hi.cmp(one) == Ordering::Greater { one } else { hi };
@@ -435,7 +461,11 @@ mod tests {
     /// A coordinate on axis `n` at scale `q`: on a cell face when `snap`
     /// (the degenerate cases), anywhere otherwise.
     fn coord(raw: u32, snap: bool, n: usize, q: u32) -> u32 {
-        if snap { raw % (n as u32 + 1) * q } else { raw % (n as u32 * q + 1) }
+        if snap {
+            raw % (n as u32 + 1) * q
+        } else {
+            raw % (n as u32 * q + 1)
+        }
     }
 
     proptest! {
@@ -492,7 +522,18 @@ mod tests {
 
     #[test]
     fn rounding_edges() {
-        for x in [f64::INFINITY, f64::NEG_INFINITY, f64::MAX, -f64::MAX, 0.0, -0.0, 4503599627370495.5, 9007199254740993.0, 18446744073709551615.0, 1e-320] {
+        for x in [
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::MAX,
+            -f64::MAX,
+            0.0,
+            -0.0,
+            4503599627370495.5,
+            9007199254740993.0,
+            18446744073709551615.0,
+            1e-320,
+        ] {
             for max in [0u64, 1, 1 << 40, u64::MAX >> 12] {
                 assert_eq!(round_clamped(x, max), (x.round().max(0.0) as u64).min(max), "{x} {max}");
             }
@@ -500,7 +541,16 @@ mod tests {
         assert_eq!(round_clamped(f64::NAN, 5), 0);
         // The hit's cell at the box's faces.
         let dims = [4, 5, 6];
-        for (p, want) in [([0.0, 0.0, 0.0], Some(0)), ([-0.0, 0.0, 0.0], Some(0)), ([3.999, 4.999, 5.999], Some(119)), ([4.0, 0.0, 0.0], None), ([-1e-300, 0.0, 0.0], None), ([0.0, 5.0, 0.0], None), ([0.0, 0.0, f64::NAN], None), ([1.0, 1.0, 1.0], Some(25))] {
+        for (p, want) in [
+            ([0.0, 0.0, 0.0], Some(0)),
+            ([-0.0, 0.0, 0.0], Some(0)),
+            ([3.999, 4.999, 5.999], Some(119)),
+            ([4.0, 0.0, 0.0], None),
+            ([-1e-300, 0.0, 0.0], None),
+            ([0.0, 5.0, 0.0], None),
+            ([0.0, 0.0, f64::NAN], None),
+            ([1.0, 1.0, 1.0], Some(25)),
+        ] {
             assert_eq!(cell_of(p, dims), want, "{p:?}");
         }
     }

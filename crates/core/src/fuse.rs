@@ -26,7 +26,8 @@ pub struct FuseReport {
 /// locks) and put back.
 pub fn fuse(map: &mut OccupancyMap, obs: &Observations, lo: &LogOdds) -> FuseReport {
     let vol = *obs.volume();
-    let keys: Vec<BlockKey> = vol.blocks().into_par_iter().filter(|&k| obs.block_touched(k) && block_observed(obs, &vol, k)).collect();
+    let keys: Vec<BlockKey> =
+        vol.blocks().into_par_iter().filter(|&k| obs.block_touched(k) && block_observed(obs, &vol, k)).collect();
     let before = map.len();
     let mut blocks = map.take(&keys);
     let blocks_allocated = keys.len() - (before - map.len());
@@ -85,7 +86,12 @@ fn for_each_voxel(vol: &LocalVolume, key: BlockKey, mut f: impl FnMut(usize, usi
 }
 
 /// Fills `out` with the states of `vol`'s voxels from `map`.
-pub fn read_states(map: &OccupancyMap, vol: &LocalVolume, lo: &LogOdds, out: &mut Grid3<VoxelState>) -> Result<(), CoreError> {
+pub fn read_states(
+    map: &OccupancyMap,
+    vol: &LocalVolume,
+    lo: &LogOdds,
+    out: &mut Grid3<VoxelState>,
+) -> Result<(), CoreError> {
     if out.dims() != vol.dims {
         *out = Grid3::from_vec(vol.dims, vec![VoxelState::Unknown; vol.len()])?;
     }

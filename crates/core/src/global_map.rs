@@ -28,7 +28,14 @@ impl GlobalMap {
     /// An empty map, checking every parameter; forbidden zones are laid
     /// down as fixed obstacles.
     pub fn new(voxel_size_m: f64, occupancy_params: OccupancyParams, params: GlobalParams) -> Result<Self, CoreError> {
-        let mut map = Self::from_layers(voxel_size_m, occupancy_params, params, OccupancyMap::new(), EdtMap::new(), StaticMap::new())?;
+        let mut map = Self::from_layers(
+            voxel_size_m,
+            occupancy_params,
+            params,
+            OccupancyMap::new(),
+            EdtMap::new(),
+            StaticMap::new(),
+        )?;
         for zone in &map.params.forbidden {
             map.fixed.add_zone(zone, voxel_size_m)?;
         }
@@ -112,7 +119,11 @@ impl GlobalMap {
 
     /// [`Self::fuse`] on `backend` ([`crate::Backend::fuse`]), which may
     /// hold some of the observations on its device.
-    pub fn fuse_on<B: crate::Backend + ?Sized>(&mut self, backend: &mut B, obs: &crate::Observations) -> Result<crate::FuseReport, crate::BackendError> {
+    pub fn fuse_on<B: crate::Backend + ?Sized>(
+        &mut self,
+        backend: &mut B,
+        obs: &crate::Observations,
+    ) -> Result<crate::FuseReport, crate::BackendError> {
         backend.fuse(&mut self.occupancy, obs, &self.log_odds)
     }
 
@@ -123,13 +134,23 @@ impl GlobalMap {
 
     /// The EDT's obstacle test (unknown voxels are free).
     pub fn obstacles(&self) -> Obstacles<'_> {
-        Obstacles { occupancy: &self.occupancy, log_odds: &self.log_odds, fixed: &self.fixed, unknown_as_occupied: false }
+        Obstacles {
+            occupancy: &self.occupancy,
+            log_odds: &self.log_odds,
+            fixed: &self.fixed,
+            unknown_as_occupied: false,
+        }
     }
 
     /// The EDT, mutable, beside the obstacle test that reads the other
     /// layers: what an integration needs in one borrow.
     pub fn edt_and_obstacles(&mut self) -> (&mut EdtMap, Obstacles<'_>) {
-        let obstacles = Obstacles { occupancy: &self.occupancy, log_odds: &self.log_odds, fixed: &self.fixed, unknown_as_occupied: false };
+        let obstacles = Obstacles {
+            occupancy: &self.occupancy,
+            log_odds: &self.log_odds,
+            fixed: &self.fixed,
+            unknown_as_occupied: false,
+        };
         (&mut self.edt, obstacles)
     }
 
@@ -232,15 +253,18 @@ mod tests {
         for x in 0..6 {
             for y in 0..5 {
                 let v = VoxelIndex([x, y, 3]);
-                map.occupancy_mut().get_or_insert(v.block()).log_odds[v.offset_in_block()] = if x == 5 { lo.max } else { lo.min };
+                map.occupancy_mut().get_or_insert(v.block()).log_odds[v.offset_in_block()] =
+                    if x == 5 { lo.max } else { lo.min };
             }
         }
         assert_eq!(map.observed_z_range(), Some((3, 3)));
         assert!(map.is_planar());
         // Free voxels at x = 0 or y = 0 or y = 4 (unknown beside them in the
         // plane); x = 4 has the wall beside it.
-        let expected: Vec<VoxelIndex> =
-            (0..5).flat_map(|x| (0..5).map(move |y| VoxelIndex([x, y, 3]))).filter(|v| v.0[0] == 0 || v.0[1] == 0 || v.0[1] == 4).collect();
+        let expected: Vec<VoxelIndex> = (0..5)
+            .flat_map(|x| (0..5).map(move |y| VoxelIndex([x, y, 3])))
+            .filter(|v| v.0[0] == 0 || v.0[1] == 0 || v.0[1] == 4)
+            .collect();
         assert_eq!(map.frontiers(), expected);
         // One more observed layer makes the map 3D: every free voxel of the
         // square has unknown above or below.

@@ -38,10 +38,7 @@ impl<T> Grid3<T> {
     }
 
     /// Builds a grid by calling `f(x, y, z)` for every voxel.
-    pub fn from_fn(
-        dims: [usize; 3],
-        mut f: impl FnMut(usize, usize, usize) -> T,
-    ) -> Result<Self, CoreError> {
+    pub fn from_fn(dims: [usize; 3], mut f: impl FnMut(usize, usize, usize) -> T) -> Result<Self, CoreError> {
         let count = Self::voxel_count(dims)?;
         let mut data = Vec::with_capacity(count);
         for z in 0..dims[2] {
@@ -140,10 +137,7 @@ mod tests {
 
     #[test]
     fn empty_axis_is_rejected() {
-        assert_eq!(
-            Grid3::<u8>::from_vec([2, 0, 1], vec![]),
-            Err(CoreError::EmptyAxis { axis: 1, dims: [2, 0, 1] })
-        );
+        assert_eq!(Grid3::<u8>::from_vec([2, 0, 1], vec![]), Err(CoreError::EmptyAxis { axis: 1, dims: [2, 0, 1] }));
     }
 
     #[test]

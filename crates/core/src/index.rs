@@ -112,12 +112,34 @@ mod tests {
     /// `i32` range.
     fn containing_by_floor(p: [f64; 3], s: f64) -> Option<VoxelIndex> {
         let v = p.map(|c| (c / s).floor());
-        v.iter().all(|v| v.is_finite() && *v >= i32::MIN as f64 && *v <= i32::MAX as f64).then(|| VoxelIndex(v.map(|v| v as i32)))
+        v.iter()
+            .all(|v| v.is_finite() && *v >= i32::MIN as f64 && *v <= i32::MAX as f64)
+            .then(|| VoxelIndex(v.map(|v| v as i32)))
     }
 
     #[test]
     fn containing_is_the_floor_at_the_edges() {
-        let edges = [0.0, -0.0, 1.0, -1.0, 0.5, -0.5, 1e-300, -1e-300, 2147483647.0, 2147483647.5, 2147483648.0, -2147483648.0, -2147483648.5, -2147483649.0, 4503599627370495.5, -4503599627370495.5, f64::MAX, f64::INFINITY, f64::NAN];
+        let edges = [
+            0.0,
+            -0.0,
+            1.0,
+            -1.0,
+            0.5,
+            -0.5,
+            1e-300,
+            -1e-300,
+            2147483647.0,
+            2147483647.5,
+            2147483648.0,
+            -2147483648.0,
+            -2147483648.5,
+            -2147483649.0,
+            4503599627370495.5,
+            -4503599627370495.5,
+            f64::MAX,
+            f64::INFINITY,
+            f64::NAN,
+        ];
         for a in edges {
             let p = [a, -a, a * 0.5];
             assert_eq!(VoxelIndex::containing(p, 1.0), containing_by_floor(p, 1.0), "{p:?}");

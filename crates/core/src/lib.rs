@@ -26,40 +26,49 @@
 
 pub mod backend;
 mod edt;
-mod fuse;
-mod observations;
-pub mod region;
-pub mod stages;
+mod edt_map;
 mod error;
 pub mod fixed_ray;
-mod edt_map;
+mod fuse;
 mod global_map;
 mod grid;
 mod index;
 pub mod memory;
+mod observations;
 mod obstacles;
 mod occupancy;
 pub mod projection;
+pub mod region;
 pub mod sensor;
+pub mod stages;
 mod state;
 mod volume;
 
-pub use backend::{Backend, BackendError, BatchEdt, DeviceCounters, ExactCounts, IntegrateJob, IntegrateReport, Integration, WaveCounts};
-pub use fuse::{fuse, read_states, FuseReport};
-pub use observations::Observations;
-pub use region::Region;
+pub use backend::{
+    Backend, BackendError, BatchEdt, DeviceCounters, ExactCounts, IntegrateJob, IntegrateReport, Integration,
+    WaveCounts,
+};
 pub use edt::{dist_sq_to_vox, EdtField, EdtParams, NO_SITE, UNREACHABLE_DIST_SQ};
+pub use edt_map::{
+    Connectivity, Cutoff, EdtBlock, EdtMap, EntryError, ForbiddenZone, GlobalParams, IntegrationMode,
+    DEFAULT_MAX_DISTANCE_M, FAR_DIST_SQ, NO_OBSTACLE, NO_OFFSET,
+};
 pub use error::CoreError;
 pub use fixed_ray::{cast_fixed, fixed_scale, prepare_rays, setup_ray, walk, FixedRay};
-pub use edt_map::{
-    Connectivity, Cutoff, EdtBlock, EdtMap, EntryError, ForbiddenZone, GlobalParams, IntegrationMode, DEFAULT_MAX_DISTANCE_M, FAR_DIST_SQ, NO_OBSTACLE, NO_OFFSET,
-};
+pub use fuse::{fuse, read_states, FuseReport};
 pub use global_map::GlobalMap;
 pub use grid::Grid3;
-pub use memory::MemoryBudget;
-pub use obstacles::{Obstacles, StaticBlock, StaticMap, MAX_STATIC_BLOCKS};
 pub use index::{BlockKey, VoxelIndex, BLOCK_SIDE, BLOCK_VOXELS};
-pub use projection::{decide_uncertain, mark_misses, ProjectJob, VoxelToSensor, PROJ_MISS, PROJ_NOT_MISS, PROJ_UNCERTAIN};
-pub use occupancy::{par_fill, BlockMap, MapStamp, SharedBlock, LogOdds, OccupancyBlock, OccupancyMap, OccupancyParams, OBS_HIT, OBS_MISS, OBS_NONE, UNOBSERVED};
-pub use volume::{check_voxel_size, LocalVolume, VolumeParams};
+pub use memory::MemoryBudget;
+pub use observations::Observations;
+pub use obstacles::{Obstacles, StaticBlock, StaticMap, MAX_STATIC_BLOCKS};
+pub use occupancy::{
+    par_fill, BlockMap, LogOdds, MapStamp, OccupancyBlock, OccupancyMap, OccupancyParams, SharedBlock, OBS_HIT,
+    OBS_MISS, OBS_NONE, UNOBSERVED,
+};
+pub use projection::{
+    decide_uncertain, mark_misses, ProjectJob, VoxelToSensor, PROJ_MISS, PROJ_NOT_MISS, PROJ_UNCERTAIN,
+};
+pub use region::Region;
 pub use state::VoxelState;
+pub use volume::{check_voxel_size, LocalVolume, VolumeParams};

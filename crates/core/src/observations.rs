@@ -122,13 +122,16 @@ impl Observations {
         }
         let [cx, cy, _] = self.cell_dims;
         let cells = span.map(|r| r.start / CELL..=(r.end - 1) / CELL);
-        cells[2].clone().any(|z| cells[1].clone().any(|y| cells[0].clone().any(|x| self.touched[x + cx * (y + cy * z)].load(Relaxed))))
+        cells[2].clone().any(|z| {
+            cells[1].clone().any(|y| cells[0].clone().any(|x| self.touched[x + cx * (y + cy * z)].load(Relaxed)))
+        })
     }
 
     /// Every voxel observed, as (linear index, [`OBS_MISS`] or [`OBS_HIT`]),
     /// in no particular order; visits only the touched cells.
     pub fn observed(&self) -> Vec<(usize, u8)> {
-        let cells: Vec<usize> = (0..self.touched.len()).into_par_iter().filter(|&c| self.touched[c].load(Relaxed)).collect();
+        let cells: Vec<usize> =
+            (0..self.touched.len()).into_par_iter().filter(|&c| self.touched[c].load(Relaxed)).collect();
         cells
             .into_par_iter()
             .flat_map_iter(|cell| {

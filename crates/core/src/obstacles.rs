@@ -99,7 +99,10 @@ impl Obstacles<'_> {
             // is never above the threshold), which vectorises.
             let (occupied, unknown) = (self.log_odds.occupied, self.unknown_as_occupied);
             for (w, voxels) in out.iter_mut().zip(b.log_odds.chunks_exact(64)) {
-                *w = voxels.iter().enumerate().fold(0, |a, (i, &l)| a | u64::from(l > occupied || (unknown && l == UNOBSERVED)) << i);
+                *w = voxels
+                    .iter()
+                    .enumerate()
+                    .fold(0, |a, (i, &l)| a | u64::from(l > occupied || (unknown && l == UNOBSERVED)) << i);
             }
         }
         if let Some(b) = self.fixed.get(key) {
@@ -180,7 +183,9 @@ mod tests {
             for key in [VoxelIndex([-9, 2, -1]).block(), VoxelIndex([5, 2, -1]).block(), crate::BlockKey([4, 4, 4])] {
                 let bits = obs.block_bits(key);
                 for o in 0..crate::BLOCK_VOXELS {
-                    let v = VoxelIndex([0, 1, 2].map(|a| key.0[a] * crate::BLOCK_SIDE + [o % 8, o / 8 % 8, o / 64][a] as i32));
+                    let v = VoxelIndex(
+                        [0, 1, 2].map(|a| key.0[a] * crate::BLOCK_SIDE + [o % 8, o / 8 % 8, o / 64][a] as i32),
+                    );
                     assert_eq!(bits[o / 64] >> (o % 64) & 1 == 1, obs.contains(v), "{:?}", v);
                 }
             }

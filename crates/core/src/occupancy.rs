@@ -6,9 +6,9 @@
 //! depend on the order in which rays or threads touched the voxel.
 
 use crate::{BlockKey, CoreError, VoxelIndex, VoxelState, BLOCK_VOXELS};
-use serde::{Deserialize, Serialize};
 use rayon::prelude::*;
 use rustc_hash::FxHashMap as HashMap;
+use serde::{Deserialize, Serialize};
 use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 use std::sync::Arc;
 
@@ -70,7 +70,11 @@ impl OccupancyParams {
             if p.is_finite() && p > 0.0 && p < 1.0 {
                 Ok(p)
             } else {
-                Err(CoreError::InvalidParam { field, value: p.to_string(), reason: "must be a probability strictly between 0 and 1" })
+                Err(CoreError::InvalidParam {
+                    field,
+                    value: p.to_string(),
+                    reason: "must be a probability strictly between 0 and 1",
+                })
             }
         };
         let hit = open("prob_hit", self.prob_hit)?;
@@ -78,13 +82,25 @@ impl OccupancyParams {
         let (lo, hi) = (open("clamp_min", self.clamp_min)?, open("clamp_max", self.clamp_max)?);
         let occ = open("occupied_threshold", self.occupied_threshold)?;
         if hit <= 0.5 {
-            return Err(CoreError::InvalidParam { field: "prob_hit", value: hit.to_string(), reason: "must be above 0.5" });
+            return Err(CoreError::InvalidParam {
+                field: "prob_hit",
+                value: hit.to_string(),
+                reason: "must be above 0.5",
+            });
         }
         if miss >= 0.5 {
-            return Err(CoreError::InvalidParam { field: "prob_miss", value: miss.to_string(), reason: "must be below 0.5" });
+            return Err(CoreError::InvalidParam {
+                field: "prob_miss",
+                value: miss.to_string(),
+                reason: "must be below 0.5",
+            });
         }
         if !(lo < occ && occ < hi) {
-            return Err(CoreError::InvalidParam { field: "occupied_threshold", value: occ.to_string(), reason: "must lie strictly between clamp_min and clamp_max" });
+            return Err(CoreError::InvalidParam {
+                field: "occupied_threshold",
+                value: occ.to_string(),
+                reason: "must lie strictly between clamp_min and clamp_max",
+            });
         }
         Ok(LogOdds { hit: logit(hit), miss: logit(miss), min: logit(lo), max: logit(hi), occupied: logit(occ) })
     }
@@ -320,7 +336,9 @@ impl<B: Default> BlockMap<B> {
     pub fn key_bounds(&self) -> Option<([i32; 3], [i32; 3])> {
         let mut keys = self.blocks.keys().map(|k| k.0);
         let first = keys.next()?;
-        Some(keys.fold((first, first), |(lo, hi), k| ([0, 1, 2].map(|a| lo[a].min(k[a])), [0, 1, 2].map(|a| hi[a].max(k[a])))))
+        Some(keys.fold((first, first), |(lo, hi), k| {
+            ([0, 1, 2].map(|a| lo[a].min(k[a])), [0, 1, 2].map(|a| hi[a].max(k[a])))
+        }))
     }
 }
 

@@ -134,7 +134,9 @@ impl ProjectJob<'_> {
     pub fn is_miss_at(&self, p: [f32; 3]) -> bool {
         let in_plane = !matches!(self.sensor, Sensor::Planar) || p[2].abs() <= self.planar_half_thickness_m;
         let half_voxel = (self.volume.voxel_size_m / 2.0) as f32;
-        in_plane && self.is_free(self.sensor.project(self.measurement, p)) && self.sensor.beam_passes_within(p, half_voxel)
+        in_plane
+            && self.is_free(self.sensor.project(self.measurement, p))
+            && self.sensor.beam_passes_within(p, half_voxel)
     }
 
     /// The range below which a point projecting to a beam or pixel that
@@ -211,7 +213,14 @@ const SUBTILE: usize = 4;
 /// A camera's tile `lo..hi` (edge `edge`): decided whole where its pixels'
 /// depths allow, else in halves along each axis down to [`SUBTILE`], else
 /// voxel by voxel.
-fn mark_depth_tile(obs: &Observations, geom: &VoxelToSensor, d: &DepthMiss<'_>, lo: [usize; 3], hi: [usize; 3], edge: usize) {
+fn mark_depth_tile(
+    obs: &Observations,
+    geom: &VoxelToSensor,
+    d: &DepthMiss<'_>,
+    lo: [usize; 3],
+    hi: [usize; 3],
+    edge: usize,
+) {
     match d.tile(geom, lo, hi) {
         depth::Tile::None => {}
         depth::Tile::All => mark_all(obs, lo, hi),
@@ -288,14 +297,16 @@ fn mark_tile(obs: &Observations, geom: &VoxelToSensor, decide: &Decide<'_, '_>, 
 pub fn decide_uncertain(job: &ProjectJob<'_>, bits: &mut [u8]) -> usize {
     let geom = job.voxel_to_sensor();
     let [nx, ny, _] = job.volume.dims;
-    bits.par_chunks_mut(nx).enumerate().map(|(row, line)| {
-        let (y, z) = (row % ny, row / ny);
-        let mut n = 0;
-        for (x, b) in line.iter_mut().enumerate().filter(|(_, b)| **b == PROJ_UNCERTAIN) {
-            *b = if job.is_miss(&geom, [x, y, z]) { OBS_MISS } else { 0 };
-            n += 1;
-        }
-        n
-    }).sum()
+    bits.par_chunks_mut(nx)
+        .enumerate()
+        .map(|(row, line)| {
+            let (y, z) = (row % ny, row / ny);
+            let mut n = 0;
+            for (x, b) in line.iter_mut().enumerate().filter(|(_, b)| **b == PROJ_UNCERTAIN) {
+                *b = if job.is_miss(&geom, [x, y, z]) { OBS_MISS } else { 0 };
+                n += 1;
+            }
+            n
+        })
+        .sum()
 }
-

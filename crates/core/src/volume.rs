@@ -46,8 +46,11 @@ impl LocalVolume {
         if let Some(h) = params.fixed_height_m {
             centre[2] = h;
         }
-        let centre_vox = VoxelIndex::containing(centre, voxel_size_m)
-            .ok_or(CoreError::InvalidParam { field: "sensor position", value: format!("{centre:?}"), reason: "not a finite point in the voxel index range" })?;
+        let centre_vox = VoxelIndex::containing(centre, voxel_size_m).ok_or(CoreError::InvalidParam {
+            field: "sensor position",
+            value: format!("{centre:?}"),
+            reason: "not a finite point in the voxel index range",
+        })?;
         let origin = VoxelIndex([0, 1, 2].map(|a| centre_vox.0[a].saturating_sub((dims[a] / 2) as i32)));
         Ok(LocalVolume { origin, dims, voxel_size_m })
     }
@@ -110,7 +113,11 @@ pub fn check_voxel_size(voxel_size_m: f64) -> Result<(), CoreError> {
     if voxel_size_m.is_finite() && voxel_size_m > 0.0 {
         Ok(())
     } else {
-        Err(CoreError::InvalidParam { field: "voxel_size_m", value: voxel_size_m.to_string(), reason: "must be positive and finite" })
+        Err(CoreError::InvalidParam {
+            field: "voxel_size_m",
+            value: voxel_size_m.to_string(),
+            reason: "must be positive and finite",
+        })
     }
 }
 
@@ -119,7 +126,11 @@ fn volume_dims(params: &VolumeParams, voxel_size_m: f64) -> Result<[usize; 3], C
     for (d, &s) in dims.iter_mut().zip(&params.size_m) {
         let n = (s / voxel_size_m).round();
         if !(s.is_finite() && s > 0.0 && (1.0..=1e6).contains(&n.max(1.0))) {
-            return Err(CoreError::InvalidParam { field: "size_m", value: format!("{:?}", params.size_m), reason: "each edge must be positive, finite and under a million voxels" });
+            return Err(CoreError::InvalidParam {
+                field: "size_m",
+                value: format!("{:?}", params.size_m),
+                reason: "each edge must be positive, finite and under a million voxels",
+            });
         }
         *d = n.max(1.0) as usize;
     }

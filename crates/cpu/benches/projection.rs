@@ -43,13 +43,16 @@ fn scenes(c: &mut Criterion) {
         let sensor = scene.default_sensor();
         let frame = scene.frame(&sensor, 40).expect("frame");
         let params = VolumeParams { size_m, fixed_height_m };
-        let volume = LocalVolume::centred(&params, voxel_size_m, frame.t_world_sensor.translation.vector.into()).expect("volume");
+        let volume = LocalVolume::centred(&params, voxel_size_m, frame.t_world_sensor.translation.vector.into())
+            .expect("volume");
         let job = project_job(&sensor, &frame, volume, &OgmOptions::for_voxel_size(voxel_size_m));
         let mut obs = Observations::new(volume);
         let mut g = c.benchmark_group(format!("project_{name:?}_{voxel_size_m}m"));
         g.sample_size(20).warm_up_time(Duration::from_secs(1)).measurement_time(Duration::from_secs(3));
         g.throughput(Throughput::Elements(volume.len() as u64));
-        for (label, f) in [("every_voxel", every_voxel as fn(&Observations, &ProjectJob<'_>)), ("mark_misses", mark_misses)] {
+        for (label, f) in
+            [("every_voxel", every_voxel as fn(&Observations, &ProjectJob<'_>)), ("mark_misses", mark_misses)]
+        {
             g.bench_function(BenchmarkId::from_parameter(label), |b| {
                 b.iter(|| {
                     obs.reset(volume);

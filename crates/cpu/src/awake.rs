@@ -68,7 +68,12 @@ pub(crate) fn awake<R: Send>(f: impl FnOnce() -> R + Send) -> R {
 /// from its own cache (handing items out in turn across threads was 10 %
 /// slower). The calling thread spins for the others' last items rather than
 /// sleep in rayon's wait (a wake-up takes longer than an item).
-pub(crate) fn share_out<I: Send, T: Send, S>(items: impl IntoIterator<IntoIter: ExactSizeIterator<Item = I>>, parallel: bool, init: impl Fn() -> S + Sync, f: impl Fn(&mut S, I) -> T + Sync) -> Vec<T> {
+pub(crate) fn share_out<I: Send, T: Send, S>(
+    items: impl IntoIterator<IntoIter: ExactSizeIterator<Item = I>>,
+    parallel: bool,
+    init: impl Fn() -> S + Sync,
+    f: impl Fn(&mut S, I) -> T + Sync,
+) -> Vec<T> {
     let items = items.into_iter();
     let n = items.len();
     // (Runs' bounds are packed in 32 bits each.)
@@ -79,7 +84,9 @@ pub(crate) fn share_out<I: Send, T: Send, S>(items: impl IntoIterator<IntoIter: 
     }
     let slots: Vec<Mutex<Option<I>>> = items.map(|i| Mutex::new(Some(i))).collect();
     // Each run's first and end, packed in one word: `first << 32 | end`.
-    let runs: Vec<AtomicU64> = (0..threads).map(|t| AtomicU64::new(((n * t / threads) as u64) << 32 | (n * (t + 1) / threads) as u64)).collect();
+    let runs: Vec<AtomicU64> = (0..threads)
+        .map(|t| AtomicU64::new(((n * t / threads) as u64) << 32 | (n * (t + 1) / threads) as u64))
+        .collect();
     let results = Mutex::new(Vec::with_capacity(n));
     let running = AtomicUsize::new(0);
     // Takes the first item of run `r`, or its last.
@@ -177,13 +184,17 @@ mod tests {
             awake(|| {
                 (0..50u64)
                     .map(|r| {
-                        let inner: u64 = (0..1000u64).into_par_iter().map(|i| (0..i % 7).into_par_iter().map(|j| j * r).sum::<u64>()).sum();
+                        let inner: u64 = (0..1000u64)
+                            .into_par_iter()
+                            .map(|i| (0..i % 7).into_par_iter().map(|j| j * r).sum::<u64>())
+                            .sum();
                         inner + awake(|| (0..100u64).into_par_iter().sum::<u64>())
                     })
                     .sum::<u64>()
             })
         });
-        let want: u64 = (0..50u64).map(|r| (0..1000u64).map(|i| (0..i % 7).map(|j| j * r).sum::<u64>()).sum::<u64>() + 4950).sum();
+        let want: u64 =
+            (0..50u64).map(|r| (0..1000u64).map(|i| (0..i % 7).map(|j| j * r).sum::<u64>()).sum::<u64>() + 4950).sum();
         assert_eq!(got, want);
     }
 
@@ -212,7 +223,9 @@ mod tests {
                                 calls.fetch_add(1, Ordering::Relaxed);
                                 // The first items are slow: the thread on
                                 // the first run leaves the rest to others.
-                                std::hint::black_box((0..if i < 3 { 20_000u64 } else { 10 }).map(|k| k ^ i as u64).sum::<u64>());
+                                std::hint::black_box(
+                                    (0..if i < 3 { 20_000u64 } else { 10 }).map(|k| k ^ i as u64).sum::<u64>(),
+                                );
                                 i * 3
                             },
                         )

@@ -9,7 +9,8 @@ use edtmap_core::projection::mark_misses;
 use edtmap_core::region::{Packing, Region};
 use edtmap_core::stages::exact::{recompute_exact, ExactBuffers};
 use edtmap_core::{
-    Backend, BackendError, BatchEdt, EdtField, Grid3, IntegrateJob, IntegrateReport, Integration, MapStamp, Observations, ProjectJob, WaveCounts,
+    Backend, BackendError, BatchEdt, EdtField, Grid3, IntegrateJob, IntegrateReport, Integration, MapStamp,
+    Observations, ProjectJob, WaveCounts,
 };
 
 /// Every stage on all cores with rayon; the reference backend.

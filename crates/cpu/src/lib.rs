@@ -26,9 +26,9 @@
 mod awake;
 mod backend;
 pub mod edt;
+mod error;
 pub mod integrate;
 pub mod query;
-mod error;
 
 pub use backend::CpuBackend;
 pub use error::CpuError;

@@ -156,7 +156,13 @@ pub fn voxel_distance(map: &GlobalMap, v: VoxelIndex, signed: bool) -> (f64, boo
 pub fn distance(map: &GlobalMap, p: [f64; 3], signed: bool) -> Distance {
     let vs = map.voxel_size_m();
     let Some(v) = query_voxel(p, vs) else {
-        return Distance { distance_m: f64::NAN, gradient: [0.0; 3], state: PointState::Outside, observed: false, saturated: false };
+        return Distance {
+            distance_m: f64::NAN,
+            gradient: [0.0; 3],
+            state: PointState::Outside,
+            observed: false,
+            saturated: false,
+        };
     };
     let state = voxel_state(map, v);
     let observed = matches!(map.state(v), VoxelState::Free | VoxelState::Occupied);
@@ -235,7 +241,9 @@ pub fn distance_box(map: &GlobalMap, min_m: [f64; 3], max_m: [f64; 3], signed: b
         return Err(bad("more than 2^28 voxels").into());
     }
     let [nx, ny, nz] = dims;
-    let at = |i: usize| VoxelIndex([lo.0[0] + (i % nx) as i32, lo.0[1] + ((i / nx) % ny) as i32, lo.0[2] + (i / (nx * ny)) as i32]);
+    let at = |i: usize| {
+        VoxelIndex([lo.0[0] + (i % nx) as i32, lo.0[1] + ((i / nx) % ny) as i32, lo.0[2] + (i / (nx * ny)) as i32])
+    };
     let (distance_m, state) = (0..nx * ny * nz)
         .into_par_iter()
         .map(|i| {

@@ -17,7 +17,8 @@ fn walked(a: [f64; 3], b: [f64; 3], dims: [usize; 3]) -> (Vec<[usize; 3]>, Optio
     let ray = setup_ray(a, b, b, false, dims, q);
     let mut seen = Vec::new();
     walk_cells(&ray, dims, q, |c, _| seen.push(c.map(|v| v as usize)));
-    let quantized = (ray.flags & RAY_WALK != 0).then(|| (ray.start.map(|v| f64::from(v) / f64::from(q)), ray.end.map(|v| f64::from(v) / f64::from(q))));
+    let quantized = (ray.flags & RAY_WALK != 0)
+        .then(|| (ray.start.map(|v| f64::from(v) / f64::from(q)), ray.end.map(|v| f64::from(v) / f64::from(q))));
     (seen, quantized)
 }
 
@@ -107,7 +108,8 @@ fn check_degenerate(a: [f64; 3], b: [f64; 3], dims: [usize; 3]) {
         let t = i as f64 / 1000.0;
         let p: [f64; 3] = [0, 1, 2].map(|k| a[k] + t * (b[k] - a[k]));
         let inside = (0..3).all(|k| p[k] >= 0.0 && p[k] <= dims[k] as f64);
-        let covered = seen.iter().any(|c| (0..3).all(|k| p[k] >= c[k] as f64 - 1e-9 && p[k] <= c[k] as f64 + 1.0 + 1e-9));
+        let covered =
+            seen.iter().any(|c| (0..3).all(|k| p[k] >= c[k] as f64 - 1e-9 && p[k] <= c[k] as f64 + 1.0 + 1e-9));
         assert!(!inside || covered, "point {p:?} not covered by {seen:?}");
     }
 }

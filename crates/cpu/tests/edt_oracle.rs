@@ -8,8 +8,7 @@ use proptest::prelude::*;
 
 /// Exhaustive nearest-obstacle squared distance of every voxel.
 fn brute_force(grid: &Grid3<bool>) -> Vec<u32> {
-    let sites: Vec<[usize; 3]> =
-        (0..grid.len()).filter(|&i| grid.as_slice()[i]).map(|i| grid.coords(i)).collect();
+    let sites: Vec<[usize; 3]> = (0..grid.len()).filter(|&i| grid.as_slice()[i]).map(|i| grid.coords(i)).collect();
     (0..grid.len())
         .map(|i| {
             let c = grid.coords(i);
@@ -52,13 +51,7 @@ const LAYOUTS: [ScanLayout; 6] = [
 ];
 
 fn density() -> impl Strategy<Value = f64> {
-    prop_oneof![
-        Just(0.0),
-        Just(1.0),
-        Just(0.002),
-        0.0..0.05f64,
-        0.0..1.0f64,
-    ]
+    prop_oneof![Just(0.0), Just(1.0), Just(0.002), 0.0..0.05f64, 0.0..1.0f64,]
 }
 
 proptest! {

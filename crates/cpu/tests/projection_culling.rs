@@ -6,7 +6,9 @@
 //! (whole tiles behind them skipped by azimuth bin), against the
 //! definition voxel by voxel.
 
-use edtmap_core::sensor::{DepthData, DepthImage, LaserScan, LidarScan, Measurement, PinholeCamera, RangeLimits, Sensor, SpinningLidar};
+use edtmap_core::sensor::{
+    DepthData, DepthImage, LaserScan, LidarScan, Measurement, PinholeCamera, RangeLimits, Sensor, SpinningLidar,
+};
 use edtmap_core::{mark_misses, LocalVolume, Observations, ProjectJob, VoxelIndex, OBS_MISS, OBS_NONE};
 use edtmap_sim::conformance::SplitMix;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
@@ -108,7 +110,8 @@ fn depth_case(rng: &mut Rng) -> Case {
     let data = if rng.below(2) == 0 {
         DepthData::Metres(metres)
     } else {
-        let values = metres.iter().map(|&d| if d.is_finite() { (d * 1000.0).round().min(65535.0) as u16 } else { 0 }).collect();
+        let values =
+            metres.iter().map(|&d| if d.is_finite() { (d * 1000.0).round().min(65535.0) as u16 } else { 0 }).collect();
         DepthData::U16 { values, metres_per_unit: 0.001 }
     };
     let voxel_size_m = [0.05, 0.1, 0.04][rng.below(3) as usize];
@@ -169,16 +172,23 @@ fn depth_room_case(rng: &mut Rng) -> Case {
 /// `case` with its image in rectangles, each at one depth in `near..far`
 /// (one in four any range, no return included).
 fn surfaces(rng: &mut Rng, mut case: Case, near: f64, far: f64) -> Case {
-    let (Sensor::Depth(camera), Measurement::Depth(image)) = (&case.sensor, &mut case.measurement) else { unreachable!() };
+    let (Sensor::Depth(camera), Measurement::Depth(image)) = (&case.sensor, &mut case.measurement) else {
+        unreachable!()
+    };
     let (w, h) = (camera.width as usize, camera.height as usize);
     let limits = camera.range;
     let (cols, rows) = [(1, 1), (3, 2), (7, 5), (w, h)][rng.below(4) as usize];
-    let depths: Vec<f32> = (0..cols * rows).map(|_| if rng.below(4) == 0 { self::range(rng, &limits) } else { rng.uniform(near, far) as f32 }).collect();
+    let depths: Vec<f32> = (0..cols * rows)
+        .map(|_| if rng.below(4) == 0 { self::range(rng, &limits) } else { rng.uniform(near, far) as f32 })
+        .collect();
     let metres: Vec<f32> = (0..w * h).map(|i| depths[(i % w) * cols / w + cols * ((i / w) * rows / h)]).collect();
     image.data = match image.data {
         DepthData::Metres(_) => DepthData::Metres(metres),
         DepthData::U16 { metres_per_unit, .. } => {
-            let values = metres.iter().map(|&d| if d.is_finite() { (d / metres_per_unit).round().min(65535.0) as u16 } else { 0 }).collect();
+            let values = metres
+                .iter()
+                .map(|&d| if d.is_finite() { (d / metres_per_unit).round().min(65535.0) as u16 } else { 0 })
+                .collect();
             DepthData::U16 { values, metres_per_unit }
         }
     };
@@ -192,11 +202,15 @@ fn surfaces(rng: &mut Rng, mut case: Case, near: f64, far: f64) -> Case {
 /// the volume, test its edges.
 fn lidar_walls_case(rng: &mut Rng) -> Case {
     let mut case = lidar_case(rng);
-    let (Sensor::Lidar(lidar), Measurement::Lidar(scan)) = (&case.sensor, &mut case.measurement) else { unreachable!() };
+    let (Sensor::Lidar(lidar), Measurement::Lidar(scan)) = (&case.sensor, &mut case.measurement) else {
+        unreachable!()
+    };
     let bins = lidar.azimuth_bins;
     let limits = lidar.range;
     let sectors = [1, 2, 7, bins][rng.below(4) as usize];
-    let walls: Vec<f32> = (0..sectors).map(|_| if rng.below(4) == 0 { self::range(rng, &limits) } else { rng.uniform(0.1, 1.5) as f32 }).collect();
+    let walls: Vec<f32> = (0..sectors)
+        .map(|_| if rng.below(4) == 0 { self::range(rng, &limits) } else { rng.uniform(0.1, 1.5) as f32 })
+        .collect();
     let rotate = rng.below(bins as u64) as usize;
     for (i, d) in scan.ranges.iter_mut().enumerate() {
         let bin = (i % bins + rotate) % bins;

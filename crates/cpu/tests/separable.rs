@@ -14,7 +14,8 @@
 use edtmap_core::region::{Packing, Region};
 use edtmap_core::stages::exact::{recompute_exact, ExactBuffers};
 use edtmap_core::{
-    Backend, BlockKey, Cutoff, EdtMap, GlobalParams, IntegrateJob, Integration, LogOdds, Obstacles, OccupancyMap, OccupancyParams, StaticMap, VoxelIndex, BLOCK_VOXELS, FAR_DIST_SQ, NO_OFFSET,
+    Backend, BlockKey, Cutoff, EdtMap, GlobalParams, IntegrateJob, Integration, LogOdds, Obstacles, OccupancyMap,
+    OccupancyParams, StaticMap, VoxelIndex, BLOCK_VOXELS, FAR_DIST_SQ, NO_OFFSET,
 };
 use edtmap_cpu::CpuBackend;
 use proptest::prelude::*;
@@ -124,7 +125,14 @@ fn check(cutoff_tenths: u32, steps: Vec<(u8, u32, u32, u32)>, clone_at: usize) -
         }
         let blocks = step(&mut world, s);
         let before = map.clone();
-        let report = backend.integrate(IntegrateJob { map: &mut map, obstacles: world.obstacles(), cutoff, work: Integration::Changes { blocks: &blocks } }).expect("cpu");
+        let report = backend
+            .integrate(IntegrateJob {
+                map: &mut map,
+                obstacles: world.obstacles(),
+                cutoff,
+                work: Integration::Changes { blocks: &blocks },
+            })
+            .expect("cpu");
         // The blocks reported changed are those where some voxel changed.
         let keys: BTreeSet<BlockKey> = before.iter().chain(map.iter()).map(|(k, _)| k).collect();
         let differ: Vec<BlockKey> = keys.into_iter().filter(|&k| before.get(k) != map.get(k)).collect();
@@ -144,7 +152,8 @@ fn check(cutoff_tenths: u32, steps: Vec<(u8, u32, u32, u32)>, clone_at: usize) -
                 if was != now {
                     changed += 1;
                     sum += (capped(now) - capped(was)).abs();
-                    nearest_only += usize::from(before.get(k).map(|b| b.dist_sq(o)) == map.get(k).map(|b| b.dist_sq(o)));
+                    nearest_only +=
+                        usize::from(before.get(k).map(|b| b.dist_sq(o)) == map.get(k).map(|b| b.dist_sq(o)));
                 }
             }
         }
@@ -152,17 +161,32 @@ fn check(cutoff_tenths: u32, steps: Vec<(u8, u32, u32, u32)>, clone_at: usize) -
         // Of those, the ones whose nearest obstacle alone changed; the
         // obstacles that appeared (apart: no obstacle among their 26
         // neighbours before) and vanished.
-        prop_assert_eq!((report.exact.changed[2], report.exact.nearest_only[2]), (changed, nearest_only), "step {}: nearest only", i);
+        prop_assert_eq!(
+            (report.exact.changed[2], report.exact.nearest_only[2]),
+            (changed, nearest_only),
+            "step {}: nearest only",
+            i
+        );
         let added: Vec<VoxelIndex> = world.set.iter().copied().filter(|&v| before.entry(v).0 != 0).collect();
         let apart = added.iter().filter(|&&v| before.entry(v).0 > 3).count();
-        let removed = before.iter().flat_map(|(k, b)| (0..BLOCK_VOXELS).filter(move |&o| b.dist_sq(o) == 0).map(move |o| k.voxel(o))).filter(|v| !world.set.contains(v)).count();
+        let removed = before
+            .iter()
+            .flat_map(|(k, b)| (0..BLOCK_VOXELS).filter(move |&o| b.dist_sq(o) == 0).map(move |o| k.voxel(o)))
+            .filter(|v| !world.set.contains(v))
+            .count();
         prop_assert_eq!(
             (report.exact.obstacles_added, report.exact.obstacles_added_apart, report.exact.obstacles_removed),
             (added.len(), apart, removed),
             "step {}: obstacles added, apart, removed",
             i
         );
-        prop_assert!((report.change_sum_vox - sum).abs() <= 1e-9 * sum.max(1.0), "step {}: change sum {} against {}", i, report.change_sum_vox, sum);
+        prop_assert!(
+            (report.change_sum_vox - sum).abs() <= 1e-9 * sum.max(1.0),
+            "step {}: change sum {} against {}",
+            i,
+            report.change_sum_vox,
+            sum
+        );
         let want = reference(&world, cutoff);
         prop_assert_eq!(map.len(), want.len(), "step {}: blocks", i);
         for (key, block) in want.iter() {

@@ -110,7 +110,13 @@ fn load_runs(dir: &Path) -> Result<Vec<Run>> {
 
 /// Sweep runs kept by `keep` as `(x, mean of the error field in unit)`
 /// points with x from `x_of`, sorted by x.
-fn sweep_points(runs: &[&Run], keep: impl Fn(&Run) -> bool, x_of: impl Fn(&Run) -> f64, field: &str, unit: Unit) -> Vec<(f64, f64)> {
+fn sweep_points(
+    runs: &[&Run],
+    keep: impl Fn(&Run) -> bool,
+    x_of: impl Fn(&Run) -> f64,
+    field: &str,
+    unit: Unit,
+) -> Vec<(f64, f64)> {
     let mut points: Vec<(f64, f64)> =
         runs.iter().filter(|r| keep(r)).map(|r| (x_of(r), r.stat(field, "mean") * unit.per_m)).collect();
     points.sort_by(|a, b| a.0.total_cmp(&b.0));
@@ -142,12 +148,15 @@ fn error_vs_voxel(sweep: &[&Run], field: &str, title: &str, unit: Unit, paper: O
             let keep = |r: &Run| r.scene == scene && r.connectivity == conn;
             let points = sweep_points(&wave, keep, |r| r.voxel_m, field, unit);
             if points.len() > 1 {
-                chart = chart.series(Series::new(format!("{scene}, {conn}-conn."), points, SeriesStyle::LineAndMarkers));
+                chart =
+                    chart.series(Series::new(format!("{scene}, {conn}-conn."), points, SeriesStyle::LineAndMarkers));
             }
         }
     }
     match paper {
-        Some((x, y_m, label)) => chart.series(Series::new(label, [(x, y_m * unit.per_m)], SeriesStyle::Markers).color([0, 0, 0])),
+        Some((x, y_m, label)) => {
+            chart.series(Series::new(label, [(x, y_m * unit.per_m)], SeriesStyle::Markers).color([0, 0, 0]))
+        }
         None => chart,
     }
 }
@@ -217,11 +226,26 @@ fn sweep_charts(sweep: &[&Run]) -> Vec<(String, Chart)> {
     let global_paper = (0.1, PAPER_GLOBAL_RMS_AT_10CM_M, "GIE, paper Fig. 7b (approx.)");
     let (local, global) = ("local_rms_m", "global_rms_m");
     vec![
-        ("fig6_a_local_rms_vs_voxel", error_vs_voxel(sweep, local, "Fig. 6a: local EDT error vs voxel size", MM, Some(local_paper))),
-        ("fig6_b_local_rms_vs_connectivity", error_vs_connectivity(sweep, local, "Fig. 6b: local EDT error vs connectivity", UM)),
-        ("fig6_b_global_rms_vs_connectivity", error_vs_connectivity(sweep, global, "Fig. 6b: global EDT error vs connectivity", UM)),
-        ("fig7_b_global_rms_vs_voxel", error_vs_voxel(sweep, global, "Fig. 7b: global EDT error vs voxel size", MM, Some(global_paper))),
-        ("fig7_b_global_rms_vs_voxel_um", error_vs_voxel(sweep, global, "Fig. 7b in µm: global EDT error vs voxel size", UM, None)),
+        (
+            "fig6_a_local_rms_vs_voxel",
+            error_vs_voxel(sweep, local, "Fig. 6a: local EDT error vs voxel size", MM, Some(local_paper)),
+        ),
+        (
+            "fig6_b_local_rms_vs_connectivity",
+            error_vs_connectivity(sweep, local, "Fig. 6b: local EDT error vs connectivity", UM),
+        ),
+        (
+            "fig6_b_global_rms_vs_connectivity",
+            error_vs_connectivity(sweep, global, "Fig. 6b: global EDT error vs connectivity", UM),
+        ),
+        (
+            "fig7_b_global_rms_vs_voxel",
+            error_vs_voxel(sweep, global, "Fig. 7b: global EDT error vs voxel size", MM, Some(global_paper)),
+        ),
+        (
+            "fig7_b_global_rms_vs_voxel_um",
+            error_vs_voxel(sweep, global, "Fig. 7b in µm: global EDT error vs voxel size", UM, None),
+        ),
     ]
     .into_iter()
     .map(|(name, chart)| (name.to_owned(), chart))
@@ -235,7 +259,9 @@ fn draw_figures(runs: &[Run], out: &Path) -> Result<Vec<PathBuf>> {
     let mut charts = sweep_charts(&sweep);
     for scene in distinct(&whole, |r| r.scene.clone()) {
         charts.extend(edt_time_chart(&whole, &scene).map(|c| (format!("fig7_a_edt_time_{scene}"), c)));
-        charts.extend(rms_over_run_chart(&whole, &scene, UM).map(|c| (format!("fig7_b_global_rms_per_frame_{scene}"), c)));
+        charts.extend(
+            rms_over_run_chart(&whole, &scene, UM).map(|c| (format!("fig7_b_global_rms_per_frame_{scene}"), c)),
+        );
     }
     let mut written = Vec::new();
     for (name, chart) in charts {

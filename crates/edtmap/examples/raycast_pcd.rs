@@ -10,10 +10,10 @@
 //! Points beyond the maximum range clear space up to it, as in OctoMap.
 //! Prints one JSON line.
 
-use edtmap::fuse;
 use edtmap::cpu::CpuBackend;
-use edtmap::stages::{Construction, OccupancyStage, OgmOptions};
+use edtmap::fuse;
 use edtmap::sensor::{Frame, Measurement, RangeLimits, Sensor};
+use edtmap::stages::{Construction, OccupancyStage, OgmOptions};
 use edtmap::{LocalVolume, OccupancyMap, OccupancyParams, VolumeParams};
 use nalgebra::Isometry3;
 use std::time::Instant;
@@ -58,13 +58,21 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .fold((0.0f32, 0.0f32), |(lo, hi), p| (lo.min(p[2]), hi.max(p[2])));
     let (zlo, zhi) = (zlo.max(-args.max_range_m) as f64, zhi.min(args.max_range_m) as f64);
     let edge = 2.0 * args.max_range_m as f64 + 2.0 * args.voxel_size_m;
-    let params = VolumeParams { size_m: [edge, edge, zhi - zlo + 2.0 * args.voxel_size_m], fixed_height_m: Some((zlo + zhi) / 2.0) };
+    let params = VolumeParams {
+        size_m: [edge, edge, zhi - zlo + 2.0 * args.voxel_size_m],
+        fixed_height_m: Some((zlo + zhi) / 2.0),
+    };
     let volume = LocalVolume::centred(&params, args.voxel_size_m, [0.0; 3])?;
     let sensor = Sensor::Points(range);
     let frame = Frame { stamp_s: 0.0, t_world_sensor: Isometry3::identity(), measurement: Measurement::Points(cloud) };
     sensor.check(&frame)?;
     // OctoMap frees every voxel before the return: no free margin.
-    let opts = OgmOptions { construction: Construction::RayCasting, clear_no_return: true, free_margin_m: 0.0, ..OgmOptions::for_voxel_size(args.voxel_size_m) };
+    let opts = OgmOptions {
+        construction: Construction::RayCasting,
+        clear_no_return: true,
+        free_margin_m: 0.0,
+        ..OgmOptions::for_voxel_size(args.voxel_size_m)
+    };
     let lo = OccupancyParams::default().log_odds()?;
     let mut stage = OccupancyStage::default();
     let mut times = Vec::new();
@@ -78,7 +86,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         last = Some((map, report));
     }
     let (map, report) = last.ok_or("no repeat ran")?;
-    let occupied = map.iter().flat_map(|(_, b)| b.log_odds.iter()).filter(|&&v| lo.state(v) == edtmap::VoxelState::Occupied).count();
+    let occupied = map
+        .iter()
+        .flat_map(|(_, b)| b.log_odds.iter())
+        .filter(|&&v| lo.state(v) == edtmap::VoxelState::Occupied)
+        .count();
     let mut sorted = times.clone();
     sorted.sort_by(f64::total_cmp);
     println!(

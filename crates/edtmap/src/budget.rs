@@ -72,7 +72,10 @@ pub(crate) fn check(params: &MapperParams) -> Result<(), MapError> {
     let budget = params.max_memory_bytes.map_or_else(MemoryBudget::from_system, MemoryBudget::with_limit);
     let (bytes, what) = peak_bytes(params)?;
     let limit = budget.limit_bytes().map_or_else(|| "no limit".into(), edtmap_core::memory::format_bytes);
-    tracing::info!("memory: {what} needs about {} per frame (budget {limit})", edtmap_core::memory::format_bytes(bytes));
+    tracing::info!(
+        "memory: {what} needs about {} per frame (budget {limit})",
+        edtmap_core::memory::format_bytes(bytes)
+    );
     budget.check(
         &what,
         bytes,
@@ -92,7 +95,10 @@ mod tests {
         params.max_memory_bytes = Some(1 << 30);
         let err = check(&params).expect_err("1000×1000×300 voxels do not fit in 1 GiB");
         let text = err.to_string();
-        assert!(text.contains("1000×1000×300") && text.contains("voxel_size_m") && text.contains("--max-memory"), "{text}");
+        assert!(
+            text.contains("1000×1000×300") && text.contains("voxel_size_m") && text.contains("--max-memory"),
+            "{text}"
+        );
         params.voxel_size_m = 0.2;
         check(&params).expect("50×50×15 voxels fit");
     }

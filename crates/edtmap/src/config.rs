@@ -125,7 +125,8 @@ pub struct OutputSection {
 impl Config {
     /// Parses a configuration from TOML text; `origin` names it in errors.
     pub fn parse(text: &str, origin: &str) -> Result<Config, MapError> {
-        let config: Config = toml::from_str(text).map_err(|e| MapError::ConfigFile { path: origin.to_string(), message: e.to_string() })?;
+        let config: Config = toml::from_str(text)
+            .map_err(|e| MapError::ConfigFile { path: origin.to_string(), message: e.to_string() })?;
         config.mapper_params()?;
         Ok(config)
     }
@@ -147,12 +148,23 @@ impl Config {
         let volume = VolumeParams { size_m: occ.local_size_m, fixed_height_m: occ.fixed_height_m };
         edtmap_core::LocalVolume::centred(&volume, occ.voxel_size_m, [0.0; 3]).map_err(in_occ)?;
         let sensor = self.sensor.model().map_err(|source| MapError::Config { section: "sensor", source })?;
-        let ogm = self.sensor.ogm_options(occ.voxel_size_m, &sensor).map_err(|source| MapError::Config { section: "sensor", source })?;
+        let ogm = self
+            .sensor
+            .ogm_options(occ.voxel_size_m, &sensor)
+            .map_err(|source| MapError::Config { section: "sensor", source })?;
         let in_global = |source| MapError::Config { section: "global", source };
         self.global.cutoff(occ.voxel_size_m).map_err(in_global)?;
         self.global.check_forbidden().map_err(in_global)?;
         let global = self.global.clone();
-        let params = MapperParams { voxel_size_m: occ.voxel_size_m, volume, occupancy: occ.probabilities.clone(), ogm, edt: self.edt, global, max_memory_bytes: self.memory.max_bytes()? };
+        let params = MapperParams {
+            voxel_size_m: occ.voxel_size_m,
+            volume,
+            occupancy: occ.probabilities.clone(),
+            ogm,
+            edt: self.edt,
+            global,
+            max_memory_bytes: self.memory.max_bytes()?,
+        };
         Ok((sensor, params))
     }
 

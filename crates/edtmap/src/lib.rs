@@ -52,8 +52,8 @@
 
 mod budget;
 pub mod config;
-pub mod eval;
 mod error;
+pub mod eval;
 mod mapfile;
 mod mapper;
 mod shared;
@@ -61,8 +61,8 @@ mod shared;
 pub use edtmap_core::*;
 /// The CPU backend (rayon), the reference implementation.
 pub use edtmap_cpu as cpu;
+pub use edtmap_cpu::query::{Distance, DistanceBox, PointState};
 pub use error::MapError;
 pub use mapfile::{load_map, save_map};
 pub use mapper::{Cleared, FrameStats, Mapper, MapperParams};
 pub use shared::SharedMapper;
-pub use edtmap_cpu::query::{Distance, DistanceBox, PointState};

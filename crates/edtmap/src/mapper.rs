@@ -4,8 +4,8 @@ use crate::MapError;
 use edtmap_core::sensor::{Frame, Sensor};
 use edtmap_core::stages::{local_field, BatchEdtStage, IntegrationStage, OccupancyStage, OgmOptions};
 use edtmap_core::{
-    read_states, Backend, BlockKey, EdtField, EdtParams, ExactCounts, GlobalMap, GlobalParams, Grid3, IntegrateReport, IntegrationMode, LocalVolume, OccupancyParams, Region, VolumeParams,
-    VoxelIndex, VoxelState, WaveCounts,
+    read_states, Backend, BlockKey, EdtField, EdtParams, ExactCounts, GlobalMap, GlobalParams, Grid3, IntegrateReport,
+    IntegrationMode, LocalVolume, OccupancyParams, Region, VolumeParams, VoxelIndex, VoxelState, WaveCounts,
 };
 use edtmap_cpu::query::{self, Distance, PointState};
 use edtmap_cpu::CpuBackend;
@@ -163,7 +163,12 @@ impl<B: Backend> Mapper<B> {
     /// A mapper on `backend` that goes on from `map` (a loaded map file,
     /// say); the map's voxel size, probabilities and global parameters
     /// replace those of `params`.
-    pub fn with_map_on(mut backend: B, sensor: Sensor, mut params: MapperParams, map: GlobalMap) -> Result<Self, MapError> {
+    pub fn with_map_on(
+        mut backend: B,
+        sensor: Sensor,
+        mut params: MapperParams,
+        map: GlobalMap,
+    ) -> Result<Self, MapError> {
         sensor.validate()?;
         // A device fuses the observations it makes where it made them.
         backend.set_deferred_observations(true);
@@ -206,7 +211,11 @@ impl<B: Backend> Mapper<B> {
     pub fn integrate_frame(&mut self, frame: &Frame) -> Result<FrameStats, MapError> {
         let start = Instant::now();
         self.sensor.check(frame)?;
-        let volume = LocalVolume::centred(&self.params.volume, self.params.voxel_size_m, frame.t_world_sensor.translation.vector.into())?;
+        let volume = LocalVolume::centred(
+            &self.params.volume,
+            self.params.voxel_size_m,
+            frame.t_world_sensor.translation.vector.into(),
+        )?;
         // §IV-A: occupancy of the local volume, fused into the global map.
         let obs = self.occupancy.observe(&mut self.backend, &self.sensor, frame, volume, &self.params.ogm)?;
         let fused = self.map.fuse_on(&mut self.backend, obs)?;
@@ -286,7 +295,12 @@ impl<B: Backend> Mapper<B> {
     }
 
     /// The frame's integration on `cpu` when given, else on the backend.
-    fn integrate(&mut self, cpu: Option<&mut CpuBackend>, volume: &LocalVolume, changed: &[BlockKey]) -> Result<IntegrateReport, MapError> {
+    fn integrate(
+        &mut self,
+        cpu: Option<&mut CpuBackend>,
+        volume: &LocalVolume,
+        changed: &[BlockKey],
+    ) -> Result<IntegrateReport, MapError> {
         let wavefront = self.wavefront();
         let (edt, obstacles) = self.map.edt_and_obstacles();
         let backend: &mut dyn Backend = match cpu {
@@ -317,7 +331,13 @@ impl<B: Backend> Mapper<B> {
     /// the exact EDT of the obstacles kept. Exact mode only (the wavefront
     /// mode's merge would need the window's batch EDT).
     pub fn clear_far(&mut self, centre_m: [f64; 3], radius_m: f64) -> Result<Cleared, MapError> {
-        let invalid = |reason| MapError::Core(edtmap_core::CoreError::InvalidParam { field: "map_clearing_radius_m", value: radius_m.to_string(), reason });
+        let invalid = |reason| {
+            MapError::Core(edtmap_core::CoreError::InvalidParam {
+                field: "map_clearing_radius_m",
+                value: radius_m.to_string(),
+                reason,
+            })
+        };
         if !(radius_m.is_finite() && radius_m > 0.0 && centre_m.iter().all(|c| c.is_finite())) {
             return Err(invalid("must be a positive number of metres, around a finite centre"));
         }
@@ -340,11 +360,20 @@ impl<B: Backend> Mapper<B> {
         // diagonal hold no distance within the cutoff.
         let margin = self.params.global.max_distance_m + 2.0 * side * 3f64.sqrt();
         let fixed: Vec<BlockKey> = self.map.fixed_obstacles().iter().map(|(k, _)| k).collect();
-        let near_fixed = |k: BlockKey| fixed.iter().any(|f| (0..3).map(|a| (f64::from(f.0[a] - k.0[a]) * side).powi(2)).sum::<f64>().sqrt() <= margin);
+        let near_fixed = |k: BlockKey| {
+            fixed
+                .iter()
+                .any(|f| (0..3).map(|a| (f64::from(f.0[a] - k.0[a]) * side).powi(2)).sum::<f64>().sqrt() <= margin)
+        };
         let edt_gone = self.map.edt_mut().remove_where(|k| dist(k) > radius_m + margin && !near_fixed(k));
         self.local = OnceLock::new();
         self.local_states = OnceLock::new();
-        Ok(Cleared { occupancy_blocks: gone.len(), edt_blocks: edt_gone.len(), bytes_before, bytes_after: self.map.bytes() })
+        Ok(Cleared {
+            occupancy_blocks: gone.len(),
+            edt_blocks: edt_gone.len(),
+            bytes_before,
+            bytes_after: self.map.bytes(),
+        })
     }
 
     /// The backend the stages run on.
@@ -467,7 +496,8 @@ impl<B: Backend> Mapper<B> {
         self.local.get_or_init(|| {
             let Some(volume) = &self.volume else { return EdtField::empty() };
             // The window was checked when the mapper was made.
-            local_field(&mut CpuBackend::default(), &self.map, volume, self.params.edt.unknown_as_occupied).unwrap_or_else(|_| EdtField::empty())
+            local_field(&mut CpuBackend::default(), &self.map, volume, self.params.edt.unknown_as_occupied)
+                .unwrap_or_else(|_| EdtField::empty())
         })
     }
 }

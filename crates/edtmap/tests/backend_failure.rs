@@ -4,7 +4,10 @@
 
 use edtmap::config::Config;
 use edtmap::cpu::CpuBackend;
-use edtmap::{Backend, BackendError, BatchEdt, EdtField, FixedRay, Grid3, IntegrateJob, IntegrateReport, IntegrationMode, MapError, Mapper, Observations, ProjectJob};
+use edtmap::{
+    Backend, BackendError, BatchEdt, EdtField, FixedRay, Grid3, IntegrateJob, IntegrateReport, IntegrationMode,
+    MapError, Mapper, Observations, ProjectJob,
+};
 use edtmap_sim::{Scene, SceneName, SceneOptions};
 use std::path::PathBuf;
 
@@ -56,7 +59,16 @@ fn a_backend_failure_returns_the_error_and_keeps_the_map_whole() {
     // integration does.
     for mode in [IntegrationMode::Wavefront, IntegrationMode::Exact] {
         let (batch, integrate) = if mode == IntegrationMode::Wavefront { (3, 0) } else { (0, 3) };
-        failure_keeps_the_map_whole(mode, Flaky { cpu: CpuBackend::default(), batches: 0, integrations: 0, fail_batch_at: batch, fail_integrate_at: integrate });
+        failure_keeps_the_map_whole(
+            mode,
+            Flaky {
+                cpu: CpuBackend::default(),
+                batches: 0,
+                integrations: 0,
+                fail_batch_at: batch,
+                fail_integrate_at: integrate,
+            },
+        );
     }
 }
 
@@ -143,7 +155,12 @@ impl Backend for LostInFusion {
     fn project_volume(&mut self, job: &ProjectJob<'_>, obs: &Observations) -> Result<(), BackendError> {
         self.0.project_volume(job, obs)
     }
-    fn fuse(&mut self, map: &mut edtmap::OccupancyMap, obs: &Observations, lo: &edtmap::LogOdds) -> Result<edtmap::FuseReport, BackendError> {
+    fn fuse(
+        &mut self,
+        map: &mut edtmap::OccupancyMap,
+        obs: &Observations,
+        lo: &edtmap::LogOdds,
+    ) -> Result<edtmap::FuseReport, BackendError> {
         // The first frames fuse; then the device is gone.
         self.1 += 1;
         if self.1 > 2 {
@@ -166,7 +183,8 @@ fn a_device_lost_in_the_fusion_leaves_the_map_as_it_was() {
         mapper.integrate_frame(&scene.frame(&sensor, i).expect("frame")).expect("fused");
     }
     let blocks = |m: &edtmap::GlobalMap| {
-        let mut b: Vec<(edtmap::BlockKey, Vec<u32>)> = m.occupancy().iter().map(|(k, b)| (k, b.log_odds.iter().map(|l| l.to_bits()).collect())).collect();
+        let mut b: Vec<(edtmap::BlockKey, Vec<u32>)> =
+            m.occupancy().iter().map(|(k, b)| (k, b.log_odds.iter().map(|l| l.to_bits()).collect())).collect();
         b.sort_by_key(|e| e.0);
         b
     };

@@ -26,7 +26,13 @@ fn every_shipped_config_parses() {
             assert_eq!(stem, scene.name.as_str());
             n += 1;
         } else {
-            assert!(matches!(stem, "3dmatch" | "velodyne" | "tum" | "ros_lidar" | "ros_depth" | "ros2_lidar" | "ros2_depth"), "{stem}.toml names no scene");
+            assert!(
+                matches!(
+                    stem,
+                    "3dmatch" | "velodyne" | "tum" | "ros_lidar" | "ros_depth" | "ros2_lidar" | "ros2_depth"
+                ),
+                "{stem}.toml names no scene"
+            );
         }
         config.ros.validate().unwrap_or_else(|e| panic!("{}: [ros] {e}", path.display()));
         if stem == "room" || stem == "3dmatch" {
@@ -72,10 +78,11 @@ fn depth_sensor_needs_intrinsics() {
 
 #[test]
 fn projection_of_plain_points_is_refused() {
-    let text = shipped().replace("kind = \"lidar\"", "kind = \"points\"").replace("construction = \"auto\"", "construction = \"projection\"");
+    let text = shipped()
+        .replace("kind = \"lidar\"", "kind = \"points\"")
+        .replace("construction = \"auto\"", "construction = \"projection\"");
     assert!(error_of(&text).contains("construction"));
 }
-
 
 /// `text` with `key = value` set in `[section]`: the key's line replaced,
 /// or added under the section's header (the section appended if absent).
@@ -85,7 +92,8 @@ fn set(text: &str, section: &str, key: &str, value: &str) -> String {
     let Some(start) = lines.iter().position(|l| l.trim() == header) else {
         return format!("{text}\n{header}\n{key} = {value}\n");
     };
-    let end = lines[start + 1..].iter().position(|l| l.trim_start().starts_with('[')).map_or(lines.len(), |i| start + 1 + i);
+    let end =
+        lines[start + 1..].iter().position(|l| l.trim_start().starts_with('[')).map_or(lines.len(), |i| start + 1 + i);
     let is_key = |l: &String| l.split('=').next().is_some_and(|k| k.trim() == key);
     match lines[start + 1..end].iter().position(is_key) {
         Some(i) => lines[start + 1 + i] = format!("{key} = {value}"),
@@ -193,6 +201,8 @@ fn config_errors_print_their_cause_once() {
     let text = shipped().replace("kind = \"lidar\"", "kind = \"depth\"");
     let msg = chain(&Config::parse(&text, "test.toml").expect_err("no intrinsics"));
     assert_eq!(msg, "config [sensor] invalid fx = missing: required for kind = \"depth\"");
-    let msg = chain(&Config::parse(&set(&shipped(), "occupancy", "voxel_size_m", "0"), "test.toml").expect_err("zero voxels"));
+    let msg = chain(
+        &Config::parse(&set(&shipped(), "occupancy", "voxel_size_m", "0"), "test.toml").expect_err("zero voxels"),
+    );
     assert_eq!(msg.matches("voxel_size_m").count(), 1, "{msg}");
 }

@@ -17,8 +17,24 @@ const BUDGET_BYTES: u64 = 320 << 20;
 
 /// Values that break naive parsers and unchecked allocations.
 const ODD_VALUES: [&str; 18] = [
-    "0", "-1", "1e30", "-1e30", "nan", "inf", "-inf", "1e-30", "18446744073709551615", "4294967296", "0.000001", "\"\"", "\"x\"", "true",
-    "[]", "[1e9, 1e9, 1e9]", "[0.0, 0.0, 0.0]", "-0.0",
+    "0",
+    "-1",
+    "1e30",
+    "-1e30",
+    "nan",
+    "inf",
+    "-inf",
+    "1e-30",
+    "18446744073709551615",
+    "4294967296",
+    "0.000001",
+    "\"\"",
+    "\"x\"",
+    "true",
+    "[]",
+    "[1e9, 1e9, 1e9]",
+    "[0.0, 0.0, 0.0]",
+    "-0.0",
 ];
 
 /// A small deterministic generator (64-bit LCG, high bits).
@@ -35,7 +51,9 @@ impl Lcg {
 fn mutate(text: &str, rng: &mut Lcg) -> String {
     let mut lines: Vec<String> = text.lines().map(String::from).collect();
     // Lines holding a whole `key = value` (not the start of a multi-line array).
-    let whole = |l: &str| l.contains('=') && !l.trim_start().starts_with('#') && l.matches('[').count() == l.matches(']').count();
+    let whole = |l: &str| {
+        l.contains('=') && !l.trim_start().starts_with('#') && l.matches('[').count() == l.matches(']').count()
+    };
     let values: Vec<usize> = (0..lines.len()).filter(|&i| whole(&lines[i])).collect();
     match rng.below(10) {
         0 if !lines.is_empty() => {
@@ -93,7 +111,8 @@ fn run_case(text: &str, scenes: &mut std::collections::HashMap<SceneName, Scene>
 #[test]
 fn mutated_configs_never_panic() {
     let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../configs");
-    let mut paths: Vec<PathBuf> = std::fs::read_dir(&dir).expect("configs/").map(|e| e.expect("entry").path()).collect();
+    let mut paths: Vec<PathBuf> =
+        std::fs::read_dir(&dir).expect("configs/").map(|e| e.expect("entry").path()).collect();
     paths.sort();
     let mut rng = Lcg(0x5eed_cafe);
     let mut scenes = std::collections::HashMap::new();
@@ -107,7 +126,9 @@ fn mutated_configs_never_panic() {
                 Ok(Ok(_)) => ran += 1,
                 Ok(Err(e)) => {
                     assert!(!e.is_empty(), "an empty error message");
-                    if refused < 400 && std::env::var("FUZZ_DEBUG").is_ok() { eprintln!("{}: {e}", path.display()); }
+                    if refused < 400 && std::env::var("FUZZ_DEBUG").is_ok() {
+                        eprintln!("{}: {e}", path.display());
+                    }
                     refused += 1;
                 }
                 Err(_) => panic!("{} case {case} panicked on:\n{mutated}", path.display()),

@@ -5,7 +5,9 @@
 use edtmap::config::Config;
 use edtmap::eval::{edt_errors, edt_extent};
 use edtmap::sensor::Sensor;
-use edtmap::{load_map, save_map, Connectivity, ForbiddenZone, GlobalMap, IntegrationMode, Mapper, MapperParams, PointState};
+use edtmap::{
+    load_map, save_map, Connectivity, ForbiddenZone, GlobalMap, IntegrationMode, Mapper, MapperParams, PointState,
+};
 use edtmap_sim::{Scene, SceneName, SceneOptions};
 use std::path::PathBuf;
 
@@ -30,7 +32,12 @@ fn run(scene_name: &str, frames: usize, step: usize, edit: impl Fn(&mut MapperPa
 }
 
 /// As [`run`], on a scene already set up.
-fn run_on((scene, sensor, mut params): (Scene, Sensor, MapperParams), frames: usize, step: usize, edit: impl Fn(&mut MapperParams)) -> (Mapper, f64, f64) {
+fn run_on(
+    (scene, sensor, mut params): (Scene, Sensor, MapperParams),
+    frames: usize,
+    step: usize,
+    edit: impl Fn(&mut MapperParams),
+) -> (Mapper, f64, f64) {
     edit(&mut params);
     let mut mapper = Mapper::new(sensor.clone(), params).expect("mapper");
     let (mut rms, mut max) = (0.0f64, 0.0f64);
@@ -87,7 +94,10 @@ fn save_and_load_round_trip_bit_identical() {
         (occ, edt)
     };
     assert!(blocks(mapper.map()) == blocks(&loaded));
-    assert_eq!((loaded.params().clone(), loaded.occupancy_params().clone()), (mapper.map().params().clone(), mapper.map().occupancy_params().clone()));
+    assert_eq!(
+        (loaded.params().clone(), loaded.occupancy_params().clone()),
+        (mapper.map().params().clone(), mapper.map().occupancy_params().clone())
+    );
     // A loaded map goes on mapping.
     let (scene, sensor, params) = setup("room");
     let mut again = Mapper::with_map(sensor.clone(), params, loaded).expect("mapper");

@@ -52,12 +52,25 @@ fn wavefront_integration_is_bit_identical_to_the_cpu() {
             assert!(blocks(&cpu_map) == blocks(&gpu_map), "{at}: the maps differ");
             assert_eq!(cpu_report.changed_blocks, gpu_report.changed_blocks, "{at}");
             assert_eq!(cpu_report.voxels_changed, gpu_report.voxels_changed, "{at}");
-            assert_eq!((cpu_report.waves.raised, cpu_report.waves.seeds, cpu_report.waves.levels), (gpu_report.waves.raised, gpu_report.waves.seeds, gpu_report.waves.levels), "{at}");
+            assert_eq!(
+                (cpu_report.waves.raised, cpu_report.waves.seeds, cpu_report.waves.levels),
+                (gpu_report.waves.raised, gpu_report.waves.seeds, gpu_report.waves.levels),
+                "{at}"
+            );
             world.check(&gpu_map, &params).unwrap_or_else(|e| panic!("{at}: {e}"));
-            for (name, backend, map) in [("cpu", &mut cpu_masked as &mut dyn edtmap_core::Backend, &mut cpu_mask_map), ("gpu", &mut gpu_masked, &mut gpu_mask_map)] {
-                let report = stage.integrate_mask(backend, map, world.obstacles(), &window, &mask).unwrap_or_else(|e| panic!("{at}, {name} from the mask: {e}"));
+            for (name, backend, map) in [
+                ("cpu", &mut cpu_masked as &mut dyn edtmap_core::Backend, &mut cpu_mask_map),
+                ("gpu", &mut gpu_masked, &mut gpu_mask_map),
+            ] {
+                let report = stage
+                    .integrate_mask(backend, map, world.obstacles(), &window, &mask)
+                    .unwrap_or_else(|e| panic!("{at}, {name} from the mask: {e}"));
                 assert!(blocks(&cpu_map) == blocks(map), "{at}: {name} from the mask differs");
-                assert_eq!((&report.changed_blocks, report.voxels_changed), (&cpu_report.changed_blocks, cpu_report.voxels_changed), "{at}: {name} from the mask");
+                assert_eq!(
+                    (&report.changed_blocks, report.voxels_changed),
+                    (&cpu_report.changed_blocks, cpu_report.voxels_changed),
+                    "{at}: {name} from the mask"
+                );
             }
             cases += 1;
         }

@@ -9,8 +9,8 @@ mod gpu_common;
 use gpu_common as common;
 
 use edtmap::config::Config;
-use edtmap::stages::Construction;
 use edtmap::sensor::Sensor;
+use edtmap::stages::Construction;
 use edtmap::{Backend, GlobalMap, IntegrationMode, Mapper, MapperParams};
 use edtmap_gpu::GpuBackend;
 use edtmap_sim::{Scene, SceneName, SceneOptions};
@@ -25,14 +25,21 @@ fn setup(scene: &str) -> (Scene, Sensor, MapperParams) {
 
 /// Sorted blocks of both hashes of `map`, for exact comparison.
 fn snapshot(map: &GlobalMap) -> (Vec<String>, Vec<String>) {
-    let mut occ: Vec<String> = map.occupancy().iter().map(|(k, b)| format!("{k:?} {:?}", b.log_odds.map(f32::to_bits))).collect();
+    let mut occ: Vec<String> =
+        map.occupancy().iter().map(|(k, b)| format!("{k:?} {:?}", b.log_odds.map(f32::to_bits))).collect();
     let mut edt: Vec<String> = map.edt().iter().map(|(k, b)| format!("{k:?} {:?}", b.to_nearest)).collect();
     occ.sort();
     edt.sort();
     (occ, edt)
 }
 
-fn compare(scene_name: &str, construction: Construction, mode: IntegrationMode, frames: usize, backend: GpuBackend) -> GpuBackend {
+fn compare(
+    scene_name: &str,
+    construction: Construction,
+    mode: IntegrationMode,
+    frames: usize,
+    backend: GpuBackend,
+) -> GpuBackend {
     let (scene, sensor, mut params) = setup(scene_name);
     params.ogm.construction = construction;
     params.global.mode = mode;
@@ -45,7 +52,11 @@ fn compare(scene_name: &str, construction: Construction, mode: IntegrationMode, 
         let b = gpu.integrate_frame(&frame).expect("gpu frame");
         let at = format!("{scene_name} {construction:?} {mode:?} frame {i}");
         // The fusion (on the device for the GPU): the same counts.
-        assert_eq!((a.voxels_updated, a.voxels_changed, a.occupancy_rewritten_blocks), (b.voxels_updated, b.voxels_changed, b.occupancy_rewritten_blocks), "{at}: fusion counts");
+        assert_eq!(
+            (a.voxels_updated, a.voxels_changed, a.occupancy_rewritten_blocks),
+            (b.voxels_updated, b.voxels_changed, b.occupancy_rewritten_blocks),
+            "{at}: fusion counts"
+        );
         assert_eq!(a.changed_blocks, b.changed_blocks, "{at}: changed blocks");
         assert_eq!(a.edt_voxels_changed, b.edt_voxels_changed, "{at}: EDT voxels changed");
         assert!(cpu.local_states() == gpu.local_states(), "{at}: local states differ");
@@ -89,8 +100,14 @@ fn frames_whose_uncertain_voxels_overflow_the_list_are_the_cpus_too() {
         let a = cpu.integrate_frame(&frame).expect("cpu frame");
         let b = gpu.integrate_frame(&frame).expect("gpu frame");
         // The codes came back: a quarter byte per window voxel.
-        overflowed += usize::from(gpu.backend().device_counters().expect("a device").since(before).downloaded_bytes >= voxels / 4);
-        assert_eq!((a.voxels_updated, a.voxels_changed, a.changed_blocks.clone()), (b.voxels_updated, b.voxels_changed, b.changed_blocks.clone()), "frame {i}");
+        overflowed += usize::from(
+            gpu.backend().device_counters().expect("a device").since(before).downloaded_bytes >= voxels / 4,
+        );
+        assert_eq!(
+            (a.voxels_updated, a.voxels_changed, a.changed_blocks.clone()),
+            (b.voxels_updated, b.voxels_changed, b.changed_blocks.clone()),
+            "frame {i}"
+        );
         assert!(snapshot(cpu.map()) == snapshot(gpu.map()), "frame {i}: global maps differ");
     }
     assert!(overflowed > 0, "no frame overflowed the list");

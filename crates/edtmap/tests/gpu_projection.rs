@@ -23,7 +23,8 @@ fn projection_on_the_scenes_is_the_cpus() {
     for name in ["room", "planar"] {
         let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(format!("../../configs/{name}.toml"));
         let (sensor, params) = Config::load(&path).expect("shipped config").mapper_params().expect("valid config");
-        let scene = Scene::new(name.parse::<SceneName>().expect("scene name"), &SceneOptions::default()).expect("scene");
+        let scene =
+            Scene::new(name.parse::<SceneName>().expect("scene name"), &SceneOptions::default()).expect("scene");
         let (mut cpu_stage, mut gpu_stage) = (OccupancyStage::default(), OccupancyStage::default());
         let (mut voxels, mut uncertain, mut bits) = (0, 0, Vec::new());
         let step = (scene.default_frames() / 10).max(1);
@@ -31,10 +32,13 @@ fn projection_on_the_scenes_is_the_cpus() {
             let frame = scene.frame(&sensor, i).expect("frame");
             let centre = frame.t_world_sensor.translation.vector.into();
             let volume = LocalVolume::centred(&params.volume, params.voxel_size_m, centre).expect("volume");
-            assert!(gpu.project_bits(&project_job(&sensor, &frame, volume, &params.ogm), &mut bits).expect("projection"));
+            assert!(gpu
+                .project_bits(&project_job(&sensor, &frame, volume, &params.ogm), &mut bits)
+                .expect("projection"));
             voxels += bits.len();
             uncertain += bits.iter().filter(|&&b| b == PROJ_UNCERTAIN).count();
-            let want = cpu_stage.observe(&mut CpuBackend::default(), &sensor, &frame, volume, &params.ogm).expect("cpu");
+            let want =
+                cpu_stage.observe(&mut CpuBackend::default(), &sensor, &frame, volume, &params.ogm).expect("cpu");
             let got = gpu_stage.observe(&mut gpu, &sensor, &frame, volume, &params.ogm).expect("gpu");
             assert!((0..volume.len()).all(|v| want.get(v) == got.get(v)), "{name} frame {i}: observations differ");
         }

@@ -19,7 +19,11 @@ fn frame(x: f64, rng: &mut rand::rngs::StdRng, pillars: &[[f64; 2]]) -> Frame {
             }
         }
     }
-    Frame { stamp_s: x, t_world_sensor: Isometry3::translation(x, 0.0, 1.0), measurement: Measurement::Points(PointCloud { points }) }
+    Frame {
+        stamp_s: x,
+        t_world_sensor: Isometry3::translation(x, 0.0, 1.0),
+        measurement: Measurement::Points(PointCloud { points }),
+    }
 }
 
 fn assert_exact(mapper: &Mapper, when: &str) {

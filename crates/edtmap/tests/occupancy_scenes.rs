@@ -2,9 +2,9 @@
 //! both constructions, their agreement, and dynamic obstacles.
 
 use edtmap::config::Config;
-use edtmap::stages::Construction;
 use edtmap::eval::{agreement, OccupancyScores};
 use edtmap::sensor::Sensor;
+use edtmap::stages::Construction;
 use edtmap::{Mapper, MapperParams, VoxelIndex, VoxelState};
 use edtmap_sim::{Scene, SceneName, SceneOptions};
 use std::collections::HashMap;
@@ -56,7 +56,10 @@ fn check_scene(scene: &str, frames: usize) {
     for (name, s) in [("ray casting", cast), ("projection", proj)] {
         let (p, r) = (s.precision().expect("occupied voxels"), s.recall().expect("occupied truth"));
         let rs = s.strict_recall().expect("observed solids");
-        println!("{scene} {name}: precision {p:.3}, recall {r:.3} (strict {rs:.3}) over {} observed voxels", s.observed);
+        println!(
+            "{scene} {name}: precision {p:.3}, recall {r:.3} (strict {rs:.3}) over {} observed voxels",
+            s.observed
+        );
         assert!(p >= 0.95 && r >= 0.95, "{scene} {name}: precision {p:.3}, recall {r:.3}");
     }
     println!("{scene}: the constructions agree on {:.3} of the voxels both observe", agree);
@@ -137,7 +140,10 @@ fn ugv_corridor_pedestrians_leave_free_space() {
     }
     println!("{checked} vacated voxels checked {FEW} frames after; {stale} still occupied");
     assert!(checked > 50, "the pedestrians should vacate voxels in view ({checked})");
-    assert!((stale as f64) <= 0.05 * checked as f64, "{stale} of {checked} vacated voxels still occupied after {FEW} frames");
+    assert!(
+        (stale as f64) <= 0.05 * checked as f64,
+        "{stale} of {checked} vacated voxels still occupied after {FEW} frames"
+    );
 }
 
 /// The fused map is bit-identical whatever the number of threads, for both
@@ -152,7 +158,8 @@ fn maps_do_not_depend_on_thread_count() {
             for i in 0..6 {
                 m.integrate_frame(&scene.frame(&sensor, i * 5).expect("frame")).expect("frame");
             }
-            let mut blocks: Vec<_> = m.map().occupancy().iter().map(|(k, b)| (k, b.log_odds.map(f32::to_bits))).collect();
+            let mut blocks: Vec<_> =
+                m.map().occupancy().iter().map(|(k, b)| (k, b.log_odds.map(f32::to_bits))).collect();
             blocks.sort_by_key(|(k, _)| *k);
             let mut edt: Vec<_> = m.map().edt().iter().map(|(k, b)| (k, b.to_nearest)).collect();
             edt.sort_by_key(|(k, _)| *k);

@@ -4,9 +4,9 @@
 //! centres.
 
 use edtmap::cpu::edt::{edt_with, ScanLayout};
+use edtmap::cpu::query::{distance, distance_box, distances, PointState};
 use edtmap::cpu::CpuBackend;
 use edtmap::stages::IntegrationStage;
-use edtmap::cpu::query::{distance, distance_box, distances, PointState};
 use edtmap::{GlobalMap, GlobalParams, Grid3, IntegrationMode, LocalVolume, OccupancyParams, VoxelIndex};
 
 const VS: f64 = 0.1;
@@ -41,7 +41,11 @@ fn plane_distance_and_gradient_are_exact() {
     for p in [[0.0, 0.0, 0.5], [0.33, -0.71, 0.27], [-1.04, 1.2, 0.91], [0.5, 0.5, 1.2]] {
         let d = distance(&map, p, false);
         assert!(close(d.distance_m, p[2] - 0.05, 1e-9), "{p:?}: {} vs {}", d.distance_m, p[2] - 0.05);
-        assert!(close(d.gradient[2], 1.0, 1e-9) && close(d.gradient[0], 0.0, 1e-9) && close(d.gradient[1], 0.0, 1e-9), "{:?}", d.gradient);
+        assert!(
+            close(d.gradient[2], 1.0, 1e-9) && close(d.gradient[0], 0.0, 1e-9) && close(d.gradient[1], 0.0, 1e-9),
+            "{:?}",
+            d.gradient
+        );
         assert_eq!((d.state, d.observed, d.saturated), (PointState::Free, true, false));
     }
     // Below the plane the distance grows downwards.
@@ -103,14 +107,21 @@ fn box_distance_is_exact_at_voxel_centres() {
 #[test]
 fn batched_equals_single_and_states_are_reported() {
     let map = map_of([-10, -10, -10], [20, 20, 20], |p| p[0] > 0.3 && p[0] < 0.4);
-    let points: Vec<[f64; 3]> = (0..500).map(|i| {
-        let t = i as f64 * 0.013;
-        [(t * 3.1).sin() * 1.4, (t * 1.7).cos() * 1.4, (t * 0.9).sin() * 1.4]
-    }).chain([[f64::NAN, 0.0, 0.0], [1e300, 0.0, 0.0]]).collect();
+    let points: Vec<[f64; 3]> = (0..500)
+        .map(|i| {
+            let t = i as f64 * 0.013;
+            [(t * 3.1).sin() * 1.4, (t * 1.7).cos() * 1.4, (t * 0.9).sin() * 1.4]
+        })
+        .chain([[f64::NAN, 0.0, 0.0], [1e300, 0.0, 0.0]])
+        .collect();
     let batch = distances(&map, &points, false);
     for (p, b) in points.iter().zip(&batch) {
         let single = distance(&map, *p, false);
-        assert!(single.distance_m.to_bits() == b.distance_m.to_bits() && single.gradient == b.gradient && single.state == b.state);
+        assert!(
+            single.distance_m.to_bits() == b.distance_m.to_bits()
+                && single.gradient == b.gradient
+                && single.state == b.state
+        );
     }
     assert_eq!(batch[500].state, PointState::Outside);
     assert!(batch[500].distance_m.is_nan() && batch[501].distance_m.is_nan());

@@ -76,7 +76,10 @@ fn occupied_voxels_lie_on_the_depth_points() {
             }
             occupied += 1;
             let v = key.voxel(offset);
-            let near = (-1..=1).any(|dz| (-1..=1).any(|dy| (-1..=1).any(|dx| points.contains(&VoxelIndex([v.0[0] + dx, v.0[1] + dy, v.0[2] + dz])))));
+            let near = (-1..=1).any(|dz| {
+                (-1..=1)
+                    .any(|dy| (-1..=1).any(|dx| points.contains(&VoxelIndex([v.0[0] + dx, v.0[1] + dy, v.0[2] + dz]))))
+            });
             on_points += usize::from(near);
         }
     }

@@ -10,9 +10,12 @@
 
 use edtmap::cpu::edt::{edt_with, ScanLayout};
 use edtmap::cpu::CpuBackend;
-use edtmap::stages::IntegrationStage;
 use edtmap::sensor::{RangeLimits, Sensor};
-use edtmap::{Distance, ForbiddenZone, GlobalMap, GlobalParams, Grid3, IntegrationMode, LocalVolume, Mapper, MapperParams, OccupancyParams, VoxelIndex};
+use edtmap::stages::IntegrationStage;
+use edtmap::{
+    Distance, ForbiddenZone, GlobalMap, GlobalParams, Grid3, IntegrationMode, LocalVolume, Mapper, MapperParams,
+    OccupancyParams, VoxelIndex,
+};
 
 /// SplitMix64: a small seeded generator, the same on every platform.
 struct Rng(u64);
@@ -106,7 +109,10 @@ fn floor_and_wall_corner_is_exact_and_free_points_are_positive() {
     // An occupied voxel centre of the floor, away from the wall: half a voxel
     // inside, gradient straight up.
     let d = mapper.signed_distance([0.55, 0.25, -0.05]);
-    assert!((d.distance_m + 0.05).abs() < 1e-9 && norm([d.gradient[0], d.gradient[1], d.gradient[2] - 1.0]) < 1e-9, "{d:?}");
+    assert!(
+        (d.distance_m + 0.05).abs() < 1e-9 && norm([d.gradient[0], d.gradient[1], d.gradient[2] - 1.0]) < 1e-9,
+        "{d:?}"
+    );
 }
 
 #[test]

@@ -71,10 +71,12 @@ impl GpuContext {
             Ok(adapter) => adapter,
             Err(_) => {
                 let options = wgpu::RequestAdapterOptions {
-                    power_preference: wgpu::PowerPreference::from_env().unwrap_or(wgpu::PowerPreference::HighPerformance),
+                    power_preference: wgpu::PowerPreference::from_env()
+                        .unwrap_or(wgpu::PowerPreference::HighPerformance),
                     ..Default::default()
                 };
-                pollster::block_on(instance.request_adapter(&options)).map_err(|e| BackendError::NoAdapter(e.to_string()))?
+                pollster::block_on(instance.request_adapter(&options))
+                    .map_err(|e| BackendError::NoAdapter(e.to_string()))?
             }
         };
         let info = adapter.get_info();
@@ -86,8 +88,9 @@ impl GpuContext {
             required_limits: limits.clone(),
             ..Default::default()
         };
-        let (device, queue) = pollster::block_on(adapter.request_device(&desc))
-            .map_err(|e| BackendError::NoAdapter(format!("{} ({:?}) refused a device: {e}", info.name, info.backend)))?;
+        let (device, queue) = pollster::block_on(adapter.request_device(&desc)).map_err(|e| {
+            BackendError::NoAdapter(format!("{} ({:?}) refused a device: {e}", info.name, info.backend))
+        })?;
         let lost = Arc::new(Mutex::new(None));
         let flag = Arc::clone(&lost);
         device.set_device_lost_callback(move |reason, message| {
@@ -99,9 +102,20 @@ impl GpuContext {
         device.on_uncaptured_error(Arc::new(|_| {}));
         let timer = features.contains(wgpu::Features::TIMESTAMP_QUERY).then(|| {
             let bytes = 16 * u64::from(TIMED_PASSES);
-            let buffer = |label, usage| device.create_buffer(&wgpu::BufferDescriptor { label: Some(label), size: bytes, usage, mapped_at_creation: false });
+            let buffer = |label, usage| {
+                device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some(label),
+                    size: bytes,
+                    usage,
+                    mapped_at_creation: false,
+                })
+            };
             Arc::new(Timer {
-                set: device.create_query_set(&wgpu::QuerySetDescriptor { label: Some("edtmap passes"), ty: wgpu::QueryType::Timestamp, count: 2 * TIMED_PASSES }),
+                set: device.create_query_set(&wgpu::QuerySetDescriptor {
+                    label: Some("edtmap passes"),
+                    ty: wgpu::QueryType::Timestamp,
+                    count: 2 * TIMED_PASSES,
+                }),
                 resolve: buffer("timestamps", wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC),
                 staging: buffer("timestamps staging", wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST),
                 period_ns: f64::from(queue.get_timestamp_period()),
@@ -109,7 +123,15 @@ impl GpuContext {
             })
         });
         let queue = CountingQueue { queue, counters: Arc::new(Counters::default()) };
-        Ok(GpuContext { device, queue, info, limits, lost, timer, stage: Arc::new(AtomicUsize::new(Stage::BatchEdt as usize)) })
+        Ok(GpuContext {
+            device,
+            queue,
+            info,
+            limits,
+            lost,
+            timer,
+            stage: Arc::new(AtomicUsize::new(Stage::BatchEdt as usize)),
+        })
     }
 
     /// Whether compute passes are timed on the device (the adapter has
@@ -155,16 +177,22 @@ impl GpuContext {
         let mut state = t.state.lock().map_err(|_| BackendError::Device("timer lock poisoned".into()))?;
         let n = state.passes.len() as u64;
         if n > 0 {
-            let mut enc = self.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("timestamps") });
+            let mut enc =
+                self.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("timestamps") });
             enc.resolve_query_set(&t.set, 0..2 * n as u32, &t.resolve, 0);
             enc.copy_buffer_to_buffer(&t.resolve, 0, &t.staging, 0, 16 * n);
             self.queue.queue.submit([enc.finish()]);
             let mut ticks = vec![0u64; 2 * n as usize];
-            self.map_read(&t.staging, 16 * n, |bytes| {
-                for (tick, b) in ticks.iter_mut().zip(bytes.chunks_exact(8)) {
-                    *tick = u64::from_ne_bytes([b[0], b[1], b[2], b[3], b[4], b[5], b[6], b[7]]);
-                }
-            }, None)?;
+            self.map_read(
+                &t.staging,
+                16 * n,
+                |bytes| {
+                    for (tick, b) in ticks.iter_mut().zip(bytes.chunks_exact(8)) {
+                        *tick = u64::from_ne_bytes([b[0], b[1], b[2], b[3], b[4], b[5], b[6], b[7]]);
+                    }
+                },
+                None,
+            )?;
             let passes = std::mem::take(&mut state.passes);
             for (stage, pair) in passes.into_iter().zip(ticks.chunks_exact(2)) {
                 let ns = (pair[1].saturating_sub(pair[0]) as f64 * t.period_ns).round() as u64;
@@ -199,13 +227,26 @@ impl GpuContext {
 
     /// A buffer of `size` bytes (zeroed by wgpu) for `usage`.
     pub(crate) fn buffer(&self, label: &str, size: u64, usage: wgpu::BufferUsages) -> wgpu::Buffer {
-        self.device.create_buffer(&wgpu::BufferDescriptor { label: Some(label), size, usage, mapped_at_creation: false })
+        self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size,
+            usage,
+            mapped_at_creation: false,
+        })
     }
 
     /// A bind group of `layout` with `resources[k]` at binding `k`.
-    pub(crate) fn bind_group(&self, label: &str, layout: &wgpu::BindGroupLayout, resources: &[wgpu::BindingResource<'_>]) -> wgpu::BindGroup {
-        let entries: Vec<wgpu::BindGroupEntry<'_>> =
-            resources.iter().enumerate().map(|(k, r)| wgpu::BindGroupEntry { binding: k as u32, resource: r.clone() }).collect();
+    pub(crate) fn bind_group(
+        &self,
+        label: &str,
+        layout: &wgpu::BindGroupLayout,
+        resources: &[wgpu::BindingResource<'_>],
+    ) -> wgpu::BindGroup {
+        let entries: Vec<wgpu::BindGroupEntry<'_>> = resources
+            .iter()
+            .enumerate()
+            .map(|(k, r)| wgpu::BindGroupEntry { binding: k as u32, resource: r.clone() })
+            .collect();
         self.device.create_bind_group(&wgpu::BindGroupDescriptor { label: Some(label), layout, entries: &entries })
     }
 
@@ -273,7 +314,13 @@ impl GpuContext {
     /// Maps the first `bytes` of `staging` once the device is done and
     /// gives them to `read`, uncounted; the time spent waiting for the
     /// device is added to `waited` where given.
-    fn map_read(&self, staging: &wgpu::Buffer, bytes: u64, read: impl FnOnce(&[u8]), waited: Option<&AtomicU64>) -> Result<(), BackendError> {
+    fn map_read(
+        &self,
+        staging: &wgpu::Buffer,
+        bytes: u64,
+        read: impl FnOnce(&[u8]),
+        waited: Option<&AtomicU64>,
+    ) -> Result<(), BackendError> {
         let slice = staging.slice(..bytes);
         let status = Arc::new(Mutex::new(None));
         let done = Arc::clone(&status);

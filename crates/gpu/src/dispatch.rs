@@ -23,18 +23,34 @@ pub(crate) struct Kernel {
 
 impl Kernel {
     /// Compiles `entry` of `module` with a single bind group of `layout`.
-    pub(crate) fn new(ctx: &GpuContext, module: &wgpu::ShaderModule, layout: &wgpu::BindGroupLayout, entry: &str) -> Self {
+    pub(crate) fn new(
+        ctx: &GpuContext,
+        module: &wgpu::ShaderModule,
+        layout: &wgpu::BindGroupLayout,
+        entry: &str,
+    ) -> Self {
         Self::with_layouts(ctx, module, &[layout], entry)
     }
 
     /// Compiles `entry` of `module` with bind groups of `layouts`.
-    pub(crate) fn with_layouts(ctx: &GpuContext, module: &wgpu::ShaderModule, layouts: &[&wgpu::BindGroupLayout], entry: &str) -> Self {
+    pub(crate) fn with_layouts(
+        ctx: &GpuContext,
+        module: &wgpu::ShaderModule,
+        layouts: &[&wgpu::BindGroupLayout],
+        entry: &str,
+    ) -> Self {
         Self::specialised(ctx, module, layouts, entry, &[])
     }
 
     /// Compiles `entry` of `module` with bind groups of `layouts` and the
     /// shader's overridable constants set to `constants`.
-    pub(crate) fn specialised(ctx: &GpuContext, module: &wgpu::ShaderModule, layouts: &[&wgpu::BindGroupLayout], entry: &str, constants: &[(&str, f64)]) -> Self {
+    pub(crate) fn specialised(
+        ctx: &GpuContext,
+        module: &wgpu::ShaderModule,
+        layouts: &[&wgpu::BindGroupLayout],
+        entry: &str,
+        constants: &[(&str, f64)],
+    ) -> Self {
         let layouts: Vec<Option<&wgpu::BindGroupLayout>> = layouts.iter().map(|&l| Some(l)).collect();
         let pipeline_layout = ctx.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some(entry),
@@ -54,7 +70,13 @@ impl Kernel {
 
     /// Records one dispatch of `groups` workgroups with `group` bound at the
     /// dynamic uniform offset `offset`.
-    pub(crate) fn dispatch_at(&self, pass: &mut wgpu::ComputePass<'_>, group: &wgpu::BindGroup, offset: u32, groups: [u32; 3]) {
+    pub(crate) fn dispatch_at(
+        &self,
+        pass: &mut wgpu::ComputePass<'_>,
+        group: &wgpu::BindGroup,
+        offset: u32,
+        groups: [u32; 3],
+    ) {
         pass.set_pipeline(&self.pipeline);
         pass.set_bind_group(0, group, &[offset]);
         pass.dispatch_workgroups(groups[0], groups[1], groups[2]);
@@ -71,7 +93,13 @@ impl Kernel {
 
     /// Records one dispatch whose workgroup counts the device wrote at
     /// byte `offset` of `args`.
-    pub(crate) fn dispatch_indirect(&self, pass: &mut wgpu::ComputePass<'_>, bind: &[&wgpu::BindGroup], args: &wgpu::Buffer, offset: u64) {
+    pub(crate) fn dispatch_indirect(
+        &self,
+        pass: &mut wgpu::ComputePass<'_>,
+        bind: &[&wgpu::BindGroup],
+        args: &wgpu::Buffer,
+        offset: u64,
+    ) {
         self.bind(pass, bind);
         pass.dispatch_workgroups_indirect(args, offset);
         self.counters.dispatches.fetch_add(1, Ordering::Relaxed);
@@ -99,10 +127,14 @@ pub(crate) fn in_out_kernel(
     outputs: u32,
 ) -> (Kernel, wgpu::BindGroupLayout, wgpu::Buffer) {
     let dev = &ctx.device;
-    let module = dev.create_shader_module(wgpu::ShaderModuleDescriptor { label: Some(file), source: wgpu::ShaderSource::Wgsl(source.into()) });
+    let module = dev.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some(file),
+        source: wgpu::ShaderSource::Wgsl(source.into()),
+    });
     let mut entries = vec![uniform_entry(0, false), storage_entry(1, true)];
     entries.extend((0..outputs).map(|k| storage_entry(2 + k, false)));
-    let layout = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some(entry), entries: &entries });
+    let layout =
+        dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some(entry), entries: &entries });
     let params = ctx.buffer(entry, params_bytes, wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST);
     (Kernel::new(ctx, &module, &layout, entry), layout, params)
 }
@@ -113,7 +145,11 @@ pub(crate) fn uniform_entry(binding: u32, dynamic: bool) -> wgpu::BindGroupLayou
     wgpu::BindGroupLayoutEntry {
         binding,
         visibility: wgpu::ShaderStages::COMPUTE,
-        ty: wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Uniform, has_dynamic_offset: dynamic, min_binding_size: None },
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Uniform,
+            has_dynamic_offset: dynamic,
+            min_binding_size: None,
+        },
         count: None,
     }
 }

@@ -94,14 +94,25 @@ impl GpuEdt {
                 source: wgpu::ShaderSource::Wgsl(include_str!("edt.wgsl").into()),
             });
             let storage = |binding, read_only| crate::dispatch::storage_entry(binding, read_only);
-            let entries = [crate::dispatch::uniform_entry(0, true), storage(1, true), storage(2, true), storage(3, false), storage(4, false), storage(5, true)];
-            let layout = ctx.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                label: Some("edt"),
-                entries: &entries,
-            });
+            let entries = [
+                crate::dispatch::uniform_entry(0, true),
+                storage(1, true),
+                storage(2, true),
+                storage(3, false),
+                storage(4, false),
+                storage(5, true),
+            ];
+            let layout = ctx
+                .device
+                .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some("edt"), entries: &entries });
             // A power of two at least the alignment and the parameters.
-            let slot_bytes = u64::from(ctx.limits().min_uniform_buffer_offset_alignment).max(PARAMS_BYTES.next_power_of_two());
-            let params = ctx.buffer("edt params", slot_bytes * SLOTS as u64, wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST);
+            let slot_bytes =
+                u64::from(ctx.limits().min_uniform_buffer_offset_alignment).max(PARAMS_BYTES.next_power_of_two());
+            let params = ctx.buffer(
+                "edt params",
+                slot_bytes * SLOTS as u64,
+                wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            );
             let kernel = |entry| Kernel::new(ctx, &module, &layout, entry);
             GpuEdt {
                 ctx: ctx.clone(),
@@ -130,7 +141,9 @@ impl GpuEdt {
         let bufs = self.bufs.as_mut().ok_or_else(|| BackendError::Device("buffers missing".into()))?;
         if bufs.staging.is_none() {
             let size = 8 * bufs.voxels as u64;
-            bufs.staging = Some(self.ctx.scoped(|| self.ctx.buffer("edt staging", size, wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST))?);
+            bufs.staging = Some(self.ctx.scoped(|| {
+                self.ctx.buffer("edt staging", size, wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST)
+            })?);
         }
         let staging = bufs.staging.as_ref().ok_or_else(|| BackendError::Device("staging missing".into()))?;
         self.ctx.scoped(|| {
@@ -165,7 +178,11 @@ impl GpuEdt {
         let n = EdtField::check_dims(dims)?;
         let diag_sq: u64 = dims.iter().map(|&d| (d as u64 - 1).pow(2)).sum();
         if diag_sq >= MAX_DIAG_SQ {
-            return Err(CoreError::TooLarge { dims, reason: "squared diagonal of 2^30 or more (the GPU's 32-bit arithmetic)" }.into());
+            return Err(CoreError::TooLarge {
+                dims,
+                reason: "squared diagonal of 2^30 or more (the GPU's 32-bit arithmetic)",
+            }
+            .into());
         }
         self.ensure_buffers(n)?;
         let bufs = self.bufs.as_ref().ok_or_else(|| BackendError::Device("buffers missing".into()))?;
@@ -241,7 +258,8 @@ impl GpuEdt {
             let b = buffer("edt B", 8 * n64, storage);
             let stack = buffer("edt stack", 8 * n64, storage);
             // The slot table is not read when the mask is the grid's bits.
-            let (a_to_b, b_to_a) = (self.group([&mask, &a, &b, &stack, &mask]), self.group([&mask, &b, &a, &stack, &mask]));
+            let (a_to_b, b_to_a) =
+                (self.group([&mask, &a, &b, &stack, &mask]), self.group([&mask, &b, &a, &stack, &mask]));
             Buffers { voxels: n, mask, a, b, stack, staging: None, a_to_b, b_to_a }
         })?;
         self.bufs = Some(bufs);
@@ -277,6 +295,8 @@ pub(crate) fn copy_words(bytes: &[u8], out: &mut [u32]) {
 pub(crate) fn as_words(bytes: &[u8]) -> std::borrow::Cow<'_, [u32]> {
     match bytemuck::try_cast_slice::<u8, u32>(bytes) {
         Ok(words) => std::borrow::Cow::Borrowed(words),
-        Err(_) => std::borrow::Cow::Owned(bytes.chunks_exact(4).map(|b| u32::from_ne_bytes([b[0], b[1], b[2], b[3]])).collect()),
+        Err(_) => std::borrow::Cow::Owned(
+            bytes.chunks_exact(4).map(|b| u32::from_ne_bytes([b[0], b[1], b[2], b[3]])).collect(),
+        ),
     }
 }

@@ -22,7 +22,9 @@ use crate::edt::{as_words, copy_words, GpuEdt, Mask};
 use crate::obstacles::ResidentObstacles;
 use crate::pool::{runs, Pool};
 use edtmap_core::region::{write_back_offsets, Packing, WriteBack};
-use edtmap_core::{BackendError, BlockKey, EdtMap, MapStamp, Obstacles, VoxelIndex, BLOCK_VOXELS, NO_OBSTACLE, NO_OFFSET};
+use edtmap_core::{
+    BackendError, BlockKey, EdtMap, MapStamp, Obstacles, VoxelIndex, BLOCK_VOXELS, NO_OBSTACLE, NO_OFFSET,
+};
 
 /// The largest reach, voxels, a value's 10-bit offsets hold.
 const MAX_REACH: i32 = 511;
@@ -100,10 +102,19 @@ impl GpuExact {
             });
             let mut entries = vec![uniform_entry(0, false)];
             entries.extend((1..=5).map(|b| storage_entry(b, b <= 2)));
-            let layout = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some("exact"), entries: &entries });
+            let layout = dev
+                .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some("exact"), entries: &entries });
             let compare = Kernel::new(ctx, &module, &layout, "compare");
-            let params = ctx.buffer("exact params", std::mem::size_of::<Params>() as u64, wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST);
-            let ctrl = ctx.buffer("exact ctrl", 16, wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC);
+            let params = ctx.buffer(
+                "exact params",
+                std::mem::size_of::<Params>() as u64,
+                wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            );
+            let ctrl = ctx.buffer(
+                "exact ctrl",
+                16,
+                wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC,
+            );
             GpuExact {
                 ctx: ctx.clone(),
                 compare,
@@ -148,7 +159,13 @@ impl GpuExact {
     /// the batch EDT of `edt`, writing back the voxels that changed. On a
     /// failure the pool is dropped (the device may hold values the host
     /// map does not) and the map is untouched.
-    pub(crate) fn run(&mut self, edt: &mut GpuEdt, map: &mut EdtMap, obstacles: &Obstacles<'_>, packing: &Packing) -> Result<WriteBack, BackendError> {
+    pub(crate) fn run(
+        &mut self,
+        edt: &mut GpuEdt,
+        map: &mut EdtMap,
+        obstacles: &Obstacles<'_>,
+        packing: &Packing,
+    ) -> Result<WriteBack, BackendError> {
         let result = self.frame(edt, map, obstacles, packing);
         match &result {
             Ok(_) => self.seen = Some(map.stamp()),
@@ -161,9 +178,18 @@ impl GpuExact {
         result
     }
 
-    fn frame(&mut self, edt: &mut GpuEdt, map: &mut EdtMap, obstacles: &Obstacles<'_>, p: &Packing) -> Result<WriteBack, BackendError> {
+    fn frame(
+        &mut self,
+        edt: &mut GpuEdt,
+        map: &mut EdtMap,
+        obstacles: &Obstacles<'_>,
+        p: &Packing,
+    ) -> Result<WriteBack, BackendError> {
         if !Self::supports(p.cutoff.reach) {
-            return Err(BackendError::Device(format!("a cutoff reach of {} voxels is beyond the pool's {MAX_REACH}", p.cutoff.reach)));
+            return Err(BackendError::Device(format!(
+                "a cutoff reach of {} voxels is beyond the pool's {MAX_REACH}",
+                p.cutoff.reach
+            )));
         }
         self.frame += 1;
         let keys = p.region.blocks();
@@ -195,14 +221,25 @@ impl GpuExact {
                 enc.clear_buffer(&pool.buffer, u64::from(first) * BLOCK_BYTES, Some(u64::from(len) * BLOCK_BYTES));
             }
         }
-        let (obstacle_pool, obstacle_slots) = self.obstacles.buffers().ok_or_else(|| BackendError::Device("obstacle blocks missing".into()))?;
-        edt.encode_mask(Mask::Blocks { dims: p.source.dims, o8: placed.o8, nb: placed.nb, pool: obstacle_pool, slots: obstacle_slots }, &mut enc)?;
+        let (obstacle_pool, obstacle_slots) =
+            self.obstacles.buffers().ok_or_else(|| BackendError::Device("obstacle blocks missing".into()))?;
+        edt.encode_mask(
+            Mask::Blocks {
+                dims: p.source.dims,
+                o8: placed.o8,
+                nb: placed.nb,
+                pool: obstacle_pool,
+                slots: obstacle_slots,
+            },
+            &mut enc,
+        )?;
         let pairs = edt.output().ok_or_else(|| BackendError::Device("EDT buffers missing".into()))?;
         let pool = self.pool.as_ref().ok_or_else(|| BackendError::Device("pool missing".into()))?;
         let bufs = self.frame_bufs.as_ref().ok_or_else(|| BackendError::Device("buffers missing".into()))?;
         let list_bytes = 4 * nb as u64;
         self.ctx.scoped(|| {
-            let resources = [&self.params, pairs, &bufs.slots, &pool.buffer, &bufs.list, &self.ctrl].map(|b| b.as_entire_binding());
+            let resources =
+                [&self.params, pairs, &bufs.slots, &pool.buffer, &bufs.list, &self.ctrl].map(|b| b.as_entire_binding());
             let group = self.ctx.bind_group("exact", &self.layout, &resources);
             let q = &self.ctx.queue;
             q.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
@@ -240,7 +277,8 @@ impl GpuExact {
         let values_bytes = count as u64 * BLOCK_BYTES;
         let slots: Vec<u32> = listed.iter().map(|&b| self.slot_table[b as usize]).collect();
         self.ctx.scoped(|| {
-            let mut enc = self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("exact read") });
+            let mut enc =
+                self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("exact read") });
             pool.copy_out(&mut enc, &slots, &bufs.staging);
             self.ctx.queue.submit([enc.finish()]);
         })?;
@@ -292,7 +330,10 @@ impl GpuExact {
         let (reach, max) = (p.cutoff.reach, p.cutoff.max_dist_sq);
         pool.write(&self.ctx, &fresh, &mut self.upload, |key, out| {
             if let Some(b) = map.get(key) {
-                out.extend((0..BLOCK_VOXELS).map(|off| encode(key.voxel(off), b.dist_sq(off), b.nearest(key, off), max, reach)));
+                out.extend(
+                    (0..BLOCK_VOXELS)
+                        .map(|off| encode(key.voxel(off), b.dist_sq(off), b.nearest(key, off), max, reach)),
+                );
             }
         });
         Ok(())
@@ -320,8 +361,16 @@ impl GpuExact {
                     blocks,
                     slots: buffer("exact slots", 4 * n, storage | wgpu::BufferUsages::COPY_DST),
                     list: buffer("exact list", 4 * n, storage | wgpu::BufferUsages::COPY_SRC),
-                    list_staging: buffer("exact list staging", 16 + 4 * n, wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST),
-                    staging: buffer("exact staging", n * BLOCK_BYTES, wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST),
+                    list_staging: buffer(
+                        "exact list staging",
+                        16 + 4 * n,
+                        wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                    ),
+                    staging: buffer(
+                        "exact staging",
+                        n * BLOCK_BYTES,
+                        wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                    ),
                 }
             })?;
             self.frame_bufs = Some(bufs);
@@ -366,7 +415,13 @@ mod tests {
         for (n, d) in [(VoxelIndex([3, -4, 2]), 9 + 81), (v, 0), (VoxelIndex([-20, 5, 2]), 400)] {
             let word = encode(v, d, n, cutoff.max_dist_sq, cutoff.reach);
             let o = word_offset(word);
-            assert_eq!(p.pack(o.iter().map(|&c| (i32::from(c) * i32::from(c)) as u32).sum(), VoxelIndex([0, 1, 2].map(|a| v.0[a] + i32::from(o[a])))), p.pack(d, n));
+            assert_eq!(
+                p.pack(
+                    o.iter().map(|&c| (i32::from(c) * i32::from(c)) as u32).sum(),
+                    VoxelIndex([0, 1, 2].map(|a| v.0[a] + i32::from(o[a])))
+                ),
+                p.pack(d, n)
+            );
         }
         assert_eq!(word_offset(ENC_FAR), NO_OFFSET);
         assert_eq!(encode(v, 401, VoxelIndex([-21, 5, 2]), 400, 20), ENC_FAR);

@@ -20,7 +20,10 @@ use crate::context::GpuContext;
 use crate::dispatch::{groups_1d, storage_entry, uniform_entry, Kernel, GROUP};
 use crate::edt::as_words;
 use crate::pool::{runs, Pool};
-use edtmap_core::{BackendError, BlockKey, FuseReport, LocalVolume, LogOdds, OccupancyBlock, OccupancyMap, SharedBlock, BLOCK_VOXELS, UNOBSERVED};
+use edtmap_core::{
+    BackendError, BlockKey, FuseReport, LocalVolume, LogOdds, OccupancyBlock, OccupancyMap, SharedBlock, BLOCK_VOXELS,
+    UNOBSERVED,
+};
 
 /// A pool word's bits are the log-odds' bits XOR this (the bits of
 /// [`UNOBSERVED`]): a word of 0 is a voxel never observed.
@@ -93,11 +96,16 @@ impl GpuFusion {
             });
             let mut entries = vec![uniform_entry(0, false)];
             entries.extend((1..=5).map(|b| storage_entry(b, b <= 3)));
-            let layout = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some("fuse"), entries: &entries });
+            let layout = dev
+                .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some("fuse"), entries: &entries });
             GpuFusion {
                 ctx: ctx.clone(),
                 fuse: Kernel::new(ctx, &module, &layout, "fuse"),
-                params: ctx.buffer("fuse params", std::mem::size_of::<Params>() as u64, wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST),
+                params: ctx.buffer(
+                    "fuse params",
+                    std::mem::size_of::<Params>() as u64,
+                    wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                ),
                 layout,
                 pool: None,
                 held: Vec::new(),
@@ -115,7 +123,14 @@ impl GpuFusion {
     /// the voxels in `corrections` (voxel index × 4 + code, each voxel
     /// once) replaced, into `map` with `lo`. On a failure the pool is dropped and
     /// the map is as it was.
-    pub(crate) fn run(&mut self, codes: &wgpu::Buffer, corrections: &[u32], map: &mut OccupancyMap, vol: &LocalVolume, lo: &LogOdds) -> Result<FuseReport, BackendError> {
+    pub(crate) fn run(
+        &mut self,
+        codes: &wgpu::Buffer,
+        corrections: &[u32],
+        map: &mut OccupancyMap,
+        vol: &LocalVolume,
+        lo: &LogOdds,
+    ) -> Result<FuseReport, BackendError> {
         let result = self.frame(codes, corrections, map, vol, lo);
         if result.is_err() {
             self.forget();
@@ -139,7 +154,14 @@ impl GpuFusion {
         self.held.iter_mut().for_each(|h| *h = None);
     }
 
-    fn frame(&mut self, codes: &wgpu::Buffer, corrections: &[u32], map: &mut OccupancyMap, vol: &LocalVolume, lo: &LogOdds) -> Result<FuseReport, BackendError> {
+    fn frame(
+        &mut self,
+        codes: &wgpu::Buffer,
+        corrections: &[u32],
+        map: &mut OccupancyMap,
+        vol: &LocalVolume,
+        lo: &LogOdds,
+    ) -> Result<FuseReport, BackendError> {
         if vol.len() >= MAX_VOXELS {
             return Err(BackendError::Device(format!("a volume of {} voxels for the device's fusion", vol.len())));
         }
@@ -167,13 +189,15 @@ impl GpuFusion {
         let bufs = self.bufs.as_ref().ok_or_else(|| BackendError::Device("fusion buffers missing".into()))?;
         let counts_bytes = 4 * nb as u64;
         self.ctx.scoped(|| {
-            let resources = [&self.params, codes, &bufs.fixes, &bufs.slots, &pool.buffer, &bufs.counts].map(|b| b.as_entire_binding());
+            let resources = [&self.params, codes, &bufs.fixes, &bufs.slots, &pool.buffer, &bufs.counts]
+                .map(|b| b.as_entire_binding());
             let group = self.ctx.bind_group("fuse", &self.layout, &resources);
             let q = &self.ctx.queue;
             q.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
             q.write_buffer(&bufs.slots, 0, bytemuck::cast_slice(&self.slot_table));
             q.write_buffer(&bufs.fixes, 0, bytemuck::cast_slice(&self.fixes));
-            let mut enc = self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("fuse") });
+            let mut enc =
+                self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("fuse") });
             for (first, len) in runs(&self.cleared) {
                 enc.clear_buffer(&pool.buffer, u64::from(first) * BLOCK_BYTES, Some(u64::from(len) * BLOCK_BYTES));
             }
@@ -223,7 +247,8 @@ impl GpuFusion {
         let count = rewritten.len();
         let slots: Vec<u32> = rewritten.iter().map(|&b| self.slot_table[b]).collect();
         self.ctx.scoped(|| {
-            let mut enc = self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("fuse read") });
+            let mut enc =
+                self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("fuse read") });
             pool.copy_out(&mut enc, &slots, &bufs.staging);
             self.ctx.queue.submit([enc.finish()]);
         })?;
@@ -252,7 +277,14 @@ impl GpuFusion {
     /// (`nb` blocks, `nb3` per axis, the volume's origin at `o8` in the
     /// first) into `self.fixes`: `nb + 1` bounds, then per block its
     /// voxels' offsets + 512 × code (a counting sort).
-    fn group_fixes(&mut self, corrections: &[u32], vol: &LocalVolume, o8: [u32; 3], nb3: [u32; 3], nb: usize) -> Result<(), BackendError> {
+    fn group_fixes(
+        &mut self,
+        corrections: &[u32],
+        vol: &LocalVolume,
+        o8: [u32; 3],
+        nb3: [u32; 3],
+        nb: usize,
+    ) -> Result<(), BackendError> {
         let [nx, ny, _] = vol.dims;
         let place = |e: u32| {
             let i = (e >> 2) as usize;
@@ -362,7 +394,11 @@ impl GpuFusion {
                     corrections: fixes,
                     slots: buffer("fuse slots", 4 * n, storage | wgpu::BufferUsages::COPY_DST),
                     fixes: buffer("fuse corrections", 4 * fixes as u64, storage | wgpu::BufferUsages::COPY_DST),
-                    counts: buffer("fuse counts", 4 * n, storage | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC),
+                    counts: buffer(
+                        "fuse counts",
+                        4 * n,
+                        storage | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC,
+                    ),
                     counts_staging: buffer("fuse counts staging", 4 * n, read),
                     staging: buffer("fuse staging", n * BLOCK_BYTES, read),
                 }

@@ -16,7 +16,9 @@
 use crate::context::GpuContext;
 use crate::dispatch::{groups_1d, storage_entry, uniform_entry, Kernel};
 use edtmap_core::region::{read_region_except, write_back_offsets, Packing, Region, WriteBack, FAR};
-use edtmap_core::{BackendError, BlockKey, Cutoff, EdtField, EdtMap, IntegrateReport, LocalVolume, MapStamp, WaveCounts, NO_OFFSET};
+use edtmap_core::{
+    BackendError, BlockKey, Cutoff, EdtField, EdtMap, IntegrateReport, LocalVolume, MapStamp, WaveCounts, NO_OFFSET,
+};
 
 /// Levels encoded per submission before the host checks for the end.
 const LEVELS_PER_SUBMIT: usize = 4;
@@ -163,17 +165,32 @@ impl GpuIntegrator {
             });
             let mut entries = vec![uniform_entry(0, false)];
             entries.extend((1..=10).map(|b| storage_entry(b, b == 3 || b == 10)));
-            let layout = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some("integrate"), entries: &entries });
+            let layout = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some("integrate"),
+                entries: &entries,
+            });
             let args_layout = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
                 label: Some("integrate args"),
                 entries: &[storage_entry(0, false)],
             });
             let buffer = |label, size, usage| ctx.buffer(label, size, usage);
-            let params = buffer("integrate params", std::mem::size_of::<Params>() as u64, wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST);
+            let params = buffer(
+                "integrate params",
+                std::mem::size_of::<Params>() as u64,
+                wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            );
             let args = buffer("integrate args", 60, wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::INDIRECT);
             let ctrl_bytes = 4 * CTRL_WORDS as u64;
-            let ctrl = buffer("integrate ctrl", ctrl_bytes, wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC);
-            let ctrl_staging = buffer("integrate ctrl staging", ctrl_bytes, wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST);
+            let ctrl = buffer(
+                "integrate ctrl",
+                ctrl_bytes,
+                wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC,
+            );
+            let ctrl_staging = buffer(
+                "integrate ctrl staging",
+                ctrl_bytes,
+                wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            );
             let args_group = ctx.bind_group("integrate args", &args_layout, &[args.as_entire_binding()]);
             let plain = |entry| Kernel::new(ctx, &module, &layout, entry);
             let prep = |entry| Kernel::with_layouts(ctx, &module, &[&layout, &args_layout], entry);
@@ -221,9 +238,20 @@ impl GpuIntegrator {
 
     /// Merges `batch`, the batch EDT of `window`, into `map` (see the
     /// module docs).
-    pub fn run(&mut self, map: &mut EdtMap, window: &LocalVolume, batch: &EdtField, cutoff: Cutoff, offsets: &[[i32; 3]]) -> Result<IntegrateReport, BackendError> {
+    pub fn run(
+        &mut self,
+        map: &mut EdtMap,
+        window: &LocalVolume,
+        batch: &EdtField,
+        cutoff: Cutoff,
+        offsets: &[[i32; 3]],
+    ) -> Result<IntegrateReport, BackendError> {
         if batch.dims() != window.dims {
-            return Err(BackendError::Device(format!("batch EDT of {:?} voxels for a window of {:?}", batch.dims(), window.dims)));
+            return Err(BackendError::Device(format!(
+                "batch EDT of {:?} voxels for a window of {:?}",
+                batch.dims(),
+                window.dims
+            )));
         }
         self.merge(map, window, WindowBatch::Host(batch), cutoff, offsets)
     }
@@ -232,11 +260,25 @@ impl GpuIntegrator {
     /// buffer of (squared distance, nearest) pairs in the window's voxel
     /// order, as [`crate::GpuEdt`] leaves it: copied on the device, never
     /// read back.
-    pub(crate) fn run_resident(&mut self, map: &mut EdtMap, window: &LocalVolume, pairs: &wgpu::Buffer, cutoff: Cutoff, offsets: &[[i32; 3]]) -> Result<IntegrateReport, BackendError> {
+    pub(crate) fn run_resident(
+        &mut self,
+        map: &mut EdtMap,
+        window: &LocalVolume,
+        pairs: &wgpu::Buffer,
+        cutoff: Cutoff,
+        offsets: &[[i32; 3]],
+    ) -> Result<IntegrateReport, BackendError> {
         self.merge(map, window, WindowBatch::Device(pairs), cutoff, offsets)
     }
 
-    fn merge(&mut self, map: &mut EdtMap, window: &LocalVolume, batch: WindowBatch<'_>, cutoff: Cutoff, offsets: &[[i32; 3]]) -> Result<IntegrateReport, BackendError> {
+    fn merge(
+        &mut self,
+        map: &mut EdtMap,
+        window: &LocalVolume,
+        batch: WindowBatch<'_>,
+        cutoff: Cutoff,
+        offsets: &[[i32; 3]],
+    ) -> Result<IntegrateReport, BackendError> {
         if self.seen != Some(map.stamp()) {
             // Changed by other means (another backend, fixed obstacles
             // laid down, another map): what the device holds is stale.
@@ -266,7 +308,13 @@ impl GpuIntegrator {
     /// Sizes the buffers for the frame's region, reads the region's values
     /// from `map` (only the newly covered voxels when it is resident) and
     /// sets the kernels' parameters.
-    fn prepare(&mut self, map: &EdtMap, window: &LocalVolume, cutoff: Cutoff, offsets: &[[i32; 3]]) -> Result<FrameJob, BackendError> {
+    fn prepare(
+        &mut self,
+        map: &EdtMap,
+        window: &LocalVolume,
+        cutoff: Cutoff,
+        offsets: &[[i32; 3]],
+    ) -> Result<FrameJob, BackendError> {
         let packing = Packing::new(Region::around(window, cutoff.reach + 1), cutoff)?;
         let region = packing.region;
         let (r, w) = (region.len(), window.len());
@@ -281,10 +329,17 @@ impl GpuIntegrator {
         // With the region resident, only the newly covered voxels go up.
         self.fresh.clear();
         if let Some(prev) = &resident {
-            for_fresh(&region, prev, |i| self.fresh.push([i as u32, self.old[i] as u32, (self.old[i] >> 32) as u32, 0]));
+            for_fresh(&region, prev, |i| {
+                self.fresh.push([i as u32, self.old[i] as u32, (self.old[i] >> 32) as u32, 0])
+            });
         }
         let delta = match resident {
-            Some(prev) => [region.origin[0] - prev.origin[0], region.origin[1] - prev.origin[1], region.origin[2] - prev.origin[2], 1],
+            Some(prev) => [
+                region.origin[0] - prev.origin[0],
+                region.origin[1] - prev.origin[1],
+                region.origin[2] - prev.origin[2],
+                1,
+            ],
             None => [0; 4],
         };
         let mut params = Params {
@@ -332,7 +387,8 @@ impl GpuIntegrator {
             } else {
                 q.write_buffer(&bufs.old, 0, bytemuck::cast_slice(&self.old));
             }
-            let mut enc = self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("integrate") });
+            let mut enc =
+                self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("integrate") });
             match batch {
                 WindowBatch::Host(_) => q.write_buffer(&bufs.batch, 0, bytemuck::cast_slice(&self.pairs_up)),
                 WindowBatch::Device(pairs) => enc.copy_buffer_to_buffer(pairs, 0, &bufs.batch, 0, 8 * w as u64),
@@ -366,7 +422,8 @@ impl GpuIntegrator {
         let mut counts = self.read_ctrl()?;
         while counts[C_FRONT] > 0 {
             self.ctx.scoped(|| {
-                let mut enc = self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("lower") });
+                let mut enc =
+                    self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("lower") });
                 {
                     let mut pass = self.ctx.pass(&mut enc, "lower");
                     // A small frontier goes to one workgroup, which runs
@@ -403,7 +460,8 @@ impl GpuIntegrator {
         let with_args = [&bufs.group, &self.args_group];
         let (r, nb) = (job.packing.region.len(), job.nb);
         self.ctx.scoped(|| {
-            let mut enc = self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("changes") });
+            let mut enc =
+                self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("changes") });
             {
                 let mut pass = self.ctx.pass(&mut enc, "changes");
                 k.diff.dispatch(&mut pass, &one, groups_1d(r as u64));
@@ -422,7 +480,10 @@ impl GpuIntegrator {
         pairs.resize(2 * 512 * dirty, 0);
         if dirty > 0 {
             self.ctx.scoped(|| {
-                let mut enc = self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("read changes") });
+                let mut enc = self
+                    .ctx
+                    .device
+                    .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("read changes") });
                 enc.copy_buffer_to_buffer(&bufs.blk, 4 * nb as u64, &bufs.staging, 0, list_bytes);
                 enc.copy_buffer_to_buffer(&bufs.pairs, 0, &bufs.staging, pairs_at, pair_bytes);
                 self.ctx.queue.submit([enc.finish()]);
@@ -478,7 +539,8 @@ impl GpuIntegrator {
     fn read_ctrl(&self) -> Result<[u32; CTRL_WORDS], BackendError> {
         let bytes = 4 * CTRL_WORDS as u64;
         self.ctx.scoped(|| {
-            let mut enc = self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("ctrl") });
+            let mut enc =
+                self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("ctrl") });
             enc.copy_buffer_to_buffer(&self.ctrl, 0, &self.ctrl_staging, 0, bytes);
             self.ctx.queue.submit([enc.finish()]);
         })?;
@@ -496,7 +558,8 @@ impl GpuIntegrator {
         }
         // Grow each to at least what it was, so alternating sizes do not
         // reallocate every frame.
-        let (r, w, nb) = self.bufs.as_ref().map_or((r, w, nb), |b| (b.region.max(r), b.window.max(w), b.blocks.max(nb)));
+        let (r, w, nb) =
+            self.bufs.as_ref().map_or((r, w, nb), |b| (b.region.max(r), b.window.max(w), b.blocks.max(nb)));
         self.bufs = None;
         let (r64, w64, nb64) = (r as u64, w as u64, nb as u64);
         let limits = [
@@ -521,7 +584,8 @@ impl GpuIntegrator {
             let front = buffer("integrate front", 16 * r64, storage);
             let blk = buffer("integrate blocks", 8 * nb64, storage | copy_dst | copy_src);
             let pairs = buffer("integrate pairs", 8 * 512 * nb64, storage | copy_src);
-            let staging = buffer("integrate staging", pairs_offset(nb) + 8 * 512 * nb64, wgpu::BufferUsages::MAP_READ | copy_dst);
+            let staging =
+                buffer("integrate staging", pairs_offset(nb) + 8 * 512 * nb64, wgpu::BufferUsages::MAP_READ | copy_dst);
             let fresh = buffer("integrate fresh", 16 * r64, storage | copy_dst);
             let list = [&self.params, &old, &cur, &batch, &mark, &queues, &front, &self.ctrl, &blk, &pairs, &fresh];
             let group = self.ctx.bind_group("integrate", &self.layout, &list.map(|b| b.as_entire_binding()));
@@ -536,8 +600,12 @@ impl GpuIntegrator {
 /// `prev`, row by row.
 fn for_fresh(region: &Region, prev: &Region, mut f: impl FnMut(usize)) {
     let [nx, ny, nz] = region.dims;
-    let lo = [0, 1, 2].map(|a| (i64::from(prev.origin[a]) - i64::from(region.origin[a])).clamp(0, region.dims[a] as i64) as usize);
-    let hi = [0, 1, 2].map(|a| (i64::from(prev.origin[a]) + prev.dims[a] as i64 - i64::from(region.origin[a])).clamp(0, region.dims[a] as i64) as usize);
+    let lo = [0, 1, 2]
+        .map(|a| (i64::from(prev.origin[a]) - i64::from(region.origin[a])).clamp(0, region.dims[a] as i64) as usize);
+    let hi = [0, 1, 2].map(|a| {
+        (i64::from(prev.origin[a]) + prev.dims[a] as i64 - i64::from(region.origin[a])).clamp(0, region.dims[a] as i64)
+            as usize
+    });
     for z in 0..nz {
         for y in 0..ny {
             let row = nx * (y + ny * z);

@@ -22,9 +22,9 @@ mod raycast;
 
 pub use context::GpuContext;
 use context::Stage;
+pub use edt::GpuEdt;
 use exact::GpuExact;
 use fuse::GpuFusion;
-pub use edt::GpuEdt;
 pub use integrate::GpuIntegrator;
 pub use project::GpuProject;
 use project::Kept;
@@ -34,8 +34,8 @@ use edtmap_core::fixed_ray::{cast_fixed, FixedRay};
 use edtmap_core::region::{Packing, Region};
 use edtmap_core::stages::exact::{recompute_exact, ExactBuffers};
 use edtmap_core::{
-    decide_uncertain, mark_misses, Backend, BackendError, BatchEdt, EdtField, FuseReport, Grid3, IntegrateJob, IntegrateReport, Integration, LocalVolume,
-    LogOdds, Observations, OccupancyMap, ProjectJob, OBS_MISS, OBS_NONE,
+    decide_uncertain, mark_misses, Backend, BackendError, BatchEdt, EdtField, FuseReport, Grid3, IntegrateJob,
+    IntegrateReport, Integration, LocalVolume, LogOdds, Observations, OccupancyMap, ProjectJob, OBS_MISS, OBS_NONE,
 };
 use rayon::prelude::*;
 
@@ -152,10 +152,17 @@ impl GpuBackend {
     /// from the device's batch EDT where the pool cannot encode the cutoff.
     /// A region whose source box (grown by the reach) is over the device's
     /// buffer limit goes in tiles that fit, each exact on its own.
-    fn recompute(&mut self, map: &mut edtmap_core::EdtMap, obstacles: &edtmap_core::Obstacles<'_>, region: Region, cutoff: edtmap_core::Cutoff) -> Result<IntegrateReport, BackendError> {
+    fn recompute(
+        &mut self,
+        map: &mut edtmap_core::EdtMap,
+        obstacles: &edtmap_core::Obstacles<'_>,
+        region: Region,
+        cutoff: edtmap_core::Cutoff,
+    ) -> Result<IntegrateReport, BackendError> {
         let limits = self.ctx.limits();
         // The batch EDT's largest buffers hold 8 bytes per source voxel.
-        let max_voxels = (limits.max_buffer_size.min(limits.max_storage_buffer_binding_size) / 8).min(self.max_tile_voxels);
+        let max_voxels =
+            (limits.max_buffer_size.min(limits.max_storage_buffer_binding_size) / 8).min(self.max_tile_voxels);
         let tile = tile_dims(region.dims, cutoff.reach, max_voxels).ok_or(BackendError::OverLimit {
             what: "the exact integration's batch EDT (even an 8³ tile grown by the cutoff's reach)",
             needed: 8 * (8 + 2 * cutoff.reach as u64).pow(3),
@@ -167,7 +174,10 @@ impl GpuBackend {
             for y in (0..region.dims[1]).step_by(tile[1]) {
                 for x in (0..region.dims[0]).step_by(tile[0]) {
                     let c = [x, y, z];
-                    let part = Region { origin: [0, 1, 2].map(|a| region.origin[a] + c[a] as i32), dims: [0, 1, 2].map(|a| tile[a].min(region.dims[a] - c[a])) };
+                    let part = Region {
+                        origin: [0, 1, 2].map(|a| region.origin[a] + c[a] as i32),
+                        dims: [0, 1, 2].map(|a| tile[a].min(region.dims[a] - c[a])),
+                    };
                     let packing = Packing::new(part, cutoff)?;
                     let written = if GpuExact::supports(cutoff.reach) {
                         self.exact.run(&mut self.edt, map, obstacles, &packing)?
@@ -294,14 +304,19 @@ impl Backend for GpuBackend {
     fn fuse(&mut self, map: &mut OccupancyMap, obs: &Observations, lo: &LogOdds) -> Result<FuseReport, BackendError> {
         let Some(pending) = self.pending.take() else { return Ok(edtmap_core::fuse(map, obs, lo)) };
         if pending.volume != *obs.volume() {
-            return Err(BackendError::Device(format!("observations of {:?} to fuse, the device's are of {:?}", obs.volume(), pending.volume)));
+            return Err(BackendError::Device(format!(
+                "observations of {:?} to fuse, the device's are of {:?}",
+                obs.volume(),
+                pending.volume
+            )));
         }
         self.ctx.set_stage(Stage::Occupancy);
         let codes = if pending.cast { self.raycast.codes() } else { self.project.codes() };
         let codes = codes.ok_or_else(|| BackendError::Device("observation codes missing".into()))?;
         // What the host marked (a projection's hits, the uncertain voxels
         // it found missed), then the uncertain voxels it left unobserved.
-        let mut fixes: Vec<u32> = obs.observed().into_iter().map(|(i, code)| ((i as u32) << 2) | u32::from(code)).collect();
+        let mut fixes: Vec<u32> =
+            obs.observed().into_iter().map(|(i, code)| ((i as u32) << 2) | u32::from(code)).collect();
         fixes.extend(pending.uncertain.iter().filter(|&&i| obs.get(i as usize) == OBS_NONE).map(|&i| i << 2));
         self.fusion.run(codes, &fixes, map, obs.volume(), lo)
     }
@@ -310,15 +325,24 @@ impl Backend for GpuBackend {
         self.ctx.set_stage(Stage::Integrate);
         let IntegrateJob { map, obstacles, cutoff, work } = job;
         match work {
-            Integration::Wavefront { window, batch, offsets } => self.integrator.run(map, window, batch, cutoff, offsets),
+            Integration::Wavefront { window, batch, offsets } => {
+                self.integrator.run(map, window, batch, cutoff, offsets)
+            }
             Integration::WavefrontMask { window, mask, offsets } => {
                 if mask.dims() != window.dims {
-                    return Err(BackendError::Device(format!("obstacle mask of {:?} voxels for a window of {:?}", mask.dims(), window.dims)));
+                    return Err(BackendError::Device(format!(
+                        "obstacle mask of {:?} voxels for a window of {:?}",
+                        mask.dims(),
+                        window.dims
+                    )));
                 }
                 // The window's batch EDT stays on the device, where the
                 // merge copies it from.
                 self.ctx.set_stage(Stage::BatchEdt);
-                let mut enc = self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("window edt") });
+                let mut enc = self
+                    .ctx
+                    .device
+                    .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("window edt") });
                 self.edt.encode(mask, &mut enc)?;
                 self.ctx.scoped(|| self.ctx.queue.submit([enc.finish()]))?;
                 self.ctx.set_stage(Stage::Integrate);

@@ -12,11 +12,11 @@
 //! uploaded, so it never needs to know what changed the map: a block whose
 //! bits differ from the device's goes up again.
 
-use rayon::prelude::*;
 use crate::context::GpuContext;
 use crate::pool::Pool;
 use edtmap_core::region::Region;
 use edtmap_core::{BackendError, Obstacles};
+use rayon::prelude::*;
 
 /// A table entry: a block with no obstacle.
 const EMPTY: u32 = u32::MAX;
@@ -65,7 +65,16 @@ pub(crate) struct ResidentObstacles {
 
 impl ResidentObstacles {
     pub(crate) fn new(ctx: &GpuContext) -> Self {
-        ResidentObstacles { ctx: ctx.clone(), pool: None, held: Vec::new(), max_slots: usize::MAX, table_buffer: None, bits: Vec::new(), table: Vec::new(), scratch: Vec::new() }
+        ResidentObstacles {
+            ctx: ctx.clone(),
+            pool: None,
+            held: Vec::new(),
+            max_slots: usize::MAX,
+            table_buffer: None,
+            bits: Vec::new(),
+            table: Vec::new(),
+            scratch: Vec::new(),
+        }
     }
 
     /// Caps the pool at `slots` blocks (at least a source box's), dropping
@@ -90,7 +99,12 @@ impl ResidentObstacles {
     /// Puts the obstacles of `source` on the device, uploading the blocks
     /// the pool does not hold with these bits (used in `frame`, for the
     /// least-recently-used order), and the box's slot table.
-    pub(crate) fn place(&mut self, obstacles: &Obstacles<'_>, source: &Region, frame: u64) -> Result<Placed, BackendError> {
+    pub(crate) fn place(
+        &mut self,
+        obstacles: &Obstacles<'_>,
+        source: &Region,
+        frame: u64,
+    ) -> Result<Placed, BackendError> {
         let keys = source.blocks();
         let (first, last) = match (keys.first(), keys.last()) {
             (Some(f), Some(l)) => (*f, *l),
@@ -144,7 +158,13 @@ impl ResidentObstacles {
             self.table_buffer = None;
             let blocks = keys.len().next_power_of_two();
             self.ctx.check_buffer("the obstacle blocks' slot table", 4 * blocks as u64)?;
-            let buffer = self.ctx.scoped(|| self.ctx.buffer("obstacle slots", 4 * blocks as u64, wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST))?;
+            let buffer = self.ctx.scoped(|| {
+                self.ctx.buffer(
+                    "obstacle slots",
+                    4 * blocks as u64,
+                    wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+                )
+            })?;
             self.table_buffer = Some((buffer, blocks));
         }
         if let Some((buffer, _)) = &self.table_buffer {

@@ -25,12 +25,24 @@ pub(crate) struct Pool {
 impl Pool {
     /// An empty pool of `slots` slots of `block_bytes`, refused with the
     /// numbers when its buffer is over the device's limit.
-    pub(crate) fn new(ctx: &GpuContext, what: &'static str, slots: usize, block_bytes: u64) -> Result<Self, BackendError> {
+    pub(crate) fn new(
+        ctx: &GpuContext,
+        what: &'static str,
+        slots: usize,
+        block_bytes: u64,
+    ) -> Result<Self, BackendError> {
         let bytes = slots as u64 * block_bytes;
         ctx.check_buffer(what, bytes)?;
         let usage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC;
         let buffer = ctx.scoped(|| ctx.buffer(what, bytes, usage))?;
-        Ok(Pool { buffer, slots, block_bytes, table: HashMap::new(), owner: vec![None; slots], free: (0..slots as u32).rev().collect() })
+        Ok(Pool {
+            buffer,
+            slots,
+            block_bytes,
+            table: HashMap::new(),
+            owner: vec![None; slots],
+            free: (0..slots as u32).rev().collect(),
+        })
     }
 
     /// Forgets every resident block.
@@ -43,7 +55,12 @@ impl Pool {
     /// Frees at least `n` slots not used in `frame`, least recently used
     /// first.
     fn evict(&mut self, n: usize, frame: u64) {
-        let mut used: Vec<(u64, u32)> = self.owner.iter().enumerate().filter_map(|(s, o)| o.filter(|o| o.1 < frame).map(|o| (o.1, s as u32))).collect();
+        let mut used: Vec<(u64, u32)> = self
+            .owner
+            .iter()
+            .enumerate()
+            .filter_map(|(s, o)| o.filter(|o| o.1 < frame).map(|o| (o.1, s as u32)))
+            .collect();
         used.sort_unstable();
         for &(_, slot) in used.iter().take(n) {
             if let Some((key, _)) = self.owner[slot as usize].take() {
@@ -79,7 +96,13 @@ impl Pool {
     /// Uploads blocks into their slots: `fresh` holds (slot, item) sorted
     /// by slot, `fill` appends an item's words; runs of consecutive slots
     /// go up in one write, through `scratch`.
-    pub(crate) fn write<T: Copy>(&self, ctx: &GpuContext, fresh: &[(u32, T)], scratch: &mut Vec<u32>, mut fill: impl FnMut(T, &mut Vec<u32>)) {
+    pub(crate) fn write<T: Copy>(
+        &self,
+        ctx: &GpuContext,
+        fresh: &[(u32, T)],
+        scratch: &mut Vec<u32>,
+        mut fill: impl FnMut(T, &mut Vec<u32>),
+    ) {
         let slots: Vec<u32> = fresh.iter().map(|f| f.0).collect();
         let mut at = 0;
         for (first, len) in runs(&slots) {
@@ -105,7 +128,13 @@ impl Pool {
                 end += 1;
             }
             let bytes = self.block_bytes;
-            enc.copy_buffer_to_buffer(&self.buffer, u64::from(slots[k]) * bytes, staging, k as u64 * bytes, (end - k) as u64 * bytes);
+            enc.copy_buffer_to_buffer(
+                &self.buffer,
+                u64::from(slots[k]) * bytes,
+                staging,
+                k as u64 * bytes,
+                (end - k) as u64 * bytes,
+            );
             k = end;
         }
     }

@@ -96,8 +96,24 @@ impl GpuProject {
     /// Compiles the kernel once for `ctx`.
     pub fn new(ctx: &GpuContext) -> Result<Self, BackendError> {
         ctx.scoped(|| {
-            let (kernel, layout, params) = in_out_kernel(ctx, "project.wgsl", include_str!("project.wgsl"), "project", std::mem::size_of::<Params>() as u64, 2);
-            GpuProject { ctx: ctx.clone(), kernel, layout, params, free_below: Vec::new(), bufs: None, uncertain_guess: 4096, max_listed: usize::MAX }
+            let (kernel, layout, params) = in_out_kernel(
+                ctx,
+                "project.wgsl",
+                include_str!("project.wgsl"),
+                "project",
+                std::mem::size_of::<Params>() as u64,
+                2,
+            );
+            GpuProject {
+                ctx: ctx.clone(),
+                kernel,
+                layout,
+                params,
+                free_below: Vec::new(),
+                bufs: None,
+                uncertain_guess: 4096,
+                max_listed: usize::MAX,
+            }
         })
     }
 
@@ -132,7 +148,9 @@ impl GpuProject {
     pub(crate) fn run_kept(&mut self, job: &ProjectJob<'_>, bits: &mut Vec<u8>) -> Result<Option<Kept>, BackendError> {
         let voxels = job.volume.len();
         let guess = self.uncertain_guess.min(list_capacity(voxels)).min(self.max_listed);
-        if !self.encode(job, |enc, bufs| enc.copy_buffer_to_buffer(&bufs.uncertain, 0, &bufs.staging, 0, 4 + 4 * guess as u64))? {
+        if !self.encode(job, |enc, bufs| {
+            enc.copy_buffer_to_buffer(&bufs.uncertain, 0, &bufs.staging, 0, 4 + 4 * guess as u64)
+        })? {
             return Ok(None);
         }
         let bufs = self.bufs.as_ref().ok_or_else(|| BackendError::Device("buffers missing".into()))?;
@@ -152,7 +170,10 @@ impl GpuProject {
         if count > capacity {
             let words = voxels.div_ceil(16) as u64;
             self.ctx.scoped(|| {
-                let mut enc = self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("project codes") });
+                let mut enc = self
+                    .ctx
+                    .device
+                    .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("project codes") });
                 enc.copy_buffer_to_buffer(&bufs.out, 0, &bufs.staging, 0, 4 * words);
                 self.ctx.queue.submit([enc.finish()]);
             })?;
@@ -163,7 +184,10 @@ impl GpuProject {
         if count > guess {
             let bytes = 4 * (count - guess) as u64;
             self.ctx.scoped(|| {
-                let mut enc = self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("project uncertain") });
+                let mut enc = self
+                    .ctx
+                    .device
+                    .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("project uncertain") });
                 enc.copy_buffer_to_buffer(&bufs.uncertain, 4 + 4 * guess as u64, &bufs.staging, 0, bytes);
                 self.ctx.queue.submit([enc.finish()]);
             })?;
@@ -184,7 +208,11 @@ impl GpuProject {
 
     /// Records and submits the projection of `job` and `copy` after it;
     /// `Ok(false)` where the kernel does not apply.
-    fn encode(&mut self, job: &ProjectJob<'_>, copy: impl FnOnce(&mut wgpu::CommandEncoder, &Buffers)) -> Result<bool, BackendError> {
+    fn encode(
+        &mut self,
+        job: &ProjectJob<'_>,
+        copy: impl FnOnce(&mut wgpu::CommandEncoder, &Buffers),
+    ) -> Result<bool, BackendError> {
         let Some(params) = self.prepare(job) else { return Ok(false) };
         let voxels = job.volume.len();
         let words = voxels.div_ceil(16) as u64;
@@ -194,7 +222,8 @@ impl GpuProject {
             let q = &self.ctx.queue;
             q.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
             q.write_buffer(&bufs.free_below, 0, bytemuck::cast_slice(&self.free_below));
-            let mut enc = self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("project") });
+            let mut enc =
+                self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("project") });
             enc.clear_buffer(&bufs.uncertain, 0, Some(4));
             {
                 let mut pass = self.ctx.pass(&mut enc, "project");
@@ -254,7 +283,8 @@ impl GpuProject {
                 p.wrap = [first as i32, last as i32, 0, 0];
                 p.img = [0, 0, scan.ranges.len() as u32, 0];
                 let sign = if inc < 0.0 { -1.0 } else { 1.0 };
-                p.scan = [scan.angle_min_rad.rem_euclid(TAU) as f32, sign, inc.abs() as f32, job.planar_half_thickness_m];
+                p.scan =
+                    [scan.angle_min_rad.rem_euclid(TAU) as f32, sign, inc.abs() as f32, job.planar_half_thickness_m];
                 p.err[1] = (HOST_REL_ERR * (scan.angle_min_rad.abs() + 4.0 * TAU)) as f32;
                 self.free_below.extend(scan.ranges.iter().map(|&d| job.free_below_m(d, &scan.range)));
             }
@@ -295,7 +325,8 @@ impl GpuProject {
         if self.bufs.as_ref().is_some_and(|b| b.beams >= beams && b.voxels >= voxels) {
             return Ok(());
         }
-        let (beams, voxels) = self.bufs.as_ref().map_or((beams, voxels), |b| (b.beams.max(beams), b.voxels.max(voxels)));
+        let (beams, voxels) =
+            self.bufs.as_ref().map_or((beams, voxels), |b| (b.beams.max(beams), b.voxels.max(voxels)));
         self.bufs = None;
         let words = voxels.div_ceil(16).max(1) as u64;
         self.ctx.check_buffer("the free ranges of the pixels or beams", 4 * beams as u64)?;
@@ -304,12 +335,28 @@ impl GpuProject {
         self.ctx.check_buffer("the projection's uncertain voxels", 4 + 4 * capacity as u64)?;
         let bufs = self.ctx.scoped(|| {
             let buffer = |label, size, usage| self.ctx.buffer(label, size, usage);
-            let free_below = buffer("project free ranges", 4 * beams as u64, wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST);
+            let free_below = buffer(
+                "project free ranges",
+                4 * beams as u64,
+                wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            );
             let out = buffer("project bits", 4 * words, wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC);
-            let uncertain = buffer("project uncertain", 4 + 4 * capacity as u64, wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC);
+            let uncertain = buffer(
+                "project uncertain",
+                4 + 4 * capacity as u64,
+                wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC,
+            );
             // The codes, or the uncertain voxels' list.
-            let staging = buffer("project staging", (4 * words).max(4 + 4 * capacity as u64), wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST);
-            let group = self.ctx.bind_group("project", &self.layout, &[&self.params, &free_below, &out, &uncertain].map(|b| b.as_entire_binding()));
+            let staging = buffer(
+                "project staging",
+                (4 * words).max(4 + 4 * capacity as u64),
+                wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            );
+            let group = self.ctx.bind_group(
+                "project",
+                &self.layout,
+                &[&self.params, &free_below, &out, &uncertain].map(|b| b.as_entire_binding()),
+            );
             Buffers { beams, voxels, free_below, out, staging, uncertain, capacity, group }
         })?;
         self.bufs = Some(bufs);

@@ -46,7 +46,14 @@ impl GpuRaycast {
     /// Compiles the kernel once for `ctx`.
     pub fn new(ctx: &GpuContext) -> Result<Self, BackendError> {
         ctx.scoped(|| {
-            let (kernel, layout, params) = in_out_kernel(ctx, "raycast.wgsl", include_str!("raycast.wgsl"), "cast_rays", std::mem::size_of::<Params>() as u64, 1);
+            let (kernel, layout, params) = in_out_kernel(
+                ctx,
+                "raycast.wgsl",
+                include_str!("raycast.wgsl"),
+                "cast_rays",
+                std::mem::size_of::<Params>() as u64,
+                1,
+            );
             GpuRaycast { ctx: ctx.clone(), kernel, layout, params, bufs: None }
         })
     }
@@ -55,7 +62,13 @@ impl GpuRaycast {
     /// `bits`, one byte per voxel (two bits each on the way back).
     /// `Ok(false)` when `q` does not fit `dims`
     /// (the CPU then walks nothing either, so it is left to it).
-    pub fn run(&mut self, rays: &[FixedRay], q: u32, dims: [usize; 3], bits: &mut Vec<u8>) -> Result<bool, BackendError> {
+    pub fn run(
+        &mut self,
+        rays: &[FixedRay],
+        q: u32,
+        dims: [usize; 3],
+        bits: &mut Vec<u8>,
+    ) -> Result<bool, BackendError> {
         if !self.encode(rays, q, dims, true)? {
             return Ok(false);
         }
@@ -90,17 +103,24 @@ impl GpuRaycast {
         let words = voxels.div_ceil(16) as u64;
         self.ensure_buffers(rays.len().max(1), voxels)?;
         let bufs = self.bufs.as_ref().ok_or_else(|| BackendError::Device("buffers missing".into()))?;
-        let params = Params { dims: [dims[0] as u32, dims[1] as u32, dims[2] as u32, voxels as u32], q, rays: rays.len() as u32, pad: [0; 2] };
+        let params = Params {
+            dims: [dims[0] as u32, dims[1] as u32, dims[2] as u32, voxels as u32],
+            q,
+            rays: rays.len() as u32,
+            pad: [0; 2],
+        };
         // SAFETY: `FixedRay` is `repr(C)`, eight `u32`s with no padding
         // (asserted above), so its bytes are plain data.
-        let ray_bytes = unsafe { std::slice::from_raw_parts(rays.as_ptr().cast::<u8>(), rays.len() * RAY_BYTES as usize) };
+        let ray_bytes =
+            unsafe { std::slice::from_raw_parts(rays.as_ptr().cast::<u8>(), rays.len() * RAY_BYTES as usize) };
         self.ctx.scoped(|| {
             let q = &self.ctx.queue;
             q.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
             if !ray_bytes.is_empty() {
                 q.write_buffer(&bufs.ray_buf, 0, ray_bytes);
             }
-            let mut enc = self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("raycast") });
+            let mut enc =
+                self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("raycast") });
             enc.clear_buffer(&bufs.obs, 0, Some(4 * words));
             {
                 let mut pass = self.ctx.pass(&mut enc, "raycast");
@@ -127,10 +147,23 @@ impl GpuRaycast {
         self.ctx.check_buffer("the observation bits", 4 * words)?;
         let bufs = self.ctx.scoped(|| {
             let buffer = |label, size, usage| self.ctx.buffer(label, size, usage);
-            let ray_buf = buffer("raycast rays", RAY_BYTES * rays as u64, wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST);
-            let obs = buffer("raycast obs", 4 * words, wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC);
-            let staging = buffer("raycast staging", 4 * words, wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST);
-            let group = self.ctx.bind_group("raycast", &self.layout, &[&self.params, &ray_buf, &obs].map(|b| b.as_entire_binding()));
+            let ray_buf = buffer(
+                "raycast rays",
+                RAY_BYTES * rays as u64,
+                wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            );
+            let obs = buffer(
+                "raycast obs",
+                4 * words,
+                wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC,
+            );
+            let staging =
+                buffer("raycast staging", 4 * words, wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST);
+            let group = self.ctx.bind_group(
+                "raycast",
+                &self.layout,
+                &[&self.params, &ray_buf, &obs].map(|b| b.as_entire_binding()),
+            );
             Buffers { rays, voxels, ray_buf, obs, staging, group }
         })?;
         self.bufs = Some(bufs);

@@ -19,7 +19,9 @@ fn projection_kernel_leaves_few_voxels_uncertain() {
     let tally = check_projection_bits(|job, bits| gpu.project_bits(job, bits).map_err(|e| e.to_string()))
         .unwrap_or_else(|e| panic!("{e}"))
         .expect("the GPU projects depth images, planar scans and LiDAR scans itself");
-    for (kind, (voxels, uncertain)) in [("depth", tally.depth), ("planar", tally.planar), ("lidar", tally.lidar), ("aligned", tally.aligned)] {
+    for (kind, (voxels, uncertain)) in
+        [("depth", tally.depth), ("planar", tally.planar), ("lidar", tally.lidar), ("aligned", tally.aligned)]
+    {
         let share = uncertain as f64 / voxels as f64;
         eprintln!("{kind}: {uncertain} of {voxels} voxels uncertain ({:.4} %)", 100.0 * share);
         // Aligned cases put whole layers of voxels on thresholds.

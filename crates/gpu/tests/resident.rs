@@ -25,7 +25,11 @@ fn rows(map: &EdtMap) -> Vec<(BlockKey, Vec<[i16; 3]>)> {
 }
 
 fn stage(cutoff_vox: u64) -> IntegrationStage {
-    let params = GlobalParams { mode: IntegrationMode::Exact, max_distance_m: cutoff_vox as f64 * IntegrationWorld::VOXEL_M, ..Default::default() };
+    let params = GlobalParams {
+        mode: IntegrationMode::Exact,
+        max_distance_m: cutoff_vox as f64 * IntegrationWorld::VOXEL_M,
+        ..Default::default()
+    };
     IntegrationStage::new(&params, IntegrationWorld::VOXEL_M).expect("valid cutoff")
 }
 
@@ -59,7 +63,8 @@ fn resident_pool_gives_the_cpu_map_frame_after_frame() {
                 let want = stage.update(&mut cpu, &mut cpu_map, world.obstacles(), &blocks).expect("cpu");
                 let mut other = CpuBackend::default();
                 let on: &mut dyn Backend = if step % 3 == 2 { &mut other } else { &mut *backend };
-                let got = stage.update(on, &mut gpu_map, world.obstacles(), &blocks).unwrap_or_else(|e| panic!("{at}: {e}"));
+                let got =
+                    stage.update(on, &mut gpu_map, world.obstacles(), &blocks).unwrap_or_else(|e| panic!("{at}: {e}"));
                 same_report(&got, &want, &at);
                 assert!(rows(&gpu_map) == rows(&cpu_map), "{at}: maps differ");
             }
@@ -111,15 +116,28 @@ fn values_the_pool_cannot_encode_are_rewritten_as_the_definition_says() {
     let blocks = window.region().blocks();
     let mut start = EdtMap::new();
     stage.update(&mut CpuBackend::default(), &mut start, world.obstacles(), &blocks).expect("cpu");
-    let odd = [(window.world([3, 4, 2]), 3, [1, 1, -1]), (window.world([9, 2, 5]), 490_000, [700, 0, 0]), (window.world([0, 0, 0]), 0, [0, 0, 0])];
+    let odd = [
+        (window.world([3, 4, 2]), 3, [1, 1, -1]),
+        (window.world([9, 2, 5]), 490_000, [700, 0, 0]),
+        (window.world([0, 0, 0]), 0, [0, 0, 0]),
+    ];
     for (v, dist_sq, off) in odd {
         let block = start.get_or_insert(v.block());
-        block.set(v.block(), v.offset_in_block(), dist_sq, VoxelIndex([0, 1, 2].map(|a| v.0[a] + off[a]))).expect("within the offsets' range");
+        block
+            .set(v.block(), v.offset_in_block(), dist_sq, VoxelIndex([0, 1, 2].map(|a| v.0[a] + off[a])))
+            .expect("within the offsets' range");
     }
     let (mut host_map, mut gpu_map) = (start.clone(), start);
     let region = Region::bounding(&blocks).expect("blocks").grown(stage.cutoff().reach);
     let packing = Packing::new(region, stage.cutoff()).expect("packing");
-    let want = recompute_exact(&mut CpuBackend::default(), &mut host_map, &world.obstacles(), &packing, &mut ExactBuffers::default()).expect("host");
+    let want = recompute_exact(
+        &mut CpuBackend::default(),
+        &mut host_map,
+        &world.obstacles(),
+        &packing,
+        &mut ExactBuffers::default(),
+    )
+    .expect("host");
     let got = stage.update(&mut gpu, &mut gpu_map, world.obstacles(), &blocks).expect("gpu");
     assert_eq!((got.voxels_changed, &got.changed_blocks), (want.voxels_changed, &want.changed_blocks));
     assert!(want.voxels_changed >= 2, "the odd voxels rewritten");
@@ -168,7 +186,10 @@ fn a_warm_frame_moves_only_changed_blocks() {
     // cleared on the device), only the tables and the obstacle blocks.
     let tables = 4 * region.blocks().len() as u64 + 4 * region.grown(cutoff.reach).blocks().len() as u64;
     let least = tables + 64 * obstacle_blocks;
-    assert!(cold.uploaded_bytes >= least && cold.uploaded_bytes <= least + 4 * 256 + 64, "cold: {cold:?}, tables {tables}, obstacle blocks {obstacle_blocks}");
+    assert!(
+        cold.uploaded_bytes >= least && cold.uploaded_bytes <= least + 4 * 256 + 64,
+        "cold: {cold:?}, tables {tables}, obstacle blocks {obstacle_blocks}"
+    );
     let (mut checked, mut moved) = (0, 0);
     for step in 0..10 {
         let (window, _) = world.step();
@@ -184,7 +205,10 @@ fn a_warm_frame_moves_only_changed_blocks() {
         let obstacle_blocks = obstacle_blocks_up(source, &world.obstacles());
         let tables = 4 * nb + 4 * source.blocks().len() as u64;
         let (least, params) = (tables + 64 * obstacle_blocks, 4 * 256 + 64);
-        assert!(d.uploaded_bytes >= least && d.uploaded_bytes <= least + params, "step {step}: {d:?}, tables {tables}, obstacle blocks {obstacle_blocks}");
+        assert!(
+            d.uploaded_bytes >= least && d.uploaded_bytes <= least + params,
+            "step {step}: {d:?}, tables {tables}, obstacle blocks {obstacle_blocks}"
+        );
         // Against the mask it replaces, a bit per source voxel.
         assert!(d.uploaded_bytes < 4 * (source.len() as u64).div_ceil(32), "step {step}: {d:?}");
         moved += usize::from(obstacle_blocks > 0);

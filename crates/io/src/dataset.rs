@@ -28,12 +28,12 @@
 mod cloud_folder;
 
 pub use crate::depth_folder::DepthFolder;
-pub use cloud_folder::{parse_kitti_bin, read_kitti_bin, CloudFolder, DEFAULT_CLOUD_RATE_HZ};
 pub use crate::folder::frames::{parse_kitti_poses, parse_matrix, parse_times, read_matrix_file, FrameFile, FramePose};
 pub use crate::folder::DatasetOptions;
+pub use cloud_folder::{parse_kitti_bin, read_kitti_bin, CloudFolder, DEFAULT_CLOUD_RATE_HZ};
 
-use crate::IoError;
 use crate::folder::frames::{bad, list_dir};
+use crate::IoError;
 use edtmap_core::sensor::{Frame, RangeLimits};
 use std::path::Path;
 
@@ -191,10 +191,12 @@ mod tests {
     fn reads_kitti_bin_scans_with_their_poses() {
         let dir = std::env::temp_dir().join(format!("edtmap-kitti-{}", std::process::id()));
         std::fs::create_dir_all(&dir).expect("temp dir");
-        let scan = |pts: &[[f32; 4]]| pts.iter().flat_map(|p| p.iter().flat_map(|v| v.to_le_bytes())).collect::<Vec<u8>>();
+        let scan =
+            |pts: &[[f32; 4]]| pts.iter().flat_map(|p| p.iter().flat_map(|v| v.to_le_bytes())).collect::<Vec<u8>>();
         std::fs::write(dir.join("000000.bin"), scan(&[[1.0, 2.0, 3.0, 0.5], [-4.0, 0.0, 0.25, 1.0]])).expect("write");
         std::fs::write(dir.join("000001.bin"), scan(&[[5.0, 5.0, 0.0, 0.0]])).expect("write");
-        std::fs::write(dir.join("poses.txt"), "1 0 0 0 0 1 0 0 0 0 1 0\n0 -1 0 10 1 0 0 20 0 0 1 0.5\n").expect("write");
+        std::fs::write(dir.join("poses.txt"), "1 0 0 0 0 1 0 0 0 0 1 0\n0 -1 0 10 1 0 0 20 0 0 1 0.5\n")
+            .expect("write");
         let set = Dataset::open(&dir, 0.001, RangeLimits { min_m: 0.1, max_m: 50.0 }).expect("opens");
         assert_eq!((set.kind(), set.len()), ("point cloud", 2));
         let Measurement::Points(first) = set.frame(0).expect("frame 0").measurement else { panic!("points") };

@@ -73,16 +73,35 @@ impl DepthFolder {
     pub fn open_with(dir: &Path, opts: &DatasetOptions) -> Result<Self, IoError> {
         let entries = list_dir(dir)?;
         let mut warnings = Vec::new();
-        let frames = if is_tum(dir) { tum_frames(dir, opts, &mut warnings)? } else { threedmatch_frames(dir, &entries, opts, &mut warnings)? };
+        let frames = if is_tum(dir) {
+            tum_frames(dir, opts, &mut warnings)?
+        } else {
+            threedmatch_frames(dir, &entries, opts, &mut warnings)?
+        };
         if frames.is_empty() {
-            let layout = if is_tum(dir) { "listed in depth.txt or named depth/<timestamp>.png" } else { "named frame-XXXXXX.depth.png (XXXXXX the frame number)" };
-            let left_out = if warnings.is_empty() { String::new() } else { format!(" ({} files left out: {})", warnings.len(), warnings.join("; ")) };
+            let layout = if is_tum(dir) {
+                "listed in depth.txt or named depth/<timestamp>.png"
+            } else {
+                "named frame-XXXXXX.depth.png (XXXXXX the frame number)"
+            };
+            let left_out = if warnings.is_empty() {
+                String::new()
+            } else {
+                format!(" ({} files left out: {})", warnings.len(), warnings.join("; "))
+            };
             return Err(bad(dir, format!("no depth images {layout}{left_out}")));
         }
         let ([fx, fy, cx, cy], intrinsics_file) = intrinsics(dir, opts)?;
         let (width, height) = first_image_size(dir, &frames)?;
         let camera = PinholeCamera { fx, fy, cx, cy, width, height, range: opts.range };
-        Ok(DepthFolder { camera, frames, metres_per_unit: opts.depth_scale_m, intrinsics_file, warnings, poses_adjusted: Arc::default() })
+        Ok(DepthFolder {
+            camera,
+            frames,
+            metres_per_unit: opts.depth_scale_m,
+            intrinsics_file,
+            warnings,
+            poses_adjusted: Arc::default(),
+        })
     }
 
     /// Frame `i`: its depth image, time and pose. A frame whose time the
@@ -90,19 +109,23 @@ impl DepthFolder {
     /// header gives another size than the camera's is refused before it is
     /// decoded.
     pub fn frame(&self, i: usize) -> Result<Frame, IoError> {
-        let file = self.frames.get(i).ok_or_else(|| bad(Path::new("."), format!("frame {i} of {}", self.frames.len())))?;
+        let file =
+            self.frames.get(i).ok_or_else(|| bad(Path::new("."), format!("frame {i} of {}", self.frames.len())))?;
         let pose = file.pose_noted(Some(&self.poses_adjusted))?;
         let (width, height) = (self.camera.width, self.camera.height);
         let expected = ExpectedSize { width, height, source: "the folder's first image" };
         let (width, height, values) = read_depth_png(&file.path, Some(expected))?;
-        let image = DepthImage { width, height, data: DepthData::U16 { values, metres_per_unit: self.metres_per_unit } };
+        let image =
+            DepthImage { width, height, data: DepthData::U16 { values, metres_per_unit: self.metres_per_unit } };
         Ok(Frame { stamp_s: file.stamp_s, t_world_sensor: pose, measurement: Measurement::Depth(image) })
     }
 }
 
 /// Whether `dir`'s entries make it a depth folder of either layout.
 pub(crate) fn is_depth_folder(dir: &Path, entries: &[PathBuf]) -> bool {
-    is_tum(dir) || dir.join("camera-intrinsics.txt").exists() || entries.iter().any(|p| file_name(p).ends_with(".depth.png"))
+    is_tum(dir)
+        || dir.join("camera-intrinsics.txt").exists()
+        || entries.iter().any(|p| file_name(p).ends_with(".depth.png"))
 }
 
 fn is_tum(dir: &Path) -> bool {
@@ -122,14 +145,22 @@ fn threedmatch_number(name: &str) -> Option<u32> {
 /// `.pose.txt` files or by the trajectory at `XXXXXX / 30` s. Other
 /// `*.depth.png` names are left out with a warning; a frame without its
 /// pose file fails alone, but a folder where no frame has one is refused.
-fn threedmatch_frames(dir: &Path, entries: &[PathBuf], opts: &DatasetOptions, warnings: &mut Vec<String>) -> Result<Vec<FrameFile>, IoError> {
+fn threedmatch_frames(
+    dir: &Path,
+    entries: &[PathBuf],
+    opts: &DatasetOptions,
+    warnings: &mut Vec<String>,
+) -> Result<Vec<FrameFile>, IoError> {
     let traj = opts.trajectory.as_deref().map(|p| TrajectoryFile::read(p, opts.max_pose_gap_s)).transpose()?;
     let mut frames = Vec::new();
     for path in entries {
         let name = file_name(path);
         let Some(stem) = name.strip_suffix(".depth.png") else { continue };
         let Some(number) = threedmatch_number(name) else {
-            warnings.push(format!("{}: not a frame, left out: 3DMatch frames are named frame-XXXXXX.depth.png (XXXXXX the frame number)", path.display()));
+            warnings.push(format!(
+                "{}: not a frame, left out: 3DMatch frames are named frame-XXXXXX.depth.png (XXXXXX the frame number)",
+                path.display()
+            ));
             continue;
         };
         let stamp_s = f64::from(number) / THREEDMATCH_RATE_HZ;
@@ -140,7 +171,10 @@ fn threedmatch_frames(dir: &Path, entries: &[PathBuf], opts: &DatasetOptions, wa
                 if pose.exists() {
                     FramePose::File(pose)
                 } else {
-                    FramePose::Missing(format!("its pose file {} is missing (or set [dataset] trajectory)", file_name(&pose)))
+                    FramePose::Missing(format!(
+                        "its pose file {} is missing (or set [dataset] trajectory)",
+                        file_name(&pose)
+                    ))
                 }
             }
         };
@@ -163,7 +197,10 @@ fn tum_frames(dir: &Path, opts: &DatasetOptions, warnings: &mut Vec<String>) -> 
         None => dir.join("groundtruth.txt"),
     };
     if opts.trajectory.is_none() && !traj_path.exists() {
-        return Err(bad(dir, "no poses: the folder has no groundtruth.txt (TUM trajectory) and no trajectory file was given"));
+        return Err(bad(
+            dir,
+            "no poses: the folder has no groundtruth.txt (TUM trajectory) and no trajectory file was given",
+        ));
     }
     let traj = TrajectoryFile::read(&traj_path, opts.max_pose_gap_s)?;
     Ok(images.into_iter().map(|(stamp_s, path)| FrameFile { pose: traj.pose_at(stamp_s), path, stamp_s }).collect())
@@ -184,7 +221,10 @@ fn tum_images(dir: &Path, warnings: &mut Vec<String>) -> Result<Vec<(f64, PathBu
             let stem = path.file_stem().and_then(|s| s.to_str()).unwrap_or_default();
             match stem.parse::<f64>().ok().filter(|t| t.is_finite()) {
                 Some(t) => images.push((t, path)),
-                None => warnings.push(format!("{}: not a frame, left out: the name is not a time (depth/ holds <timestamp>.png images)", path.display())),
+                None => warnings.push(format!(
+                    "{}: not a frame, left out: the name is not a time (depth/ holds <timestamp>.png images)",
+                    path.display()
+                )),
             }
         }
     }
@@ -208,7 +248,11 @@ fn parse_depth_list(dir: &Path, list: &Path, text: &str) -> Result<Vec<(f64, Pat
             return Err(at("expected `timestamp depth/<name>.png`".into()));
         };
         let shown: String = stamp.chars().take(40).collect();
-        let t = stamp.parse::<f64>().ok().filter(|t| t.is_finite()).ok_or_else(|| at(format!("{shown:?} is not a time")))?;
+        let t = stamp
+            .parse::<f64>()
+            .ok()
+            .filter(|t| t.is_finite())
+            .ok_or_else(|| at(format!("{shown:?} is not a time")))?;
         images.push((t, dir.join(name)));
     }
     Ok(images)
@@ -299,7 +343,11 @@ mod tests {
         let list = dir.path().join("depth.txt");
         let got = parse_depth_list(dir.path(), &list, "# c\n1.5 depth/1.5.png\n").expect("one");
         assert_eq!(got, vec![(1.5, dir.path().join("depth/1.5.png"))]);
-        for (text, want) in [("x depth/1.5.png\n", "line 1: \"x\" is not a time"), ("1.5\n", "line 1: expected"), ("# c\n2 depth/2.png extra\n", "line 2:")] {
+        for (text, want) in [
+            ("x depth/1.5.png\n", "line 1: \"x\" is not a time"),
+            ("1.5\n", "line 1: expected"),
+            ("# c\n2 depth/2.png extra\n", "line 2:"),
+        ] {
             let err = parse_depth_list(dir.path(), &list, text).expect_err(want).to_string();
             assert!(err.contains("depth.txt") && err.contains(want), "{err}");
         }

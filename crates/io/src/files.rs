@@ -209,7 +209,11 @@ impl AtomicFile {
         let Some(out) = self.out.take() else {
             return Err(IoError::io(&self.target, io::Error::other("written after a failed commit")));
         };
-        let done = out.into_inner().map_err(|e| e.into_error()).and_then(|f| f.sync_all()).and_then(|()| fs::rename(&self.tmp, &self.target));
+        let done = out
+            .into_inner()
+            .map_err(|e| e.into_error())
+            .and_then(|f| f.sync_all())
+            .and_then(|()| fs::rename(&self.tmp, &self.target));
         if let Err(e) = done {
             // Best effort: the error that matters is the one returned.
             let _ = fs::remove_file(&self.tmp);
@@ -301,7 +305,8 @@ fn temp_prefix(path: &Path) -> Option<OsString> {
 /// Creates a new, empty temporary file in `path`'s folder, named after it.
 fn create_temp_beside(path: &Path) -> io::Result<(PathBuf, File)> {
     static COUNTER: AtomicU64 = AtomicU64::new(0);
-    let prefix = temp_prefix(path).ok_or_else(|| io::Error::new(io::ErrorKind::InvalidInput, "the path does not name a file"))?;
+    let prefix = temp_prefix(path)
+        .ok_or_else(|| io::Error::new(io::ErrorKind::InvalidInput, "the path does not name a file"))?;
     let dir = parent_dir(path);
     loop {
         let n = COUNTER.fetch_add(1, Ordering::Relaxed);
@@ -329,7 +334,8 @@ fn remove_stale_temps(path: &Path) {
     let Ok(entries) = fs::read_dir(parent_dir(path)) else { return };
     for entry in entries.flatten() {
         let name = entry.file_name();
-        let Some(rest) = name.to_str().and_then(|n| n.strip_prefix(&prefix)).and_then(|r| r.strip_suffix(".tmp")) else {
+        let Some(rest) = name.to_str().and_then(|n| n.strip_prefix(&prefix)).and_then(|r| r.strip_suffix(".tmp"))
+        else {
             continue;
         };
         let Some(pid) = rest.split('.').next().and_then(|p| p.parse::<u32>().ok()) else { continue };

@@ -38,6 +38,13 @@ impl DatasetOptions {
     /// Options with the folder's own poses and intrinsics and
     /// [`GROUND_TRUTH_MAX_POSE_GAP_S`].
     pub fn new(depth_scale_m: f32, range: RangeLimits) -> Self {
-        DatasetOptions { depth_scale_m, range, intrinsics: None, folder_intrinsics: true, trajectory: None, max_pose_gap_s: GROUND_TRUTH_MAX_POSE_GAP_S }
+        DatasetOptions {
+            depth_scale_m,
+            range,
+            intrinsics: None,
+            folder_intrinsics: true,
+            trajectory: None,
+            max_pose_gap_s: GROUND_TRUTH_MAX_POSE_GAP_S,
+        }
     }
 }

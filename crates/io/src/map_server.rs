@@ -76,7 +76,11 @@ pub fn write_map_server(yaml: &Path, grid: &OccupancyGrid2d<'_>) -> Result<PathB
         reason: "the image's file name is not UTF-8, so the YAML cannot name it: choose a UTF-8 name".into(),
     })?;
     write_atomic_with(&image, |out| {
-        write!(out, "P5\n# edtmap map_server map, {} m per cell\n{} {}\n255\n", grid.resolution_m, grid.width, grid.height)?;
+        write!(
+            out,
+            "P5\n# edtmap map_server map, {} m per cell\n{} {}\n255\n",
+            grid.resolution_m, grid.width, grid.height
+        )?;
         let mut row = vec![0u8; grid.width];
         for y in (0..grid.height).rev() {
             for (p, &s) in row.iter_mut().zip(&grid.states[y * grid.width..(y + 1) * grid.width]) {
@@ -94,10 +98,18 @@ pub fn write_map_server(yaml: &Path, grid: &OccupancyGrid2d<'_>) -> Result<PathB
 fn check_grid(yaml: &Path, grid: &OccupancyGrid2d<'_>) -> Result<(), IoError> {
     let bad = |reason: String| Err(IoError::BadData { path: yaml.to_path_buf(), reason });
     if grid.width == 0 || grid.height == 0 || grid.width.checked_mul(grid.height) != Some(grid.states.len()) {
-        return bad(format!("a map of {} x {} cells needs that many states, got {}", grid.width, grid.height, grid.states.len()));
+        return bad(format!(
+            "a map of {} x {} cells needs that many states, got {}",
+            grid.width,
+            grid.height,
+            grid.states.len()
+        ));
     }
     if !(grid.resolution_m.is_finite() && grid.resolution_m > 0.0) || grid.origin_m.iter().any(|o| !o.is_finite()) {
-        return bad(format!("resolution {} m and origin {:?} m must be finite, the resolution positive", grid.resolution_m, grid.origin_m));
+        return bad(format!(
+            "resolution {} m and origin {:?} m must be finite, the resolution positive",
+            grid.resolution_m, grid.origin_m
+        ));
     }
     Ok(())
 }
@@ -105,7 +117,8 @@ fn check_grid(yaml: &Path, grid: &OccupancyGrid2d<'_>) -> Result<(), IoError> {
 /// The YAML naming image `name` (quoted, so that any file name reads
 /// back); lengths to the nanometre.
 fn yaml_text(name: &str, grid: &OccupancyGrid2d<'_>) -> String {
-    let quoted: String = name.chars().flat_map(|c| if c == '"' || c == '\\' { vec!['\\', c] } else { vec![c] }).collect();
+    let quoted: String =
+        name.chars().flat_map(|c| if c == '"' || c == '\\' { vec!['\\', c] } else { vec![c] }).collect();
     // To the nanometre: `-96 * 0.2` reads -19.2, not -19.200000000000003.
     let nm = |m: f64| (m * 1e9).round() / 1e9;
     let ([x, y], resolution) = (grid.origin_m.map(nm), nm(grid.resolution_m));
@@ -141,7 +154,14 @@ mod tests {
         let dir = tempfile::tempdir().expect("tempdir");
         let yaml = dir.path().join("floor \"1\".yaml");
         // 3 x 2 cells: row y = 0 (bottom) occupied, free, unknown.
-        let states = [VoxelState::Occupied, VoxelState::Free, VoxelState::Unknown, VoxelState::Free, VoxelState::Free, VoxelState::Free];
+        let states = [
+            VoxelState::Occupied,
+            VoxelState::Free,
+            VoxelState::Unknown,
+            VoxelState::Free,
+            VoxelState::Free,
+            VoxelState::Free,
+        ];
         let grid = OccupancyGrid2d { width: 3, height: 2, states: &states, resolution_m: 0.05, origin_m: [-1.5, 2.0] };
         let image = write_map_server(&yaml, &grid).expect("written");
         let bytes = std::fs::read(&image).expect("image");
@@ -149,8 +169,13 @@ mod tests {
         assert!(bytes.starts_with(b"P5\n"));
         assert_eq!(body, [FREE_PIXEL, FREE_PIXEL, FREE_PIXEL, OCCUPIED_PIXEL, FREE_PIXEL, UNKNOWN_PIXEL]);
         let text = std::fs::read_to_string(&yaml).expect("yaml");
-        assert!(text.contains("image: \"floor \\\"1\\\".pgm\"\n") && text.contains("origin: [-1.5, 2, 0.0]\n"), "{text}");
-        assert!(text.contains("resolution: 0.05\n") && text.contains("mode: trinary\n") && text.contains("negate: 0\n"));
+        assert!(
+            text.contains("image: \"floor \\\"1\\\".pgm\"\n") && text.contains("origin: [-1.5, 2, 0.0]\n"),
+            "{text}"
+        );
+        assert!(
+            text.contains("resolution: 0.05\n") && text.contains("mode: trinary\n") && text.contains("negate: 0\n")
+        );
         // A grid of the wrong size is refused, naming the file.
         let short = OccupancyGrid2d { states: &states[..5], ..grid };
         let err = write_map_server(&yaml, &short).expect_err("5 states for 6 cells").to_string();

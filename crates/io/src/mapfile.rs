@@ -159,7 +159,10 @@ pub fn read_map(path: &Path) -> Result<GlobalMap, IoError> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use edtmap_core::{BlockKey, Connectivity, EdtMap, ForbiddenZone, GlobalParams, IntegrationMode, OccupancyMap, OccupancyParams, StaticMap};
+    use edtmap_core::{
+        BlockKey, Connectivity, EdtMap, ForbiddenZone, GlobalParams, IntegrationMode, OccupancyMap, OccupancyParams,
+        StaticMap,
+    };
 
     fn small_params() -> (f64, OccupancyParams, GlobalParams) {
         let vs = 0.1 + 0.2; // not exactly 0.3: the binary f64 must come back as is
@@ -175,7 +178,15 @@ mod tests {
 
     fn small_map() -> GlobalMap {
         let (vs, occupancy_params, global_params) = small_params();
-        let mut map = GlobalMap::from_layers(vs, occupancy_params, global_params, OccupancyMap::new(), EdtMap::new(), StaticMap::new()).expect("valid");
+        let mut map = GlobalMap::from_layers(
+            vs,
+            occupancy_params,
+            global_params,
+            OccupancyMap::new(),
+            EdtMap::new(),
+            StaticMap::new(),
+        )
+        .expect("valid");
         map.occupancy_mut().get_or_insert(BlockKey([-1, 2, 3])).log_odds[7] = -0.25;
         map.fixed_obstacles_mut().get_or_insert(BlockKey([0, 0, 0])).bits[3] = 1 << 40;
         map
@@ -205,7 +216,15 @@ mod tests {
         // A map with a bad zone cannot be made, so it can never be written.
         let (vs, occupancy_params, mut global_params) = small_params();
         global_params.forbidden[0].max_m[1] = 0.0;
-        let err = GlobalMap::from_layers(vs, occupancy_params, global_params, OccupancyMap::new(), EdtMap::new(), StaticMap::new()).expect_err("bad zone");
+        let err = GlobalMap::from_layers(
+            vs,
+            occupancy_params,
+            global_params,
+            OccupancyMap::new(),
+            EdtMap::new(),
+            StaticMap::new(),
+        )
+        .expect_err("bad zone");
         assert!(err.to_string().contains("forbidden"), "{err}");
     }
 }

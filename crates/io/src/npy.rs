@@ -42,8 +42,7 @@ pub struct ArrayLayout {
 impl ArrayLayout {
     /// A layout of `shape` (2 or 3 nonzero axes) in `order`.
     pub fn new(shape: Vec<usize>, order: ArrayOrder) -> Option<Self> {
-        ((shape.len() == 2 || shape.len() == 3) && !shape.contains(&0))
-            .then_some(ArrayLayout { shape, order })
+        ((shape.len() == 2 || shape.len() == 3) && !shape.contains(&0)).then_some(ArrayLayout { shape, order })
     }
 
     /// The array's shape, axis 0 first.
@@ -157,17 +156,12 @@ impl ObstacleNpy {
             shape: self.layout.shape.iter().map(|&n| n as u64).collect(),
             reason: format!("cannot allocate {bytes} bytes"),
         })?;
-        (&mut self.reader)
-            .take(bytes as u64)
-            .read_to_end(&mut raw)
-            .map_err(|e| IoError::io(&self.path, e))?;
+        (&mut self.reader).take(bytes as u64).read_to_end(&mut raw).map_err(|e| IoError::io(&self.path, e))?;
         if self.is_bool {
             check_bools(&self.path, &raw)?;
         }
-        let obstacles: Vec<bool> = raw
-            .par_chunks_exact(self.item_size)
-            .map(|item| item.iter().any(|&b| b != 0))
-            .collect();
+        let obstacles: Vec<bool> =
+            raw.par_chunks_exact(self.item_size).map(|item| item.iter().any(|&b| b != 0)).collect();
         Grid3::from_vec(self.layout.grid_dims(), obstacles).map_err(|e| IoError::BadShape {
             path: self.path,
             shape: self.layout.shape.iter().map(|&n| n as u64).collect(),
@@ -191,9 +185,7 @@ fn check_bools(path: &Path, raw: &[u8]) -> Result<(), IoError> {
 fn obstacle_item_size(path: &Path, dtype: &DType) -> Result<usize, IoError> {
     let unsupported = || IoError::UnsupportedDtype { path: path.into(), dtype: dtype.descr() };
     match dtype {
-        DType::Plain(ts)
-            if matches!(ts.type_char(), TypeChar::Bool | TypeChar::Int | TypeChar::Uint) =>
-        {
+        DType::Plain(ts) if matches!(ts.type_char(), TypeChar::Bool | TypeChar::Int | TypeChar::Uint) => {
             ts.num_bytes().filter(|&n| n > 0).ok_or_else(unsupported)
         }
         _ => Err(unsupported()),
@@ -345,9 +337,7 @@ fn write_array<T: npyz::AutoSerialize>(
 /// Writes distances (from [`distance_array`]) as a `float32` array of the
 /// layout's shape and order.
 pub fn write_distances(path: &Path, layout: &ArrayLayout, dist: &[f32]) -> Result<(), IoError> {
-    write_array(path, &layout.shape, layout.npyz_order(), dist, |v, b| {
-        b.extend_from_slice(&v.to_le_bytes())
-    })
+    write_array(path, &layout.shape, layout.npyz_order(), dist, |v, b| b.extend_from_slice(&v.to_le_bytes()))
 }
 
 /// Writes bytes (voxel states, say) as a `uint8` array of the layout's
@@ -375,7 +365,8 @@ mod tests {
             let total = (dims[0] * dims[1] * dims[2]) as u64;
             let step = (total / 5000).max(1);
             for n in (0..total).step_by(step as usize).chain([total - 1]) {
-                let (x, y, z) = (n % dims[0] as u64, n / dims[0] as u64 % dims[1] as u64, n / (dims[0] * dims[1]) as u64);
+                let (x, y, z) =
+                    (n % dims[0] as u64, n / dims[0] as u64 % dims[1] as u64, n / (dims[0] * dims[1]) as u64);
                 assert_eq!(split.coords(n as u32), [x as u32, y as u32, z as u32], "{dims:?} {n}");
             }
         }

@@ -265,18 +265,31 @@ fn parse_fields<'a>(path: &Path, raw: &RawHeader<'a>) -> Result<Vec<Field<'a>>, 
         if list.len() != names.len() {
             return Err(header_err(
                 path,
-                format!("FIELDS lists {} fields ({}) but {keyword} has {} values", names.len(), names.join(" "), list.len()),
+                format!(
+                    "FIELDS lists {} fields ({}) but {keyword} has {} values",
+                    names.len(),
+                    names.join(" "),
+                    list.len()
+                ),
             ));
         }
     }
-    names.iter().zip(sizes).zip(kinds).zip(counts).map(|(((name, size), kind), count)| Field::parse(path, name, size, kind, count)).collect()
+    names
+        .iter()
+        .zip(sizes)
+        .zip(kinds)
+        .zip(counts)
+        .map(|(((name, size), kind), count)| Field::parse(path, name, size, kind, count))
+        .collect()
 }
 
 impl<'a> Field<'a> {
     /// One field from its SIZE, TYPE and COUNT values.
     fn parse(path: &Path, name: &'a str, size: &str, kind: &str, count: &str) -> Result<Self, IoError> {
-        let size = positive(size).ok_or_else(|| header_err(path, format!("SIZE of field {name}: {size:?} is not a positive integer")))?;
-        let count = positive(count).ok_or_else(|| header_err(path, format!("COUNT of field {name}: {count:?} is not a positive integer")))?;
+        let size = positive(size)
+            .ok_or_else(|| header_err(path, format!("SIZE of field {name}: {size:?} is not a positive integer")))?;
+        let count = positive(count)
+            .ok_or_else(|| header_err(path, format!("COUNT of field {name}: {count:?} is not a positive integer")))?;
         let kind = match kind {
             "F" => 'F',
             "I" => 'I',
@@ -291,7 +304,10 @@ impl<'a> Field<'a> {
     fn check_coordinate(&self, path: &Path) -> Result<(), IoError> {
         let field_err = |reason: String| IoError::PcdField { path: path.into(), field: self.name.into(), reason };
         if self.kind != 'F' || !(self.size == 4 || self.size == 8) {
-            return Err(field_err(format!("TYPE {} SIZE {} is not supported (expected F 4 or F 8)", self.kind, self.size)));
+            return Err(field_err(format!(
+                "TYPE {} SIZE {} is not supported (expected F 4 or F 8)",
+                self.kind, self.size
+            )));
         }
         if self.count != 1 {
             return Err(field_err(format!("COUNT {} is not supported (expected 1)", self.count)));
@@ -318,7 +334,11 @@ impl Layout {
         for field in fields {
             if let Some(axis) = AXES.iter().position(|&n| n == field.name) {
                 if coords[axis].is_some() {
-                    return Err(IoError::PcdField { path: path.into(), field: field.name.into(), reason: "listed twice in FIELDS".into() });
+                    return Err(IoError::PcdField {
+                        path: path.into(),
+                        field: field.name.into(),
+                        reason: "listed twice in FIELDS".into(),
+                    });
                 }
                 field.check_coordinate(path)?;
                 coords[axis] = Some(Coord { offset: point_size, column: values_per_point, size: field.size });
@@ -351,7 +371,10 @@ const AXES: [&str; 3] = ["x", "y", "z"];
 fn single_count(path: &Path, keyword: &str, values: Option<&[&str]>) -> Result<Option<usize>, IoError> {
     match values {
         None => Ok(None),
-        Some([v]) => v.parse::<usize>().map(Some).map_err(|_| header_err(path, format!("{keyword}: {v:?} is not a non-negative integer"))),
+        Some([v]) => v
+            .parse::<usize>()
+            .map(Some)
+            .map_err(|_| header_err(path, format!("{keyword}: {v:?} is not a non-negative integer"))),
         Some(v) => Err(header_err(path, format!("{keyword} needs one value, got {v:?}"))),
     }
 }
@@ -386,7 +409,9 @@ fn parse_viewpoint(path: &Path, values: Option<&[&str]>) -> Result<[f64; 7], IoE
     let v = match values {
         None => return Ok(IDENTITY_VIEWPOINT),
         Some(v) if v.len() == 7 => v,
-        Some(v) => return Err(header_err(path, format!("VIEWPOINT needs 7 values (tx ty tz qw qx qy qz), got {}", v.len()))),
+        Some(v) => {
+            return Err(header_err(path, format!("VIEWPOINT needs 7 values (tx ty tz qw qx qy qz), got {}", v.len())))
+        }
     };
     let mut vp = [0.0; 7];
     for (out, s) in vp.iter_mut().zip(v) {
@@ -437,10 +462,7 @@ fn read_binary(path: &Path, header: &Header, data: &[u8]) -> Result<Vec<[f32; 3]
         }
     };
     let [cx, cy, cz] = header.coords;
-    Ok(data[..expected]
-        .chunks_exact(header.point_size)
-        .map(|p| [read(p, cx), read(p, cy), read(p, cz)])
-        .collect())
+    Ok(data[..expected].chunks_exact(header.point_size).map(|p| [read(p, cx), read(p, cy), read(p, cz)]).collect())
 }
 
 fn read_ascii(path: &Path, header: &Header, data: &[u8]) -> Result<Vec<[f32; 3]>, IoError> {
@@ -500,7 +522,11 @@ fn refuse_extra_lines(path: &Path, header: &Header, data: &[u8], line_no: usize)
     Err(IoError::PcdAscii {
         path: path.into(),
         line: header.header_lines + first + 1,
-        reason: format!("POINTS is {0} but the data has {1} lines of points ({extra} past the first {0})", header.points, header.points + extra),
+        reason: format!(
+            "POINTS is {0} but the data has {1} lines of points ({extra} past the first {0})",
+            header.points,
+            header.points + extra
+        ),
     })
 }
 
@@ -511,7 +537,8 @@ fn to_sensor_frame(viewpoint: &[f64; 7], points: &mut [[f32; 3]]) {
     let n = (qw * qw + qx * qx + qy * qy + qz * qz).sqrt();
     // The inverse rotation: the conjugate of the unit quaternion.
     let (w, u) = (qw / n, [-qx / n, -qy / n, -qz / n]);
-    let cross = |a: [f64; 3], b: [f64; 3]| [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]];
+    let cross =
+        |a: [f64; 3], b: [f64; 3]| [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]];
     for p in points {
         let v = [f64::from(p[0]) - tx, f64::from(p[1]) - ty, f64::from(p[2]) - tz];
         // v' = v + 2w (u × v) + 2 u × (u × v)
@@ -678,10 +705,16 @@ mod tests {
             e
         };
         // Missing z.
-        let e = check(header("x y intensity", "4 4 4", "F F F", "1 1 1", 0, "binary").as_bytes(), &["field z", "missing", "x y intensity"]);
+        let e = check(
+            header("x y intensity", "4 4 4", "F F F", "1 1 1", 0, "binary").as_bytes(),
+            &["field z", "missing", "x y intensity"],
+        );
         assert!(matches!(e, IoError::PcdField { ref field, .. } if field == "z"));
         // Unsupported encodings.
-        let e = check(header("x y z", "4 4 4", "F F F", "1 1 1", 1, "binary_compressed").as_bytes(), &["binary_compressed", "not supported"]);
+        let e = check(
+            header("x y z", "4 4 4", "F F F", "1 1 1", 1, "binary_compressed").as_bytes(),
+            &["binary_compressed", "not supported"],
+        );
         assert!(matches!(e, IoError::PcdUnsupportedData { .. }));
         check(header("x y z", "4 4 4", "F F F", "1 1 1", 1, "hex").as_bytes(), &["DATA hex"]);
         // Truncated binary data: 3 points of 16 bytes promised, 47 given.
@@ -709,8 +742,14 @@ mod tests {
         check(b"FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nPOINTS -1\nDATA ascii\n", &["POINTS", "\"-1\""]);
         check(b"FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nDATA ascii\n", &["neither POINTS nor WIDTH"]);
         check(b"FIELDS x y z\nFIELDS x y z\nDATA ascii\n", &["line 2", "FIELDS given twice"]);
-        check(b"FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nPOINTS 1\nVIEWPOINT 0 0 0 1 0 0\nDATA ascii\n", &["VIEWPOINT needs 7"]);
-        check(b"FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nPOINTS 1\nVIEWPOINT 0 0 0 0 0 0 0\nDATA ascii\n", &["quaternion"]);
+        check(
+            b"FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nPOINTS 1\nVIEWPOINT 0 0 0 1 0 0\nDATA ascii\n",
+            &["VIEWPOINT needs 7"],
+        );
+        check(
+            b"FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nPOINTS 1\nVIEWPOINT 0 0 0 0 0 0 0\nDATA ascii\n",
+            &["quaternion"],
+        );
         check(b"FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nPOINTS 1\n", &["no DATA line"]);
         check(b"P6\n640 480\n255\n", &["line 1", "unknown keyword \"P6\""]);
         check(b"\x89PNG\r\n\x1a\n\0\0", &["line 1 is not text"]);
@@ -718,7 +757,10 @@ mod tests {
         check(b"FIELDS x y z\n\xff\xfe\nDATA ascii\n", &["line 2 is not text"]);
         // Ascii data problems: bad numbers, wrong value counts, too few lines.
         let ascii = header("x y z i", "4 4 4 4", "F F F U", "1 1 1 1", 2, "ascii");
-        let e = check(format!("{ascii}1 2 3 4\n1 2.5.1 3 junk\n").as_bytes(), &["line 13", "field y", "\"2.5.1\"", "not a number"]);
+        let e = check(
+            format!("{ascii}1 2 3 4\n1 2.5.1 3 junk\n").as_bytes(),
+            &["line 13", "field y", "\"2.5.1\"", "not a number"],
+        );
         assert!(matches!(e, IoError::PcdAscii { line: 13, .. }));
         check(format!("{ascii}1 2 3 4\n1 2 3\n").as_bytes(), &["line 13", "expected 4 values, found 3"]);
         check(format!("{ascii}1 2 3 4\n").as_bytes(), &["promises 2 points", "has 1"]);

@@ -68,7 +68,8 @@ pub fn read_ply(path: &Path) -> Result<PointCloud, IoError> {
 /// in errors.
 pub fn parse_ply(path: &Path, bytes: &[u8]) -> Result<PointCloud, IoError> {
     let header = PlyHeader::parse(path, bytes)?;
-    let vertex = header.elements.iter().position(|e| e.name == "vertex").ok_or_else(|| ply_err(path, "no vertex element"))?;
+    let vertex =
+        header.elements.iter().position(|e| e.name == "vertex").ok_or_else(|| ply_err(path, "no vertex element"))?;
     let coords = header.elements[vertex].coords(path)?;
     let points = match header.format {
         PlyFormat::Ascii => {
@@ -211,7 +212,11 @@ impl PlyHeader {
         let (mut format, mut elements) = (None, Vec::<Element>::new());
         let (mut pos, mut line_no) = (0, 0);
         loop {
-            let end = bytes[pos..].iter().position(|&b| b == b'\n').map(|n| pos + n).ok_or_else(|| ply_err(path, "no end_header line"))?;
+            let end = bytes[pos..]
+                .iter()
+                .position(|&b| b == b'\n')
+                .map(|n| pos + n)
+                .ok_or_else(|| ply_err(path, "no end_header line"))?;
             line_no += 1;
             let at = |reason: String| ply_err(path, format!("header line {line_no}: {reason}"));
             let line = std::str::from_utf8(&bytes[pos..end]).map_err(|_| at("not text".into()))?.trim();
@@ -241,14 +246,20 @@ impl PlyHeader {
                     });
                 }
                 ["element", name, count] => {
-                    let count = count.parse::<u64>().map_err(|_| at(format!("element {}: count {} is not a non-negative integer", shown(name), shown(count))))?;
+                    let count = count.parse::<u64>().map_err(|_| {
+                        at(format!("element {}: count {} is not a non-negative integer", shown(name), shown(count)))
+                    })?;
                     elements.push(Element { name: (*name).to_string(), count, props: Vec::new() });
                 }
                 ["property", rest @ ..] => {
                     let element = elements.last_mut().ok_or_else(|| at("property before any element".into()))?;
                     let (name, prop) = parse_property(rest).map_err(at)?;
                     if element.props.iter().any(|(n, _)| n == name) {
-                        return Err(at(format!("property {} listed twice in element {}", shown(name), shown(&element.name))));
+                        return Err(at(format!(
+                            "property {} listed twice in element {}",
+                            shown(name),
+                            shown(&element.name)
+                        )));
                     }
                     element.props.push((name.to_string(), prop));
                 }
@@ -326,7 +337,11 @@ impl Element {
     fn coords(&self, path: &Path) -> Result<[usize; 3], IoError> {
         let mut out = [0; 3];
         for (o, axis) in out.iter_mut().zip(["x", "y", "z"]) {
-            *o = self.props.iter().position(|(n, _)| n == axis).ok_or_else(|| ply_err(path, format!("element vertex has no property {axis}")))?;
+            *o = self
+                .props
+                .iter()
+                .position(|(n, _)| n == axis)
+                .ok_or_else(|| ply_err(path, format!("element vertex has no property {axis}")))?;
             if self.props[*o].1.scalar().is_none() {
                 return Err(ply_err(path, format!("vertex property {axis} is a list")));
             }
@@ -349,7 +364,8 @@ impl Element {
     /// The vertices of ascii data.
     fn read_ascii(&self, path: &Path, tokens: &mut Tokens<'_>, coords: [usize; 3]) -> Result<Vec<[f32; 3]>, IoError> {
         // A value takes at least two bytes with its separator.
-        let mut points = Vec::with_capacity(self.count_usize().min(tokens.data.len().saturating_sub(tokens.pos) / 2 + 1));
+        let mut points =
+            Vec::with_capacity(self.count_usize().min(tokens.data.len().saturating_sub(tokens.pos) / 2 + 1));
         for record in 0..self.count {
             let mut p = [0.0f32; 3];
             self.ascii_record(path, tokens, record, |k, tok, line| {
@@ -357,7 +373,10 @@ impl Element {
                     let s = std::str::from_utf8(tok).ok();
                     p[axis] = s.and_then(|s| s.parse::<f64>().ok()).ok_or_else(|| {
                         let name = ["x", "y", "z"][axis];
-                        ply_err(path, format!("line {line}: bad number {} for {name}", shown(&String::from_utf8_lossy(tok))))
+                        ply_err(
+                            path,
+                            format!("line {line}: bad number {} for {name}", shown(&String::from_utf8_lossy(tok))),
+                        )
                     })? as f32;
                 }
                 Ok(())
@@ -368,8 +387,22 @@ impl Element {
     }
 
     /// Reads one ascii record, handing each scalar property's token to `seen`.
-    fn ascii_record<'a>(&self, path: &Path, tokens: &mut Tokens<'a>, record: u64, mut seen: impl FnMut(usize, &'a [u8], usize) -> Result<(), IoError>) -> Result<(), IoError> {
-        let short = |line: usize| ply_err(path, format!("line {line}: the data ends in record {record} of element {} ({} records promised)", self.name, self.count));
+    fn ascii_record<'a>(
+        &self,
+        path: &Path,
+        tokens: &mut Tokens<'a>,
+        record: u64,
+        mut seen: impl FnMut(usize, &'a [u8], usize) -> Result<(), IoError>,
+    ) -> Result<(), IoError> {
+        let short = |line: usize| {
+            ply_err(
+                path,
+                format!(
+                    "line {line}: the data ends in record {record} of element {} ({} records promised)",
+                    self.name, self.count
+                ),
+            )
+        };
         for (k, (name, prop)) in self.props.iter().enumerate() {
             match prop {
                 Prop::Scalar(_) => {
@@ -379,7 +412,14 @@ impl Element {
                 Prop::List { .. } => {
                     let tok = tokens.next().ok_or_else(|| short(tokens.line_no()))?;
                     let n = std::str::from_utf8(tok).ok().and_then(|s| s.parse::<u64>().ok()).ok_or_else(|| {
-                        ply_err(path, format!("line {}: list {name}: bad length {}", tokens.line_no(), shown(&String::from_utf8_lossy(tok))))
+                        ply_err(
+                            path,
+                            format!(
+                                "line {}: list {name}: bad length {}",
+                                tokens.line_no(),
+                                shown(&String::from_utf8_lossy(tok))
+                            ),
+                        )
                     })?;
                     for _ in 0..n {
                         tokens.next().ok_or_else(|| short(tokens.line_no()))?;
@@ -392,7 +432,14 @@ impl Element {
 
     /// Walks this element's binary records from `*pos`, handing each scalar
     /// property's bytes to `seen`.
-    fn walk_binary(&self, path: &Path, bytes: &[u8], pos: &mut usize, big: bool, mut seen: impl FnMut(usize, &[u8])) -> Result<(), IoError> {
+    fn walk_binary(
+        &self,
+        path: &Path,
+        bytes: &[u8],
+        pos: &mut usize,
+        big: bool,
+        mut seen: impl FnMut(usize, &[u8]),
+    ) -> Result<(), IoError> {
         let fixed: Option<Vec<Scalar>> = self.props.iter().map(|(_, p)| p.scalar()).collect();
         if let Some(fixed) = &fixed {
             // Check the whole element fits before reading any record.
@@ -407,14 +454,28 @@ impl Element {
             }
         }
         for record in 0..self.count {
-            let short = || ply_err(path, format!("truncated data: record {record} of element {} ({} promised) ends past the end of the file", self.name, self.count));
+            let short = || {
+                ply_err(
+                    path,
+                    format!(
+                        "truncated data: record {record} of element {} ({} promised) ends past the end of the file",
+                        self.name, self.count
+                    ),
+                )
+            };
             for (k, (_, prop)) in self.props.iter().enumerate() {
                 match *prop {
                     Prop::Scalar(s) => seen(k, take(bytes, pos, s.size() as u64).ok_or_else(short)?),
                     Prop::List { count, item } => {
                         let n = count.decode(take(bytes, pos, count.size() as u64).ok_or_else(short)?, big);
                         if n < 0.0 {
-                            return Err(ply_err(path, format!("record {record} of element {}: list {} has length {n}", self.name, self.props[k].0)));
+                            return Err(ply_err(
+                                path,
+                                format!(
+                                    "record {record} of element {}: list {} has length {n}",
+                                    self.name, self.props[k].0
+                                ),
+                            ));
                         }
                         take(bytes, pos, (n as u64).saturating_mul(item.size() as u64)).ok_or_else(short)?;
                     }
@@ -442,7 +503,10 @@ mod tests {
         let dir = std::env::temp_dir().join(format!("edtmap-ply-{}", std::process::id()));
         std::fs::create_dir_all(&dir).expect("temp dir");
         let path = dir.join("p.ply");
-        let points = [ColouredPoint { xyz: [1.5, -2.0, 0.25], rgb: [10, 20, 30] }, ColouredPoint { xyz: [0.0, 0.0, 1e6], rgb: [255, 0, 7] }];
+        let points = [
+            ColouredPoint { xyz: [1.5, -2.0, 0.25], rgb: [10, 20, 30] },
+            ColouredPoint { xyz: [0.0, 0.0, 1e6], rgb: [255, 0, 7] },
+        ];
         write_ply(&path, &points, "two\npoints").expect("written");
         let bytes = std::fs::read(&path).expect("read");
         let end = b"end_header\n";

@@ -198,7 +198,8 @@ impl Trajectory {
             let [t, x, y, z, qx, qy, qz, qw] = numbers[..] else {
                 return Err(at(format!("{} numbers, a TUM pose has 8: timestamp tx ty tz qx qy qz qw", numbers.len())));
             };
-            let (rotation, _) = rotation_from_quaternion(Quaternion::new(qw, qx, qy, qz)).map_err(|e| at(e.to_string()))?;
+            let (rotation, _) =
+                rotation_from_quaternion(Quaternion::new(qw, qx, qy, qz)).map_err(|e| at(e.to_string()))?;
             let pose = Isometry3::from_parts(Translation3::new(x, y, z), rotation);
             check_pose(&pose).map_err(|e| at(e.to_string()))?;
             if !t.is_finite() {
@@ -246,7 +247,8 @@ mod tests {
 
     #[test]
     fn parses_tum_and_names_bad_lines() {
-        let traj = Trajectory::parse_tum("# tum\n1.0 1 2 3 0 0 0 1\n\n2.0,4,5,6,0,0,0.7071068,0.7071068\n").expect("valid");
+        let traj =
+            Trajectory::parse_tum("# tum\n1.0 1 2 3 0 0 0 1\n\n2.0,4,5,6,0,0,0.7071068,0.7071068\n").expect("valid");
         assert_eq!(traj.len(), 2);
         let p = traj.pose_at(2.0, 2.0).expect("end");
         assert!((p.rotation.angle() - std::f64::consts::FRAC_PI_2).abs() < 1e-6);

@@ -93,7 +93,12 @@ fn tum_depth_folder_poses_are_interpolated_at_the_image_times() {
     let err = set.frame(3).expect_err("outside the trajectory");
     assert!(matches!(err, IoError::NoPose { .. }), "{err:?}");
     let msg = err.to_string();
-    for want in ["1305031103.000000.png", "1305031103.000000 s", "groundtruth.txt", "1305031100.000000 s to 1305031102.000000 s"] {
+    for want in [
+        "1305031103.000000.png",
+        "1305031103.000000 s",
+        "groundtruth.txt",
+        "1305031100.000000 s to 1305031102.000000 s",
+    ] {
         assert!(msg.contains(want), "{want} not in {msg}");
     }
 }
@@ -105,7 +110,8 @@ fn tum_depth_folder_without_a_list_with_a_given_trajectory() {
     tum_folder(&dir, &[T0 + 1.5, T0 + 0.25], false);
     std::fs::remove_file(dir.join("groundtruth.txt")).expect("rm");
     // No trajectory anywhere.
-    let err = Dataset::open_with(&dir, &options(Some([500.0, 500.0, 2.0, 1.5]), None)).expect_err("no poses").to_string();
+    let err =
+        Dataset::open_with(&dir, &options(Some([500.0, 500.0, 2.0, 1.5]), None)).expect_err("no poses").to_string();
     assert!(err.contains("groundtruth.txt"), "{err}");
     let traj = tmp.path().join("odometry.txt");
     std::fs::write(&traj, tum_trajectory()).expect("write");
@@ -123,7 +129,11 @@ fn tum_depth_folder_without_a_list_with_a_given_trajectory() {
 fn a_gap_in_the_trajectory_is_not_interpolated_across() {
     let tmp = tempfile::tempdir().expect("temp dir");
     tum_folder(tmp.path(), &[T0 + 0.5, T0 + 1.005], true);
-    let gappy: String = tum_trajectory().lines().filter(|l| !l.starts_with("1305031100.") || l.starts_with("1305031100.0")).map(|l| format!("{l}\n")).collect();
+    let gappy: String = tum_trajectory()
+        .lines()
+        .filter(|l| !l.starts_with("1305031100.") || l.starts_with("1305031100.0"))
+        .map(|l| format!("{l}\n"))
+        .collect();
     std::fs::write(tmp.path().join("groundtruth.txt"), gappy).expect("write");
     let mut opts = options(Some([500.0, 500.0, 2.0, 1.5]), None);
     let set = Dataset::open_with(tmp.path(), &opts).expect("opens");
@@ -147,10 +157,14 @@ fn threedmatch_folder_posed_by_a_trajectory_at_30_hz() {
     let err = Dataset::open(dir, 0.001, RANGE).expect_err("no pose files").to_string();
     assert!(err.contains("frame-000000.pose.txt"), "{err}");
     let traj = dir.join("traj.txt");
-    let shifted: String = tum_trajectory().lines().filter(|l| !l.starts_with('#')).map(|l| {
-        let (t, rest) = l.split_once(' ').expect("stamp");
-        format!("{} {rest}\n", t.parse::<f64>().expect("t") - T0)
-    }).collect();
+    let shifted: String = tum_trajectory()
+        .lines()
+        .filter(|l| !l.starts_with('#'))
+        .map(|l| {
+            let (t, rest) = l.split_once(' ').expect("stamp");
+            format!("{} {rest}\n", t.parse::<f64>().expect("t") - T0)
+        })
+        .collect();
     std::fs::write(&traj, shifted).expect("write");
     let opts = DatasetOptions { trajectory: Some(traj), ..DatasetOptions::new(0.001, RANGE) };
     let set = Dataset::open_with(dir, &opts).expect("opens");
@@ -186,7 +200,8 @@ fn clouds_with_times_and_a_tum_trajectory() {
     let err = Dataset::open_with(&dir, &opts).expect_err("no times").to_string();
     assert!(err.contains("times.txt"), "{err}");
     let times = [T0 + 0.05, T0 + 0.1501, T0 + 1.99];
-    std::fs::write(dir.join("times.txt"), times.iter().map(|t| format!("{t:.6}\n")).collect::<String>()).expect("write");
+    std::fs::write(dir.join("times.txt"), times.iter().map(|t| format!("{t:.6}\n")).collect::<String>())
+        .expect("write");
     let set = Dataset::open_with(&dir, &opts).expect("opens");
     assert_eq!((set.kind(), set.len()), ("point cloud", 3));
     for (i, &t) in times.iter().enumerate() {
@@ -206,11 +221,16 @@ fn clouds_named_by_their_time_take_the_trajectory_pose() {
     let tmp = tempfile::tempdir().expect("temp dir");
     let dir = tmp.path();
     for t in [T0 + 1.25, T0 + 0.75] {
-        std::fs::write(dir.join(format!("{t:.6}.pcd")), "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nPOINTS 1\nDATA ascii\n1 2 3\n").expect("write");
+        std::fs::write(
+            dir.join(format!("{t:.6}.pcd")),
+            "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nPOINTS 1\nDATA ascii\n1 2 3\n",
+        )
+        .expect("write");
     }
     let traj = dir.join("groundtruth.tum");
     std::fs::write(&traj, tum_trajectory()).expect("write");
-    let set = Dataset::open_with(dir, &DatasetOptions { trajectory: Some(traj), ..DatasetOptions::new(0.001, RANGE) }).expect("opens");
+    let set = Dataset::open_with(dir, &DatasetOptions { trajectory: Some(traj), ..DatasetOptions::new(0.001, RANGE) })
+        .expect("opens");
     let stamps: Vec<f64> = set.frames().iter().map(|f| f.stamp_s).collect();
     assert_eq!(stamps, vec![T0 + 0.75, T0 + 1.25]);
     assert_pose_near(&set.frame(0).expect("frame").t_world_sensor, &truth(T0 + 0.75), "named cloud");

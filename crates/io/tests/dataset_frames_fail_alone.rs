@@ -43,7 +43,8 @@ fn the_folders_intrinsics_and_first_image_give_the_camera() {
     let tmp = tempfile::tempdir().expect("temp dir");
     threedmatch(tmp.path(), 2, 120, 68);
     // The options' intrinsics are another camera's: the folder's file wins.
-    let opts = DatasetOptions { intrinsics: Some([570.342, 570.342, 320.0, 240.0]), ..DatasetOptions::new(0.001, RANGE) };
+    let opts =
+        DatasetOptions { intrinsics: Some([570.342, 570.342, 320.0, 240.0]), ..DatasetOptions::new(0.001, RANGE) };
     let set = Dataset::open_with(tmp.path(), &opts).expect("opens");
     let c = &depth(&set).camera;
     assert_eq!((c.fx, c.fy, c.cx, c.cy, c.width, c.height), (100.0, 100.0, 60.0, 34.0, 120, 68));
@@ -51,7 +52,8 @@ fn the_folders_intrinsics_and_first_image_give_the_camera() {
     let Measurement::Depth(image) = set.frame(1).expect("frame 1").measurement else { panic!("depth") };
     assert_eq!((image.width, image.height), (120, 68));
     // Told not to read the folder's file, the options give the intrinsics.
-    let set = Dataset::open_with(tmp.path(), &DatasetOptions { folder_intrinsics: false, ..opts.clone() }).expect("opens");
+    let set =
+        Dataset::open_with(tmp.path(), &DatasetOptions { folder_intrinsics: false, ..opts.clone() }).expect("opens");
     let c = &depth(&set).camera;
     assert_eq!((c.fx, c.cx, c.cy, c.width, c.height), (570.342, 320.0, 240.0, 120, 68));
     assert_eq!(depth(&set).intrinsics_file, None);
@@ -76,7 +78,12 @@ fn a_3dmatch_frames_own_problems_fail_that_frame_alone() {
     assert_eq!(set.len(), 4, "{:?}", set.frames());
     assert_eq!(set.frames().iter().map(|f| f.stamp_s * 30.0).collect::<Vec<_>>(), vec![0.0, 1.0, 2.0, 3.0]);
     let warnings = set.warnings().join("\n");
-    assert!(set.warnings().len() == 1 && warnings.contains("frame-abc.depth.png") && warnings.contains("frame-XXXXXX.depth.png"), "{warnings}");
+    assert!(
+        set.warnings().len() == 1
+            && warnings.contains("frame-abc.depth.png")
+            && warnings.contains("frame-XXXXXX.depth.png"),
+        "{warnings}"
+    );
     // The size comes from the first image whose header reads.
     assert_eq!((depth(&set).camera.width, depth(&set).camera.height), (120, 68));
     let err = set.frame(0).expect_err("corrupt").to_string();
@@ -99,7 +106,10 @@ fn a_3dmatch_folder_refused_as_a_whole_says_why() {
         std::fs::remove_file(dir.join(format!("frame-{k:06}.pose.txt"))).expect("rm");
     }
     let err = Dataset::open(dir, 0.001, RANGE).expect_err("no poses").to_string();
-    assert!(err.contains("no poses") && err.contains("frame-000000.pose.txt") && err.contains("[dataset] trajectory"), "{err}");
+    assert!(
+        err.contains("no poses") && err.contains("frame-000000.pose.txt") && err.contains("[dataset] trajectory"),
+        "{err}"
+    );
     // No image can be read at all: nothing gives the camera's size.
     for k in 0..2 {
         std::fs::write(dir.join(format!("frame-{k:06}.pose.txt")), IDENTITY).expect("pose");
@@ -123,7 +133,8 @@ fn a_tum_image_named_otherwise_is_left_out_and_a_corrupt_one_fails_alone() {
     std::fs::write(dir.join("depth/10.000000.png"), b"garbage").expect("write");
     write_depth_png(&dir.join("depth/10.100000.png"), 4, 3, 5000);
     write_depth_png(&dir.join("depth/notes.png"), 4, 3, 5000);
-    std::fs::write(dir.join("groundtruth.txt"), "9.95 0 0 0 0 0 0 1\n10.05 0 0 0 0 0 0 1\n10.15 0 0 0 0 0 0 1\n").expect("gt");
+    std::fs::write(dir.join("groundtruth.txt"), "9.95 0 0 0 0 0 0 1\n10.05 0 0 0 0 0 0 1\n10.15 0 0 0 0 0 0 1\n")
+        .expect("gt");
     let opts = DatasetOptions { intrinsics: Some([500.0, 500.0, 2.0, 1.5]), ..DatasetOptions::new(0.0002, RANGE) };
     let set = Dataset::open_with(dir, &opts).expect("opens");
     assert_eq!(set.frames().iter().map(|f| f.stamp_s).collect::<Vec<_>>(), vec![10.0, 10.1]);
@@ -134,7 +145,8 @@ fn a_tum_image_named_otherwise_is_left_out_and_a_corrupt_one_fails_alone() {
     // The config's intrinsics for TUM: no file in the folder.
     assert_eq!((depth(&set).camera.fx, depth(&set).intrinsics_file.clone()), (500.0, None));
     // A depth.txt that lists a missing image: that frame alone fails, naming it.
-    std::fs::write(dir.join("depth.txt"), "10.0 depth/10.000000.png\n10.05 depth/gone.png\n10.1 depth/10.100000.png\n").expect("depth.txt");
+    std::fs::write(dir.join("depth.txt"), "10.0 depth/10.000000.png\n10.05 depth/gone.png\n10.1 depth/10.100000.png\n")
+        .expect("depth.txt");
     let set = Dataset::open_with(dir, &opts).expect("opens");
     assert_eq!(set.len(), 3);
     let err = set.frame(1).expect_err("missing").to_string();
@@ -142,7 +154,8 @@ fn a_tum_image_named_otherwise_is_left_out_and_a_corrupt_one_fails_alone() {
     assert!(set.frame(2).is_ok());
 }
 
-const PCD: &str = "VERSION .7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 1\nHEIGHT 1\nPOINTS 1\nDATA ascii\n1 2 3\n";
+const PCD: &str =
+    "VERSION .7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 1\nHEIGHT 1\nPOINTS 1\nDATA ascii\n1 2 3\n";
 const PLY: &str = "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\nend_header\n1 2 3\n";
 
 #[test]
@@ -163,7 +176,10 @@ fn a_corrupt_first_cloud_or_a_missing_pose_file_fails_that_frame_alone_for_every
         assert_eq!(set.len(), 3, "{ext}");
         let err = set.frame(0).expect_err("corrupt").to_string();
         assert!(err.contains(&format!("000000.{ext}")), "{ext}: {err}");
-        let Measurement::Points(cloud) = set.frame(1).unwrap_or_else(|e| panic!("{ext}: frame 1: {e}")).measurement else { panic!("points") };
+        let Measurement::Points(cloud) = set.frame(1).unwrap_or_else(|e| panic!("{ext}: frame 1: {e}")).measurement
+        else {
+            panic!("points")
+        };
         assert_eq!(cloud.points, vec![[1.0, 2.0, 3.0]], "{ext}");
         let err = set.frame(2).expect_err("no pose file");
         assert!(matches!(err, IoError::NoPose { .. }), "{ext}: {err:?}");

@@ -14,8 +14,9 @@ fn parse(bytes: &[u8]) -> Result<Vec<[f32; 3]>, IoError> {
 fn reads_what_write_ply_writes() {
     let tmp = tempfile::tempdir().expect("temp dir");
     let path = tmp.path().join("occupied.ply");
-    let points: Vec<ColouredPoint> =
-        (0..50).map(|k| ColouredPoint { xyz: [k as f32 * 0.5, -(k as f32), 1e-3 * k as f32], rgb: [k as u8, 2, 3] }).collect();
+    let points: Vec<ColouredPoint> = (0..50)
+        .map(|k| ColouredPoint { xyz: [k as f32 * 0.5, -(k as f32), 1e-3 * k as f32], rgb: [k as u8, 2, 3] })
+        .collect();
     write_ply(&path, &points, "round trip").expect("written");
     let cloud = read_ply(&path).expect("read back");
     assert_eq!(cloud.points, points.iter().map(|p| p.xyz).collect::<Vec<_>>());
@@ -105,7 +106,8 @@ fn every_scalar_type_name() {
 
 #[test]
 fn broken_files_name_the_problem() {
-    let head = "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\nend_header\n";
+    let head =
+        "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\nend_header\n";
     let cases: Vec<(Vec<u8>, &str)> = vec![
         (b"PLY\n".to_vec(), "not a PLY file"),
         (b"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\n".to_vec(), "no end_header"),

@@ -18,8 +18,8 @@ use edtmap_io::ply::parse_ply;
 use edtmap_io::{read_pcd, IoError};
 use std::path::Path;
 use std::sync::atomic::Ordering;
-use support::LARGEST;
 use std::time::{Duration, Instant};
+use support::LARGEST;
 
 /// The most any refusal here may allocate at once: the files are tiny.
 const ALLOCATION_LIMIT: usize = 16 << 20;
@@ -73,11 +73,17 @@ fn a_png_claiming_50000_squared_is_refused_from_its_header() {
     std::fs::write(&path, claim_size(depth_png(4, 3, 1000), 50_000, 50_000)).expect("write");
     let err = refused("no expected size", || read_depth_png(&path, None));
     assert!(err.contains("frame-000001.depth.png") && err.contains("50000 x 50000"), "{err}");
-    assert!(err.contains(&MAX_DEPTH_IMAGE_BYTES.to_string()) && err.contains("before decoding"), "names the limit: {err}");
+    assert!(
+        err.contains(&MAX_DEPTH_IMAGE_BYTES.to_string()) && err.contains("before decoding"),
+        "names the limit: {err}"
+    );
 
     let expected = ExpectedSize { width: 640, height: 480, source: "[sensor] width, height" };
     let err = refused("expected 640 x 480", || read_depth_png(&path, Some(expected)));
-    assert!(err.contains("50000 x 50000") && err.contains("640 x 480") && err.contains("[sensor] width, height"), "{err}");
+    assert!(
+        err.contains("50000 x 50000") && err.contains("640 x 480") && err.contains("[sensor] width, height"),
+        "{err}"
+    );
 }
 
 #[test]
@@ -120,7 +126,8 @@ fn threedmatch_folder(dir: &Path, frames: &[Vec<u8>]) {
     std::fs::write(dir.join("camera-intrinsics.txt"), "5 0 2\n0 5 1.5\n0 0 1\n").expect("intrinsics");
     for (k, png) in frames.iter().enumerate() {
         std::fs::write(dir.join(format!("frame-{k:06}.depth.png")), png).expect("png");
-        std::fs::write(dir.join(format!("frame-{k:06}.pose.txt")), "1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n").expect("pose");
+        std::fs::write(dir.join(format!("frame-{k:06}.pose.txt")), "1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n")
+            .expect("pose");
     }
 }
 
@@ -157,7 +164,10 @@ fn a_pcd_claiming_1e12_points_is_refused_from_its_header() {
     assert!(err.contains("bomb.pcd") && err.contains("12000000000000") && err.contains("24"), "{err}");
     let ascii = format!("{}1 2 3\n4 5 6\n", head("ascii"));
     let err = refused("ascii", || parse_pcd(Path::new("bomb.pcd"), ascii.as_bytes()));
-    assert!(err.contains("bomb.pcd") && err.contains("promises 1000000000000 points") && err.contains("has 2"), "{err}");
+    assert!(
+        err.contains("bomb.pcd") && err.contains("promises 1000000000000 points") && err.contains("has 2"),
+        "{err}"
+    );
 
     // And through the file reader.
     let tmp = tempfile::tempdir().expect("temp dir");
@@ -174,7 +184,10 @@ fn a_ply_claiming_1e12_vertices_is_refused_from_its_header() {
         file.extend(b"1 2 3\n4 5 6\n");
         let err = refused(format, || parse_ply(Path::new("bomb.ply"), &file));
         // Binary: the bytes the count needs; ascii: the count, where the data ends.
-        assert!(err.contains("bomb.ply") && (err.contains("12000000000000") || err.contains("1000000000000 records")), "{format}: {err}");
+        assert!(
+            err.contains("bomb.ply") && (err.contains("12000000000000") || err.contains("1000000000000 records")),
+            "{format}: {err}"
+        );
     }
 }
 

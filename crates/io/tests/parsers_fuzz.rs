@@ -26,7 +26,8 @@ const ALLOCATION_LIMIT: usize = 64 << 20;
 static GLOBAL: support::Watch = support::Watch;
 
 /// Numbers that break counts: past u32, past u64, negative, not integers.
-const HUGE: [&str; 8] = ["4000000000", "18446744073709551615", "18446744073709551616", "4294967296", "-1", "0", "1e9", "nan"];
+const HUGE: [&str; 8] =
+    ["4000000000", "18446744073709551615", "18446744073709551616", "4294967296", "-1", "0", "1e9", "nan"];
 
 /// One random change to `bytes`. `counts` are header texts whose number
 /// (their last token) is worth replacing with a huge one.
@@ -51,7 +52,10 @@ fn mutate(rng: &mut StdRng, bytes: &mut Vec<u8>, counts: &[&str]) {
         }
         3 => {
             // Repeat one of the first lines (the header's).
-            let starts: Vec<usize> = std::iter::once(0).chain(bytes.iter().enumerate().filter(|(_, &b)| b == b'\n').map(|(k, _)| k + 1)).take(12).collect();
+            let starts: Vec<usize> = std::iter::once(0)
+                .chain(bytes.iter().enumerate().filter(|(_, &b)| b == b'\n').map(|(k, _)| k + 1))
+                .take(12)
+                .collect();
             let k = rng.random_range(0..starts.len());
             let end = starts.get(k + 1).copied().unwrap_or(len);
             let line = bytes[starts[k]..end].to_vec();
@@ -101,7 +105,10 @@ fn fuzz(name: &str, seed: u64, valid: &[u8], counts: &[&str], read: impl Fn(&[u8
         let ok = outcome.unwrap_or_else(|_| panic!("{name} case {case} (seed {seed}) panicked on {shown:?}"));
         accepted += usize::from(ok);
         let largest = LARGEST.load(Ordering::Relaxed);
-        assert!(largest <= ALLOCATION_LIMIT, "{name} case {case} (seed {seed}): an allocation of {largest} bytes on {shown:?}");
+        assert!(
+            largest <= ALLOCATION_LIMIT,
+            "{name} case {case} (seed {seed}): an allocation of {largest} bytes on {shown:?}"
+        );
     }
     eprintln!("{name}: {accepted} of {CASES} accepted");
     accepted
@@ -152,7 +159,8 @@ fn ply_ascii_survives_mutations() {
 fn ply_binary_survives_mutations() {
     let tmp = tempfile::tempdir().expect("temp dir");
     let path = tmp.path().join("w.ply");
-    let points: Vec<ColouredPoint> = (0..4).map(|k| ColouredPoint { xyz: [k as f32, 1.0, 2.0], rgb: [1, 2, 3] }).collect();
+    let points: Vec<ColouredPoint> =
+        (0..4).map(|k| ColouredPoint { xyz: [k as f32, 1.0, 2.0], rgb: [1, 2, 3] }).collect();
     write_ply(&path, &points, "fuzz").expect("written");
     let little = std::fs::read(&path).expect("read");
     fuzz("ply little-endian", 4, &little, &PLY_COUNTS, |b| parse_ply(Path::new("w.ply"), b).is_ok());
@@ -181,7 +189,8 @@ fn kitti_bin_survives_mutations() {
 
 #[test]
 fn text_trajectories_survive_mutations() {
-    let tum = "# timestamp tx ty tz qx qy qz qw\n1.0 1 2 3 0 0 0 1\n1.1,1.5,2,3,0,0,0.7071068,0.7071068\n1.2 2 2 3 0 0 1 0\n";
+    let tum =
+        "# timestamp tx ty tz qx qy qz qw\n1.0 1 2 3 0 0 0 1\n1.1,1.5,2,3,0,0,0.7071068,0.7071068\n1.2 2 2 3 0 0 1 0\n";
     fuzz("tum", 7, tum.as_bytes(), &[], |b| Trajectory::parse_tum(&text(b)).is_ok());
     let kitti = "1 0 0 0 0 1 0 0 0 0 1 0\n0 -1 0 10 1 0 0 20 0 0 1 0.5\n1 0 0 1e3 0 1 0 -2 0 0 1 3\n";
     fuzz("kitti poses", 8, kitti.as_bytes(), &[], |b| parse_kitti_poses(Path::new("poses.txt"), &text(b)).is_ok());
@@ -189,7 +198,9 @@ fn text_trajectories_survive_mutations() {
     let matrix = "0 -1 0 1\n1 0 0 2\n0 0 1 3\n0 0 0 1\n";
     fuzz("pose matrix", 10, matrix.as_bytes(), &[], |b| parse_matrix(Path::new("a.pose.txt"), &text(b)).is_ok());
     let k = "570.342 0 320\n0 570.342 240\n0 0 1\n";
-    fuzz("intrinsics", 11, k.as_bytes(), &[], |b| parse_intrinsics(Path::new("camera-intrinsics.txt"), &text(b)).is_ok());
+    fuzz("intrinsics", 11, k.as_bytes(), &[], |b| {
+        parse_intrinsics(Path::new("camera-intrinsics.txt"), &text(b)).is_ok()
+    });
 }
 
 /// The huge counts on their own, one at a time, in every header keyword
@@ -222,7 +233,10 @@ fn pcd_data_past_points_is_refused() {
     };
     let ascii = format!("{}1 2 3\n4 5 6\n7 8 9\n\n", head(2, "ascii"));
     let err = parse_pcd(Path::new("more.pcd"), ascii.as_bytes()).expect_err("3 lines for POINTS 2").to_string();
-    assert!(err.contains("more.pcd") && err.contains("line 12") && err.contains("POINTS is 2") && err.contains("3 lines"), "{err}");
+    assert!(
+        err.contains("more.pcd") && err.contains("line 12") && err.contains("POINTS is 2") && err.contains("3 lines"),
+        "{err}"
+    );
     // Blank lines after the points are not points.
     let ascii = format!("{}1 2 3\n4 5 6\n\n  \n", head(2, "ascii"));
     assert_eq!(parse_pcd(Path::new("ok.pcd"), ascii.as_bytes()).expect("2 points").points.len(), 2);
@@ -230,11 +244,20 @@ fn pcd_data_past_points_is_refused() {
     let mut binary = head(2, "binary").into_bytes();
     binary.extend((0..9).flat_map(|k| (k as f32).to_le_bytes()));
     let err = parse_pcd(Path::new("more.pcd"), &binary).expect_err("36 bytes for POINTS 2").to_string();
-    assert!(err.contains("more.pcd") && err.contains("POINTS 2") && err.contains("24 bytes") && err.contains("36") && err.contains("12 bytes past"), "{err}");
+    assert!(
+        err.contains("more.pcd")
+            && err.contains("POINTS 2")
+            && err.contains("24 bytes")
+            && err.contains("36")
+            && err.contains("12 bytes past"),
+        "{err}"
+    );
     binary.truncate(binary.len() - 12);
-    assert_eq!(parse_pcd(Path::new("ok.pcd"), &binary).expect("2 points").points, vec![[0.0, 1.0, 2.0], [3.0, 4.0, 5.0]]);
+    assert_eq!(
+        parse_pcd(Path::new("ok.pcd"), &binary).expect("2 points").points,
+        vec![[0.0, 1.0, 2.0], [3.0, 4.0, 5.0]]
+    );
 }
-
 
 /// The error (or `Ok`) of opening and reading `bytes` as an obstacle npy.
 fn read_npy(name: &str, bytes: &[u8]) -> Result<usize, String> {
@@ -251,7 +274,14 @@ fn npy_trailing_bytes_duplicate_keys_and_bad_bools_are_refused() {
     assert_eq!(read_npy("ok.npy", &support::raw_npy(dict, &[0, 1, 1, 0, 0, 1])), Ok(3));
 
     let err = read_npy("tail.npy", &support::raw_npy(dict, &[0, 1, 1, 0, 0, 1, 9, 9])).expect_err("trailing");
-    assert!(err.contains("tail.npy") && err.contains("2 bytes after the data") && err.contains("[2, 3]") && err.contains("gives 6 bytes") && err.contains("has 8"), "{err}");
+    assert!(
+        err.contains("tail.npy")
+            && err.contains("2 bytes after the data")
+            && err.contains("[2, 3]")
+            && err.contains("gives 6 bytes")
+            && err.contains("has 8"),
+        "{err}"
+    );
 
     let twice = "{'descr': '|b1', 'fortran_order': False, 'shape': (2, 3), 'shape': (3, 2), }";
     let err = read_npy("twice.npy", &support::raw_npy(twice, &[0; 6])).expect_err("duplicate key");

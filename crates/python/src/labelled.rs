@@ -193,8 +193,7 @@ where
 {
     let tiles_per_outer = lines.nx.div_ceil(LANES);
     let shared = Shared::new(out);
-    let scratch =
-        || Scratch { f: Vec::new(), labels: Vec::new(), out: Vec::new(), envelope: Envelope::default() };
+    let scratch = || Scratch { f: Vec::new(), labels: Vec::new(), out: Vec::new(), envelope: Envelope::default() };
     (0..lines.outer * tiles_per_outer).into_par_iter().for_each_init(scratch, |s, tile| {
         let (outer, x0) = (tile / tiles_per_outer, (tile % tiles_per_outer) * LANES);
         let start = outer * lines.outer_stride + x0;

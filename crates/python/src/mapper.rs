@@ -9,10 +9,10 @@ use std::path::PathBuf;
 use std::sync::{Arc, MutexGuard};
 
 use edtmap::config::Config;
+use edtmap::cpu::CpuBackend;
 use edtmap::sensor::{
     DepthData, DepthImage, Frame, LaserScan, LidarScan, Measurement, PointCloud, RangeLimits, Sensor,
 };
-use edtmap::cpu::CpuBackend;
 use edtmap::{Backend, FrameStats, GlobalMap, MapError, Mapper, PointState, SharedMapper};
 use edtmap_cpu::query;
 use nalgebra::{Isometry3, Quaternion, Translation3};
@@ -36,7 +36,8 @@ fn open_backend(name: &str) -> PyResult<DynBackend> {
         "cpu" => Ok(Box::new(CpuBackend::default())),
         #[cfg(feature = "gpu")]
         "gpu" => {
-            let gpu = edtmap_gpu::GpuBackend::new().map_err(|e| PyRuntimeError::new_err(format!("backend='gpu': {e}")))?;
+            let gpu =
+                edtmap_gpu::GpuBackend::new().map_err(|e| PyRuntimeError::new_err(format!("backend='gpu': {e}")))?;
             Ok(Box::new(gpu))
         }
         #[cfg(feature = "gpu")]
@@ -96,18 +97,18 @@ impl PyMapper {
 }
 
 impl PyMapper {
-/// Builds a mapper from a parsed configuration.
-pub(crate) fn from_parsed(config: &Config, map: Option<GlobalMap>, backend: &str) -> PyResult<PyMapper> {
-    let (sensor, params) = config.mapper_params().map_err(map_err)?;
-    let scan_range = RangeLimits { min_m: config.sensor.min_range_m, max_m: config.sensor.max_range_m };
-    let backend = open_backend(backend)?;
-    let mapper = match map {
-        Some(map) => Mapper::with_map_on(backend, sensor, params, map),
-        None => Mapper::new_on(backend, sensor, params),
+    /// Builds a mapper from a parsed configuration.
+    pub(crate) fn from_parsed(config: &Config, map: Option<GlobalMap>, backend: &str) -> PyResult<PyMapper> {
+        let (sensor, params) = config.mapper_params().map_err(map_err)?;
+        let scan_range = RangeLimits { min_m: config.sensor.min_range_m, max_m: config.sensor.max_range_m };
+        let backend = open_backend(backend)?;
+        let mapper = match map {
+            Some(map) => Mapper::with_map_on(backend, sensor, params, map),
+            None => Mapper::new_on(backend, sensor, params),
+        }
+        .map_err(map_err)?;
+        Ok(PyMapper::new(mapper, scan_range))
     }
-    .map_err(map_err)?;
-    Ok(PyMapper::new(mapper, scan_range))
-}
 }
 
 /// A pose from a row-major 4×4 rigid transform (16 values) or from
@@ -130,8 +131,8 @@ fn pose(values: &[f64]) -> PyResult<Isometry3<f64>> {
             // The rule recordings' poses follow: normalised within the
             // tolerance (a unit quaternion kept bit for bit), refused beyond.
             let q = Quaternion::new(values[6], values[3], values[4], values[5]);
-            let (rotation, _) = edtmap::sensor::rotation_from_quaternion(q)
-                .map_err(|e| bad(format!("[qx, qy, qz, qw]: {e}")))?;
+            let (rotation, _) =
+                edtmap::sensor::rotation_from_quaternion(q).map_err(|e| bad(format!("[qx, qy, qz, qw]: {e}")))?;
             Ok(Isometry3::from_parts(Translation3::new(values[0], values[1], values[2]), rotation))
         }
         n => Err(bad(format!("has {n} values: give a 4 x 4 matrix or [x, y, z, qx, qy, qz, qw]"))),
@@ -453,7 +454,9 @@ impl PyMapper {
         pose_values: &[f64],
         stamp: f64,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let too_big = |n: usize| u32::try_from(n).map_err(|_| PyValueError::new_err(format!("depth image side {n} is too large")));
+        let too_big = |n: usize| {
+            u32::try_from(n).map_err(|_| PyValueError::new_err(format!("depth image side {n} is too large")))
+        };
         let image = DepthImage { width: too_big(width)?, height: too_big(height)?, data };
         self.integrate(py, frame(pose_values, stamp, Measurement::Depth(image))?)
     }

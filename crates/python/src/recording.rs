@@ -77,7 +77,15 @@ impl PyRecording {
                 drop(tx);
             })
             .map_err(|e| PyRuntimeError::new_err(format!("cannot start the reader thread: {e}")))?;
-        Ok(PyRecording { frames: Mutex::new(rx), config, sensor, len, kind, skipped: Mutex::new(Vec::new()), pose_warning })
+        Ok(PyRecording {
+            frames: Mutex::new(rx),
+            config,
+            sensor,
+            len,
+            kind,
+            skipped: Mutex::new(Vec::new()),
+            pose_warning,
+        })
     }
 
     fn __len__(&self) -> usize {
@@ -118,7 +126,12 @@ impl PyRecording {
                 None => {
                     let warning = self.pose_warning.lock().ok().and_then(|mut w| w.take());
                     if let Some(text) = warning {
-                        PyErr::warn(py, &py.get_type::<PyUserWarning>(), &std::ffi::CString::new(text).unwrap_or_default(), 1)?;
+                        PyErr::warn(
+                            py,
+                            &py.get_type::<PyUserWarning>(),
+                            &std::ffi::CString::new(text).unwrap_or_default(),
+                            1,
+                        )?;
                     }
                     return Ok(None);
                 }

@@ -505,12 +505,7 @@ impl Job<'_> {
     }
 
     /// Wraps the outputs as numpy arrays of the grid's shape.
-    fn to_arrays(
-        &self,
-        py: Python<'_>,
-        dist: Option<Distances>,
-        near: Option<Vec<i32>>,
-    ) -> PyResult<Outputs> {
+    fn to_arrays(&self, py: Python<'_>, dist: Option<Distances>, near: Option<Vec<i32>>) -> PyResult<Outputs> {
         let shape = self.geometry.shape.clone();
         let dist = match dist {
             None => None,
@@ -530,4 +525,3 @@ impl Job<'_> {
         Ok((dist.map(Bound::unbind), near))
     }
 }
-

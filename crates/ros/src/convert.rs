@@ -39,11 +39,25 @@ impl PointCloud2 {
     /// An unordered cloud of `x y z` float32 points, as drivers publish
     /// them (non-finite points: no return).
     pub fn from_points(header: super::msg::Header, points: &[[f32; 3]]) -> Self {
-        let fields = ["x", "y", "z"].iter().zip(0..).map(|(name, i)| PointField { name: (*name).into(), offset: 4 * i, datatype: 7, count: 1 }).collect();
+        let fields = ["x", "y", "z"]
+            .iter()
+            .zip(0..)
+            .map(|(name, i)| PointField { name: (*name).into(), offset: 4 * i, datatype: 7, count: 1 })
+            .collect();
         let width = u32::try_from(points.len()).unwrap_or(u32::MAX);
         let data = points.iter().flatten().flat_map(|v| v.to_le_bytes()).collect();
         let is_dense = points.iter().flatten().all(|v| v.is_finite());
-        PointCloud2 { header, height: 1, width, fields, is_bigendian: false, point_step: 12, row_step: width.saturating_mul(12), data, is_dense }
+        PointCloud2 {
+            header,
+            height: 1,
+            width,
+            fields,
+            is_bigendian: false,
+            point_step: 12,
+            row_step: width.saturating_mul(12),
+            data,
+            is_dense,
+        }
     }
 
     fn field(&self, name: &str) -> Result<(&PointField, usize), String> {
@@ -51,9 +65,13 @@ impl PointCloud2 {
             let names: Vec<&str> = self.fields.iter().map(|f| f.name.as_str()).collect();
             format!("PointCloud2 has no field {name} (fields: {})", names.join(", "))
         })?;
-        let size = datatype_size(f.datatype).ok_or_else(|| format!("PointCloud2 field {name}: unknown datatype {}", f.datatype))?;
+        let size = datatype_size(f.datatype)
+            .ok_or_else(|| format!("PointCloud2 field {name}: unknown datatype {}", f.datatype))?;
         if f.offset as usize + size > self.point_step as usize {
-            return Err(format!("PointCloud2 field {name}: offset {} + {size} bytes exceeds point_step {}", f.offset, self.point_step));
+            return Err(format!(
+                "PointCloud2 field {name}: offset {} + {size} bytes exceeds point_step {}",
+                f.offset, self.point_step
+            ));
         }
         Ok((f, size))
     }

@@ -9,12 +9,12 @@
 pub mod bag;
 mod convert;
 pub mod mcap;
-mod poses;
 pub mod msg;
-#[cfg(feature = "node")]
-pub mod node;
 #[cfg(test)]
 mod msg_tests;
+#[cfg(feature = "node")]
+pub mod node;
+mod poses;
 pub mod record;
 pub mod recording;
 pub mod replay;

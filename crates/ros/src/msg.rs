@@ -214,7 +214,9 @@ impl Message {
             "geometry_msgs/PoseStamped" => read_pose_stamped(r).map(Message::PoseStamped),
             "geometry_msgs/TransformStamped" => read_transform_stamped(r).map(Message::TransformStamped),
             "tf2_msgs/TFMessage" | "tf/tfMessage" => read_tf(r).map(Message::Tf),
-            other => return Err(format!("message type {other} is not one edtmap reads ({})", SUPPORTED_TYPES.join(", "))),
+            other => {
+                return Err(format!("message type {other} is not one edtmap reads ({})", SUPPORTED_TYPES.join(", ")))
+            }
         }
         .map_err(|e| format!("{msg_type}: {e}"))?;
         Ok(msg)
@@ -261,7 +263,12 @@ fn read_cloud(r: &mut WireReader<'_>) -> WireResult<PointCloud2> {
     let n = r.seq_len("fields", 13)?;
     let mut fields = Vec::with_capacity(n);
     for _ in 0..n {
-        fields.push(PointField { name: r.string("fields.name")?, offset: r.u32("fields.offset")?, datatype: r.u8("fields.datatype")?, count: r.u32("fields.count")? });
+        fields.push(PointField {
+            name: r.string("fields.name")?,
+            offset: r.u32("fields.offset")?,
+            datatype: r.u8("fields.datatype")?,
+            count: r.u32("fields.count")?,
+        });
     }
     let is_bigendian = r.u8("is_bigendian")? != 0;
     let (point_step, row_step) = (r.u32("point_step")?, r.u32("row_step")?);
@@ -335,13 +342,32 @@ fn write_camera_info(w: &mut WireWriter, m: &CameraInfo) {
 fn read_scan(r: &mut WireReader<'_>) -> WireResult<LaserScanMsg> {
     let header = Header::read(r)?;
     let mut v = [0f32; 7];
-    for (x, name) in v.iter_mut().zip(["angle_min", "angle_max", "angle_increment", "time_increment", "scan_time", "range_min", "range_max"]) {
+    for (x, name) in v.iter_mut().zip([
+        "angle_min",
+        "angle_max",
+        "angle_increment",
+        "time_increment",
+        "scan_time",
+        "range_min",
+        "range_max",
+    ]) {
         *x = r.f32(name)?;
     }
     let [angle_min, angle_max, angle_increment, time_increment, scan_time, range_min, range_max] = v;
     let ranges = r.f32s("ranges")?;
     let intensities = r.f32s("intensities")?;
-    Ok(LaserScanMsg { header, angle_min, angle_max, angle_increment, time_increment, scan_time, range_min, range_max, ranges, intensities })
+    Ok(LaserScanMsg {
+        header,
+        angle_min,
+        angle_max,
+        angle_increment,
+        time_increment,
+        scan_time,
+        range_min,
+        range_max,
+        ranges,
+        intensities,
+    })
 }
 
 fn write_scan(w: &mut WireWriter, m: &LaserScanMsg) {
@@ -368,7 +394,8 @@ pub(crate) fn rigid(t: [f64; 3], [x, y, z, w]: [f64; 4], what: &str) -> WireResu
     }
     // The rule every front end applies: normalised within the tolerance
     // (stored unit quaternions kept bit for bit), refused beyond it.
-    let (rotation, _) = edtmap::sensor::rotation_from_quaternion(Quaternion::new(w, x, y, z)).map_err(|e| format!("{what}: {e}"))?;
+    let (rotation, _) =
+        edtmap::sensor::rotation_from_quaternion(Quaternion::new(w, x, y, z)).map_err(|e| format!("{what}: {e}"))?;
     Ok(Isometry3::from_parts(Translation3::new(t[0], t[1], t[2]), rotation))
 }
 

@@ -11,7 +11,11 @@ fn header(stamp_ns: i64, frame: &str) -> Header {
 }
 
 fn transform(child: &str) -> StampedTransform {
-    StampedTransform { header: header(1_000_000_002, "map"), child_frame: child.into(), transform: Isometry3::new(Vector3::new(1.0, 2.0, 3.0), Vector3::new(0.0, 0.0, 0.5)) }
+    StampedTransform {
+        header: header(1_000_000_002, "map"),
+        child_frame: child.into(),
+        transform: Isometry3::new(Vector3::new(1.0, 2.0, 3.0), Vector3::new(0.0, 0.0, 0.5)),
+    }
 }
 
 fn le(values: &[f64]) -> Vec<u8> {
@@ -24,10 +28,14 @@ fn cdr_transform_stamped_matches_the_published_layout() {
     let q = t.transform.rotation.quaternion();
     // Encapsulation, sec 1, nanosec 2, "map\0", "b\0", 2 bytes of padding
     // to align the float64s at 8 from the end of the encapsulation.
-    let mut bytes = vec![0, 1, 0, 0, 1, 0, 0, 0, 2, 0, 0, 0, 4, 0, 0, 0, b'm', b'a', b'p', 0, 2, 0, 0, 0, b'b', 0, 0, 0];
+    let mut bytes =
+        vec![0, 1, 0, 0, 1, 0, 0, 0, 2, 0, 0, 0, 4, 0, 0, 0, b'm', b'a', b'p', 0, 2, 0, 0, 0, b'b', 0, 0, 0];
     bytes.extend(le(&[1.0, 2.0, 3.0, q.i, q.j, q.k, q.w]));
     assert_eq!(Message::TransformStamped(t.clone()).encode(Encoding::Cdr), bytes);
-    assert_eq!(Message::decode("geometry_msgs/TransformStamped", &bytes, Encoding::Cdr), Ok(Message::TransformStamped(t.clone())));
+    assert_eq!(
+        Message::decode("geometry_msgs/TransformStamped", &bytes, Encoding::Cdr),
+        Ok(Message::TransformStamped(t.clone()))
+    );
     // The same message in big-endian CDR.
     let mut be = vec![0, 0, 0, 0, 0, 0, 0, 1, 0, 0, 0, 2, 0, 0, 0, 4, b'm', b'a', b'p', 0, 0, 0, 0, 2, b'b', 0, 0, 0];
     be.extend([1.0, 2.0, 3.0, q.i, q.j, q.k, q.w].iter().flat_map(|v: &f64| v.to_be_bytes()));
@@ -42,14 +50,43 @@ fn ros1_transform_stamped_matches_the_published_layout() {
     let mut bytes = vec![0, 0, 0, 0, 1, 0, 0, 0, 2, 0, 0, 0, 3, 0, 0, 0, b'm', b'a', b'p', 1, 0, 0, 0, b'b'];
     bytes.extend(le(&[1.0, 2.0, 3.0, q.i, q.j, q.k, q.w]));
     assert_eq!(Message::TransformStamped(t.clone()).encode(Encoding::Ros1), bytes);
-    assert_eq!(Message::decode("geometry_msgs/TransformStamped", &bytes, Encoding::Ros1), Ok(Message::TransformStamped(t)));
+    assert_eq!(
+        Message::decode("geometry_msgs/TransformStamped", &bytes, Encoding::Ros1),
+        Ok(Message::TransformStamped(t))
+    );
 }
 
 fn every_message() -> Vec<Message> {
     let cloud = PointCloud2::from_points(header(5, "lidar"), &[[1.0, 2.0, 3.0], [-1.0, 0.5, 9.0]]);
-    let image = Image { header: header(6, "cam"), height: 2, width: 2, encoding: "16UC1".into(), is_bigendian: false, step: 4, data: vec![1, 0, 2, 0, 3, 0, 0, 0] };
-    let info = CameraInfo { header: header(6, "cam"), height: 2, width: 2, distortion_model: "plumb_bob".into(), d: vec![0.1, 0.0, 0.0, 0.0, 0.0], k: [500.0, 0.0, 1.0, 0.0, 501.0, 1.0, 0.0, 0.0, 1.0] };
-    let scan = LaserScanMsg { header: header(7, "laser"), angle_min: -1.0, angle_max: 1.0, angle_increment: 1.0, time_increment: 0.0, scan_time: 0.1, range_min: 0.1, range_max: 10.0, ranges: vec![1.0, 2.0, f32::INFINITY], intensities: vec![] };
+    let image = Image {
+        header: header(6, "cam"),
+        height: 2,
+        width: 2,
+        encoding: "16UC1".into(),
+        is_bigendian: false,
+        step: 4,
+        data: vec![1, 0, 2, 0, 3, 0, 0, 0],
+    };
+    let info = CameraInfo {
+        header: header(6, "cam"),
+        height: 2,
+        width: 2,
+        distortion_model: "plumb_bob".into(),
+        d: vec![0.1, 0.0, 0.0, 0.0, 0.0],
+        k: [500.0, 0.0, 1.0, 0.0, 501.0, 1.0, 0.0, 0.0, 1.0],
+    };
+    let scan = LaserScanMsg {
+        header: header(7, "laser"),
+        angle_min: -1.0,
+        angle_max: 1.0,
+        angle_increment: 1.0,
+        time_increment: 0.0,
+        scan_time: 0.1,
+        range_min: 0.1,
+        range_max: 10.0,
+        ranges: vec![1.0, 2.0, f32::INFINITY],
+        intensities: vec![],
+    };
     vec![
         Message::PointCloud2(cloud),
         Message::Image(image),
@@ -67,7 +104,12 @@ fn every_type_round_trips_in_both_encodings() {
     for encoding in [Encoding::Ros1, Encoding::Cdr] {
         for m in every_message() {
             let bytes = m.encode(encoding);
-            assert_eq!(Message::decode(m.type_name(), &bytes, encoding).as_ref(), Ok(&m), "{} {encoding:?}", m.type_name());
+            assert_eq!(
+                Message::decode(m.type_name(), &bytes, encoding).as_ref(),
+                Ok(&m),
+                "{} {encoding:?}",
+                m.type_name()
+            );
             // Every cut of the message is an error, never a panic; camera
             // infos and odometry are read only up to the fields used.
             let partial = matches!(m, Message::CameraInfo(_) | Message::Odometry(_));
@@ -121,7 +163,16 @@ fn cloud_fields_of_any_type_and_byte_order() {
         let mut data = point(1.5, -2, 0.25, be);
         data.extend([0; 4]);
         data.extend(point(-3.0, 7, f32::NAN, be));
-        let cloud = PointCloud2 { height: 2, width: 1, fields: fields.clone(), is_bigendian: be, point_step: 20, row_step: 24, data, ..Default::default() };
+        let cloud = PointCloud2 {
+            height: 2,
+            width: 1,
+            fields: fields.clone(),
+            is_bigendian: be,
+            point_step: 20,
+            row_step: 24,
+            data,
+            ..Default::default()
+        };
         let pts = cloud.xyz().expect("valid cloud").points;
         assert_eq!(pts[0], [1.5, -2.0, 0.25]);
         assert_eq!(pts[1][..2], [-3.0, 7.0]);
@@ -140,7 +191,15 @@ fn cloud_fields_of_any_type_and_byte_order() {
 
 #[test]
 fn depth_images_in_millimetres_and_metres() {
-    let mm = Image { height: 1, width: 3, encoding: "16UC1".into(), step: 8, data: vec![0xe8, 0x03, 0, 0, 0x01, 0x02, 9, 9], is_bigendian: false, ..Default::default() };
+    let mm = Image {
+        height: 1,
+        width: 3,
+        encoding: "16UC1".into(),
+        step: 8,
+        data: vec![0xe8, 0x03, 0, 0, 0x01, 0x02, 9, 9],
+        is_bigendian: false,
+        ..Default::default()
+    };
     let d = mm.depth(0.001).expect("16UC1");
     assert_eq!(d.data, DepthData::U16 { values: vec![1000, 0, 0x0201], metres_per_unit: 0.001 });
     let be = Image { is_bigendian: true, data: vec![0x03, 0xe8, 0, 0, 0x02, 0x01, 9, 9], ..mm.clone() };

@@ -44,7 +44,10 @@ impl Poses {
             if let Some(world) = &opts.world_frame {
                 let world = world.trim_start_matches('/');
                 if t.header.frame_id.trim_start_matches('/') != world {
-                    return Err(format!("pose topic {} gives poses in frame {}, the config's world_frame is {world}", opts.pose_topic, t.header.frame_id));
+                    return Err(format!(
+                        "pose topic {} gives poses in frame {}, the config's world_frame is {world}",
+                        opts.pose_topic, t.header.frame_id
+                    ));
                 }
             }
             Ok(())
@@ -72,11 +75,18 @@ impl Poses {
 
     /// The body frame and the fixed frame a message in `frame_id` is
     /// looked up between (`/tf` only).
-    fn tf_frames(tf: &TfBuffer, world: &Option<String>, frame_id: &str, opts: &RosOptions) -> Result<(String, String), String> {
+    fn tf_frames(
+        tf: &TfBuffer,
+        world: &Option<String>,
+        frame_id: &str,
+        opts: &RosOptions,
+    ) -> Result<(String, String), String> {
         let body = opts.body_frame.as_deref().unwrap_or(frame_id).to_string();
         let world = match world {
             Some(w) => w.clone(),
-            None => tf.root_of(&body).ok_or_else(|| format!("frame {body:?} is not in the transform tree (frames known: {})", tf.frames().join(", ")))?,
+            None => tf.root_of(&body).ok_or_else(|| {
+                format!("frame {body:?} is not in the transform tree (frames known: {})", tf.frames().join(", "))
+            })?,
         };
         Ok((world, body))
     }
@@ -95,10 +105,17 @@ impl Poses {
     }
 
     /// `T_world_sensor` at `stamp_s` for a message in `frame_id`.
-    pub(crate) fn sensor_pose(&self, stamp_s: f64, frame_id: &str, opts: &RosOptions) -> Result<Isometry3<f64>, String> {
+    pub(crate) fn sensor_pose(
+        &self,
+        stamp_s: f64,
+        frame_id: &str,
+        opts: &RosOptions,
+    ) -> Result<Isometry3<f64>, String> {
         let gap = opts.max_pose_gap_s;
         let t_world_body = match self {
-            Poses::Topic(traj) => traj.pose_at(stamp_s, gap).map_err(|e| format!("pose topic {}: {e}", opts.pose_topic))?,
+            Poses::Topic(traj) => {
+                traj.pose_at(stamp_s, gap).map_err(|e| format!("pose topic {}: {e}", opts.pose_topic))?
+            }
             Poses::Tf(tf, world) => {
                 let (world, body) = Self::tf_frames(tf, world, frame_id, opts)?;
                 tf.lookup(&world, &body, stamp_s, gap)?

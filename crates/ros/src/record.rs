@@ -59,7 +59,12 @@ impl RecordingWriter {
                 }
                 Sink::Mcap(Box::new(options.create(file).map_err(|e| mcap_error(path, e))?))
             }
-            _ => return Err(IoError::Dataset { path: path.to_path_buf(), reason: "a recording is written as .bag (ROS 1) or .mcap (ROS 2)".into() }),
+            _ => {
+                return Err(IoError::Dataset {
+                    path: path.to_path_buf(),
+                    reason: "a recording is written as .bag (ROS 1) or .mcap (ROS 2)".into(),
+                })
+            }
         };
         Ok(RecordingWriter { path: path.to_path_buf(), sink, channels: HashMap::new(), sequence: 0 })
     }
@@ -102,8 +107,16 @@ impl RecordingWriter {
         match &mut self.sink {
             Sink::Bag(w) => w.write(channel, log_time_ns, data),
             Sink::Mcap(w) => {
-                let channel_id = u16::try_from(channel).map_err(|_| IoError::Dataset { path: self.path.clone(), reason: "more than 65535 MCAP channels".into() })?;
-                let header = mcap::records::MessageHeader { channel_id, sequence: self.sequence, log_time: log_time_ns, publish_time: log_time_ns };
+                let channel_id = u16::try_from(channel).map_err(|_| IoError::Dataset {
+                    path: self.path.clone(),
+                    reason: "more than 65535 MCAP channels".into(),
+                })?;
+                let header = mcap::records::MessageHeader {
+                    channel_id,
+                    sequence: self.sequence,
+                    log_time: log_time_ns,
+                    publish_time: log_time_ns,
+                };
                 w.write_to_known_channel(&header, data).map_err(|e| mcap_error(&self.path, e))
             }
         }

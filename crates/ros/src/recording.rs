@@ -52,9 +52,19 @@ impl Recording {
             if let (SensorKind::Depth, Some(info)) = (config.sensor.kind, replay.camera_info()) {
                 let k = info.k;
                 let from = format!("the camera info of {} says", path.display());
-                use_calibration(config, &Calibration { k: [k[0], k[4], k[2], k[5]], width: info.width, height: info.height, from }, origin);
+                use_calibration(
+                    config,
+                    &Calibration { k: [k[0], k[4], k[2], k[5]], width: info.width, height: info.height, from },
+                    origin,
+                );
             }
-            tracing::info!("{}: {} messages of {} on {}", path.display(), replay.len(), replay.sensor_type(), opts.sensor_topic);
+            tracing::info!(
+                "{}: {} messages of {} on {}",
+                path.display(),
+                replay.len(),
+                replay.sensor_type(),
+                opts.sensor_topic
+            );
             return Ok(Recording::Ros(Box::new(replay)));
         }
         config.dataset.validate().map_err(in_dataset)?;
@@ -67,7 +77,11 @@ impl Recording {
             if let Some(file) = &folder.intrinsics_file {
                 let c = &folder.camera;
                 let from = format!("{} and the first image say", file.display());
-                use_calibration(config, &Calibration { k: [c.fx, c.fy, c.cx, c.cy], width: c.width, height: c.height, from }, origin);
+                use_calibration(
+                    config,
+                    &Calibration { k: [c.fx, c.fy, c.cx, c.cy], width: c.width, height: c.height, from },
+                    origin,
+                );
             }
         }
         tracing::info!("{}: {} frames of {}", path.display(), set.len(), set.kind());
@@ -107,9 +121,19 @@ impl Recording {
 
     /// The first `n` frames, or failures in their place; `name` names the
     /// recording in a folder's messages.
-    pub fn frames<'a>(&'a self, n: usize, name: &'a str) -> Box<dyn Iterator<Item = Result<Frame, RecordingFailure>> + 'a> {
+    pub fn frames<'a>(
+        &'a self,
+        n: usize,
+        name: &'a str,
+    ) -> Box<dyn Iterator<Item = Result<Frame, RecordingFailure>> + 'a> {
         match self {
-            Recording::Folder(set) => Box::new((0..n).map(move |i| set.frame(i).map_err(|e| RecordingFailure { index: i, message: format!("frame {i} of {name}: {e}"), damage: false }))),
+            Recording::Folder(set) => Box::new((0..n).map(move |i| {
+                set.frame(i).map_err(|e| RecordingFailure {
+                    index: i,
+                    message: format!("frame {i} of {name}: {e}"),
+                    damage: false,
+                })
+            })),
             // The index counts only what precedes damage: when every indexed
             // frame is asked for, still report the damage that ends the file.
             Recording::Ros(replay) => {
@@ -119,7 +143,9 @@ impl Recording {
                         .frames()
                         .enumerate()
                         .take_while(move |(i, r)| *i < n || (all && r.as_ref().is_err_and(|e| e.fatal)))
-                        .map(|(i, r)| r.map_err(|e| RecordingFailure { index: i, message: e.to_string(), damage: e.fatal })),
+                        .map(|(i, r)| {
+                            r.map_err(|e| RecordingFailure { index: i, message: e.to_string(), damage: e.fatal })
+                        }),
                 )
             }
         }
@@ -143,7 +169,15 @@ struct Calibration {
 fn describe(k: [Option<f64>; 4], width: Option<u32>, height: Option<u32>) -> String {
     let show = |v: Option<f64>| v.map_or_else(|| "unset".to_string(), |v| v.to_string());
     let size = |v: Option<u32>| v.map_or_else(|| "unset".to_string(), |v| v.to_string());
-    format!("fx {}, fy {}, cx {}, cy {}, {} x {} pixels", show(k[0]), show(k[1]), show(k[2]), show(k[3]), size(width), size(height))
+    format!(
+        "fx {}, fy {}, cx {}, cy {}, {} x {} pixels",
+        show(k[0]),
+        show(k[1]),
+        show(k[2]),
+        show(k[3]),
+        size(width),
+        size(height)
+    )
 }
 
 /// Applies a recording's calibration to `[sensor]` as `[dataset]
@@ -189,7 +223,11 @@ fn use_calibration(config: &mut Config, cal: &Calibration, origin: &str) {
 /// `pose_topic` are needed.
 pub fn ros_options(d: &edtmap::config::DatasetSection) -> Result<RosOptions, edtmap::CoreError> {
     d.validate()?;
-    let missing = |field: &'static str| edtmap::CoreError::InvalidParam { field, value: "missing".into(), reason: "required to replay a ROS bag or MCAP file" };
+    let missing = |field: &'static str| edtmap::CoreError::InvalidParam {
+        field,
+        value: "missing".into(),
+        reason: "required to replay a ROS bag or MCAP file",
+    };
     Ok(RosOptions {
         sensor_topic: d.sensor_topic.clone().ok_or_else(|| missing("sensor_topic"))?,
         camera_info_topic: d.camera_info_topic.clone(),

@@ -14,8 +14,8 @@ use super::mcap::McapReader;
 use super::msg::{CameraInfo, Message, StampedTransform};
 use super::poses::{measurement, Poses};
 use super::{RawMessage, TopicInfo};
-use edtmap_io::IoError;
 use edtmap_core::sensor::Frame;
+use edtmap_io::IoError;
 use nalgebra::Isometry3;
 use std::io::Read;
 use std::path::{Path, PathBuf};
@@ -97,7 +97,10 @@ impl Container {
         match &magic[..n] {
             m if m.starts_with(b"#ROSBAG") => Ok(Container::Bag(BagReader::open(path)?)),
             m if m.starts_with(b"\x89MCAP") => Ok(Container::Mcap(McapReader::open(path)?)),
-            _ => Err(IoError::Dataset { path: path.to_path_buf(), reason: "neither a ROS 1 bag (#ROSBAG) nor an MCAP file".into() }),
+            _ => Err(IoError::Dataset {
+                path: path.to_path_buf(),
+                reason: "neither a ROS 1 bag (#ROSBAG) nor an MCAP file".into(),
+            }),
         }
     }
 
@@ -117,7 +120,13 @@ impl Container {
 }
 
 const SENSOR_TYPES: [&str; 3] = ["sensor_msgs/PointCloud2", "sensor_msgs/Image", "sensor_msgs/LaserScan"];
-const POSE_TYPES: [&str; 5] = ["nav_msgs/Odometry", "geometry_msgs/PoseStamped", "geometry_msgs/TransformStamped", "tf2_msgs/TFMessage", "tf/tfMessage"];
+const POSE_TYPES: [&str; 5] = [
+    "nav_msgs/Odometry",
+    "geometry_msgs/PoseStamped",
+    "geometry_msgs/TransformStamped",
+    "tf2_msgs/TFMessage",
+    "tf/tfMessage",
+];
 
 /// A ROS recording opened for replay.
 pub struct RosReplay {
@@ -133,7 +142,11 @@ pub struct RosReplay {
 
 impl std::fmt::Debug for RosReplay {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("RosReplay").field("path", &self.path).field("sensor_type", &self.sensor_type).field("sensor_messages", &self.sensor_messages).finish_non_exhaustive()
+        f.debug_struct("RosReplay")
+            .field("path", &self.path)
+            .field("sensor_type", &self.sensor_type)
+            .field("sensor_messages", &self.sensor_messages)
+            .finish_non_exhaustive()
     }
 }
 
@@ -141,9 +154,18 @@ fn bad(path: &Path, reason: String) -> IoError {
     IoError::Dataset { path: path.to_path_buf(), reason }
 }
 
-fn find<'a>(path: &Path, topics: &'a [TopicInfo], name: &str, role: &str, types: &[&str]) -> Result<&'a TopicInfo, IoError> {
+fn find<'a>(
+    path: &Path,
+    topics: &'a [TopicInfo],
+    name: &str,
+    role: &str,
+    types: &[&str],
+) -> Result<&'a TopicInfo, IoError> {
     let listing = || topics.iter().map(|t| format!("{} ({})", t.topic, t.msg_type)).collect::<Vec<_>>().join(", ");
-    let t = topics.iter().find(|t| t.topic == name).ok_or_else(|| bad(path, format!("{role} topic {name} is not in the recording; it holds {}", listing())))?;
+    let t = topics
+        .iter()
+        .find(|t| t.topic == name)
+        .ok_or_else(|| bad(path, format!("{role} topic {name} is not in the recording; it holds {}", listing())))?;
     if !types.contains(&t.msg_type.as_str()) {
         return Err(bad(path, format!("{role} topic {name} carries {}, not one of {}", t.msg_type, types.join(", "))));
     }
@@ -166,7 +188,10 @@ impl RosReplay {
                     Some((parent, _)) => format!("{parent}/camera_info"),
                     None => "camera_info".into(),
                 };
-                topics.iter().find(|t| t.topic == sibling && t.msg_type == "sensor_msgs/CameraInfo").map(|t| t.topic.clone())
+                topics
+                    .iter()
+                    .find(|t| t.topic == sibling && t.msg_type == "sensor_msgs/CameraInfo")
+                    .map(|t| t.topic.clone())
             }
             None => None,
         };
@@ -206,14 +231,23 @@ impl RosReplay {
                 Ok(Message::CameraInfo(info)) => {
                     self.camera.get_or_insert(info);
                 }
-                Ok(msg @ (Message::Tf(_) | Message::Odometry(_) | Message::PoseStamped(_) | Message::TransformStamped(_))) => {
+                Ok(
+                    msg @ (Message::Tf(_)
+                    | Message::Odometry(_)
+                    | Message::PoseStamped(_)
+                    | Message::TransformStamped(_)),
+                ) => {
                     let is_static = raw.topic == self.opts.static_tf_topic && raw.topic != self.opts.pose_topic;
                     poses.add(&msg, is_static, &self.opts).map_err(|e| bad(&self.path, e))?;
                 }
                 Ok(_) => {}
                 Err(e) => {
                     if undecodable == 0 {
-                        self.warnings.push(format!("{}: topic {}: skipping undecodable messages, the first: {e}", self.path.display(), raw.topic));
+                        self.warnings.push(format!(
+                            "{}: topic {}: skipping undecodable messages, the first: {e}",
+                            self.path.display(),
+                            raw.topic
+                        ));
                     }
                     undecodable += 1;
                     tracing::debug!("{}: undecodable message {undecodable} on {}: {e}", self.path.display(), raw.topic);
@@ -262,12 +296,20 @@ impl RosReplay {
     }
 
     fn frame(&self, raw: &RawMessage, index: usize) -> Result<Frame, FrameError> {
-        let fail = |stamp_s: Option<f64>, reason: String| FrameError { file: self.path.clone(), topic: raw.topic.clone(), index, stamp_s, reason, fatal: false };
+        let fail = |stamp_s: Option<f64>, reason: String| FrameError {
+            file: self.path.clone(),
+            topic: raw.topic.clone(),
+            index,
+            stamp_s,
+            reason,
+            fatal: false,
+        };
         let msg = Message::decode(&raw.msg_type, &raw.data, raw.encoding).map_err(|e| fail(None, e))?;
         let (measurement, stamp_ns, frame_id) = measurement(msg, self.opts.depth_scale_m).map_err(|e| fail(None, e))?;
         // Recorders that leave stamps empty: the time the message was logged.
         let stamp_s = if stamp_ns == 0 { raw.log_time_ns as f64 * 1e-9 } else { stamp_ns as f64 * 1e-9 };
-        let t_world_sensor = self.poses.sensor_pose(stamp_s, &frame_id, &self.opts).map_err(|e| fail(Some(stamp_s), e))?;
+        let t_world_sensor =
+            self.poses.sensor_pose(stamp_s, &frame_id, &self.opts).map_err(|e| fail(Some(stamp_s), e))?;
         Ok(Frame { stamp_s, t_world_sensor, measurement })
     }
 
@@ -283,7 +325,14 @@ impl RosReplay {
                 Ok(raw) => self.frame(&raw, index),
                 Err(e) => {
                     done = true;
-                    Err(FrameError { file: self.path.clone(), topic: self.opts.sensor_topic.clone(), index, stamp_s: None, reason: format!("the recording is damaged here, the rest is unreadable: {e}"), fatal: true })
+                    Err(FrameError {
+                        file: self.path.clone(),
+                        topic: self.opts.sensor_topic.clone(),
+                        index,
+                        stamp_s: None,
+                        reason: format!("the recording is damaged here, the rest is unreadable: {e}"),
+                        fatal: true,
+                    })
                 }
             })
         })

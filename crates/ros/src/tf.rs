@@ -71,7 +71,13 @@ impl TfBuffer {
             return Some(f64::INFINITY);
         }
         let chain = self.path(&target, &source)?;
-        Some(chain.iter().filter_map(|(p, c, _)| self.moving.get(&(p.clone(), c.clone()))).filter_map(|t| t.span().map(|s| s.1)).fold(f64::INFINITY, f64::min))
+        Some(
+            chain
+                .iter()
+                .filter_map(|(p, c, _)| self.moving.get(&(p.clone(), c.clone())))
+                .filter_map(|t| t.span().map(|s| s.1))
+                .fold(f64::INFINITY, f64::min),
+        )
     }
 
     /// The root of the tree `frame` is in: the ancestor with no parent;
@@ -143,19 +149,26 @@ impl TfBuffer {
     pub fn lookup(&self, target: &str, source: &str, t: f64, max_gap_s: f64) -> Result<Isometry3<f64>, String> {
         let (target, source) = (frame_name(target), frame_name(source));
         if !self.knows(&source) {
-            return Err(format!("frame {source:?} is not in the transform tree (frames known: {})", self.frames().join(", ")));
+            return Err(format!(
+                "frame {source:?} is not in the transform tree (frames known: {})",
+                self.frames().join(", ")
+            ));
         }
         if target == source {
             return Ok(Isometry3::identity());
         }
-        let chain = self.path(&target, &source).ok_or_else(|| format!("no chain of transforms from {target} to {source} (frames known: {})", self.frames().join(", ")))?;
+        let chain = self.path(&target, &source).ok_or_else(|| {
+            format!("no chain of transforms from {target} to {source} (frames known: {})", self.frames().join(", "))
+        })?;
         let mut pose = Isometry3::identity();
         for (p, c, forward) in chain {
             let key = (p, c);
             let edge = match self.fixed.get(&key) {
                 Some(fixed) => *fixed,
                 None => match self.moving.get(&key) {
-                    Some(traj) => traj.pose_at(t, max_gap_s).map_err(|e| format!("transform {} → {}: {e}", key.0, key.1))?,
+                    Some(traj) => {
+                        traj.pose_at(t, max_gap_s).map_err(|e| format!("transform {} → {}: {e}", key.0, key.1))?
+                    }
                     None => return Err(format!("no transform {} → {}", key.0, key.1)),
                 },
             };
@@ -166,7 +179,8 @@ impl TfBuffer {
 
     /// Every frame named by an edge, sorted.
     pub fn frames(&self) -> Vec<String> {
-        let mut names: Vec<String> = self.moving.keys().chain(self.fixed.keys()).flat_map(|(p, c)| [p.clone(), c.clone()]).collect();
+        let mut names: Vec<String> =
+            self.moving.keys().chain(self.fixed.keys()).flat_map(|(p, c)| [p.clone(), c.clone()]).collect();
         names.sort();
         names.dedup();
         names
@@ -202,7 +216,10 @@ mod tests {
         assert_eq!(tf.root_of("camera"), None);
         let got = tf.lookup("map", "lidar", 0.5, 1.0).expect("chain");
         // Expected by hand: x 1, yaw 0.5, then the lidar 0.5 m ahead along the turned x.
-        let want = Isometry3::new(Vector3::new(1.0 + 0.5 * 0.5f64.cos(), 0.5 * 0.5f64.sin(), 0.0), Vector3::new(0.0, 0.0, 0.5));
+        let want = Isometry3::new(
+            Vector3::new(1.0 + 0.5 * 0.5f64.cos(), 0.5 * 0.5f64.sin(), 0.0),
+            Vector3::new(0.0, 0.0, 0.5),
+        );
         assert!((got.to_homogeneous() - want.to_homogeneous()).abs().max() < 1e-12, "{got} vs {want}");
         let back = tf.lookup("lidar", "map", 0.5, 1.0).expect("inverse chain");
         assert!((back.to_homogeneous() - want.inverse().to_homogeneous()).abs().max() < 1e-12);

@@ -41,7 +41,9 @@ impl<'a> WireReader<'a> {
 
     fn take(&mut self, n: usize, what: &str) -> WireResult<&'a [u8]> {
         let end = self.pos.checked_add(n).filter(|&e| e <= self.data.len());
-        let end = end.ok_or_else(|| format!("{what}: needs {n} bytes at offset {}, the message has {}", self.pos, self.data.len()))?;
+        let end = end.ok_or_else(|| {
+            format!("{what}: needs {n} bytes at offset {}, the message has {}", self.pos, self.data.len())
+        })?;
         let bytes = &self.data[self.pos..end];
         self.pos = end;
         Ok(bytes)

@@ -36,7 +36,8 @@ fn wall_world() -> Vec<Point3<f64>> {
 
 fn cloud_at(t: f64) -> PointCloud2 {
     let t_sensor_world = (body_at(t) * body_sensor()).inverse();
-    let pts: Vec<[f32; 3]> = wall_world().iter().map(|p| (t_sensor_world * p).coords.map(|v| v as f32).into()).collect();
+    let pts: Vec<[f32; 3]> =
+        wall_world().iter().map(|p| (t_sensor_world * p).coords.map(|v| v as f32).into()).collect();
     PointCloud2::from_points(header(t, "lidar"), &pts)
 }
 
@@ -129,7 +130,11 @@ fn clouds_placed_by_the_tf_tree() {
         let replay = RosReplay::open(&path, &opts).expect("opens");
         assert_frames_on_the_wall(&replay, 9);
         // The same with the body frame named and the extrinsics from the config.
-        let opts = RosOptions { body_frame: Some("base_link".into()), world_frame: Some("map".into()), ..options("/points", "/tf") };
+        let opts = RosOptions {
+            body_frame: Some("base_link".into()),
+            world_frame: Some("map".into()),
+            ..options("/points", "/tf")
+        };
         assert_frames_on_the_wall(&RosReplay::open(&path, &opts).expect("opens"), 9);
         // Without /tf_static the cloud's frame is in no tree: every frame says so.
         let no_static = dir.path().join(format!("no_static.{}", container.ext()));
@@ -144,9 +149,35 @@ fn clouds_placed_by_the_tf_tree() {
 
 #[test]
 fn depth_images_with_camera_info_and_laser_scans() {
-    let image = |t: f64| Image { header: header(t, "cam"), height: 2, width: 3, encoding: "16UC1".into(), is_bigendian: false, step: 6, data: vec![0xe8, 3, 0, 0, 0xd0, 7, 1, 0, 2, 0, 3, 0] };
-    let info = |t: f64| CameraInfo { header: header(t, "cam"), height: 2, width: 3, distortion_model: "plumb_bob".into(), d: vec![0.0; 5], k: [500.0, 0.0, 1.5, 0.0, 510.0, 1.0, 0.0, 0.0, 1.0] };
-    let scan = |t: f64| LaserScanMsg { header: header(t, "laser"), angle_min: -1.0, angle_max: 1.0, angle_increment: 0.5, time_increment: 0.0, scan_time: 0.1, range_min: 0.1, range_max: 8.0, ranges: vec![1.0, 2.0, 3.0, 4.0, 5.0], intensities: vec![] };
+    let image = |t: f64| Image {
+        header: header(t, "cam"),
+        height: 2,
+        width: 3,
+        encoding: "16UC1".into(),
+        is_bigendian: false,
+        step: 6,
+        data: vec![0xe8, 3, 0, 0, 0xd0, 7, 1, 0, 2, 0, 3, 0],
+    };
+    let info = |t: f64| CameraInfo {
+        header: header(t, "cam"),
+        height: 2,
+        width: 3,
+        distortion_model: "plumb_bob".into(),
+        d: vec![0.0; 5],
+        k: [500.0, 0.0, 1.5, 0.0, 510.0, 1.0, 0.0, 0.0, 1.0],
+    };
+    let scan = |t: f64| LaserScanMsg {
+        header: header(t, "laser"),
+        angle_min: -1.0,
+        angle_max: 1.0,
+        angle_increment: 0.5,
+        time_increment: 0.0,
+        scan_time: 0.1,
+        range_min: 0.1,
+        range_max: 8.0,
+        ranges: vec![1.0, 2.0, 3.0, 4.0, 5.0],
+        intensities: vec![],
+    };
     let mut msgs = Vec::new();
     for k in 0..=10 {
         let t = 0.1 * k as f64;
@@ -168,7 +199,10 @@ fn depth_images_with_camera_info_and_laser_scans() {
         for (k, frame) in replay.frames().enumerate() {
             let frame = frame.expect("frame");
             let t = 0.1 * (k + 1) as f64 + 0.05;
-            assert!((frame.t_world_sensor.to_homogeneous() - (body_at(t) * body_sensor()).to_homogeneous()).abs().max() < 1e-9);
+            assert!(
+                (frame.t_world_sensor.to_homogeneous() - (body_at(t) * body_sensor()).to_homogeneous()).abs().max()
+                    < 1e-9
+            );
             let Measurement::Depth(d) = frame.measurement else { panic!("depth") };
             assert_eq!((d.width, d.height, d.depth_m(0), d.depth_m(2), d.depth_m(3)), (3, 2, 1.0, 2.0, 0.001));
             assert!(d.depth_m(1).is_nan(), "0 is no return");
@@ -190,7 +224,12 @@ fn absent_topics_and_unknown_types_are_named() {
         let path = dir.path().join(format!("bad.{}", container.ext()));
         write_recording(&path, container, &msgs, true);
         let err = RosReplay::open(&path, &options("/velodyne_points", "/odom")).expect_err("absent").to_string();
-        assert!(err.contains("/velodyne_points") && err.contains("/points (sensor_msgs/PointCloud2)") && err.contains(&*path.to_string_lossy()), "{err}");
+        assert!(
+            err.contains("/velodyne_points")
+                && err.contains("/points (sensor_msgs/PointCloud2)")
+                && err.contains(&*path.to_string_lossy()),
+            "{err}"
+        );
         let err = RosReplay::open(&path, &options("/chatter", "/odom")).expect_err("unknown type").to_string();
         assert!(err.contains("/chatter") && err.contains("std_msgs/String"), "{err}");
         let err = RosReplay::open(&path, &options("/points", "/ground_truth")).expect_err("no poses").to_string();
@@ -220,7 +259,10 @@ fn frames_without_poses_and_malformed_messages_fail_alone() {
         let ok: Vec<usize> = results.iter().enumerate().filter(|(_, r)| r.is_ok()).map(|(i, _)| i).collect();
         assert_eq!(ok, vec![3, 4, 5, 6]);
         let e0 = results[0].as_ref().expect_err("before");
-        assert!(!e0.fatal && e0.topic == "/points" && e0.index == 0 && e0.reason.contains("before the first pose"), "{e0}");
+        assert!(
+            !e0.fatal && e0.topic == "/points" && e0.index == 0 && e0.reason.contains("before the first pose"),
+            "{e0}"
+        );
         let e2 = results[2].as_ref().expect_err("cut");
         assert!(!e2.fatal && e2.to_string().contains("message 2") && e2.reason.contains("PointCloud2"), "{e2}");
         let e8 = results[8].as_ref().expect_err("after");

@@ -14,8 +14,8 @@ use edtmap_core::fixed_ray::{fixed_scale, setup_ray, walk, FixedRay, NO_HIT};
 use edtmap_core::stages::IntegrationStage;
 use edtmap_core::{Backend, Connectivity, IntegrationMode, Observations, OBS_HIT, OBS_MISS};
 use edtmap_core::{
-    BatchEdt, EdtField, EdtMap, GlobalParams, Grid3, LocalVolume, LogOdds, OccupancyMap, OccupancyParams, Obstacles, StaticMap,
-    VoxelIndex, FAR_DIST_SQ, NO_SITE, UNREACHABLE_DIST_SQ,
+    BatchEdt, EdtField, EdtMap, GlobalParams, Grid3, LocalVolume, LogOdds, Obstacles, OccupancyMap, OccupancyParams,
+    StaticMap, VoxelIndex, FAR_DIST_SQ, NO_SITE, UNREACHABLE_DIST_SQ,
 };
 
 /// The batch EDT with the tie rule of `edtmap_core::backend` (scans along
@@ -57,7 +57,18 @@ pub fn separable_oracle(grid: &Grid3<bool>) -> EdtField {
 /// densities, empty and full ones, and lattices full of ties.
 pub fn batch_edt_grids() -> Vec<Grid3<bool>> {
     let mut grids = Vec::new();
-    let shapes = [[1, 1, 1], [7, 1, 1], [1, 9, 1], [1, 1, 11], [13, 6, 1], [16, 16, 16], [33, 17, 9], [5, 40, 21], [64, 3, 2], [20, 20, 70]];
+    let shapes = [
+        [1, 1, 1],
+        [7, 1, 1],
+        [1, 9, 1],
+        [1, 1, 11],
+        [13, 6, 1],
+        [16, 16, 16],
+        [33, 17, 9],
+        [5, 40, 21],
+        [64, 3, 2],
+        [20, 20, 70],
+    ];
     for (k, &dims) in shapes.iter().enumerate() {
         for (d, density) in [0.0, 0.002, 0.02, 0.2, 0.7, 1.0].into_iter().enumerate() {
             let seed = 1000 + 10 * k as u64 + d as u64;
@@ -190,16 +201,26 @@ pub fn check_integration(backend: &mut dyn Backend) -> Result<usize, String> {
         for seed in 0..12u64 {
             let connectivity = conns[seed as usize % 3];
             let cutoff_vox = 2 + seed % 6;
-            let params = GlobalParams { mode, connectivity, max_distance_m: cutoff_vox as f64 * IntegrationWorld::VOXEL_M, ..Default::default() };
+            let params = GlobalParams {
+                mode,
+                connectivity,
+                max_distance_m: cutoff_vox as f64 * IntegrationWorld::VOXEL_M,
+                ..Default::default()
+            };
             let stage = IntegrationStage::new(&params, IntegrationWorld::VOXEL_M).map_err(|e| e.to_string())?;
             let mut world = IntegrationWorld::new(seed);
             let mut map = EdtMap::new();
             let mut batch = EdtField::empty();
             for step in 0..10 {
-                let at = format!("{mode:?}, seed {seed}, {} neighbours, cutoff {cutoff_vox}, step {step}", u8::from(connectivity));
+                let at = format!(
+                    "{mode:?}, seed {seed}, {} neighbours, cutoff {cutoff_vox}, step {step}",
+                    u8::from(connectivity)
+                );
                 let (window, mask) = world.step();
                 backend.batch_edt(&mask, &mut batch).map_err(|e| format!("{at}: {e}"))?;
-                stage.integrate(backend, &mut map, world.obstacles(), &window, &batch).map_err(|e| format!("{at}: {e}"))?;
+                stage
+                    .integrate(backend, &mut map, world.obstacles(), &window, &batch)
+                    .map_err(|e| format!("{at}: {e}"))?;
                 let worst = world.check(&map, &params).map_err(|e| format!("{at}: {e}"))?;
                 if mode == IntegrationMode::Exact && worst != 0.0 {
                     return Err(format!("{at}: a distance {worst} voxels above the truth in exact mode"));
@@ -302,9 +323,11 @@ impl IntegrationWorld {
     /// cells change shape). Returns the window and its obstacle mask.
     pub fn step(&mut self) -> (LocalVolume, Grid3<bool>) {
         let rng = &mut self.rng;
-        let origin = VoxelIndex([0, 1, 2].map(|a| Self::MIN[a] + rng.below(Self::DIMS[a] - Self::WINDOW[a] as i32 + 1)));
+        let origin =
+            VoxelIndex([0, 1, 2].map(|a| Self::MIN[a] + rng.below(Self::DIMS[a] - Self::WINDOW[a] as i32 + 1)));
         let window = LocalVolume { origin, dims: Self::WINDOW, voxel_size_m: Self::VOXEL_M };
-        let inside = |rng: &mut SplitMix| VoxelIndex([0, 1, 2].map(|a| origin.0[a] + rng.below(Self::WINDOW[a] as i32)));
+        let inside =
+            |rng: &mut SplitMix| VoxelIndex([0, 1, 2].map(|a| origin.0[a] + rng.below(Self::WINDOW[a] as i32)));
         let mut toggles = Vec::new();
         for _ in 0..self.rng.below(12) {
             toggles.push((inside(&mut self.rng), None));
@@ -323,14 +346,19 @@ impl IntegrationWorld {
             self.set(v, occupied);
         }
         let obstacles = self.obstacles();
-        let mask = Grid3::from_fn(window.dims, |x, y, z| obstacles.contains(window.world([x, y, z]))).expect("valid dims");
+        let mask =
+            Grid3::from_fn(window.dims, |x, y, z| obstacles.contains(window.world([x, y, z]))).expect("valid dims");
         (window, mask)
     }
 
     /// Brute-force squared distance of `v`, `FAR_DIST_SQ` beyond `max`.
     pub fn truth(&self, v: VoxelIndex, max: u32) -> u32 {
         let best = self.obstacles.iter().map(|o| dist_sq(v, *o)).min().unwrap_or(u64::MAX);
-        if best > u64::from(max) { FAR_DIST_SQ } else { best as u32 }
+        if best > u64::from(max) {
+            FAR_DIST_SQ
+        } else {
+            best as u32
+        }
     }
 
     /// Checks `edt` against brute force over the box and a margin: every
@@ -353,7 +381,9 @@ impl IntegrationWorld {
                             return Err(format!("{v:?}: stored obstacle {nearest:?} is not one"));
                         }
                         if dist_sq(v, nearest) != u64::from(stored) {
-                            return Err(format!("{v:?}: stored distance {stored} is not that of its obstacle {nearest:?}"));
+                            return Err(format!(
+                                "{v:?}: stored distance {stored} is not that of its obstacle {nearest:?}"
+                            ));
                         }
                     }
                     if stored < truth && !(truth == FAR_DIST_SQ && stored == FAR_DIST_SQ) {
@@ -399,7 +429,8 @@ mod tests {
     fn oracle_distances_are_the_true_nearest_distances() {
         for grid in batch_edt_grids().into_iter().filter(|g| g.len() <= 6000) {
             let edt = separable_oracle(&grid);
-            let sites: Vec<[usize; 3]> = (0..grid.len()).filter(|&i| grid.as_slice()[i]).map(|i| grid.coords(i)).collect();
+            let sites: Vec<[usize; 3]> =
+                (0..grid.len()).filter(|&i| grid.as_slice()[i]).map(|i| grid.coords(i)).collect();
             for i in 0..grid.len() {
                 let c = grid.coords(i);
                 let sq = |s: &[usize; 3]| (0..3).map(|a| (c[a].abs_diff(s[a]) as u32).pow(2)).sum::<u32>();

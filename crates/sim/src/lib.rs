@@ -25,10 +25,10 @@ pub mod conformance;
 mod error;
 pub mod geometry;
 mod grids;
+mod layouts;
 mod noise;
 mod pedestrian;
 mod scene;
-mod layouts;
 mod trajectory;
 
 pub use error::SimError;

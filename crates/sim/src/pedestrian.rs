@@ -29,7 +29,8 @@ impl Pedestrian {
     pub(crate) fn at(&self, t_s: f64) -> Cylinder {
         let d = [self.to[0] - self.from[0], self.to[1] - self.from[1]];
         let len = d[0].hypot(d[1]);
-        let f = if len > 0.0 { 0.5 * (1.0 - (PI * self.mean_speed_mps / len * t_s + self.phase_rad).cos()) } else { 0.0 };
+        let f =
+            if len > 0.0 { 0.5 * (1.0 - (PI * self.mean_speed_mps / len * t_s + self.phase_rad).cos()) } else { 0.0 };
         Cylinder {
             centre_xy: [self.from[0] + f * d[0], self.from[1] + f * d[1]],
             radius_m: self.radius_m,
@@ -53,7 +54,15 @@ mod tests {
 
     #[test]
     fn walks_between_the_ends_at_the_mean_speed() {
-        let p = Pedestrian { from: [0.0, 0.0], to: [6.0, 0.0], mean_speed_mps: 1.2, phase_rad: 0.0, radius_m: 0.25, floor_m: 0.0, height_m: 1.7 };
+        let p = Pedestrian {
+            from: [0.0, 0.0],
+            to: [6.0, 0.0],
+            mean_speed_mps: 1.2,
+            phase_rad: 0.0,
+            radius_m: 0.25,
+            floor_m: 0.0,
+            height_m: 1.7,
+        };
         assert_eq!(p.at(0.0).centre_xy, [0.0, 0.0]);
         let there = p.at(5.0).centre_xy;
         assert!((there[0] - 6.0).abs() < 1e-12, "6 m at 1.2 m/s takes 5 s: {there:?}");

@@ -105,7 +105,9 @@ fn noise_follows_the_seed() {
     let bits = |seed| {
         let s = Scene::new(SceneName::Room, &options(seed)).expect("valid");
         match s.frame(&s.default_sensor(), 5).expect("valid").measurement {
-            Measurement::Depth(img) => (0..(img.width * img.height) as usize).map(|i| img.depth_m(i).to_bits()).collect::<Vec<u32>>(),
+            Measurement::Depth(img) => {
+                (0..(img.width * img.height) as usize).map(|i| img.depth_m(i).to_bits()).collect::<Vec<u32>>()
+            }
             m => panic!("not a depth image: {}", m.kind()),
         }
     };
@@ -115,9 +117,11 @@ fn noise_follows_the_seed() {
 
 #[test]
 fn bad_options_are_refused_by_name() {
-    let e = Scene::new(SceneName::Planar, &SceneOptions { range_noise_m: -1.0, ..Default::default() }).expect_err("negative noise");
+    let e = Scene::new(SceneName::Planar, &SceneOptions { range_noise_m: -1.0, ..Default::default() })
+        .expect_err("negative noise");
     assert!(matches!(&e, SimError::InvalidOption { field: "range_noise_m", .. }), "{e}");
-    let e = Scene::new(SceneName::Planar, &SceneOptions { dropout: 2.0, ..Default::default() }).expect_err("dropout over 1");
+    let e = Scene::new(SceneName::Planar, &SceneOptions { dropout: 2.0, ..Default::default() })
+        .expect_err("dropout over 1");
     assert!(e.to_string().contains("dropout"), "{e}");
 }
 

@@ -246,7 +246,10 @@ fn axis_ticks(lo: f64, span: f64, pixels: usize) -> Vec<(f64, String)> {
     }
     let decimals = (-step.log10().floor()).max(0.0) as usize;
     // Adding 0.0 turns -0.0 into 0.0, so the origin never reads "-0".
-    (0..=(last - first) as usize).map(|i| (first + i as f64) * step).map(|t| (t, format!("{:.*}", decimals, t + 0.0))).collect()
+    (0..=(last - first) as usize)
+        .map(|i| (first + i as f64) * step)
+        .map(|t| (t, format!("{:.*}", decimals, t + 0.0)))
+        .collect()
 }
 
 /// The smallest step of 1, 2 or 5 × 10^k that splits `span` into at most
@@ -333,14 +336,21 @@ pub const STATE_RGB: [Rgb; 3] = [[150, 150, 150], [245, 245, 235], [20, 20, 20]]
 /// Renders a slice of occupancy states (unknown grey, free white, occupied
 /// black; `y` upwards) with a legend, and with `axes` axes in metres and
 /// the slice's position.
-pub fn render_states(width: usize, height: usize, states: &[VoxelState], title: &str, axes: Option<&MapAxes>) -> Canvas {
+pub fn render_states(
+    width: usize,
+    height: usize,
+    states: &[VoxelState],
+    title: &str,
+    axes: Option<&MapAxes>,
+) -> Canvas {
     let layout = MapLayout::new(width, height, axes);
     let (top, scale) = (layout.top, layout.scale);
     let text_h = font::HEIGHT * TEXT_SCALE;
     let names = ["unknown", "free", "occupied"];
     let legend_w = names.iter().map(|n| Canvas::text_width(n, TEXT_SCALE)).max().unwrap_or(0) + text_h + 6;
     let lx = layout.left + layout.map_w + MARGIN;
-    let canvas_w = (lx + legend_w + MARGIN).max(MARGIN + Canvas::text_width(title, TEXT_SCALE) + MARGIN).max(layout.min_width);
+    let canvas_w =
+        (lx + legend_w + MARGIN).max(MARGIN + Canvas::text_width(title, TEXT_SCALE) + MARGIN).max(layout.min_width);
     let canvas_h = top + (layout.map_h + layout.below).max(3 * (text_h + MARGIN)) + MARGIN;
     let mut canvas = Canvas::new(canvas_w, canvas_h);
     canvas.text(MARGIN, MARGIN, title, TEXT_SCALE, TEXT_RGB);
@@ -364,7 +374,14 @@ pub fn render_states(width: usize, height: usize, states: &[VoxelState], title: 
 }
 
 /// Renders a slice of states (see [`render_states`]) and writes it as a PNG.
-pub fn write_states_png(path: &Path, width: usize, height: usize, states: &[VoxelState], title: &str, axes: Option<&MapAxes>) -> Result<(), VizError> {
+pub fn write_states_png(
+    path: &Path,
+    width: usize,
+    height: usize,
+    states: &[VoxelState],
+    title: &str,
+    axes: Option<&MapAxes>,
+) -> Result<(), VizError> {
     if states.len() != width * height || states.is_empty() {
         return Err(VizError::BadData {
             path: path.into(),

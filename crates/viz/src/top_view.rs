@@ -143,7 +143,8 @@ impl TopView {
     /// Axes in metres with `position` and, for coarse cells, their size.
     fn axes(&self, position: &str) -> MapAxes {
         let cell_m = self.cell_voxels as f64 * self.voxel_size_m;
-        let position = if self.cell_voxels > 1 { format!("{position}; cell {cell_m:.2} m") } else { position.to_string() };
+        let position =
+            if self.cell_voxels > 1 { format!("{position}; cell {cell_m:.2} m") } else { position.to_string() };
         MapAxes { origin_m: self.origin.map(|o| o as f64 * self.voxel_size_m), cell_m, position }
     }
 
@@ -155,7 +156,12 @@ impl TopView {
     /// The distances in viridis from 0 to `max_m`, obstacles black, cells
     /// without an observed voxel grey.
     pub fn render_distance(&self, title: &str, position: &str, max_m: f32) -> Canvas {
-        let style = SliceStyle { title: title.into(), unit: "m".into(), max_value: Some(max_m), axes: Some(self.axes(position)) };
+        let style = SliceStyle {
+            title: title.into(),
+            unit: "m".into(),
+            max_value: Some(max_m),
+            axes: Some(self.axes(position)),
+        };
         render_slice(Slice { width: self.width, height: self.height, values: &self.distance_m }, &style)
     }
 
@@ -190,10 +196,13 @@ pub fn densest_layer(map: &GlobalMap) -> Option<i32> {
             }
         }
     }
-    counts.into_iter().fold(None, |best: Option<(i32, usize)>, (z, n)| match best {
-        Some((_, m)) if m >= n => best,
-        _ => Some((z, n)),
-    }).map(|(z, _)| z)
+    counts
+        .into_iter()
+        .fold(None, |best: Option<(i32, usize)>, (z, n)| match best {
+            Some((_, m)) if m >= n => best,
+            _ => Some((z, n)),
+        })
+        .map(|(z, _)| z)
 }
 
 #[cfg(test)]
@@ -221,7 +230,9 @@ mod tests {
     fn building() -> GlobalMap {
         let mut free = Vec::new();
         for z in [2, 5] {
-            free.extend((0..8).flat_map(|x| (0..8).map(move |y| [x, y, z])).filter(|&v| v != [3, 3, 2] && v != [6, 6, 5]));
+            free.extend(
+                (0..8).flat_map(|x| (0..8).map(move |y| [x, y, z])).filter(|&v| v != [3, 3, 2] && v != [6, 6, 5]),
+            );
         }
         let mut map = map_with(&free, &[[3, 3, 2], [6, 6, 5]]);
         map.occupancy_mut().get_or_insert(VoxelIndex([16, 0, 0]).block());

@@ -39,7 +39,8 @@ pub(crate) fn run_in<S: AsRef<OsStr>>(dir: &Path, args: &[S], limit: Duration) -
 
 /// Runs `cmd` with stdout and stderr captured, killing it after `limit`.
 pub(crate) fn wait_for(mut cmd: Command, limit: Duration) -> Run {
-    let child = cmd.stdin(Stdio::null()).stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().expect("the binary starts");
+    let child =
+        cmd.stdin(Stdio::null()).stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().expect("the binary starts");
     finish(child, limit)
 }
 

@@ -76,7 +76,12 @@ impl<'a> TileCull<'a> {
     /// measurement). `bin_free_below_m`: a LiDAR's largest
     /// [`ProjectJob::free_below_m`] per azimuth bin, over its rings;
     /// `sup`: the largest over the measurement, where the caller has it.
-    pub(super) fn new(job: &ProjectJob<'_>, geom: &VoxelToSensor, bin_free_below_m: &'a [f32], sup: Option<f32>) -> Option<Self> {
+    pub(super) fn new(
+        job: &ProjectJob<'_>,
+        geom: &VoxelToSensor,
+        bin_free_below_m: &'a [f32],
+        sup: Option<f32>,
+    ) -> Option<Self> {
         let free_below_m = sup.unwrap_or_else(|| free_below_sup(job)) as f64;
         // Every range the definition compares is ≥ 0 (depth > 0); the
         // supremum is never NaN (`f32::max` drops NaN thresholds, which free
@@ -131,7 +136,8 @@ impl<'a> TileCull<'a> {
         if last - first + 1 >= bins as i64 {
             return self.free_below_m;
         }
-        (first..=last).map(|b| self.bin_free_below_m[b.rem_euclid(bins as i64) as usize]).fold(f32::MIN, f32::max) as f64
+        (first..=last).map(|b| self.bin_free_below_m[b.rem_euclid(bins as i64) as usize]).fold(f32::MIN, f32::max)
+            as f64
     }
 
     /// A sphere in the sensor frame holding every voxel centre of
@@ -157,9 +163,13 @@ pub(super) fn tile_centre(geom: &VoxelToSensor, lo: [usize; 3], hi: [usize; 3]) 
 /// point free, over every beam or pixel of the measurement, metres;
 /// `f32::MIN` when none frees anything.
 fn free_below_sup(job: &ProjectJob<'_>) -> f32 {
-    let sup = |ranges: &mut dyn Iterator<Item = f32>, limits| ranges.map(|d| job.free_below_m(d, limits)).fold(f32::MIN, f32::max);
+    let sup = |ranges: &mut dyn Iterator<Item = f32>, limits| {
+        ranges.map(|d| job.free_below_m(d, limits)).fold(f32::MIN, f32::max)
+    };
     match (job.sensor, job.measurement) {
-        (Sensor::Depth(c), Measurement::Depth(img)) => sup(&mut (0..img.width as usize * img.height as usize).map(|i| img.depth_m(i)), &c.range),
+        (Sensor::Depth(c), Measurement::Depth(img)) => {
+            sup(&mut (0..img.width as usize * img.height as usize).map(|i| img.depth_m(i)), &c.range)
+        }
         (Sensor::Lidar(l), Measurement::Lidar(scan)) => sup(&mut scan.ranges.iter().copied(), &l.range),
         (Sensor::Planar, Measurement::Scan(scan)) => sup(&mut scan.ranges.iter().copied(), &scan.range),
         _ => f32::MIN,

@@ -132,7 +132,10 @@ impl<'a> DepthMiss<'a> {
         if near <= 0.0 {
             return Tile::Each;
         }
-        let corners = (0..8).map(|m: usize| [0, 1, 2].map(|i| c[i] + (0..3).map(|k| if m >> k & 1 == 1 { axes[k][i] } else { -axes[k][i] }).sum::<f64>()));
+        let corners = (0..8).map(|m: usize| {
+            [0, 1, 2]
+                .map(|i| c[i] + (0..3).map(|k| if m >> k & 1 == 1 { axes[k][i] } else { -axes[k][i] }).sum::<f64>())
+        });
         let mut ratio = [(f64::INFINITY, f64::NEG_INFINITY); 2];
         for p in corners {
             for (r, x) in ratio.iter_mut().zip([p[0], p[1]]) {
@@ -198,9 +201,11 @@ fn thresholds(job: &ProjectJob<'_>, camera: &PinholeCamera, image: &DepthImage) 
         DepthData::Metres(d) => out.par_chunks_mut(w).zip(d.par_chunks(w)).for_each(|(t, d)| {
             t.iter_mut().zip(d).for_each(|(t, &d)| *t = free(d));
         }),
-        DepthData::U16 { values, metres_per_unit } => out.par_chunks_mut(w).zip(values.par_chunks(w)).for_each(|(t, v)| {
-            t.iter_mut().zip(v).for_each(|(t, &v)| *t = free(raw_depth_m(v, *metres_per_unit)));
-        }),
+        DepthData::U16 { values, metres_per_unit } => {
+            out.par_chunks_mut(w).zip(values.par_chunks(w)).for_each(|(t, v)| {
+                t.iter_mut().zip(v).for_each(|(t, &v)| *t = free(raw_depth_m(v, *metres_per_unit)));
+            })
+        }
     }
     out
 }

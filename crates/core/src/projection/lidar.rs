@@ -127,7 +127,8 @@ impl<'a> LidarMiss<'a> {
             return false;
         };
         let measured_m = self.scan.ranges[ring * self.lidar.azimuth_bins + bin];
-        point_m < self.job.free_below_m(measured_m, &self.lidar.range) && self.lidar.ring_passes_at(p, horiz, el, self.half_voxel_m)
+        point_m < self.job.free_below_m(measured_m, &self.lidar.range)
+            && self.lidar.ring_passes_at(p, horiz, el, self.half_voxel_m)
     }
 }
 
@@ -188,7 +189,13 @@ impl Angles {
         let bounds = angles.iter().map(|&a| dir(a.clamp(-FRAC_PI_2, FRAC_PI_2))).collect();
         let bins = lidar.azimuth_bins;
         let edges = (0..=bins).map(|b| dir(-PI + 2.0 * PI * b as f64 / bins as f64)).collect();
-        Some(Angles { bounds, rings: rings.iter().map(|&e| dir(e)).collect(), edges, bins_per_rad: bins as f64 / (2.0 * PI), atan: ATAN.as_slice() })
+        Some(Angles {
+            bounds,
+            rings: rings.iter().map(|&e| dir(e)).collect(),
+            edges,
+            bins_per_rad: bins as f64 / (2.0 * PI),
+            atan: ATAN.as_slice(),
+        })
     }
 
     /// The ring nearest to the elevation of `(h, z)` (`h` the horizontal
@@ -251,7 +258,8 @@ const ATAN_STEPS: usize = 1024;
 
 /// `atan(i / ATAN_STEPS)` for `i` in `0..=ATAN_STEPS + 1` (one past the
 /// end, so that `t = 1` interpolates without a test).
-static ATAN: std::sync::LazyLock<Vec<f64>> = std::sync::LazyLock::new(|| (0..=ATAN_STEPS + 1).map(|i| (i as f64 / ATAN_STEPS as f64).atan()).collect());
+static ATAN: std::sync::LazyLock<Vec<f64>> =
+    std::sync::LazyLock::new(|| (0..=ATAN_STEPS + 1).map(|i| (i as f64 / ATAN_STEPS as f64).atan()).collect());
 
 /// `atan2(y, x)` to some 1e-7 rad, for a first guess only: every answer
 /// built on it is checked by sign tests. The arctangent of the ratio
@@ -293,7 +301,17 @@ mod tests {
             worst = worst.max((fast_atan2(y, x, &ATAN) - y.atan2(x)).abs());
         }
         // The octants' edges: t = 0 and t = 1 exactly.
-        for (x, y) in [(1.0, 0.0), (2.0, 2.0), (0.0, 1.5), (-1.0, 1.0), (-3.0, 0.0), (-0.5, -0.5), (0.0, -2.0), (4.0, -4.0), (1e-300, 1.0)] {
+        for (x, y) in [
+            (1.0, 0.0),
+            (2.0, 2.0),
+            (0.0, 1.5),
+            (-1.0, 1.0),
+            (-3.0, 0.0),
+            (-0.5, -0.5),
+            (0.0, -2.0),
+            (4.0, -4.0),
+            (1e-300, 1.0),
+        ] {
             worst = worst.max((fast_atan2(y, x, &ATAN) - f64::atan2(y, x)).abs());
         }
         assert!(worst < 1e-7, "{worst}");
@@ -335,7 +353,15 @@ mod tests {
             let voxel_size_m = [0.05, 0.2][case % 2];
             let pose = Isometry3::identity();
             let volume = LocalVolume { origin: VoxelIndex([0, 0, 0]), dims: [8, 8, 8], voxel_size_m };
-            let job = ProjectJob { sensor: &sensor, measurement: &measurement, t_world_sensor: &pose, volume, free_margin_m: 0.0, clear_no_return: false, planar_half_thickness_m: 0.0 };
+            let job = ProjectJob {
+                sensor: &sensor,
+                measurement: &measurement,
+                t_world_sensor: &pose,
+                volume,
+                free_margin_m: 0.0,
+                clear_no_return: false,
+                planar_half_thickness_m: 0.0,
+            };
             let fast = LidarMiss::new(&job).expect("a LiDAR job");
             assert!(fast.angles.is_some(), "case {case}: sign tables");
             let (fan_lo, fan_hi) = lidar.fan_rad();
@@ -346,9 +372,11 @@ mod tests {
                 let dist_m = rng.uniform(0.2, 20.0);
                 let ring = lidar.ring_elevations_rad[(rng.uniform(0.0, rings as f64) as usize).min(rings - 1)];
                 let cone = ring + [1.0, -1.0][rng.uniform(0.0, 2.0) as usize] * (radius_m / dist_m).asin();
-                let el = [elevations[rng.uniform(0.0, elevations.len() as f64) as usize], cone, rng.uniform(lo, hi)][rng.uniform(0.0, 3.0) as usize];
+                let el = [elevations[rng.uniform(0.0, elevations.len() as f64) as usize], cone, rng.uniform(lo, hi)]
+                    [rng.uniform(0.0, 3.0) as usize];
                 let edge = (rng.uniform(0.0, bins as f64 + 1.0) as usize).min(bins);
-                let az = [-PI + 2.0 * PI * edge as f64 / bins as f64, rng.uniform(-PI, PI)][rng.uniform(0.0, 2.0) as usize];
+                let az =
+                    [-PI + 2.0 * PI * edge as f64 / bins as f64, rng.uniform(-PI, PI)][rng.uniform(0.0, 2.0) as usize];
                 for nudge in [0.0, 1e-15, -1e-15, 1e-12, -1e-12, 1e-9, -1e-9, 1e-6, -1e-6] {
                     let (el, az) = (el + nudge, az + nudge * rng.uniform(-1.0, 1.0));
                     let p = [el.cos() * az.cos(), el.cos() * az.sin(), el.sin()].map(|c| (c * dist_m) as f32);

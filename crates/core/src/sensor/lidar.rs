@@ -43,13 +43,25 @@ impl SpinningLidar {
         let sorted = rings.windows(2).all(|w| w[0] < w[1]);
         let in_range = rings.iter().all(|e| e.is_finite() && e.abs() < PI / 2.0);
         if rings.len() > MAX_RINGS {
-            return Err(CoreError::InvalidParam { field: "ring_elevations", value: format!("{} rings", rings.len()), reason: "at most 4096 rings" });
+            return Err(CoreError::InvalidParam {
+                field: "ring_elevations",
+                value: format!("{} rings", rings.len()),
+                reason: "at most 4096 rings",
+            });
         }
         if rings.is_empty() || !sorted || !in_range {
-            return Err(CoreError::InvalidParam { field: "ring_elevations", value: format!("{rings:?}"), reason: "need at least one ring, strictly increasing, within ±90°" });
+            return Err(CoreError::InvalidParam {
+                field: "ring_elevations",
+                value: format!("{rings:?}"),
+                reason: "need at least one ring, strictly increasing, within ±90°",
+            });
         }
         if !(1..=1 << 20).contains(&self.azimuth_bins) {
-            return Err(CoreError::InvalidParam { field: "azimuth_bins", value: self.azimuth_bins.to_string(), reason: "must be between 1 and 2^20" });
+            return Err(CoreError::InvalidParam {
+                field: "azimuth_bins",
+                value: self.azimuth_bins.to_string(),
+                reason: "must be between 1 and 2^20",
+            });
         }
         check_range(&self.range)
     }
@@ -125,7 +137,10 @@ impl SpinningLidar {
         let i = rings.partition_point(|&e| e < el);
         let spacing = |a: usize, b: usize| (rings[b] - rings[a]).abs();
         let candidates = [i.checked_sub(1), (i < rings.len()).then_some(i)];
-        let best = candidates.into_iter().flatten().min_by(|&a, &b| (rings[a] - el).abs().total_cmp(&(rings[b] - el).abs()))?;
+        let best = candidates
+            .into_iter()
+            .flatten()
+            .min_by(|&a, &b| (rings[a] - el).abs().total_cmp(&(rings[b] - el).abs()))?;
         let n = rings.len();
         let half = if n == 1 {
             // One ring: accept half a bin's angle either side.
@@ -177,7 +192,13 @@ mod tests {
     use super::*;
 
     fn sensor() -> SpinningLidar {
-        SpinningLidar::uniform(16, -15f64.to_radians(), 15f64.to_radians(), 360, RangeLimits { min_m: 0.2, max_m: 30.0 })
+        SpinningLidar::uniform(
+            16,
+            -15f64.to_radians(),
+            15f64.to_radians(),
+            360,
+            RangeLimits { min_m: 0.2, max_m: 30.0 },
+        )
     }
 
     #[test]

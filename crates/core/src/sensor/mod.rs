@@ -13,7 +13,10 @@ mod pose;
 pub use lidar::{LidarScan, SpinningLidar, MAX_RINGS};
 pub use pinhole::{raw_depth_m, DepthData, DepthImage, PinholeCamera, MAX_IMAGE_PIXELS};
 pub use planar::LaserScan;
-pub use pose::{check_pose, pose_from_matrix, pose_from_matrix_noted, rotation_from_matrix, rotation_from_quaternion, PoseAdjustments, ROTATION_NOTED, ROTATION_TOLERANCE};
+pub use pose::{
+    check_pose, pose_from_matrix, pose_from_matrix_noted, rotation_from_matrix, rotation_from_quaternion,
+    PoseAdjustments, ROTATION_NOTED, ROTATION_TOLERANCE,
+};
 
 use crate::CoreError;
 use nalgebra::Isometry3;
@@ -40,7 +43,11 @@ fn check_range(r: &RangeLimits) -> Result<(), CoreError> {
     if r.min_m.is_finite() && r.max_m.is_finite() && r.min_m >= 0.0 && r.max_m > r.min_m {
         Ok(())
     } else {
-        Err(CoreError::InvalidParam { field: "range", value: format!("{}..{} m", r.min_m, r.max_m), reason: "need 0 ≤ min < max, finite" })
+        Err(CoreError::InvalidParam {
+            field: "range",
+            value: format!("{}..{} m", r.min_m, r.max_m),
+            reason: "need 0 ≤ min < max, finite",
+        })
     }
 }
 
@@ -152,10 +159,12 @@ impl Sensor {
         match (self, &frame.measurement) {
             (Sensor::Depth(c), Measurement::Depth(img)) => c.check(img),
             (Sensor::Lidar(l), Measurement::Lidar(scan)) => l.check(scan),
-            (Sensor::Points(_) | Sensor::Lidar(_) | Sensor::Depth(_), Measurement::Points(pc)) => match pc.points.is_empty() {
-                true => Err(CoreError::BadMeasurement("point cloud is empty".into())),
-                false => Ok(()),
-            },
+            (Sensor::Points(_) | Sensor::Lidar(_) | Sensor::Depth(_), Measurement::Points(pc)) => {
+                match pc.points.is_empty() {
+                    true => Err(CoreError::BadMeasurement("point cloud is empty".into())),
+                    false => Ok(()),
+                }
+            }
             (Sensor::Planar, Measurement::Scan(scan)) => scan.validate(),
             (s, m) => Err(CoreError::BadMeasurement(format!("a {} measurement from a {} sensor", m.kind(), s.kind()))),
         }
@@ -218,7 +227,10 @@ impl Sensor {
             return c.par_returns(img, f);
         }
         self.rays(m, false, rays);
-        rays.par_iter().with_min_len(1024).filter(|r| r.hit).for_each(|r| f(r.dir.map(|c| c as f64 * r.range_m as f64)));
+        rays.par_iter()
+            .with_min_len(1024)
+            .filter(|r| r.hit)
+            .for_each(|r| f(r.dir.map(|c| c as f64 * r.range_m as f64)));
     }
 
     /// Where point `p` (sensor frame) falls in measurement `m`.

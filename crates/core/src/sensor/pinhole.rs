@@ -86,7 +86,11 @@ impl PinholeCamera {
     pub fn validate(&self) -> Result<(), CoreError> {
         for (field, v) in [("fx", self.fx), ("fy", self.fy)] {
             if !(v.is_finite() && v > 0.0) {
-                return Err(CoreError::InvalidParam { field, value: v.to_string(), reason: "focal length must be positive" });
+                return Err(CoreError::InvalidParam {
+                    field,
+                    value: v.to_string(),
+                    reason: "focal length must be positive",
+                });
             }
         }
         for (field, v) in [("cx", self.cx), ("cy", self.cy)] {
@@ -95,10 +99,18 @@ impl PinholeCamera {
             }
         }
         if self.width == 0 || self.height == 0 {
-            return Err(CoreError::InvalidParam { field: "width/height", value: format!("{}x{}", self.width, self.height), reason: "image must have pixels" });
+            return Err(CoreError::InvalidParam {
+                field: "width/height",
+                value: format!("{}x{}", self.width, self.height),
+                reason: "image must have pixels",
+            });
         }
         if u64::from(self.width) * u64::from(self.height) > MAX_IMAGE_PIXELS {
-            return Err(CoreError::InvalidParam { field: "width/height", value: format!("{}x{}", self.width, self.height), reason: "at most 2^26 pixels (8192 × 8192)" });
+            return Err(CoreError::InvalidParam {
+                field: "width/height",
+                value: format!("{}x{}", self.width, self.height),
+                reason: "at most 2^26 pixels (8192 × 8192)",
+            });
         }
         check_range(&self.range)
     }
@@ -112,7 +124,12 @@ impl PinholeCamera {
             )));
         }
         if image.len() != (image.width * image.height) as usize {
-            return Err(CoreError::BadMeasurement(format!("depth image {}x{} has {} values", image.width, image.height, image.len())));
+            return Err(CoreError::BadMeasurement(format!(
+                "depth image {}x{} has {} values",
+                image.width,
+                image.height,
+                image.len()
+            )));
         }
         if let DepthData::U16 { metres_per_unit, .. } = image.data {
             if !(metres_per_unit.is_finite() && metres_per_unit > 0.0) {

@@ -25,10 +25,16 @@ impl LaserScan {
         }
         let inc = self.angle_increment_rad;
         if !self.angle_min_rad.is_finite() || !inc.is_finite() || inc == 0.0 {
-            return Err(CoreError::BadMeasurement(format!("laser scan angle_min {} / angle_increment {inc} must be finite, increment non-zero", self.angle_min_rad)));
+            return Err(CoreError::BadMeasurement(format!(
+                "laser scan angle_min {} / angle_increment {inc} must be finite, increment non-zero",
+                self.angle_min_rad
+            )));
         }
         if (inc.abs() * self.ranges.len() as f64) > 2.0 * std::f64::consts::PI + inc.abs() {
-            return Err(CoreError::BadMeasurement(format!("{} beams of {inc} rad cover more than a turn", self.ranges.len())));
+            return Err(CoreError::BadMeasurement(format!(
+                "{} beams of {inc} rad cover more than a turn",
+                self.ranges.len()
+            )));
         }
         super::check_range(&self.range)
     }
@@ -62,7 +68,12 @@ mod tests {
     #[test]
     fn beams_round_trip_both_directions() {
         for inc in [0.01f64, -0.01] {
-            let scan = LaserScan { angle_min_rad: 1.0, angle_increment_rad: inc, ranges: vec![1.0; 600], range: RangeLimits { min_m: 0.1, max_m: 10.0 } };
+            let scan = LaserScan {
+                angle_min_rad: 1.0,
+                angle_increment_rad: inc,
+                ranges: vec![1.0; 600],
+                range: RangeLimits { min_m: 0.1, max_m: 10.0 },
+            };
             scan.validate().expect("valid");
             for i in (0..600).step_by(13) {
                 let a = 1.0 + i as f64 * inc;

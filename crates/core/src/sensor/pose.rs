@@ -29,7 +29,11 @@ pub fn check_pose(t: &Isometry3<f64>) -> Result<(), CoreError> {
     let q = t.rotation.quaternion();
     let finite = t.translation.vector.iter().chain(q.coords.iter()).all(|v| v.is_finite());
     if !finite {
-        return Err(CoreError::BadPose(format!("not finite: translation {:?}, rotation {:?}", t.translation.vector.as_slice(), q.coords.as_slice())));
+        return Err(CoreError::BadPose(format!(
+            "not finite: translation {:?}, rotation {:?}",
+            t.translation.vector.as_slice(),
+            q.coords.as_slice()
+        )));
     }
     let norm = q.norm();
     if (norm - 1.0).abs() > ROTATION_NOTED {
@@ -86,7 +90,8 @@ pub fn rotation_from_quaternion(q: Quaternion<f64>) -> Result<(UnitQuaternion<f6
             "quaternion (x {x}, y {y}, z {z}, w {w}) has norm {norm}, not 1 (accepted within {ROTATION_TOLERANCE:.0e} and normalised)"
         )));
     }
-    let rotation = if deviation < 1e-12 { UnitQuaternion::new_unchecked(q) } else { UnitQuaternion::from_quaternion(q) };
+    let rotation =
+        if deviation < 1e-12 { UnitQuaternion::new_unchecked(q) } else { UnitQuaternion::from_quaternion(q) };
     Ok((rotation, deviation))
 }
 
@@ -189,7 +194,8 @@ mod tests {
     /// A rotation about an axis written as published ground truth is: every
     /// entry perturbed in its fourth decimal.
     fn published(angle: f64, noise: f64) -> Matrix3<f64> {
-        let r = Rotation3::from_axis_angle(&nalgebra::Unit::new_normalize(Vector3::new(0.3, -0.5, 0.8)), angle).into_inner();
+        let r = Rotation3::from_axis_angle(&nalgebra::Unit::new_normalize(Vector3::new(0.3, -0.5, 0.8)), angle)
+            .into_inner();
         r + Matrix3::from_fn(|i, j| noise * (((3 * i + j) as f64 * 1.7).sin()))
     }
 

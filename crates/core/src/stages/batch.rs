@@ -30,7 +30,12 @@ impl BatchEdtStage {
     }
 
     /// The exact EDT of `volume`'s obstacles in `map`, on `backend`.
-    pub fn run<B: BatchEdt + ?Sized>(&mut self, backend: &mut B, map: &GlobalMap, volume: &LocalVolume) -> Result<(), BackendError> {
+    pub fn run<B: BatchEdt + ?Sized>(
+        &mut self,
+        backend: &mut B,
+        map: &GlobalMap,
+        volume: &LocalVolume,
+    ) -> Result<(), BackendError> {
         local_into(backend, map, volume, self.unknown_as_occupied, &mut self.mask, &mut self.field)?;
         if let Some((mask, field)) = &mut self.global {
             local_into(backend, map, volume, false, mask, field)?;
@@ -71,7 +76,12 @@ impl BatchEdtStage {
 
 /// The local field alone (what [`BatchEdtStage::local`] holds after a
 /// run), in fresh buffers: for a caller that needs it only sometimes.
-pub fn local_field<B: BatchEdt + ?Sized>(backend: &mut B, map: &GlobalMap, volume: &LocalVolume, unknown_as_occupied: bool) -> Result<EdtField, BackendError> {
+pub fn local_field<B: BatchEdt + ?Sized>(
+    backend: &mut B,
+    map: &GlobalMap,
+    volume: &LocalVolume,
+    unknown_as_occupied: bool,
+) -> Result<EdtField, BackendError> {
     let (mut mask, mut field) = (Grid3::default(), EdtField::empty());
     local_into(backend, map, volume, unknown_as_occupied, &mut mask, &mut field)?;
     Ok(field)
@@ -79,7 +89,14 @@ pub fn local_field<B: BatchEdt + ?Sized>(backend: &mut B, map: &GlobalMap, volum
 
 /// The batch EDT of `volume`'s obstacles, unknown voxels obstacles when
 /// `unknown_as_occupied`, into `field` through `mask`.
-fn local_into<B: BatchEdt + ?Sized>(backend: &mut B, map: &GlobalMap, volume: &LocalVolume, unknown_as_occupied: bool, mask: &mut Grid3<bool>, field: &mut EdtField) -> Result<(), BackendError> {
+fn local_into<B: BatchEdt + ?Sized>(
+    backend: &mut B,
+    map: &GlobalMap,
+    volume: &LocalVolume,
+    unknown_as_occupied: bool,
+    mask: &mut Grid3<bool>,
+    field: &mut EdtField,
+) -> Result<(), BackendError> {
     let mut obstacles = map.obstacles();
     obstacles.unknown_as_occupied = unknown_as_occupied;
     fill_mask(&obstacles, &volume.region(), mask)?;

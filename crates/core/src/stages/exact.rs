@@ -36,7 +36,8 @@ pub fn recompute_exact<E: BatchEdt + ?Sized>(
     let max = packing.cutoff.max_dist_sq;
     buf.cur.par_iter().enumerate().for_each(|(i, cur)| {
         let s = packing.source.linear(packing.region_in_source(packing.region.coords(i)));
-        let value = if near[s] == NO_SITE || dist[s] > max { FAR } else { (u64::from(dist[s]) << 32) | u64::from(near[s]) };
+        let value =
+            if near[s] == NO_SITE || dist[s] > max { FAR } else { (u64::from(dist[s]) << 32) | u64::from(near[s]) };
         cur.store(value, Relaxed);
     });
     Ok(write_back(map, packing, &packing.region.blocks(), &buf.old, &buf.cur))
@@ -45,7 +46,12 @@ pub fn recompute_exact<E: BatchEdt + ?Sized>(
 /// The exact EDT of the global obstacles truncated at `cutoff`, for every
 /// voxel of `region`: squared distances, [`FAR_DIST_SQ`] beyond the cutoff
 /// (the ground truth of the evaluation), with the batch EDT of `edt`.
-pub fn exact_region<E: BatchEdt + ?Sized>(edt: &mut E, obstacles: &Obstacles<'_>, region: &Region, cutoff: Cutoff) -> Result<Vec<u32>, BackendError> {
+pub fn exact_region<E: BatchEdt + ?Sized>(
+    edt: &mut E,
+    obstacles: &Obstacles<'_>,
+    region: &Region,
+    cutoff: Cutoff,
+) -> Result<Vec<u32>, BackendError> {
     let packing = Packing::new(*region, cutoff)?;
     let mut mask = Grid3::default();
     let mut field = EdtField::empty();
@@ -56,7 +62,11 @@ pub fn exact_region<E: BatchEdt + ?Sized>(edt: &mut E, obstacles: &Obstacles<'_>
         .into_par_iter()
         .map(|i| {
             let d = dist[packing.source.linear(packing.region_in_source(region.coords(i)))];
-            if d > cutoff.max_dist_sq { FAR_DIST_SQ } else { d }
+            if d > cutoff.max_dist_sq {
+                FAR_DIST_SQ
+            } else {
+                d
+            }
         })
         .collect())
 }

@@ -9,7 +9,10 @@
 //! that changed, returning the blocks they touched.
 
 use crate::region::Region;
-use crate::{Backend, BackendError, BlockKey, CoreError, Cutoff, EdtField, EdtMap, GlobalParams, Grid3, IntegrateJob, IntegrateReport, Integration, IntegrationMode, LocalVolume, Obstacles};
+use crate::{
+    Backend, BackendError, BlockKey, CoreError, Cutoff, EdtField, EdtMap, GlobalParams, Grid3, IntegrateJob,
+    IntegrateReport, Integration, IntegrationMode, LocalVolume, Obstacles,
+};
 
 /// Side of the tiles [`IntegrationStage::recompute`] works in, voxels: the
 /// memory it needs stays bounded whatever the box.
@@ -26,7 +29,11 @@ pub struct IntegrationStage {
 impl IntegrationStage {
     /// A stage for voxels of `voxel_size_m`; fails on a bad cutoff.
     pub fn new(params: &GlobalParams, voxel_size_m: f64) -> Result<Self, CoreError> {
-        Ok(IntegrationStage { mode: params.mode, cutoff: params.cutoff(voxel_size_m)?, offsets: params.connectivity.offsets() })
+        Ok(IntegrationStage {
+            mode: params.mode,
+            cutoff: params.cutoff(voxel_size_m)?,
+            offsets: params.connectivity.offsets(),
+        })
     }
 
     /// The cutoff in voxels.
@@ -85,7 +92,9 @@ impl IntegrationStage {
         work: Integration<'_>,
     ) -> Result<IntegrateReport, BackendError> {
         if dims != window.dims {
-            return Err(CoreError::Unsupported(format!("{what} of {dims:?} voxels for a window of {:?}", window.dims)).into());
+            return Err(
+                CoreError::Unsupported(format!("{what} of {dims:?} voxels for a window of {:?}", window.dims)).into()
+            );
         }
         match self.mode {
             IntegrationMode::Wavefront => backend.integrate(IntegrateJob { map, obstacles, cutoff: self.cutoff, work }),
@@ -96,14 +105,31 @@ impl IntegrationStage {
     /// Exact mode: brings `map` up to date with `obstacles`, which changed
     /// only inside the blocks `changed` (a frame's `FuseReport`), on
     /// `backend`. Needs no batch EDT of the window.
-    pub fn update<B: Backend + ?Sized>(&self, backend: &mut B, map: &mut EdtMap, obstacles: Obstacles<'_>, changed: &[BlockKey]) -> Result<IntegrateReport, BackendError> {
-        backend.integrate(IntegrateJob { map, obstacles, cutoff: self.cutoff, work: Integration::Changes { blocks: changed } })
+    pub fn update<B: Backend + ?Sized>(
+        &self,
+        backend: &mut B,
+        map: &mut EdtMap,
+        obstacles: Obstacles<'_>,
+        changed: &[BlockKey],
+    ) -> Result<IntegrateReport, BackendError> {
+        backend.integrate(IntegrateJob {
+            map,
+            obstacles,
+            cutoff: self.cutoff,
+            work: Integration::Changes { blocks: changed },
+        })
     }
 
     /// Recomputes exactly every voxel within the cutoff of the box `bounds`
     /// (forbidden zones, a prior map laid down), in tiles of at most
     /// `TILE`³ voxels so memory stays bounded.
-    pub fn recompute<B: Backend + ?Sized>(&self, backend: &mut B, map: &mut EdtMap, obstacles: Obstacles<'_>, bounds: &Region) -> Result<IntegrateReport, BackendError> {
+    pub fn recompute<B: Backend + ?Sized>(
+        &self,
+        backend: &mut B,
+        map: &mut EdtMap,
+        obstacles: Obstacles<'_>,
+        bounds: &Region,
+    ) -> Result<IntegrateReport, BackendError> {
         let mut total = IntegrateReport::default();
         for z in (0..bounds.dims[2]).step_by(TILE) {
             for y in (0..bounds.dims[1]).step_by(TILE) {

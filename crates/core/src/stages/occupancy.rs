@@ -93,7 +93,13 @@ impl OccupancyStage {
             scatter_returns(obs, sensor, frame, &mut self.rays);
         } else {
             sensor.rays(&frame.measurement, opts.clear_no_return, &mut self.rays);
-            let q = prepare_rays(obs.volume(), &frame.t_world_sensor, &self.rays, opts.free_margin_m, &mut self.fixed_rays)?;
+            let q = prepare_rays(
+                obs.volume(),
+                &frame.t_world_sensor,
+                &self.rays,
+                opts.free_margin_m,
+                &mut self.fixed_rays,
+            )?;
             backend.cast_rays(&self.fixed_rays, q, obs)?;
         }
         Ok(obs)
@@ -152,7 +158,12 @@ mod tests {
     /// [`VoxelIndex::containing`]: `sure` those of points at least 1e-6
     /// voxel from every face, `maybe` every voxel a point within that of a
     /// face may round to.
-    fn oracle(vol: &LocalVolume, cam: &PinholeCamera, depths: &[f32], pose: &Isometry3<f64>) -> (HashSet<usize>, HashSet<usize>) {
+    fn oracle(
+        vol: &LocalVolume,
+        cam: &PinholeCamera,
+        depths: &[f32],
+        pose: &Isometry3<f64>,
+    ) -> (HashSet<usize>, HashSet<usize>) {
         let (mut sure, mut maybe) = (HashSet::new(), HashSet::new());
         for (i, &d) in depths.iter().enumerate() {
             if !cam.range.accepts(d) {

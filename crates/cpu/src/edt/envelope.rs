@@ -9,12 +9,7 @@ use edtmap_core::{NO_SITE, UNREACHABLE_DIST_SQ};
 /// 1D distance from each element to the nearest obstacle in its row.
 ///
 /// `row_base` is the linear index of the row's first voxel.
-pub(crate) fn sweep_row(
-    is_obstacle: impl Fn(usize) -> bool,
-    row_base: u32,
-    dist: &mut [u32],
-    near: &mut [u32],
-) {
+pub(crate) fn sweep_row(is_obstacle: impl Fn(usize) -> bool, row_base: u32, dist: &mut [u32], near: &mut [u32]) {
     // Forward: remember the last obstacle at or before x.
     let mut last = NO_SITE;
     for (x, slot) in near.iter_mut().enumerate() {
@@ -84,12 +79,7 @@ struct Parabola {
 ///
 /// Element `i` of the line is at index `i * stride` of every slice, so one
 /// lane of a tile can be scanned in place; `n` is the line's length.
-pub(crate) fn envelope(
-    line: Line<'_>,
-    out_f: &mut [u32],
-    out_site: &mut [u32],
-    s: &mut EnvelopeScratch,
-) {
+pub(crate) fn envelope(line: Line<'_>, out_f: &mut [u32], out_site: &mut [u32], s: &mut EnvelopeScratch) {
     let Line { site, stride, n, .. } = line;
     if s.stack.len() < n + 1 {
         s.stack.resize(n + 1, Parabola::default());
@@ -190,8 +180,7 @@ mod tests {
         let mut s = EnvelopeScratch::default();
         for n in 1..=7usize {
             for code in 0..vals.len().pow(n as u32) {
-                let f: Vec<u32> =
-                    (0..n).map(|i| vals[code / vals.len().pow(i as u32) % vals.len()]).collect();
+                let f: Vec<u32> = (0..n).map(|i| vals[code / vals.len().pow(i as u32) % vals.len()]).collect();
                 let site: Vec<u32> = (0..n as u32).collect();
                 let (mut out, mut out_site) = (vec![0; n], vec![0; n]);
                 let line = Line { f: &f, site: &site, stride: 1, n };
@@ -202,7 +191,8 @@ mod tests {
                         let p = p as usize;
                         assert_eq!(d, (x.abs_diff(p).pow(2)) as u32 + f[p], "line {f:?} x {x}");
                         // Ties keep the leftmost parabola.
-                        let first = (0..n).find(|&i| f[i] != UNREACHABLE_DIST_SQ && x.abs_diff(i).pow(2) as u32 + f[i] == d);
+                        let first =
+                            (0..n).find(|&i| f[i] != UNREACHABLE_DIST_SQ && x.abs_diff(i).pow(2) as u32 + f[i] == d);
                         assert_eq!(Some(p), first, "line {f:?} x {x}: ties go to the lowest position");
                     }
                 }

@@ -4,8 +4,8 @@ use edtmap_core::{EdtField, EdtParams, Grid3, VoxelState};
 use rayon::prelude::*;
 
 use super::envelope::{envelope, sweep_row, EnvelopeScratch, Line};
-use super::window::{scan_windowed, Tile, Windows};
 use super::shared::SharedBuf;
+use super::window::{scan_windowed, Tile, Windows};
 use crate::CpuError;
 
 /// Lines per tile of the default [`ScanLayout::Tiled`], chosen by the
@@ -161,13 +161,11 @@ fn scan_x<T: Sync>(
     near: &mut [u32],
 ) {
     let chunk = (MIN_VOXELS_PER_TASK / nx).max(1) * nx;
-    dist.par_chunks_mut(chunk)
-        .zip(near.par_chunks_mut(chunk))
-        .zip(voxels.par_chunks(chunk))
-        .enumerate()
-        .for_each(|(task, ((dist, near), voxels))| {
+    dist.par_chunks_mut(chunk).zip(near.par_chunks_mut(chunk)).zip(voxels.par_chunks(chunk)).enumerate().for_each(
+        |(task, ((dist, near), voxels))| {
             scan_x_rows(voxels, is_obstacle, nx, task * chunk, dist, near);
-        });
+        },
+    );
 }
 
 /// First scan of consecutive rows whose first voxel has linear index `base`.

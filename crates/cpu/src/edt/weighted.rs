@@ -107,15 +107,9 @@ pub fn edt_weighted_int<T: Sync>(
     if let Some(axis) = weights.iter().position(|&w| w == 0) {
         return Err(CpuError::Unsupported(format!("weight of axis {axis} is 0")));
     }
-    let diag: u128 = (0..3)
-        .map(|k| u128::from(weights[k]).pow(2) * (dims[k] as u128 - 1).pow(2))
-        .sum();
+    let diag: u128 = (0..3).map(|k| u128::from(weights[k]).pow(2) * (dims[k] as u128 - 1).pow(2)).sum();
     if diag >= MAX_INT_DIAG_SQ {
-        return Err(CoreError::TooLarge {
-            dims,
-            reason: "weighted squared diagonal over 2^61",
-        }
-        .into());
+        return Err(CoreError::TooLarge { dims, reason: "weighted squared diagonal over 2^61" }.into());
     }
     let w2 = weights.map(|w| u64::from(w) * u64::from(w));
     Ok(run(voxels, dims, &is_obstacle, w2))
@@ -141,9 +135,7 @@ pub fn edt_weighted_real<T: Sync>(
     }
     let w2 = weights.map(|w| w * w);
     if w2.iter().any(|&w| !w.is_normal()) {
-        return Err(CpuError::Unsupported(format!(
-            "spacings {weights:?} overflow when squared"
-        )));
+        return Err(CpuError::Unsupported(format!("spacings {weights:?} overflow when squared")));
     }
     Ok(run(voxels, dims, &is_obstacle, w2))
 }
@@ -152,19 +144,10 @@ pub fn edt_weighted_real<T: Sync>(
 fn check<T>(voxels: &[T], dims: [usize; 3]) -> Result<(), CpuError> {
     let expected = Grid3::<()>::voxel_count(dims)?;
     if expected >= NO_SITE as usize {
-        return Err(CoreError::TooLarge {
-            dims,
-            reason: "more than 2^32 - 2 voxels",
-        }
-        .into());
+        return Err(CoreError::TooLarge { dims, reason: "more than 2^32 - 2 voxels" }.into());
     }
     if voxels.len() != expected {
-        return Err(CoreError::LengthMismatch {
-            dims,
-            expected,
-            actual: voxels.len(),
-        }
-        .into());
+        return Err(CoreError::LengthMismatch { dims, expected, actual: voxels.len() }.into());
     }
     Ok(())
 }
@@ -181,38 +164,21 @@ fn run<T: Sync, D: Cost>(
     let mut dist = vec![D::INF; count];
     let mut near = vec![NO_SITE; count];
     let rows = (MIN_VOXELS_PER_TASK / nx).max(1) * nx;
-    dist.par_chunks_mut(rows)
-        .zip(near.par_chunks_mut(rows))
-        .zip(voxels.par_chunks(rows))
-        .enumerate()
-        .for_each(|(task, ((dist, near), voxels))| {
+    dist.par_chunks_mut(rows).zip(near.par_chunks_mut(rows)).zip(voxels.par_chunks(rows)).enumerate().for_each(
+        |(task, ((dist, near), voxels))| {
             let base = task * rows;
-            let rows = dist
-                .chunks_mut(nx)
-                .zip(near.chunks_mut(nx))
-                .zip(voxels.chunks(nx));
+            let rows = dist.chunks_mut(nx).zip(near.chunks_mut(nx)).zip(voxels.chunks(nx));
             for (r, ((dist, near), row)) in rows.enumerate() {
                 sweep_row(row, is_obstacle, base + r * nx, w2[0], dist, near);
             }
-        });
+        },
+    );
     if ny > 1 {
-        let lines = Lines {
-            outer: nz,
-            outer_stride: nx * ny,
-            len: ny,
-            stride: nx,
-            nx,
-        };
+        let lines = Lines { outer: nz, outer_stride: nx * ny, len: ny, stride: nx, nx };
         scan_axis(&lines, w2[1], &mut dist, &mut near);
     }
     if nz > 1 {
-        let lines = Lines {
-            outer: ny,
-            outer_stride: nx,
-            len: nz,
-            stride: nx * ny,
-            nx,
-        };
+        let lines = Lines { outer: ny, outer_stride: nx, len: nz, stride: nx * ny, nx };
         scan_axis(&lines, w2[2], &mut dist, &mut near);
     }
     (dist, near)
@@ -280,13 +246,7 @@ struct Scratch<D> {
 
 impl<D> Default for Scratch<D> {
     fn default() -> Self {
-        Scratch {
-            f: Vec::new(),
-            site: Vec::new(),
-            out_f: Vec::new(),
-            out_site: Vec::new(),
-            stack: Vec::new(),
-        }
+        Scratch { f: Vec::new(), site: Vec::new(), out_f: Vec::new(), out_site: Vec::new(), stack: Vec::new() }
     }
 }
 
@@ -295,17 +255,15 @@ impl<D> Default for Scratch<D> {
 fn scan_axis<D: Cost>(lines: &Lines, w2: D, dist: &mut [D], near: &mut [u32]) {
     let tiles_per_outer = lines.nx.div_ceil(LANES);
     let (dist, near) = (SharedBuf::new(dist), SharedBuf::new(near));
-    (0..lines.outer * tiles_per_outer)
-        .into_par_iter()
-        .for_each_init(Scratch::default, |s, tile| {
-            let (outer, x0) = (tile / tiles_per_outer, (tile % tiles_per_outer) * LANES);
-            let start = outer * lines.outer_stride + x0;
-            let width = LANES.min(lines.nx - x0);
-            // SAFETY: tiles differ in their plane or row (`outer`) or in their
-            // x range, so no two tasks touch the same voxel; every index is
-            // inside the grid.
-            unsafe { scan_tile(lines, start, width, w2, dist, near, s) }
-        });
+    (0..lines.outer * tiles_per_outer).into_par_iter().for_each_init(Scratch::default, |s, tile| {
+        let (outer, x0) = (tile / tiles_per_outer, (tile % tiles_per_outer) * LANES);
+        let start = outer * lines.outer_stride + x0;
+        let width = LANES.min(lines.nx - x0);
+        // SAFETY: tiles differ in their plane or row (`outer`) or in their
+        // x range, so no two tasks touch the same voxel; every index is
+        // inside the grid.
+        unsafe { scan_tile(lines, start, width, w2, dist, near, s) }
+    });
 }
 
 /// Gathers a tile of `width` lines starting at voxel `start`, runs the
@@ -338,15 +296,7 @@ unsafe fn scan_tile<D: Cost>(
         }
     }
     for w in 0..width {
-        envelope(
-            &s.f[w..],
-            &s.site[w..],
-            len,
-            w2,
-            &mut s.out_f[w..],
-            &mut s.out_site[w..],
-            &mut s.stack,
-        );
+        envelope(&s.f[w..], &s.site[w..], len, w2, &mut s.out_f[w..], &mut s.out_site[w..], &mut s.stack);
     }
     for i in 0..len {
         let row = start + i * lines.stride;
@@ -403,12 +353,7 @@ fn envelope<D: Cost>(
             Some(top) => D::first_lower(w2, top.pos, top.f, q, fq).max(top.start + 1),
         };
         if start < end {
-            stack.push(Parabola {
-                pos: q,
-                f: fq,
-                start,
-                at_start: D::scaled_sq(w2, start - q).plus(fq),
-            });
+            stack.push(Parabola { pos: q, f: fq, start, at_start: D::scaled_sq(w2, start - q).plus(fq) });
         }
     }
     if stack.is_empty() {
@@ -437,15 +382,9 @@ mod tests {
     #[test]
     fn first_lower_matches_definition() {
         for w2 in [1u64, 4, 9] {
-            for (p, fp, q, fq) in [
-                (0i64, 0u64, 3i64, 0u64),
-                (1, 5, 2, 0),
-                (0, 0, 1, 40),
-                (2, 7, 5, 1),
-            ] {
+            for (p, fp, q, fq) in [(0i64, 0u64, 3i64, 0u64), (1, 5, 2, 0), (0, 0, 1, 40), (2, 7, 5, 1)] {
                 let start = u64::first_lower(w2, p, fp, q, fq);
-                let below =
-                    |x: i64| u64::scaled_sq(w2, x - q) + fq < u64::scaled_sq(w2, x - p) + fp;
+                let below = |x: i64| u64::scaled_sq(w2, x - q) + fq < u64::scaled_sq(w2, x - p) + fp;
                 assert!(below(start), "{w2} {p} {q}");
                 assert!(!below(start - 1), "{w2} {p} {q}");
             }

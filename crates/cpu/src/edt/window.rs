@@ -49,12 +49,7 @@ pub(super) struct Windows {
 /// Scans `tile` into `out_f` / `out_site` (same layout) and returns true,
 /// or returns false without writing if the windows would be too long.
 /// `radius` is scratch space.
-pub(super) fn scan_windowed(
-    tile: &Tile<'_>,
-    out_f: &mut [u32],
-    out_site: &mut [u32],
-    radius: &mut Windows,
-) -> bool {
+pub(super) fn scan_windowed(tile: &Tile<'_>, out_f: &mut [u32], out_site: &mut [u32], radius: &mut Windows) -> bool {
     #[cfg(target_arch = "x86_64")]
     if tile.lanes.is_multiple_of(8) && std::arch::is_x86_feature_detected!("avx2") {
         // SAFETY: the CPU supports AVX2 and `lanes` is a multiple of 8.
@@ -67,12 +62,7 @@ pub(super) fn scan_windowed(
 /// The CPU supports AVX2 and `tile.lanes` is a multiple of 8.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn scan_windowed_avx2(
-    tile: &Tile<'_>,
-    out_f: &mut [u32],
-    out_site: &mut [u32],
-    radius: &mut Windows,
-) -> bool {
+unsafe fn scan_windowed_avx2(tile: &Tile<'_>, out_f: &mut [u32], out_site: &mut [u32], radius: &mut Windows) -> bool {
     // SAFETY: AVX2 is available and every row has `lanes` elements, a
     // multiple of 8 (this function's contract).
     scan_windowed_with(tile, out_f, out_site, radius, |b, bs, row, dd, ties| unsafe {
@@ -207,16 +197,10 @@ fn relax(best: &mut [u32], best_site: &mut [u32], (f, site): (&[u32], &[u32]), d
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[inline]
-unsafe fn relax_avx2(
-    best: &mut [u32],
-    best_site: &mut [u32],
-    (f, site): (&[u32], &[u32]),
-    dd: u32,
-    ties: bool,
-) {
+unsafe fn relax_avx2(best: &mut [u32], best_site: &mut [u32], (f, site): (&[u32], &[u32]), dd: u32, ties: bool) {
     use std::arch::x86_64::{
-        __m256i, _mm256_add_epi32, _mm256_blendv_epi8, _mm256_cmpgt_epi32, _mm256_loadu_si256,
-        _mm256_set1_epi32, _mm256_storeu_si256,
+        __m256i, _mm256_add_epi32, _mm256_blendv_epi8, _mm256_cmpgt_epi32, _mm256_loadu_si256, _mm256_set1_epi32,
+        _mm256_storeu_si256,
     };
     let n = best.len();
     debug_assert!(n.is_multiple_of(8) && best_site.len() == n && f.len() == n && site.len() == n);

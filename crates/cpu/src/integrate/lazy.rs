@@ -33,7 +33,11 @@ impl Cover {
     pub fn of(region: Region) -> Cover {
         let first = VoxelIndex(region.origin).block().0;
         let last = VoxelIndex([0, 1, 2].map(|a| region.origin[a] + region.dims[a] as i32 - 1)).block().0;
-        Cover { origin: first.map(|b| b * BLOCK_SIDE), bdims: [0, 1, 2].map(|a| (last[a] - first[a] + 1) as usize), region }
+        Cover {
+            origin: first.map(|b| b * BLOCK_SIDE),
+            bdims: [0, 1, 2].map(|a| (last[a] - first[a] + 1) as usize),
+            region,
+        }
     }
 
     /// Number of blocks.
@@ -151,9 +155,15 @@ impl LazyRegion {
         let block = map.get(key);
         let first = key.first_voxel().0;
         for offset in 0..BLOCK_VOXELS {
-            let v = VoxelIndex([first[0] + (offset & 7) as i32, first[1] + ((offset >> 3) & 7) as i32, first[2] + (offset >> 6) as i32]);
+            let v = VoxelIndex([
+                first[0] + (offset & 7) as i32,
+                first[1] + ((offset >> 3) & 7) as i32,
+                first[2] + (offset >> 6) as i32,
+            ]);
             let value = match block {
-                Some(bl) if bl.to_nearest[offset] != NO_OFFSET && p.region.local(v).is_some() => p.pack(bl.dist_sq(offset), bl.nearest(key, offset)),
+                Some(bl) if bl.to_nearest[offset] != NO_OFFSET && p.region.local(v).is_some() => {
+                    p.pack(bl.dist_sq(offset), bl.nearest(key, offset))
+                }
                 _ => FAR,
             };
             let i = b * BLOCK_VOXELS + offset;

@@ -21,8 +21,8 @@
 //!    thread count. Nothing beyond the cutoff is written.
 
 use super::lazy::{Cover, LazyRegion, SrcBounds};
-use edtmap_core::region::{Packing, WriteBack, FAR};
 use edtmap_core::backend::WaveCounts;
+use edtmap_core::region::{Packing, WriteBack, FAR};
 use edtmap_core::{BlockKey, EdtField, EdtMap, LocalVolume, VoxelIndex, BLOCK_SIDE, BLOCK_VOXELS, NO_SITE};
 use rayon::prelude::*;
 use std::sync::atomic::Ordering::Relaxed;
@@ -93,7 +93,16 @@ pub fn integrate_wavefront(
 /// Steps 1 and 2 on `blocks`: loads them, raises voxels whose obstacle
 /// vanished and, with `merge`, merges the window's voxels.
 #[allow(clippy::too_many_arguments)]
-fn scan_blocks(map: &EdtMap, window: &LocalVolume, batch: &EdtField, p: &Packing, cover: &Cover, buf: &LazyRegion, blocks: &[usize], merge: bool) -> Changes {
+fn scan_blocks(
+    map: &EdtMap,
+    window: &LocalVolume,
+    batch: &EdtField,
+    p: &Packing,
+    cover: &Cover,
+    buf: &LazyRegion,
+    blocks: &[usize],
+    merge: bool,
+) -> Changes {
     let w = window.region();
     let (dist, near) = (batch.dist_sq_vox(), batch.nearest());
     blocks
@@ -108,14 +117,19 @@ fn scan_blocks(map: &EdtMap, window: &LocalVolume, batch: &EdtField, p: &Packing
                     scan_block_voxels(&mut ch, b, key, cover, buf, |_, v, _| {
                         let l = w.local(v)?;
                         let l = w.linear(l);
-                        Some(if near[l] == NO_SITE { FAR } else { p.pack(dist[l], window.world(w.coords(near[l] as usize))) })
+                        Some(if near[l] == NO_SITE {
+                            FAR
+                        } else {
+                            p.pack(dist[l], window.world(w.coords(near[l] as usize)))
+                        })
                     });
                 }
                 return ch;
             };
             scan_block_voxels(&mut ch, b, key, cover, buf, |ch, v, offset| {
                 let old = buf.old[b * BLOCK_VOXELS + offset].load(Relaxed);
-                let src_in_window = (old != FAR).then(|| w.local(stored.nearest(key, offset)).map(|l| w.linear(l))).flatten();
+                let src_in_window =
+                    (old != FAR).then(|| w.local(stored.nearest(key, offset)).map(|l| w.linear(l))).flatten();
                 let vanished = src_in_window.is_some_and(|s| dist[s] != 0);
                 ch.raised += usize::from(vanished);
                 let valid = if vanished { FAR } else { old };
@@ -299,10 +313,13 @@ impl Ctx<'_> {
             let (next, count): (Vec<u32>, usize) = if frontier.len() < SERIAL_LEVEL {
                 frontier.iter().fold((Vec::new(), 0), relax)
             } else {
-                frontier.par_iter().fold(|| (Vec::new(), 0), relax).reduce(|| (Vec::new(), 0), |(mut a, x), (b, y)| {
-                    a.extend(b);
-                    (a, x + y)
-                })
+                frontier.par_iter().fold(|| (Vec::new(), 0), relax).reduce(
+                    || (Vec::new(), 0),
+                    |(mut a, x), (b, y)| {
+                        a.extend(b);
+                        (a, x + y)
+                    },
+                )
             };
             lowered += count;
             frontier = next.iter().map(|&i| (i, self.buf.cur[i as usize].load(Relaxed))).collect();

@@ -172,7 +172,11 @@ mod tests {
                 best = best.min(dist_sq(u, closest_on_cube(u, VoxelIndex([x, y, z]))));
             }
         }
-        if inside { -best.sqrt() } else { best.sqrt() }
+        if inside {
+            -best.sqrt()
+        } else {
+            best.sqrt()
+        }
     }
 
     #[test]
@@ -181,7 +185,8 @@ mod tests {
         // of an obstacle lies in the grid.
         let n = 20;
         let mut rng = Rng(13);
-        let blobs: Vec<([f64; 3], f64)> = (0..6).map(|_| ([0, 1, 2].map(|_| 5.0 + 10.0 * rng.next()), 1.0 + 2.5 * rng.next())).collect();
+        let blobs: Vec<([f64; 3], f64)> =
+            (0..6).map(|_| ([0, 1, 2].map(|_| 5.0 + 10.0 * rng.next()), 1.0 + 2.5 * rng.next())).collect();
         let mask = Grid3::from_fn([n; 3], |x, y, z| {
             let c = [x, y, z].map(|i| i as f64 + 0.5);
             blobs.iter().any(|(b, r)| dist_sq(c, *b) <= r * r)

@@ -51,7 +51,8 @@ pub(crate) fn region_from_json(v: &Value) -> Result<Region, Error> {
 
 /// Writes `value` as pretty JSON.
 pub(crate) fn write_json(path: &Path, value: &Value) -> Result<(), Error> {
-    std::fs::write(path, serde_json::to_string_pretty(value)? + "\n").map_err(|e| format!("cannot write {}: {e}", path.display()).into())
+    std::fs::write(path, serde_json::to_string_pretty(value)? + "\n")
+        .map_err(|e| format!("cannot write {}: {e}", path.display()).into())
 }
 
 /// Reads a JSON file.
@@ -69,7 +70,11 @@ pub(crate) fn read_csv(path: &Path) -> Result<(Vec<String>, Vec<Vec<f64>>), Erro
     let names: Vec<String> = header.split(',').map(str::to_owned).collect();
     let mut rows = Vec::new();
     for (k, line) in lines.enumerate() {
-        let row = line.split(',').map(str::parse::<f64>).collect::<Result<Vec<_>, _>>().map_err(|e| format!("{}:{}: {e}", path.display(), k + 2))?;
+        let row = line
+            .split(',')
+            .map(str::parse::<f64>)
+            .collect::<Result<Vec<_>, _>>()
+            .map_err(|e| format!("{}:{}: {e}", path.display(), k + 2))?;
         if row.len() != names.len() {
             return Err(format!("{}:{}: {} fields, expected {}", path.display(), k + 2, row.len(), names.len()).into());
         }

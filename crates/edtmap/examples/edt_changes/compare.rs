@@ -1,10 +1,13 @@
 //! `edt_changes compare`: DynamicEDT3D's times and final field against
 //! ours, a table row and Fig. 4.
 
-use crate::common::{column, mean, median, read_csv, read_json, region_from_json, time_stats, write_json, Error, MAP_FILE, SUMMARY_FILE, TIMES_FILE};
-use edtmap::stages::exact::exact_region;
-use edtmap::region::Region;
+use crate::common::{
+    column, mean, median, read_csv, read_json, region_from_json, time_stats, write_json, Error, MAP_FILE, SUMMARY_FILE,
+    TIMES_FILE,
+};
 use edtmap::eval::{edt_errors, EdtErrors};
+use edtmap::region::Region;
+use edtmap::stages::exact::exact_region;
 use edtmap::{GlobalMap, FAR_DIST_SQ};
 use edtmap_viz::plot::{Chart, Series, SeriesStyle};
 use serde_json::{json, Value};
@@ -103,7 +106,12 @@ fn read_times(dir: &Path, prefix: &str) -> Result<Times, Error> {
     let theirs = read_csv(&theirs_path)?;
     for name in ["set", "clear"] {
         if column(&ours_path, &ours, name)? != column(&theirs_path, &theirs, name)? {
-            return Err(format!("{} and {} list other {name} counts: not the same changes", ours_path.display(), theirs_path.display()).into());
+            return Err(format!(
+                "{} and {} list other {name} counts: not the same changes",
+                ours_path.display(),
+                theirs_path.display()
+            )
+            .into());
         }
     }
     Ok(Times {

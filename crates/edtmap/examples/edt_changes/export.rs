@@ -1,13 +1,15 @@
 //! `edt_changes export`: a scene or a recording through the mapper, its
 //! obstacle changes frame by frame, our EDT times, and the final map.
 
-use crate::common::{median, region_json, time_stats, write_json, Error, CHANGES_FILE, MAP_FILE, SUMMARY_FILE, TIMES_FILE};
+use crate::common::{
+    median, region_json, time_stats, write_json, Error, CHANGES_FILE, MAP_FILE, SUMMARY_FILE, TIMES_FILE,
+};
+use crate::source;
 use edtmap::config::Config;
-use edtmap::region::Region;
 use edtmap::eval::edt_errors;
+use edtmap::region::Region;
 use edtmap::sensor::{Frame, Sensor};
 use edtmap::{BlockKey, Cutoff, GlobalMap, IntegrationMode, Mapper, MapperParams, VoxelIndex, BLOCK_VOXELS};
-use crate::source;
 use edtmap_sim::SceneName;
 use serde_json::json;
 use std::collections::HashSet;
@@ -122,7 +124,11 @@ fn setup(args: &ExportArgs) -> Result<Setup, Error> {
             let text = builtin_config(scene).ok_or_else(|| format!("unknown scene {scene:?}: {}", scene_names()))?;
             (Config::parse(text, &format!("configs/{scene}.toml"))?, format!("configs/{scene}.toml"))
         }
-        (None, None) => return Err(format!("give --scene NAME ({}), --config FILE or --dataset DIR --config FILE", scene_names()).into()),
+        (None, None) => {
+            return Err(
+                format!("give --scene NAME ({}), --config FILE or --dataset DIR --config FILE", scene_names()).into()
+            )
+        }
     };
     if let Some(v) = args.voxel_size_m {
         config.occupancy.voxel_size_m = v;
@@ -140,7 +146,11 @@ fn setup(args: &ExportArgs) -> Result<Setup, Error> {
         return Ok(Setup { name: read.name, config_origin, frames: read.frames, sensor, params });
     }
     let (sensor, params) = config.mapper_params()?;
-    let scene = args.scene.clone().or_else(|| config.scene.as_ref().map(|s| s.name.clone())).ok_or_else(|| format!("{config_origin} has no [scene]: give --scene NAME or --dataset DIR"))?;
+    let scene = args
+        .scene
+        .clone()
+        .or_else(|| config.scene.as_ref().map(|s| s.name.clone()))
+        .ok_or_else(|| format!("{config_origin} has no [scene]: give --scene NAME or --dataset DIR"))?;
     let made = source::scene(&scene, &config, &sensor, args.frames)?;
     Ok(Setup { name: made.name, config_origin, frames: made.frames, sensor, params })
 }
@@ -190,13 +200,20 @@ fn replay(setup: &Setup) -> Result<Replay, Error> {
 fn fixed_obstacles(map: &GlobalMap) -> Vec<VoxelIndex> {
     let mut keys: Vec<BlockKey> = map.fixed_obstacles().iter().map(|(k, _)| k).collect();
     keys.sort();
-    keys.iter().flat_map(|k| (0..BLOCK_VOXELS).map(|o| k.voxel(o))).filter(|&v| map.fixed_obstacles().contains(v)).collect()
+    keys.iter()
+        .flat_map(|k| (0..BLOCK_VOXELS).map(|o| k.voxel(o)))
+        .filter(|&v| map.fixed_obstacles().contains(v))
+        .collect()
 }
 
 /// Voxels of `blocks` that became obstacles and that stopped being
 /// obstacles since `known`, which is brought up to date. Obstacles change
 /// only where a voxel's state changed, so these blocks hold every change.
-fn obstacle_changes(map: &GlobalMap, blocks: &[BlockKey], known: &mut HashSet<VoxelIndex>) -> (Vec<VoxelIndex>, Vec<VoxelIndex>) {
+fn obstacle_changes(
+    map: &GlobalMap,
+    blocks: &[BlockKey],
+    known: &mut HashSet<VoxelIndex>,
+) -> (Vec<VoxelIndex>, Vec<VoxelIndex>) {
     let obstacles = map.obstacles();
     let (mut set, mut clear) = (Vec::new(), Vec::new());
     for v in blocks.iter().flat_map(|k| (0..BLOCK_VOXELS).map(|o| k.voxel(o))) {
@@ -215,7 +232,11 @@ fn obstacle_changes(map: &GlobalMap, blocks: &[BlockKey], known: &mut HashSet<Vo
 fn keep_fastest(best: &mut [FrameChanges], again: Vec<FrameChanges>, run: usize) -> Result<(), Error> {
     for (i, (b, a)) in best.iter_mut().zip(again).enumerate() {
         if (a.set.len(), a.clear.len()) != (b.set.len(), b.clear.len()) {
-            return Err(format!("repeat {} changed other voxels than the first run at frame {i}: the mapper is not deterministic", run + 1).into());
+            return Err(format!(
+                "repeat {} changed other voxels than the first run at frame {i}: the mapper is not deterministic",
+                run + 1
+            )
+            .into());
         }
         if a.edt_ms() < b.edt_ms() {
             *b = a;
@@ -229,7 +250,9 @@ fn keep_fastest(best: &mut [FrameChanges], again: Vec<FrameChanges>, run: usize)
 fn change_box(frames: &[FrameChanges], reach: i32) -> Result<Region, Error> {
     let mut voxels = frames.iter().flat_map(|f| &f.set);
     let first = voxels.next().ok_or("no voxel ever became an obstacle: nothing to compare")?.0;
-    let (lo, hi) = voxels.fold((first, first), |(lo, hi), v| ([0, 1, 2].map(|a| lo[a].min(v.0[a])), [0, 1, 2].map(|a| hi[a].max(v.0[a]))));
+    let (lo, hi) = voxels.fold((first, first), |(lo, hi), v| {
+        ([0, 1, 2].map(|a| lo[a].min(v.0[a])), [0, 1, 2].map(|a| hi[a].max(v.0[a])))
+    });
     let tight = Region { origin: lo, dims: [0, 1, 2].map(|a| (hi[a] - lo[a] + 1) as usize) };
     Ok(tight.grown(reach + 1))
 }
@@ -247,7 +270,11 @@ fn check_tracking(map: &GlobalMap, region: &Region, tracked: &HashSet<VoxelIndex
     }
     let stale = tracked.iter().filter(|&&v| !obstacles.contains(v)).count();
     if count != tracked.len() || stale > 0 {
-        return Err(format!("change tracking is off: {count} obstacles in the box, {} tracked, {stale} of them stale", tracked.len()).into());
+        return Err(format!(
+            "change tracking is off: {count} obstacles in the box, {} tracked, {stale} of them stale",
+            tracked.len()
+        )
+        .into());
     }
     Ok(())
 }
@@ -265,12 +292,23 @@ fn cutoff_vox_text(cutoff: Cutoff) -> String {
 }
 
 /// Writes the changes in `replay_dynamicedt`'s format, box-local.
-fn write_changes(path: &Path, setup: &Setup, map: &GlobalMap, region: &Region, frames: &[FrameChanges]) -> Result<(), Error> {
+fn write_changes(
+    path: &Path,
+    setup: &Setup,
+    map: &GlobalMap,
+    region: &Region,
+    frames: &[FrameChanges],
+) -> Result<(), Error> {
     let file = std::fs::File::create(path).map_err(|e| format!("cannot write {}: {e}", path.display()))?;
     let mut w = BufWriter::new(file);
     writeln!(w, "edtmap-changes 1")?;
     writeln!(w, "# edt_changes export: {}, {}, {} frames", setup.name, setup.config_origin, frames.len())?;
-    writeln!(w, "# edtmap cutoff: max_distance_m {} = squared distance <= {} voxels^2", map.params().max_distance_m, map.cutoff().max_dist_sq)?;
+    writeln!(
+        w,
+        "# edtmap cutoff: max_distance_m {} = squared distance <= {} voxels^2",
+        map.params().max_distance_m,
+        map.cutoff().max_dist_sq
+    )?;
     writeln!(w, "voxel_size_m {}", map.voxel_size_m())?;
     writeln!(w, "max_distance_vox {}", cutoff_vox_text(map.cutoff()))?;
     let [ox, oy, oz] = region.origin;
@@ -289,10 +327,20 @@ fn write_changes(path: &Path, setup: &Setup, map: &GlobalMap, region: &Region, f
 
 /// Writes our per-frame times and change scores.
 fn write_times(path: &Path, frames: &[FrameChanges]) -> Result<(), Error> {
-    let mut text = String::from("frame,set,clear,batch_edt_ms,integrate_ms,edt_ms,change_score_m,region_voxels,edt_voxels_changed\n");
+    let mut text = String::from(
+        "frame,set,clear,batch_edt_ms,integrate_ms,edt_ms,change_score_m,region_voxels,edt_voxels_changed\n",
+    );
     for (k, f) in frames.iter().enumerate() {
         let (set, clear) = (f.set.len(), f.clear.len());
-        text += &format!("{k},{set},{clear},{:.6},{:.6},{:.6},{:.9},{},{}\n", f.batch_edt_ms, f.integrate_ms, f.edt_ms(), f.change_score_m, f.region_voxels, f.edt_voxels_changed);
+        text += &format!(
+            "{k},{set},{clear},{:.6},{:.6},{:.6},{:.9},{},{}\n",
+            f.batch_edt_ms,
+            f.integrate_ms,
+            f.edt_ms(),
+            f.change_score_m,
+            f.region_voxels,
+            f.edt_voxels_changed
+        );
     }
     std::fs::write(path, text).map_err(|e| format!("cannot write {}: {e}", path.display()).into())
 }

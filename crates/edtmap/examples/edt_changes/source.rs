@@ -24,10 +24,16 @@ pub(crate) struct Frames {
 pub(crate) fn scene(name: &str, config: &Config, sensor: &Sensor, limit: Option<usize>) -> Result<Frames, Error> {
     let scene_name: SceneName = name.parse().map_err(|e| format!("{e}"))?;
     let section = config.scene.as_ref();
-    let options = section.map_or_else(SceneOptions::default, |s| SceneOptions { seed: s.seed, range_noise_m: s.range_noise_m, dropout: s.dropout });
+    let options = section.map_or_else(SceneOptions::default, |s| SceneOptions {
+        seed: s.seed,
+        range_noise_m: s.range_noise_m,
+        dropout: s.dropout,
+    });
     let scene = Scene::new(scene_name, &options)?;
     let n = limit.or(section.and_then(|s| s.frames)).unwrap_or_else(|| scene.default_frames());
-    let frames = (0..n).map(|i| scene.frame(sensor, i).map_err(|e| format!("simulating frame {i}: {e}"))).collect::<Result<Vec<_>, _>>()?;
+    let frames = (0..n)
+        .map(|i| scene.frame(sensor, i).map_err(|e| format!("simulating frame {i}: {e}")))
+        .collect::<Result<Vec<_>, _>>()?;
     Ok(Frames { name: name.to_owned(), frames })
 }
 
@@ -42,10 +48,13 @@ pub(crate) fn open_recording(dir: &Path, config: &mut Config) -> Result<Dataset,
     for w in set.warnings() {
         eprintln!("edt_changes: {}: {w}", dir.display());
     }
-    if let (SensorKind::Depth, Dataset::Depth(folder), IntrinsicsSource::Recording) = (config.sensor.kind, &set, config.dataset.intrinsics) {
+    if let (SensorKind::Depth, Dataset::Depth(folder), IntrinsicsSource::Recording) =
+        (config.sensor.kind, &set, config.dataset.intrinsics)
+    {
         if folder.intrinsics_file.is_some() {
             let (c, s) = (&folder.camera, &mut config.sensor.camera);
-            (s.fx, s.fy, s.cx, s.cy, s.width, s.height) = (Some(c.fx), Some(c.fy), Some(c.cx), Some(c.cy), Some(c.width), Some(c.height));
+            (s.fx, s.fy, s.cx, s.cy, s.width, s.height) =
+                (Some(c.fx), Some(c.fy), Some(c.cx), Some(c.cy), Some(c.width), Some(c.height));
         }
     }
     Ok(set)
@@ -56,10 +65,18 @@ pub(crate) fn open_recording(dir: &Path, config: &mut Config) -> Result<Dataset,
 /// all.
 pub(crate) fn recording(dir: &Path, set: &Dataset, sensor: &Sensor, limit: Option<usize>) -> Result<Frames, Error> {
     if set.kind() != sensor.kind() {
-        return Err(format!("{} holds {} frames but the config's [sensor] is a {}", dir.display(), set.kind(), sensor.kind()).into());
+        return Err(format!(
+            "{} holds {} frames but the config's [sensor] is a {}",
+            dir.display(),
+            set.kind(),
+            sensor.kind()
+        )
+        .into());
     }
     let n = limit.unwrap_or(set.len()).min(set.len());
-    let frames = (0..n).map(|i| set.frame(i).map_err(|e| format!("frame {i} of {}: {e}", dir.display()))).collect::<Result<Vec<_>, _>>()?;
+    let frames = (0..n)
+        .map(|i| set.frame(i).map_err(|e| format!("frame {i} of {}: {e}", dir.display())))
+        .collect::<Result<Vec<_>, _>>()?;
     let name = dir.file_name().map_or_else(|| dir.display().to_string(), |n| n.to_string_lossy().into_owned());
     Ok(Frames { name, frames })
 }

@@ -135,8 +135,13 @@ pub(super) fn sensor_in_body(field: &'static str, pose: Option<[f64; 7]>) -> Res
     let finite = [x, y, z, qx, qy, qz, qw].iter().all(|v| v.is_finite());
     let rotation = match edtmap_core::sensor::rotation_from_quaternion(Quaternion::new(qw, qx, qy, qz)) {
         Ok((rotation, _)) if finite => rotation,
-        _ => return Err(invalid(field, format!("{:?}", [x, y, z, qx, qy, qz, qw]), "must be [x, y, z, qx, qy, qz, qw] with a unit quaternion (norm within 1e-2 of 1)")),
+        _ => {
+            return Err(invalid(
+                field,
+                format!("{:?}", [x, y, z, qx, qy, qz, qw]),
+                "must be [x, y, z, qx, qy, qz, qw] with a unit quaternion (norm within 1e-2 of 1)",
+            ))
+        }
     };
     Ok(Isometry3::from_parts(Translation3::new(x, y, z), rotation))
-
 }

@@ -26,36 +26,71 @@ pub(crate) struct Limit {
 }
 
 /// Focal lengths, pixels.
-pub(crate) const FOCAL_PX: Limit = Limit { lo: 1.0, lo_open: false, hi: 1e6, hi_open: false, accepted: "must be finite, in [1, 1e6] pixels" };
+pub(crate) const FOCAL_PX: Limit =
+    Limit { lo: 1.0, lo_open: false, hi: 1e6, hi_open: false, accepted: "must be finite, in [1, 1e6] pixels" };
 /// Sensor range limits, metres.
-pub(crate) const RANGE_M: Limit = Limit { lo: 0.0, lo_open: false, hi: 1000.0, hi_open: false, accepted: "must be finite, in [0, 1000] metres" };
+pub(crate) const RANGE_M: Limit =
+    Limit { lo: 0.0, lo_open: false, hi: 1000.0, hi_open: false, accepted: "must be finite, in [0, 1000] metres" };
 /// Margins and half thicknesses of the occupancy construction, metres.
-pub(crate) const MARGIN_M: Limit = Limit { lo: 0.0, lo_open: false, hi: 10.0, hi_open: false, accepted: "must be finite, in [0, 10] metres" };
+pub(crate) const MARGIN_M: Limit =
+    Limit { lo: 0.0, lo_open: false, hi: 10.0, hi_open: false, accepted: "must be finite, in [0, 10] metres" };
 /// LiDAR ring elevations, degrees.
-pub(crate) const ELEVATION_DEG: Limit = Limit { lo: -90.0, lo_open: true, hi: 90.0, hi_open: true, accepted: "must be finite, in (-90, 90) degrees" };
+pub(crate) const ELEVATION_DEG: Limit =
+    Limit { lo: -90.0, lo_open: true, hi: 90.0, hi_open: true, accepted: "must be finite, in (-90, 90) degrees" };
 /// Voxel edge length, metres.
-pub(crate) const VOXEL_M: Limit = Limit { lo: 1e-4, lo_open: false, hi: 10.0, hi_open: false, accepted: "must be finite, in [1e-4, 10] metres" };
+pub(crate) const VOXEL_M: Limit =
+    Limit { lo: 1e-4, lo_open: false, hi: 10.0, hi_open: false, accepted: "must be finite, in [1e-4, 10] metres" };
 /// Each edge of the local volume, metres.
-pub(crate) const LOCAL_SIZE_M: Limit = Limit { lo: 0.0, lo_open: true, hi: 1000.0, hi_open: false, accepted: "must be finite, in (0, 1000] metres" };
+pub(crate) const LOCAL_SIZE_M: Limit =
+    Limit { lo: 0.0, lo_open: true, hi: 1000.0, hi_open: false, accepted: "must be finite, in (0, 1000] metres" };
 /// World coordinates (heights, forbidden zones), metres.
-pub(crate) const WORLD_M: Limit = Limit { lo: -1e6, lo_open: false, hi: 1e6, hi_open: false, accepted: "must be finite, in [-1e6, 1e6] metres" };
+pub(crate) const WORLD_M: Limit =
+    Limit { lo: -1e6, lo_open: false, hi: 1e6, hi_open: false, accepted: "must be finite, in [-1e6, 1e6] metres" };
 /// Cutoff of the global EDT, metres.
-pub(crate) const MAX_DISTANCE_M: Limit = Limit { lo: 0.0, lo_open: true, hi: 1000.0, hi_open: false, accepted: "must be finite, in (0, 1000] metres" };
+pub(crate) const MAX_DISTANCE_M: Limit =
+    Limit { lo: 0.0, lo_open: true, hi: 1000.0, hi_open: false, accepted: "must be finite, in (0, 1000] metres" };
 /// Simulated range noise, metres.
-pub(crate) const NOISE_M: Limit = Limit { lo: 0.0, lo_open: false, hi: 1.0, hi_open: false, accepted: "must be finite, in [0, 1] metres" };
+pub(crate) const NOISE_M: Limit =
+    Limit { lo: 0.0, lo_open: false, hi: 1.0, hi_open: false, accepted: "must be finite, in [0, 1] metres" };
 /// A probability that may be 0 or 1.
-pub(crate) const FRACTION: Limit = Limit { lo: 0.0, lo_open: false, hi: 1.0, hi_open: false, accepted: "must be finite, in [0, 1]" };
+pub(crate) const FRACTION: Limit =
+    Limit { lo: 0.0, lo_open: false, hi: 1.0, hi_open: false, accepted: "must be finite, in [0, 1]" };
 /// Scale of 16-bit depth images, metres per unit.
-pub(crate) const DEPTH_SCALE_M: Limit = Limit { lo: 1e-6, lo_open: false, hi: 1000.0, hi_open: false, accepted: "must be finite, in [1e-6, 1000] metres per unit" };
+pub(crate) const DEPTH_SCALE_M: Limit = Limit {
+    lo: 1e-6,
+    lo_open: false,
+    hi: 1000.0,
+    hi_open: false,
+    accepted: "must be finite, in [1e-6, 1000] metres per unit",
+};
 /// Largest time between two poses, seconds.
-pub(crate) const POSE_GAP_S: Limit = Limit { lo: 0.0, lo_open: true, hi: 3600.0, hi_open: false, accepted: "must be finite, in (0, 3600] seconds" };
+pub(crate) const POSE_GAP_S: Limit =
+    Limit { lo: 0.0, lo_open: true, hi: 3600.0, hi_open: false, accepted: "must be finite, in (0, 3600] seconds" };
 /// The sensor's offset on the robot, metres.
-pub(crate) const OFFSET_M: Limit = Limit { lo: -1000.0, lo_open: false, hi: 1000.0, hi_open: false, accepted: "must be finite, in [-1000, 1000] metres" };
+pub(crate) const OFFSET_M: Limit = Limit {
+    lo: -1000.0,
+    lo_open: false,
+    hi: 1000.0,
+    hi_open: false,
+    accepted: "must be finite, in [-1000, 1000] metres",
+};
 /// The principal point's x, in image widths from the image's left edge:
 /// within one image width around the image.
-const PRINCIPAL_X: Limit = Limit { lo: -1.0, lo_open: false, hi: 2.0, hi_open: false, accepted: "must be finite, in [-1, 2] × the image width" };
+const PRINCIPAL_X: Limit = Limit {
+    lo: -1.0,
+    lo_open: false,
+    hi: 2.0,
+    hi_open: false,
+    accepted: "must be finite, in [-1, 2] × the image width",
+};
 /// The principal point's y, in image heights from the top edge.
-const PRINCIPAL_Y: Limit = Limit { lo: -1.0, lo_open: false, hi: 2.0, hi_open: false, accepted: "must be finite, in [-1, 2] × the image height" };
+const PRINCIPAL_Y: Limit = Limit {
+    lo: -1.0,
+    lo_open: false,
+    hi: 2.0,
+    hi_open: false,
+    accepted: "must be finite, in [-1, 2] × the image height",
+};
 
 impl Limit {
     /// Whether `v` is finite and inside the interval.
@@ -144,7 +179,9 @@ impl SensorSection {
     fn check_limits(&self) -> Result<(), CoreError> {
         RANGE_M.f32("min_range_m", self.min_range_m)?;
         RANGE_M.f32("max_range_m", self.max_range_m)?;
-        for (field, v) in [("free_margin_m", self.free_margin_m), ("planar_half_thickness_m", self.planar_half_thickness_m)] {
+        for (field, v) in
+            [("free_margin_m", self.free_margin_m), ("planar_half_thickness_m", self.planar_half_thickness_m)]
+        {
             v.map_or(Ok(()), |v| MARGIN_M.f32(field, v))?;
         }
         self.lidar.check_limits()?;
@@ -174,7 +211,12 @@ impl CameraFields {
 
 /// Checks a principal point coordinate against the image size along its
 /// axis, when both are given (a missing one is reported by the sensor).
-fn principal_point((field, limit): (&'static str, Limit), value: Option<f64>, size: Option<u32>, size_name: &str) -> Result<(), CoreError> {
+fn principal_point(
+    (field, limit): (&'static str, Limit),
+    value: Option<f64>,
+    size: Option<u32>,
+    size_name: &str,
+) -> Result<(), CoreError> {
     let (Some(v), Some(n)) = (value, size) else { return Ok(()) };
     let images = v / f64::from(n.max(1));
     limit.check(field, images, format!("{v:?} (image {size_name} {n})"))
@@ -200,7 +242,11 @@ fn check_global(global: &GlobalParams) -> Result<(), CoreError> {
         let corners: Vec<f64> = zone.min_m.iter().chain(&zone.max_m).copied().collect();
         if !corners.iter().all(|&c| WORLD_M.accepts(c)) {
             let value = format!("{{ min_m = {:?}, max_m = {:?} }}", zone.min_m, zone.max_m);
-            return Err(CoreError::InvalidParam { field: "forbidden", value, reason: "corners must be finite, in [-1e6, 1e6] metres" });
+            return Err(CoreError::InvalidParam {
+                field: "forbidden",
+                value,
+                reason: "corners must be finite, in [-1e6, 1e6] metres",
+            });
         }
     }
     Ok(())
@@ -236,7 +282,9 @@ mod tests {
 
     #[test]
     fn ends_open_and_closed() {
-        assert!(FOCAL_PX.accepts(1.0) && FOCAL_PX.accepts(1e6) && !FOCAL_PX.accepts(0.999) && !FOCAL_PX.accepts(f64::NAN));
+        assert!(
+            FOCAL_PX.accepts(1.0) && FOCAL_PX.accepts(1e6) && !FOCAL_PX.accepts(0.999) && !FOCAL_PX.accepts(f64::NAN)
+        );
         assert!(!ELEVATION_DEG.accepts(90.0) && !ELEVATION_DEG.accepts(-90.0) && ELEVATION_DEG.accepts(89.9));
         assert!(!LOCAL_SIZE_M.accepts(0.0) && LOCAL_SIZE_M.accepts(1000.0) && !LOCAL_SIZE_M.accepts(f64::INFINITY));
     }

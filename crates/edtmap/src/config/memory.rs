@@ -21,8 +21,10 @@ impl MemorySection {
         self.max
             .as_deref()
             .map(|text| {
-                edtmap_core::memory::parse_size(text)
-                    .map_err(|reason| MapError::ConfigFile { path: "config [memory]".into(), message: format!("max = {reason}") })
+                edtmap_core::memory::parse_size(text).map_err(|reason| MapError::ConfigFile {
+                    path: "config [memory]".into(),
+                    message: format!("max = {reason}"),
+                })
             })
             .transpose()
     }

@@ -8,15 +8,30 @@ use serde::Deserialize;
 use std::path::PathBuf;
 
 /// How long a sensor message may wait for its pose, seconds.
-const POSE_WAIT_S: Limit = Limit { lo: 0.0, lo_open: false, hi: 60.0, hi_open: false, accepted: "must be finite, in [0, 60] seconds" };
+const POSE_WAIT_S: Limit =
+    Limit { lo: 0.0, lo_open: false, hi: 60.0, hi_open: false, accepted: "must be finite, in [0, 60] seconds" };
 /// Output rates, hertz (0: never).
-const RATE_HZ: Limit = Limit { lo: 0.0, lo_open: false, hi: 1000.0, hi_open: false, accepted: "must be finite, in [0, 1000] Hz (0: never)" };
+const RATE_HZ: Limit = Limit {
+    lo: 0.0,
+    lo_open: false,
+    hi: 1000.0,
+    hi_open: false,
+    accepted: "must be finite, in [0, 1000] Hz (0: never)",
+};
 /// Map clearing radius, metres (0: never).
-const CLEARING_M: Limit = Limit { lo: 0.0, lo_open: false, hi: 1e5, hi_open: false, accepted: "must be finite, in [0, 1e5] metres (0: never)" };
+const CLEARING_M: Limit = Limit {
+    lo: 0.0,
+    lo_open: false,
+    hi: 1e5,
+    hi_open: false,
+    accepted: "must be finite, in [0, 1e5] metres (0: never)",
+};
 /// Map clearing period, seconds.
-const CLEARING_S: Limit = Limit { lo: 0.01, lo_open: false, hi: 3600.0, hi_open: false, accepted: "must be finite, in [0.01, 3600] seconds" };
+const CLEARING_S: Limit =
+    Limit { lo: 0.01, lo_open: false, hi: 3600.0, hi_open: false, accepted: "must be finite, in [0.01, 3600] seconds" };
 /// How much transform history a node keeps, seconds.
-const TF_HISTORY_S: Limit = Limit { lo: 0.1, lo_open: false, hi: 3600.0, hi_open: false, accepted: "must be finite, in [0.1, 3600] seconds" };
+const TF_HISTORY_S: Limit =
+    Limit { lo: 0.1, lo_open: false, hi: 3600.0, hi_open: false, accepted: "must be finite, in [0.1, 3600] seconds" };
 
 /// Which message type carries the poses when `pose_topic` is not `/tf`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
@@ -197,12 +212,20 @@ fn invalid(field: &'static str, value: String, reason: &'static str) -> CoreErro
 /// A ROS name: `/` or `/a/b` style, letters, digits and underscores.
 fn check_name(field: &'static str, name: &str, absolute: bool) -> Result<(), CoreError> {
     let body = name.strip_prefix('/').unwrap_or(name);
-    let word = |p: &str| !p.is_empty() && !p.starts_with(|c: char| c.is_ascii_digit()) && p.chars().all(|c| c.is_ascii_alphanumeric() || c == '_');
+    let word = |p: &str| {
+        !p.is_empty()
+            && !p.starts_with(|c: char| c.is_ascii_digit())
+            && p.chars().all(|c| c.is_ascii_alphanumeric() || c == '_')
+    };
     let ok = (absolute && name == "/") || ((!absolute || name.starts_with('/')) && body.split('/').all(word));
     if ok {
         Ok(())
     } else {
-        Err(invalid(field, format!("{name:?}"), "must be a ROS name: '/'-separated words of letters, digits and underscores, not starting with a digit"))
+        Err(invalid(
+            field,
+            format!("{name:?}"),
+            "must be a ROS name: '/'-separated words of letters, digits and underscores, not starting with a digit",
+        ))
     }
 }
 
@@ -224,7 +247,11 @@ impl RosSection {
         RATE_HZ.f64("esdf_pointcloud_hz", self.esdf_pointcloud_hz)?;
         WORLD_M.all("esdf_pointcloud_z_m", &self.esdf_pointcloud_z_m)?;
         if self.esdf_pointcloud_z_m[0] > self.esdf_pointcloud_z_m[1] {
-            return Err(invalid("esdf_pointcloud_z_m", format!("{:?}", self.esdf_pointcloud_z_m), "must be [lowest, highest] with lowest <= highest"));
+            return Err(invalid(
+                "esdf_pointcloud_z_m",
+                format!("{:?}", self.esdf_pointcloud_z_m),
+                "must be [lowest, highest] with lowest <= highest",
+            ));
         }
         RATE_HZ.f64("occupied_pointcloud_hz", self.occupied_pointcloud_hz)?;
         RATE_HZ.f64("slice_hz", self.slice_hz)?;
@@ -235,7 +262,11 @@ impl RosSection {
             OFFSET_M.all("sensor_in_body", &pose[..3])?;
         }
         if self.pose_type.is_some_and(|t| t != PoseType::Tf) && self.pose_topic.trim_start_matches('/') == "tf" {
-            return Err(invalid("pose_type", format!("{:?}", self.pose_type), "must be \"tf\" (or left out) when pose_topic is /tf"));
+            return Err(invalid(
+                "pose_type",
+                format!("{:?}", self.pose_type),
+                "must be \"tf\" (or left out) when pose_topic is /tf",
+            ));
         }
         self.t_body_sensor()?;
         Ok(())

@@ -16,8 +16,8 @@
 //! still refused.
 
 use edtmap_core::sensor::{PinholeCamera, RangeLimits, Sensor, SpinningLidar};
-use edtmap_core::CoreError;
 use edtmap_core::stages::{Construction, OgmOptions};
+use edtmap_core::CoreError;
 use serde::Deserialize;
 
 /// `[sensor]`: the sensor model, and how its frames become occupancy.
@@ -168,7 +168,11 @@ impl SensorSection {
             SensorKind::Planar => Sensor::Planar,
         };
         if self.kind == SensorKind::Planar && !(range.min_m >= 0.0 && range.max_m > range.min_m) {
-            return Err(CoreError::InvalidParam { field: "min_range_m/max_range_m", value: format!("{}..{}", range.min_m, range.max_m), reason: "need 0 ≤ min < max" });
+            return Err(CoreError::InvalidParam {
+                field: "min_range_m/max_range_m",
+                value: format!("{}..{}", range.min_m, range.max_m),
+                reason: "need 0 ≤ min < max",
+            });
         }
         sensor.validate()?;
         Ok(sensor)
@@ -183,7 +187,11 @@ impl SensorSection {
             ConstructionName::Raycast => Construction::RayCasting,
             ConstructionName::Projection if sensor.supports_projection() => Construction::Projection,
             ConstructionName::Projection => {
-                return Err(CoreError::InvalidParam { field: "construction", value: "\"projection\"".into(), reason: "a point cloud sensor has no model to project into; use \"raycast\"" })
+                return Err(CoreError::InvalidParam {
+                    field: "construction",
+                    value: "\"projection\"".into(),
+                    reason: "a point cloud sensor has no model to project into; use \"raycast\"",
+                })
             }
         };
         // Both are in range: `Config::check_limits` ran first.
@@ -206,9 +214,16 @@ impl LidarFields {
         let why = "required for kind = \"lidar\" without ring_elevations_deg";
         let rings = need(self.rings, "rings", why)?;
         if !(1..=edtmap_core::sensor::MAX_RINGS).contains(&rings) {
-            return Err(CoreError::InvalidParam { field: "rings", value: rings.to_string(), reason: "must be between 1 and 4096" });
+            return Err(CoreError::InvalidParam {
+                field: "rings",
+                value: rings.to_string(),
+                reason: "must be between 1 and 4096",
+            });
         }
-        let (lo, hi) = (need(self.elevation_min_deg, "elevation_min_deg", why)?, need(self.elevation_max_deg, "elevation_max_deg", why)?);
+        let (lo, hi) = (
+            need(self.elevation_min_deg, "elevation_min_deg", why)?,
+            need(self.elevation_max_deg, "elevation_max_deg", why)?,
+        );
         Ok(SpinningLidar::uniform(rings, lo.to_radians(), hi.to_radians(), bins, range))
     }
 }

@@ -1,9 +1,12 @@
 //! Folders of point clouds, one file per frame: `*.pcd`, KITTI Velodyne
 //! `*.bin` or `*.ply`, one kind per folder.
 
-use crate::folder::frames::{bad, file_name, list_dir, parse_kitti_poses_noted, parse_times, read_text, stem_time, FrameFile, FramePose, TrajectoryFile};
-use crate::folder::DatasetOptions;
 use crate::files::{self, MAX_CLOUD_BYTES};
+use crate::folder::frames::{
+    bad, file_name, list_dir, parse_kitti_poses_noted, parse_times, read_text, stem_time, FrameFile, FramePose,
+    TrajectoryFile,
+};
+use crate::folder::DatasetOptions;
 use crate::ply::read_ply;
 use crate::{read_pcd, IoError};
 use edtmap_core::sensor::{Frame, Measurement, PointCloud, PoseAdjustments};
@@ -52,7 +55,8 @@ impl CloudFolder {
         } else {
             clouds.iter().map(|c| stem_time(c)).collect()
         };
-        let stamps = file_times.clone().unwrap_or_else(|| (0..clouds.len()).map(|i| i as f64 / DEFAULT_CLOUD_RATE_HZ).collect());
+        let stamps =
+            file_times.clone().unwrap_or_else(|| (0..clouds.len()).map(|i| i as f64 / DEFAULT_CLOUD_RATE_HZ).collect());
         let poses_adjusted = Arc::new(PoseAdjustments::default());
         let poses = if let Some(traj_path) = &opts.trajectory {
             let Some(times) = file_times else {
@@ -70,13 +74,19 @@ impl CloudFolder {
         } else {
             per_file_poses(dir, &clouds)?
         };
-        let frames = clouds.into_iter().zip(stamps).zip(poses).map(|((path, stamp_s), pose)| FrameFile { path, stamp_s, pose }).collect();
+        let frames = clouds
+            .into_iter()
+            .zip(stamps)
+            .zip(poses)
+            .map(|((path, stamp_s), pose)| FrameFile { path, stamp_s, pose })
+            .collect();
         Ok(CloudFolder { frames, poses_adjusted })
     }
 
     /// Cloud `i`, read from disk, with its time and pose.
     pub fn frame(&self, i: usize) -> Result<Frame, IoError> {
-        let file = self.frames.get(i).ok_or_else(|| bad(Path::new("."), format!("frame {i} of {}", self.frames.len())))?;
+        let file =
+            self.frames.get(i).ok_or_else(|| bad(Path::new("."), format!("frame {i} of {}", self.frames.len())))?;
         let pose = file.pose_noted(Some(&self.poses_adjusted))?;
         let cloud = match file.path.extension().and_then(|e| e.to_str()) {
             Some("bin") => read_kitti_bin(&file.path)?,
@@ -96,7 +106,10 @@ fn sorted_clouds(dir: &Path) -> Result<Vec<PathBuf>, IoError> {
     };
     let kind = first.extension().map(|e| e.to_os_string());
     if let Some(other) = clouds.iter().find(|c| c.extension().map(|e| e.to_os_string()) != kind) {
-        return Err(bad(dir, format!("both {} and {}: keep one kind of cloud per folder", file_name(first), file_name(other))));
+        return Err(bad(
+            dir,
+            format!("both {} and {}: keep one kind of cloud per folder", file_name(first), file_name(other)),
+        ));
     }
     let times: Option<Vec<f64>> = clouds.iter().map(|c| stem_time(c)).collect();
     if let Some(times) = times {
@@ -119,7 +132,9 @@ fn per_file_poses(dir: &Path, clouds: &[PathBuf]) -> Result<Vec<FramePose>, IoEr
             if pose.exists() {
                 FramePose::File(pose)
             } else {
-                FramePose::Missing(format!("its pose file {stem}.pose.txt is missing (4 × 4 row-major, beside the cloud)"))
+                FramePose::Missing(format!(
+                    "its pose file {stem}.pose.txt is missing (4 × 4 row-major, beside the cloud)"
+                ))
             }
         })
         .collect();
@@ -142,7 +157,10 @@ pub fn read_kitti_bin(path: &Path) -> Result<PointCloud, IoError> {
 /// errors.
 pub fn parse_kitti_bin(path: &Path, bytes: &[u8]) -> Result<PointCloud, IoError> {
     if !bytes.len().is_multiple_of(16) {
-        return Err(bad(path, format!("{} bytes is not a whole number of 16-byte points (x y z reflectance)", bytes.len())));
+        return Err(bad(
+            path,
+            format!("{} bytes is not a whole number of 16-byte points (x y z reflectance)", bytes.len()),
+        ));
     }
     let f = |b: &[u8]| f32::from_le_bytes([b[0], b[1], b[2], b[3]]);
     let points = bytes.chunks_exact(16).map(|p| [f(&p[0..4]), f(&p[4..8]), f(&p[8..12])]).collect();

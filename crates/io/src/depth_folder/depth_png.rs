@@ -78,14 +78,24 @@ pub fn read_depth_png(path: &Path, expected: Option<ExpectedSize<'_>>) -> Result
 
 /// Refuses a header that is not 16-bit greyscale, or whose size is not
 /// the expected one or, without one, over [`MAX_DEPTH_IMAGE_BYTES`].
-fn check_header(path: &Path, width: u32, height: u32, colour: png::ColorType, depth: png::BitDepth, expected: Option<ExpectedSize<'_>>) -> Result<(), IoError> {
+fn check_header(
+    path: &Path,
+    width: u32,
+    height: u32,
+    colour: png::ColorType,
+    depth: png::BitDepth,
+    expected: Option<ExpectedSize<'_>>,
+) -> Result<(), IoError> {
     if colour != png::ColorType::Grayscale || depth != png::BitDepth::Sixteen {
         return Err(bad(path, format!("depth must be 16-bit greyscale, the PNG header says {colour:?} {depth:?}")));
     }
     match expected {
         Some(e) if (width, height) != (e.width, e.height) => Err(bad(
             path,
-            format!("the PNG header says {width} x {height} pixels, {} says {} x {}: refused before decoding", e.source, e.width, e.height),
+            format!(
+                "the PNG header says {width} x {height} pixels, {} says {} x {}: refused before decoding",
+                e.source, e.width, e.height
+            ),
         )),
         Some(_) => Ok(()),
         None => {

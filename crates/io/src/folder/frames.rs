@@ -133,7 +133,11 @@ pub fn parse_kitti_poses(path: &Path, text: &str) -> Result<Vec<Isometry3<f64>>,
 }
 
 /// [`parse_kitti_poses`], counting adjusted rotations in `noted`.
-pub(crate) fn parse_kitti_poses_noted(path: &Path, text: &str, noted: Option<&PoseAdjustments>) -> Result<Vec<Isometry3<f64>>, IoError> {
+pub(crate) fn parse_kitti_poses_noted(
+    path: &Path,
+    text: &str,
+    noted: Option<&PoseAdjustments>,
+) -> Result<Vec<Isometry3<f64>>, IoError> {
     let mut poses = Vec::new();
     for (k, line) in content_lines(text) {
         let numbers = line_numbers(path, k, line)?;
@@ -181,7 +185,10 @@ fn parse_matrix_noted(path: &Path, text: &str, noted: Option<&PoseAdjustments>) 
     for (k, line) in content_lines(text) {
         numbers.extend(line_numbers(path, k, line)?);
         if numbers.len() > 16 {
-            return Err(bad(path, format!("line {}: more than 16 numbers, a pose matrix has 16 (4 × 4) or 12 (3 × 4)", k + 1)));
+            return Err(bad(
+                path,
+                format!("line {}: more than 16 numbers, a pose matrix has 16 (4 × 4) or 12 (3 × 4)", k + 1),
+            ));
         }
     }
     if numbers.len() != 16 && numbers.len() != 12 {

@@ -2,8 +2,8 @@
 //! file this crate writes is always one it reads back.
 
 use edtmap_core::{
-    check_voxel_size, BlockKey, BlockMap, CoreError, Cutoff, EdtMap, GlobalMap, GlobalParams, OccupancyMap, OccupancyParams,
-    BLOCK_SIDE, BLOCK_VOXELS, FAR_DIST_SQ,
+    check_voxel_size, BlockKey, BlockMap, CoreError, Cutoff, EdtMap, GlobalMap, GlobalParams, OccupancyMap,
+    OccupancyParams, BLOCK_SIDE, BLOCK_VOXELS, FAR_DIST_SQ,
 };
 
 use super::layout::Payload;
@@ -25,7 +25,11 @@ pub(super) fn check_contents(map: &GlobalMap) -> Result<(), MapFileError> {
 }
 
 /// Validates the parameters as the mapper does; returns the EDT cutoff.
-pub(super) fn check_params(voxel_size_m: f64, occupancy: &OccupancyParams, global: &GlobalParams) -> Result<Cutoff, MapFileError> {
+pub(super) fn check_params(
+    voxel_size_m: f64,
+    occupancy: &OccupancyParams,
+    global: &GlobalParams,
+) -> Result<Cutoff, MapFileError> {
     let invalid = |e: CoreError| MapFileError::InvalidParams(e.to_string());
     check_voxel_size(voxel_size_m).map_err(invalid)?;
     occupancy.log_odds().map_err(invalid)?;
@@ -51,7 +55,11 @@ fn check_keys<B: Payload>(map: &BlockMap<B>) -> Result<(), MapFileError> {
 /// it decodes the block, whose voxels it may need).
 pub(super) fn check_key<B: Payload>(key: BlockKey) -> Result<(), MapFileError> {
     if key.0.iter().any(|&c| !(MIN_KEY..=MAX_KEY).contains(&c)) {
-        return Err(MapFileError::Corrupt(format!("block key {:?} in the {} section lies outside the voxel index range", key.0, B::SECTION)));
+        return Err(MapFileError::Corrupt(format!(
+            "block key {:?} in the {} section lies outside the voxel index range",
+            key.0,
+            B::SECTION
+        )));
     }
     Ok(())
 }
@@ -61,7 +69,10 @@ fn check_log_odds(map: &OccupancyMap) -> Result<(), MapFileError> {
     for (key, block) in sorted(map) {
         if let Some(i) = block.log_odds.iter().position(|v| v.is_nan() || *v == f32::INFINITY) {
             let v = key.voxel(i);
-            return Err(MapFileError::Corrupt(format!("occupancy voxel {:?} holds log-odds {}", v.0, block.log_odds[i])));
+            return Err(MapFileError::Corrupt(format!(
+                "occupancy voxel {:?} holds log-odds {}",
+                v.0, block.log_odds[i]
+            )));
         }
     }
     Ok(())
@@ -75,7 +86,11 @@ fn check_edt(map: &EdtMap, cutoff: Cutoff) -> Result<(), MapFileError> {
         for i in 0..BLOCK_VOXELS {
             let d = block.dist_sq(i);
             if d != FAR_DIST_SQ && d > cutoff.max_dist_sq {
-                return Err(MapFileError::Corrupt(format!("EDT voxel {:?} holds dist_sq {d}, beyond the cutoff's {}", key.voxel(i).0, cutoff.max_dist_sq)));
+                return Err(MapFileError::Corrupt(format!(
+                    "EDT voxel {:?} holds dist_sq {d}, beyond the cutoff's {}",
+                    key.voxel(i).0,
+                    cutoff.max_dist_sq
+                )));
             }
         }
     }

@@ -19,14 +19,18 @@ pub(super) fn decode(bytes: &[u8]) -> Result<GlobalMap, MapFileError> {
     let voxel_size_m = f64::from_bits(cur.u64("the voxel size")?);
     let params_len = cur.u32("the parameter text length")? as usize;
     let text = cur.take(params_len, "the parameter text")?;
-    let text = std::str::from_utf8(text).map_err(|e| MapFileError::InvalidParams(format!("the text is not UTF-8 ({e})")))?;
+    let text =
+        std::str::from_utf8(text).map_err(|e| MapFileError::InvalidParams(format!("the text is not UTF-8 ({e})")))?;
     let params: ParamsText = toml::from_str(text).map_err(|e| MapFileError::InvalidParams(e.message().to_string()))?;
     check::check_params(voxel_size_m, &params.occupancy, &params.global)?;
     let occupancy = read_section::<OccupancyBlock>(&mut cur)?;
     let edt = read_section::<EdtBlock>(&mut cur)?;
     let fixed = read_section::<StaticBlock>(&mut cur)?;
     if cur.remaining() != 0 {
-        return Err(MapFileError::Corrupt(format!("{} unused bytes between the last section and the checksum", cur.remaining())));
+        return Err(MapFileError::Corrupt(format!(
+            "{} unused bytes between the last section and the checksum",
+            cur.remaining()
+        )));
     }
     let map = GlobalMap::from_layers(voxel_size_m, params.occupancy, params.global, occupancy, edt, fixed)
         .map_err(|e| MapFileError::InvalidParams(e.to_string()))?;
@@ -56,13 +60,18 @@ fn framing(bytes: &[u8]) -> Result<&[u8], MapFileError> {
     }
     let stated = bytes.get(16..24).map(le_u64).ok_or(short)?;
     if stated < MIN_FILE_LEN {
-        return Err(MapFileError::Corrupt(format!("the header states a length of {stated} bytes, below the {MIN_FILE_LEN}-byte minimum")));
+        return Err(MapFileError::Corrupt(format!(
+            "the header states a length of {stated} bytes, below the {MIN_FILE_LEN}-byte minimum"
+        )));
     }
     if actual < stated {
         return Err(MapFileError::Truncated { expected: stated, actual });
     }
     if actual > stated {
-        return Err(MapFileError::Corrupt(format!("{} bytes follow the end of the map (the header states {stated} bytes)", actual - stated)));
+        return Err(MapFileError::Corrupt(format!(
+            "{} bytes follow the end of the map (the header states {stated} bytes)",
+            actual - stated
+        )));
     }
     let (body, tail) = bytes.split_at(bytes.len() - CHECKSUM_LEN);
     let (stored, computed) = (le_u32(tail), crc32fast::hash(body));
@@ -89,7 +98,12 @@ fn read_section<B: Payload>(cur: &mut Cursor<'_>) -> Result<BlockMap<B>, MapFile
         let key = get_key(cur.take(KEY_LEN, "a block key")?);
         if let Some(p) = previous.filter(|&p| p >= key) {
             let what = if p == key { "duplicate block key" } else { "block keys out of order:" };
-            return Err(MapFileError::Corrupt(format!("{what} {:?} after {:?} in the {} section", key.0, p.0, B::SECTION)));
+            return Err(MapFileError::Corrupt(format!(
+                "{what} {:?} after {:?} in the {} section",
+                key.0,
+                p.0,
+                B::SECTION
+            )));
         }
         previous = Some(key);
         check::check_key::<B>(key)?;

@@ -19,7 +19,8 @@ impl<'a> Prepared<'a> {
     pub(super) fn new(map: &'a GlobalMap) -> Result<Self, MapFileError> {
         check::check_contents(map)?;
         let text = ParamsText { occupancy: map.occupancy_params().clone(), global: map.params().clone() };
-        let params = toml::to_string(&text).map_err(|e| MapFileError::InvalidParams(format!("cannot write them as TOML: {e}")))?;
+        let params = toml::to_string(&text)
+            .map_err(|e| MapFileError::InvalidParams(format!("cannot write them as TOML: {e}")))?;
         if u32::try_from(params.len()).is_err() {
             return Err(MapFileError::InvalidParams("their text exceeds 4 GiB".into()));
         }

@@ -1,7 +1,9 @@
 //! Sizes, offsets and block payloads of format version 1, shared by the
 //! writer and the reader (specified in `docs/FORMAT.md`).
 
-use edtmap_core::{BlockKey, EdtBlock, GlobalParams, OccupancyBlock, OccupancyParams, StaticBlock, VoxelIndex, BLOCK_VOXELS};
+use edtmap_core::{
+    BlockKey, EdtBlock, GlobalParams, OccupancyBlock, OccupancyParams, StaticBlock, VoxelIndex, BLOCK_VOXELS,
+};
 use serde::{Deserialize, Serialize};
 
 /// Bytes needed to read the file's stated length: magic, version, flags,

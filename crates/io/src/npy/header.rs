@@ -27,7 +27,9 @@ pub(super) fn read_header_bytes(path: &Path, r: &mut impl Read, file_len: u64) -
     let len_bytes = match bytes[6] {
         1 => 2,
         2 | 3 => 4,
-        major => return Err(not_npy(path, format!("format version {major}.{} is not supported (1, 2 or 3)", bytes[7]))),
+        major => {
+            return Err(not_npy(path, format!("format version {major}.{} is not supported (1, 2 or 3)", bytes[7])))
+        }
     };
     let mut len = [0u8; 4];
     r.read_exact(&mut len[..len_bytes]).map_err(|_| not_npy(path, "the file ends in the header length"))?;

@@ -23,8 +23,7 @@ impl Job<'_> {
                 Output::None => false,
                 Output::Float32 | Output::Float32Sq => true,
                 Output::Scipy => {
-                    let diag: f64 =
-                        (0..g.shape.len()).map(|k| ((g.shape[k] - 1) as f64 * g.spacing[k]).powi(2)).sum();
+                    let diag: f64 = (0..g.shape.len()).map(|k| ((g.shape[k] - 1) as f64 * g.spacing[k]).powi(2)).sum();
                     g.spacing.iter().all(|w| w.fract() == 0.0) && diag < F64_EXACT
                 }
             }
@@ -100,12 +99,8 @@ impl Job<'_> {
         let labels = Labels { voxels, background, same };
         // The core's axes are numpy's reversed.
         let w: Vec<f64> = g.spacing.iter().rev().copied().chain([1.0; 3]).take(3).collect();
-        let mut grid = Grid {
-            dims: g.dims(),
-            axes: g.shape.len(),
-            w: [w[0], w[1], w[2]],
-            black_border: self.black_border,
-        };
+        let mut grid =
+            Grid { dims: g.dims(), axes: g.shape.len(), w: [w[0], w[1], w[2]], black_border: self.black_border };
         if self.output == Output::Scipy {
             if !voxels.par_iter().any(&labels.background) {
                 return Ok((Some(Distances::F64(self.scipy_without_zeros()?)), None));

@@ -88,7 +88,18 @@ impl LiveFrames {
     pub(crate) fn new(opts: RosOptions, is_tf: bool, wait_s: f64, history_s: f64) -> Self {
         let poses = Poses::new(is_tf, &opts);
         let wait = Duration::try_from_secs_f64(wait_s).unwrap_or(Duration::ZERO);
-        LiveFrames { opts, poses, pending: VecDeque::new(), wait, startup_until: Instant::now(), history_s, newest_pose_s: f64::NEG_INFINITY, camera: None, pose_frame: None, world_frame: None }
+        LiveFrames {
+            opts,
+            poses,
+            pending: VecDeque::new(),
+            wait,
+            startup_until: Instant::now(),
+            history_s,
+            newest_pose_s: f64::NEG_INFINITY,
+            camera: None,
+            pose_frame: None,
+            world_frame: None,
+        }
     }
 
     /// A startup window of `wait_s` from `started`, during which messages
@@ -147,12 +158,19 @@ impl LiveFrames {
     /// does not decode is skipped at once. The stamp is taken as it is
     /// (0 included: simulated time starts there), in the poses' clock.
     pub(crate) fn add_sensor(&mut self, msg: Message, now: Instant) -> Result<(), Skipped> {
-        let (measurement, stamp_ns, frame_id) = measurement(msg, self.opts.depth_scale_m).map_err(|reason| Skipped { kind: malformation(&reason), reason })?;
+        let (measurement, stamp_ns, frame_id) = measurement(msg, self.opts.depth_scale_m)
+            .map_err(|reason| Skipped { kind: malformation(&reason), reason })?;
         let stamp_s = stamp_ns as f64 * 1e-9;
         self.pending.push_back(Pending { measurement, stamp_s, frame_id, arrived: now });
         if self.pending.len() > MAX_PENDING {
             if let Some(old) = self.pending.pop_front() {
-                return Err(Skipped { kind: "pose queue full", reason: format!("{MAX_PENDING} messages were waiting for poses; the oldest (stamp {:.6} s) was dropped", old.stamp_s) });
+                return Err(Skipped {
+                    kind: "pose queue full",
+                    reason: format!(
+                        "{MAX_PENDING} messages were waiting for poses; the oldest (stamp {:.6} s) was dropped",
+                        old.stamp_s
+                    ),
+                });
             }
         }
         Ok(())
@@ -175,7 +193,15 @@ impl LiveFrames {
             let passed = self.poses.latest(&p.frame_id, &self.opts).is_some_and(|latest| latest >= p.stamp_s);
             let expired = now.saturating_duration_since(p.arrived) >= self.wait;
             // Past their own wait, the oldest messages form a prefix of the queue.
-            let held = starting && expired && self.pending.iter().take(MAX_STARTUP_WAITING + 1).take_while(|q| now.saturating_duration_since(q.arrived) >= self.wait).count() <= MAX_STARTUP_WAITING;
+            let held = starting
+                && expired
+                && self
+                    .pending
+                    .iter()
+                    .take(MAX_STARTUP_WAITING + 1)
+                    .take_while(|q| now.saturating_duration_since(q.arrived) >= self.wait)
+                    .count()
+                    <= MAX_STARTUP_WAITING;
             if !passed && (!expired || held) {
                 break;
             }
@@ -188,7 +214,10 @@ impl LiveFrames {
                 }
                 Err(e) => Err(Skipped {
                     kind: "missing transform",
-                    reason: format!("no pose for the message at stamp {:.6} s in frame {:?} after waiting {waited:.3} s: {e}", p.stamp_s, p.frame_id),
+                    reason: format!(
+                        "no pose for the message at stamp {:.6} s in frame {:?} after waiting {waited:.3} s: {e}",
+                        p.stamp_s, p.frame_id
+                    ),
                 }),
             });
         }
@@ -218,11 +247,18 @@ mod tests {
 
     fn tf(parent: &str, child: &str, t: f64, x: f64) -> Message {
         let header = Header { stamp_ns: (t * 1e9) as i64, frame_id: parent.into() };
-        Message::Tf(vec![StampedTransform { header, child_frame: child.into(), transform: Isometry3::translation(x, 0.0, 0.0) }])
+        Message::Tf(vec![StampedTransform {
+            header,
+            child_frame: child.into(),
+            transform: Isometry3::translation(x, 0.0, 0.0),
+        }])
     }
 
     fn cloud(t: f64) -> Message {
-        Message::PointCloud2(PointCloud2::from_points(Header { stamp_ns: (t * 1e9) as i64, frame_id: "lidar".into() }, &[[1.0, 0.0, 0.0]]))
+        Message::PointCloud2(PointCloud2::from_points(
+            Header { stamp_ns: (t * 1e9) as i64, frame_id: "lidar".into() },
+            &[[1.0, 0.0, 0.0]],
+        ))
     }
 
     #[test]
@@ -261,7 +297,10 @@ mod tests {
         let mut live = LiveFrames::new(opts(), true, 0.5, 10.0).with_startup(t0, 2.0);
         // Discovery: the cloud comes 1.5 s before the first transforms.
         live.add_sensor(cloud(1.0), t0).expect("decodes");
-        assert!(live.ready(t0 + Duration::from_millis(1500)).is_empty(), "kept past pose_wait_s during the startup window");
+        assert!(
+            live.ready(t0 + Duration::from_millis(1500)).is_empty(),
+            "kept past pose_wait_s during the startup window"
+        );
         live.add_pose(&tf("base_link", "lidar", 0.0, 0.25), true).expect("static");
         live.add_pose(&tf("map", "base_link", 0.5, 1.0), false).expect("pose");
         live.add_pose(&tf("map", "base_link", 1.5, 1.0), false).expect("pose");
@@ -292,7 +331,10 @@ mod tests {
         let t0 = Instant::now();
         let mut bad = PointCloud2::from_points(Header::default(), &[[1.0, 0.0, 0.0]]);
         bad.point_step = 7;
-        assert_eq!(live.add_sensor(Message::PointCloud2(bad), t0).expect_err("bad step").kind, "bad message: PointCloud2 point_step < its fields");
+        assert_eq!(
+            live.add_sensor(Message::PointCloud2(bad), t0).expect_err("bad step").kind,
+            "bad message: PointCloud2 point_step < its fields"
+        );
         for i in 0..MAX_PENDING {
             live.add_sensor(cloud(i as f64), t0).expect("queued");
         }
@@ -309,8 +351,31 @@ mod tests {
             f(&mut c);
             Message::PointCloud2(c)
         };
-        let image = |encoding: &str, width: u32, step: u32, bytes: usize| Message::Image(Image { header: Header::default(), height: 2, width, encoding: encoding.into(), is_bigendian: false, step, data: vec![0; bytes] });
-        let scan = |ranges: Vec<f32>, angle_increment: f32| Message::LaserScan(LaserScanMsg { header: Header::default(), angle_min: 0.0, angle_max: 1.0, angle_increment, time_increment: 0.0, scan_time: 0.0, range_min: 0.1, range_max: 10.0, ranges, intensities: Vec::new() });
+        let image = |encoding: &str, width: u32, step: u32, bytes: usize| {
+            Message::Image(Image {
+                header: Header::default(),
+                height: 2,
+                width,
+                encoding: encoding.into(),
+                is_bigendian: false,
+                step,
+                data: vec![0; bytes],
+            })
+        };
+        let scan = |ranges: Vec<f32>, angle_increment: f32| {
+            Message::LaserScan(LaserScanMsg {
+                header: Header::default(),
+                angle_min: 0.0,
+                angle_max: 1.0,
+                angle_increment,
+                time_increment: 0.0,
+                scan_time: 0.0,
+                range_min: 0.1,
+                range_max: 10.0,
+                ranges,
+                intensities: Vec::new(),
+            })
+        };
         let bad = [
             cloud(&|c| c.fields.clear()),
             cloud(&|c| c.fields[0].datatype = 99),
@@ -325,17 +390,30 @@ mod tests {
             scan(vec![1.0; 4], 0.0),
         ];
         let mut live = LiveFrames::new(opts(), true, 0.5, 10.0);
-        let kinds: Vec<&str> = bad.into_iter().map(|m| live.add_sensor(m, Instant::now()).expect_err("malformed").kind).collect();
+        let kinds: Vec<&str> =
+            bad.into_iter().map(|m| live.add_sensor(m, Instant::now()).expect_err("malformed").kind).collect();
         let distinct: std::collections::BTreeSet<&str> = kinds.iter().copied().collect();
         assert_eq!(distinct.len(), kinds.len(), "{kinds:?}");
-        assert!(kinds.iter().all(|k| k.starts_with("bad message: ") && *k != "bad message: other" && *k != "bad message: LaserScan other"), "{kinds:?}");
+        assert!(
+            kinds.iter().all(|k| k.starts_with("bad message: ")
+                && *k != "bad message: other"
+                && *k != "bad message: LaserScan other"),
+            "{kinds:?}"
+        );
     }
 
     #[test]
     fn without_a_configured_world_frame_outputs_take_the_poses_frame() {
         let t0 = Instant::now();
-        let odom = |t: f64| Message::Odometry(StampedTransform { header: Header { stamp_ns: (t * 1e9) as i64, frame_id: "odom".into() }, child_frame: "base_link".into(), transform: Isometry3::identity() });
-        let mut topic = LiveFrames::new(RosOptions { pose_topic: "/odom".into(), world_frame: None, ..opts() }, false, 0.5, 10.0);
+        let odom = |t: f64| {
+            Message::Odometry(StampedTransform {
+                header: Header { stamp_ns: (t * 1e9) as i64, frame_id: "odom".into() },
+                child_frame: "base_link".into(),
+                transform: Isometry3::identity(),
+            })
+        };
+        let mut topic =
+            LiveFrames::new(RosOptions { pose_topic: "/odom".into(), world_frame: None, ..opts() }, false, 0.5, 10.0);
         assert_eq!(topic.world_frame(), None);
         topic.add_pose(&odom(0.0), false).expect("pose");
         topic.add_pose(&odom(1.0), false).expect("pose");
@@ -351,8 +429,19 @@ mod tests {
         assert!(tree.ready(t0)[0].is_ok());
         assert_eq!(tree.world_frame(), Some("odom"));
 
-        let mut configured = LiveFrames::new(RosOptions { pose_topic: "/odom".into(), world_frame: Some("/map".into()), ..opts() }, false, 0.5, 10.0);
-        let map = |t: f64| Message::Odometry(StampedTransform { header: Header { stamp_ns: (t * 1e9) as i64, frame_id: "map".into() }, child_frame: "base_link".into(), transform: Isometry3::identity() });
+        let mut configured = LiveFrames::new(
+            RosOptions { pose_topic: "/odom".into(), world_frame: Some("/map".into()), ..opts() },
+            false,
+            0.5,
+            10.0,
+        );
+        let map = |t: f64| {
+            Message::Odometry(StampedTransform {
+                header: Header { stamp_ns: (t * 1e9) as i64, frame_id: "map".into() },
+                child_frame: "base_link".into(),
+                transform: Isometry3::identity(),
+            })
+        };
         configured.add_pose(&map(0.0), false).expect("pose");
         configured.add_pose(&map(1.0), false).expect("pose");
         configured.add_sensor(cloud(0.5), t0).expect("decodes");

@@ -110,7 +110,11 @@ impl Shared {
         let n = counts.entry(s.kind.to_string()).or_insert(0);
         *n += 1;
         if *n == 1 {
-            tracing::warn!("skipping a message ({}; later ones of this kind are counted, not logged): {}", s.kind, s.reason);
+            tracing::warn!(
+                "skipping a message ({}; later ones of this kind are counted, not logged): {}",
+                s.kind,
+                s.reason
+            );
         } else {
             tracing::debug!("skipping a message ({}): {}", s.kind, s.reason);
         }
@@ -162,25 +166,35 @@ fn pose_qos(depth: usize) -> QosProfile {
 
 /// QoS of outputs: reliable, volatile.
 fn reliable_qos(depth: usize) -> QosProfile {
-    QosProfile::publisher_default().reliability_reliable(WhenFull::Wait(Duration::from_millis(100))).durability(Durability::Volatile).history(History::KeepLast { depth })
+    QosProfile::publisher_default()
+        .reliability_reliable(WhenFull::Wait(Duration::from_millis(100)))
+        .durability(Durability::Volatile)
+        .history(History::KeepLast { depth })
 }
 
 /// QoS of map-like outputs (the occupancy grid), as `map_server`'s: reliable,
 /// transient local, keep last 1, so a subscriber that joins late (a Nav2
 /// costmap, RViz's Map display) gets the latest at once.
 fn map_qos() -> QosProfile {
-    QosProfile::publisher_default().reliability_reliable(WhenFull::Wait(Duration::from_millis(100))).durability(Durability::TransientLocal).history(History::KeepLast { depth: 1 })
+    QosProfile::publisher_default()
+        .reliability_reliable(WhenFull::Wait(Duration::from_millis(100)))
+        .durability(Durability::TransientLocal)
+        .history(History::KeepLast { depth: 1 })
 }
 
 /// `/tf_static`: reliable, transient local (late joiners get the tree).
 fn static_qos() -> QosProfile {
-    QosProfile::publisher_default().reliability_reliable(WhenFull::Wait(Duration::from_millis(100))).durability(Durability::TransientLocal).history(History::KeepLast { depth: 100 })
+    QosProfile::publisher_default()
+        .reliability_reliable(WhenFull::Wait(Duration::from_millis(100)))
+        .durability(Durability::TransientLocal)
+        .history(History::KeepLast { depth: 100 })
 }
 
 /// `topic` resolved in `namespace`, as an absolute name (`ros2-client`
 /// would put a double slash in a relative name under the root namespace).
 fn name(namespace: &str, topic: &str) -> Result<Name, NodeError> {
-    let full = if topic.starts_with('/') { topic.to_string() } else { format!("{}/{topic}", namespace.trim_end_matches('/')) };
+    let full =
+        if topic.starts_with('/') { topic.to_string() } else { format!("{}/{topic}", namespace.trim_end_matches('/')) };
     Name::parse(&full).map_err(|e| NodeError::Config(format!("topic {full:?} is not a ROS name: {e:?}")))
 }
 
@@ -258,7 +272,12 @@ pub fn start(config: &Config, mapper: Mapper) -> Result<NodeHandle, NodeError> {
     }
     let r = &config.ros;
     let domain: u16 = match std::env::var("ROS_DOMAIN_ID") {
-        Ok(v) if !v.trim().is_empty() => v.trim().parse().ok().filter(|&d| d <= 232).ok_or_else(|| NodeError::Config(format!("ROS_DOMAIN_ID={v:?} is not a domain id (0 to 232)")))?,
+        Ok(v) if !v.trim().is_empty() => v
+            .trim()
+            .parse()
+            .ok()
+            .filter(|&d| d <= 232)
+            .ok_or_else(|| NodeError::Config(format!("ROS_DOMAIN_ID={v:?} is not a domain id (0 to 232)")))?,
         _ => 0,
     };
     let mut builder = DomainParticipantBuilder::new(domain);
@@ -266,32 +285,36 @@ pub fn start(config: &Config, mapper: Mapper) -> Result<NodeHandle, NodeError> {
         builder = builder.with_only_networks([IpAddr::V4(Ipv4Addr::LOCALHOST)]);
     }
     let participant = builder.build().map_err(|e| NodeError::Dds(format!("joining DDS domain {domain}: {e:?}")))?;
-    let context = Context::from_domain_participant(participant).map_err(|e| NodeError::Dds(format!("ROS 2 context: {e:?}")))?;
-    let node_name = NodeName::new(&r.namespace, "edtmap").map_err(|e| NodeError::Config(format!("namespace {:?}: {e:?}", r.namespace)))?;
-    let mut node = context.new_node(node_name, NodeOptions::new().enable_rosout(false)).map_err(|e| NodeError::Dds(format!("node: {e:?}")))?;
+    let context =
+        Context::from_domain_participant(participant).map_err(|e| NodeError::Dds(format!("ROS 2 context: {e:?}")))?;
+    let node_name = NodeName::new(&r.namespace, "edtmap")
+        .map_err(|e| NodeError::Config(format!("namespace {:?}: {e:?}", r.namespace)))?;
+    let mut node = context
+        .new_node(node_name, NodeOptions::new().enable_rosout(false))
+        .map_err(|e| NodeError::Dds(format!("node: {e:?}")))?;
 
     let ns = r.namespace.as_str();
-    let topic = |node: &mut Node, t: &str, package: &str, ty: &str, qos: &QosProfile| node.create_topic(&name(ns, t)?, MessageTypeName::new(package, ty), qos).map_err(|e| NodeError::Dds(format!("topic {t}: {e:?}")));
+    let topic = |node: &mut Node, t: &str, package: &str, ty: &str, qos: &QosProfile| {
+        node.create_topic(&name(ns, t)?, MessageTypeName::new(package, ty), qos)
+            .map_err(|e| NodeError::Dds(format!("topic {t}: {e:?}")))
+    };
     let out_topic = |node: &mut Node, base: &str, package: &str, ty: &str, qos: &QosProfile| {
         let n = own_name(ns, base)?;
-        node.create_topic(&n, MessageTypeName::new(package, ty), qos).map_err(|e| NodeError::Dds(format!("topic edtmap/{base}: {e:?}")))
+        node.create_topic(&n, MessageTypeName::new(package, ty), qos)
+            .map_err(|e| NodeError::Dds(format!("topic edtmap/{base}: {e:?}")))
     };
     macro_rules! sub {
-        ($node:expr, $topic:expr, $qos:expr) => {
-            {
-                let topic = $topic;
-                $node.create_subscription(&topic, Some($qos)).map_err(|e| NodeError::Dds(format!("subscribing: {e:?}")))?
-            }
-        };
+        ($node:expr, $topic:expr, $qos:expr) => {{
+            let topic = $topic;
+            $node.create_subscription(&topic, Some($qos)).map_err(|e| NodeError::Dds(format!("subscribing: {e:?}")))?
+        }};
     }
     macro_rules! publ {
-        ($node:expr, $base:expr, $package:expr, $ty:expr, $qos:expr) => {
-            {
-                let qos = $qos;
-                let topic = out_topic(&mut $node, $base, $package, $ty, &qos)?;
-                $node.create_publisher(&topic, Some(qos)).map_err(|e| NodeError::Dds(format!("publishing: {e:?}")))?
-            }
-        };
+        ($node:expr, $base:expr, $package:expr, $ty:expr, $qos:expr) => {{
+            let qos = $qos;
+            let topic = out_topic(&mut $node, $base, $package, $ty, &qos)?;
+            $node.create_publisher(&topic, Some(qos)).map_err(|e| NodeError::Dds(format!("publishing: {e:?}")))?
+        }};
     }
     let sensor_sub = match config.sensor.kind {
         SensorKind::Depth => {
@@ -303,8 +326,16 @@ pub fn start(config: &Config, mapper: Mapper) -> Result<NodeHandle, NodeError> {
             let it = topic(&mut node, &info_topic, "sensor_msgs", "CameraInfo", &sensor_qos())?;
             SensorSub::Image(sub!(node, t, sensor_qos()), Some(sub!(node, it, sensor_qos())))
         }
-        SensorKind::Planar => SensorSub::Scan(sub!(node, topic(&mut node, &r.sensor_topic, "sensor_msgs", "LaserScan", &sensor_qos())?, sensor_qos())),
-        _ => SensorSub::Cloud(sub!(node, topic(&mut node, &r.sensor_topic, "sensor_msgs", "PointCloud2", &sensor_qos())?, sensor_qos())),
+        SensorKind::Planar => SensorSub::Scan(sub!(
+            node,
+            topic(&mut node, &r.sensor_topic, "sensor_msgs", "LaserScan", &sensor_qos())?,
+            sensor_qos()
+        )),
+        _ => SensorSub::Cloud(sub!(
+            node,
+            topic(&mut node, &r.sensor_topic, "sensor_msgs", "PointCloud2", &sensor_qos())?,
+            sensor_qos()
+        )),
     };
     let pose_type = r.pose_type();
     let pose_sub = match pose_type {
@@ -313,9 +344,21 @@ pub fn start(config: &Config, mapper: Mapper) -> Result<NodeHandle, NodeError> {
             let s = topic(&mut node, &r.static_tf_topic, "tf2_msgs", "TFMessage", &static_qos())?;
             PoseSub::Tf(sub!(node, t, pose_qos(100)), sub!(node, s, static_qos()))
         }
-        PoseType::Odometry => PoseSub::Odometry(sub!(node, topic(&mut node, &r.pose_topic, "nav_msgs", "Odometry", &pose_qos(100))?, pose_qos(100))),
-        PoseType::PoseStamped => PoseSub::PoseStamped(sub!(node, topic(&mut node, &r.pose_topic, "geometry_msgs", "PoseStamped", &pose_qos(100))?, pose_qos(100))),
-        PoseType::TransformStamped => PoseSub::TransformStamped(sub!(node, topic(&mut node, &r.pose_topic, "geometry_msgs", "TransformStamped", &pose_qos(100))?, pose_qos(100))),
+        PoseType::Odometry => PoseSub::Odometry(sub!(
+            node,
+            topic(&mut node, &r.pose_topic, "nav_msgs", "Odometry", &pose_qos(100))?,
+            pose_qos(100)
+        )),
+        PoseType::PoseStamped => PoseSub::PoseStamped(sub!(
+            node,
+            topic(&mut node, &r.pose_topic, "geometry_msgs", "PoseStamped", &pose_qos(100))?,
+            pose_qos(100)
+        )),
+        PoseType::TransformStamped => PoseSub::TransformStamped(sub!(
+            node,
+            topic(&mut node, &r.pose_topic, "geometry_msgs", "TransformStamped", &pose_qos(100))?,
+            pose_qos(100)
+        )),
     };
     let outputs = Outputs {
         esdf: publ!(node, "esdf_pointcloud", "sensor_msgs", "PointCloud2", reliable_qos(2)),
@@ -325,10 +368,19 @@ pub fn start(config: &Config, mapper: Mapper) -> Result<NodeHandle, NodeError> {
         stats: publ!(node, "frame_stats", "diagnostic_msgs", "DiagnosticArray", reliable_qos(2)),
     };
     if r.service_mapping != ServiceMapping::Auto {
-        tracing::info!("[ros] service_mapping is no longer needed: services answer Fast DDS and Cyclone DDS clients alike");
+        tracing::info!(
+            "[ros] service_mapping is no longer needed: services answer Fast DDS and Cyclone DDS clients alike"
+        );
     }
-    let budget = mapper.params().max_memory_bytes.map_or_else(edtmap_core::MemoryBudget::from_system, edtmap_core::MemoryBudget::with_limit);
-    let servers = services::Servers::create(&context.domain_participant(), ns, services::QueryLimits::of_budget(budget.limit_bytes()))?;
+    let budget = mapper
+        .params()
+        .max_memory_bytes
+        .map_or_else(edtmap_core::MemoryBudget::from_system, edtmap_core::MemoryBudget::with_limit);
+    let servers = services::Servers::create(
+        &context.domain_participant(),
+        ns,
+        services::QueryLimits::of_budget(budget.limit_bytes()),
+    )?;
 
     let snapshot = Snapshot { map: mapper.map().clone(), volume: None, stamp_ns: 0, frames: 0 };
     let shared = Arc::new(Shared {
@@ -343,18 +395,44 @@ pub fn start(config: &Config, mapper: Mapper) -> Result<NodeHandle, NodeError> {
         skipped: Mutex::new(BTreeMap::new()),
     });
     let needs_camera_info = config.sensor.kind == SensorKind::Depth && r.intrinsics == Intrinsics::CameraInfo;
-    let live = LiveFrames::new(opts, pose_type == PoseType::Tf, r.pose_wait_s, r.tf_history_s).with_startup(Instant::now(), r.startup_pose_wait_s);
+    let live = LiveFrames::new(opts, pose_type == PoseType::Tf, r.pose_wait_s, r.tf_history_s)
+        .with_startup(Instant::now(), r.startup_pose_wait_s);
     let mut threads = Vec::new();
     let s = shared.clone();
-    threads.push(std::thread::Builder::new().name("edtmap-input".into()).spawn(move || input_loop(&s, sensor_sub, pose_sub, live, needs_camera_info)).map_err(|e| NodeError::Dds(format!("input thread: {e}")))?);
+    threads.push(
+        std::thread::Builder::new()
+            .name("edtmap-input".into())
+            .spawn(move || input_loop(&s, sensor_sub, pose_sub, live, needs_camera_info))
+            .map_err(|e| NodeError::Dds(format!("input thread: {e}")))?,
+    );
     let s = shared.clone();
-    threads.push(std::thread::Builder::new().name("edtmap-services".into()).spawn(move || servers.serve(&s)).map_err(|e| NodeError::Dds(format!("service thread: {e}")))?);
+    threads.push(
+        std::thread::Builder::new()
+            .name("edtmap-services".into())
+            .spawn(move || servers.serve(&s))
+            .map_err(|e| NodeError::Dds(format!("service thread: {e}")))?,
+    );
     let s = shared.clone();
     let rates = Rates::of(config);
     let camera = needs_camera_info.then(|| config.clone());
-    let mapping = std::thread::Builder::new().name("edtmap-mapping".into()).spawn(move || mapping_loop(&s, mapper, outputs, rates, camera)).map_err(|e| NodeError::Dds(format!("mapping thread: {e}")))?;
-    tracing::info!("node {}edtmap on ROS 2 domain {domain}: {} on {}, poses from {}", if r.namespace == "/" { "/".to_string() } else { format!("{}/", r.namespace) }, format!("{:?}", config.sensor.kind).to_lowercase(), r.sensor_topic, r.pose_topic);
-    Ok(NodeHandle { shared, threads, mapping: Some(mapping), save_on_exit: r.save_on_exit.clone(), _node: Arc::new(Mutex::new(node)) })
+    let mapping = std::thread::Builder::new()
+        .name("edtmap-mapping".into())
+        .spawn(move || mapping_loop(&s, mapper, outputs, rates, camera))
+        .map_err(|e| NodeError::Dds(format!("mapping thread: {e}")))?;
+    tracing::info!(
+        "node {}edtmap on ROS 2 domain {domain}: {} on {}, poses from {}",
+        if r.namespace == "/" { "/".to_string() } else { format!("{}/", r.namespace) },
+        format!("{:?}", config.sensor.kind).to_lowercase(),
+        r.sensor_topic,
+        r.pose_topic
+    );
+    Ok(NodeHandle {
+        shared,
+        threads,
+        mapping: Some(mapping),
+        save_on_exit: r.save_on_exit.clone(),
+        _node: Arc::new(Mutex::new(node)),
+    })
 }
 
 impl NodeHandle {
@@ -401,19 +479,28 @@ fn drain<M: 'static + serde::de::DeserializeOwned>(sub: &Subscription<M>, shared
         match sub.take() {
             Ok(Some((m, _))) => f(m),
             Ok(None) => break,
-            Err(e) => shared.skip(&Skipped { kind: "bad message: undecodable CDR", reason: format!("undecodable sample: {e:?}") }),
+            Err(e) => shared
+                .skip(&Skipped { kind: "bad message: undecodable CDR", reason: format!("undecodable sample: {e:?}") }),
         }
     }
 }
 
-fn input_loop(shared: &Shared, mut sensor: SensorSub, mut pose: PoseSub, mut live: LiveFrames, needs_camera_info: bool) {
+fn input_loop(
+    shared: &Shared,
+    mut sensor: SensorSub,
+    mut pose: PoseSub,
+    mut live: LiveFrames,
+    needs_camera_info: bool,
+) {
     let Ok(mut poll) = Poll::new() else {
         tracing::error!("input thread: cannot create a poll");
         return;
     };
     let reg = poll.registry();
     let mut ok = true;
-    let mut register = |s: &mut dyn ros2_client::dds::rustdds::mio1::event::Source, t: usize| ok &= reg.register(s, Token(t), Interest::READABLE).is_ok();
+    let mut register = |s: &mut dyn ros2_client::dds::rustdds::mio1::event::Source, t: usize| {
+        ok &= reg.register(s, Token(t), Interest::READABLE).is_ok()
+    };
     match &mut sensor {
         SensorSub::Cloud(s) => register(s, 0),
         SensorSub::Scan(s) => register(s, 0),
@@ -456,7 +543,9 @@ fn input_loop(shared: &Shared, mut sensor: SensorSub, mut pose: PoseSub, mut liv
             }
             PoseSub::Odometry(s) => drain(s, shared, |m| pose_msg(types::odometry(m), false, &mut live)),
             PoseSub::PoseStamped(s) => drain(s, shared, |m| pose_msg(types::pose_stamped(m), false, &mut live)),
-            PoseSub::TransformStamped(s) => drain(s, shared, |m| pose_msg(types::transform_stamped(m), false, &mut live)),
+            PoseSub::TransformStamped(s) => {
+                drain(s, shared, |m| pose_msg(types::transform_stamped(m), false, &mut live))
+            }
         }
         let sensor_msg = |m: Message, live: &mut LiveFrames| {
             shared.received.fetch_add(1, Relaxed);
@@ -511,9 +600,19 @@ impl Rates {
     fn of(config: &Config) -> Self {
         let period = |hz: f64| (hz > 0.0).then(|| Duration::from_secs_f64(1.0 / hz));
         let r = &config.ros;
-        let clearing = (r.map_clearing_radius_m > 0.0).then(|| (r.map_clearing_radius_m, Duration::from_secs_f64(r.map_clearing_period_s)));
+        let clearing = (r.map_clearing_radius_m > 0.0)
+            .then(|| (r.map_clearing_radius_m, Duration::from_secs_f64(r.map_clearing_period_s)));
         let clearing_save = r.map_clearing_save.clone();
-        Rates { esdf: period(r.esdf_pointcloud_hz), occupied: period(r.occupied_pointcloud_hz), slice: period(r.slice_hz), scope: r.occupied_scope, slice_height_m: r.slice_height_m, esdf_z_m: r.esdf_pointcloud_z_m, clearing, clearing_save }
+        Rates {
+            esdf: period(r.esdf_pointcloud_hz),
+            occupied: period(r.occupied_pointcloud_hz),
+            slice: period(r.slice_hz),
+            scope: r.occupied_scope,
+            slice_height_m: r.slice_height_m,
+            esdf_z_m: r.esdf_pointcloud_z_m,
+            clearing,
+            clearing_save,
+        }
     }
 }
 
@@ -531,7 +630,13 @@ fn due(period: Option<Duration>, last: &mut Option<Instant>, now: Instant) -> bo
 /// A depth camera's mapper with the intrinsics of its camera info: the
 /// same mapper when they are `[sensor]`'s, a new one on the same map
 /// before the first frame, and the same one (with a warning) after it.
-fn with_camera(mapper: &mut Mapper, config: &Config, info: &CameraInfo, frames: u64, warned: &mut bool) -> Result<(), String> {
+fn with_camera(
+    mapper: &mut Mapper,
+    config: &Config,
+    info: &CameraInfo,
+    frames: u64,
+    warned: &mut bool,
+) -> Result<(), String> {
     let edtmap::sensor::Sensor::Depth(c) = mapper.sensor() else { return Ok(()) };
     let k = [info.k[0], info.k[4], info.k[2], info.k[5]];
     let close = |a: f64, b: f64| (a - b).abs() <= 1e-6 * b.abs().max(1.0);
@@ -549,16 +654,24 @@ fn with_camera(mapper: &mut Mapper, config: &Config, info: &CameraInfo, frames: 
     }
     let mut config = config.clone();
     let s = &mut config.sensor.camera;
-    (s.fx, s.fy, s.cx, s.cy, s.width, s.height) = (Some(k[0]), Some(k[1]), Some(k[2]), Some(k[3]), Some(info.width), Some(info.height));
+    (s.fx, s.fy, s.cx, s.cy, s.width, s.height) =
+        (Some(k[0]), Some(k[1]), Some(k[2]), Some(k[3]), Some(info.width), Some(info.height));
     let max_memory = mapper.params().max_memory_bytes;
     let map = mapper.map().clone();
-    let with_info = self::mapper(&config, Some(map), max_memory).map_err(|e| format!("the camera info's intrinsics {theirs} are refused: {e}"))?;
+    let with_info = self::mapper(&config, Some(map), max_memory)
+        .map_err(|e| format!("the camera info's intrinsics {theirs} are refused: {e}"))?;
     tracing::info!("depth camera: mapping with the camera info's {theirs} (the config said {ours})");
     *mapper = with_info;
     Ok(())
 }
 
-fn mapping_loop(shared: &Shared, mut mapper: Mapper, out: Outputs, rates: Rates, camera: Option<Config>) -> Result<(), NodeError> {
+fn mapping_loop(
+    shared: &Shared,
+    mut mapper: Mapper,
+    out: Outputs,
+    rates: Rates,
+    camera: Option<Config>,
+) -> Result<(), NodeError> {
     let (mut last_esdf, mut last_occ, mut last_slice, mut last_clear) = (None, None, None, None);
     let mut cleared_blocks = 0usize;
     let mut warned = false;
@@ -572,7 +685,11 @@ fn mapping_loop(shared: &Shared, mut mapper: Mapper, out: Outputs, rates: Rates,
                 if let Some(f) = slot.take() {
                     break f;
                 }
-                slot = shared.wake.wait_timeout(slot, Duration::from_millis(100)).unwrap_or_else(PoisonError::into_inner).0;
+                slot = shared
+                    .wake
+                    .wait_timeout(slot, Duration::from_millis(100))
+                    .unwrap_or_else(PoisonError::into_inner)
+                    .0;
             }
         };
         let (frame, info, world) = frame;
@@ -587,7 +704,10 @@ fn mapping_loop(shared: &Shared, mut mapper: Mapper, out: Outputs, rates: Rates,
             Ok(stats) => stats,
             Err(e) if e.is_backend_failure() => return Err(e.into()),
             Err(e) => {
-                shared.skip(&Skipped { kind: "mapper refused", reason: format!("frame at stamp {:.6} s: {e}", frame.stamp_s) });
+                shared.skip(&Skipped {
+                    kind: "mapper refused",
+                    reason: format!("frame at stamp {:.6} s: {e}", frame.stamp_s),
+                });
                 continue;
             }
         };
@@ -601,7 +721,10 @@ fn mapping_loop(shared: &Shared, mut mapper: Mapper, out: Outputs, rates: Rates,
                         // Keep what is about to be forgotten; a failure to save
                         // is reported and the clearing waits for the next period.
                         if let Err(e) = edtmap::save_map(mapper.map(), path) {
-                            shared.skip(&Skipped { kind: "map not saved before clearing", reason: format!("{}: {e}", path.display()) });
+                            shared.skip(&Skipped {
+                                kind: "map not saved before clearing",
+                                reason: format!("{}: {e}", path.display()),
+                            });
                             continue;
                         }
                     }
@@ -609,7 +732,13 @@ fn mapping_loop(shared: &Shared, mut mapper: Mapper, out: Outputs, rates: Rates,
                 let c = mapper.clear_far(centre, radius)?;
                 cleared_blocks += c.occupancy_blocks;
                 if c.occupancy_blocks > 0 {
-                    tracing::debug!("cleared {} occupancy and {} EDT blocks farther than {radius} m: {} → {} bytes", c.occupancy_blocks, c.edt_blocks, c.bytes_before, c.bytes_after);
+                    tracing::debug!(
+                        "cleared {} occupancy and {} EDT blocks farther than {radius} m: {} → {} bytes",
+                        c.occupancy_blocks,
+                        c.edt_blocks,
+                        c.bytes_before,
+                        c.bytes_after
+                    );
                 }
             }
         }
@@ -621,7 +750,9 @@ fn mapping_loop(shared: &Shared, mut mapper: Mapper, out: Outputs, rates: Rates,
         let publish_failed = |what: &str, e: String| tracing::debug!("publishing {what}: {e}");
         if let Some(volume) = &volume {
             if due(rates.esdf, &mut last_esdf, now) {
-                if let Err(e) = out.esdf.publish(outputs::esdf_cloud(&snapshot.map, volume, rates.esdf_z_m, header.clone())) {
+                if let Err(e) =
+                    out.esdf.publish(outputs::esdf_cloud(&snapshot.map, volume, rates.esdf_z_m, header.clone()))
+                {
                     publish_failed("esdf_pointcloud", format!("{e:?}"));
                 }
             }

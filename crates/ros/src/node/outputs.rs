@@ -2,7 +2,10 @@
 //! the window, the occupied voxels, a horizontal slice as a cloud and as a
 //! 2D occupancy grid, and the frame statistics.
 
-use super::types::{DiagnosticArray, DiagnosticStatus, Header, KeyValue, MapMetaData, OccupancyGrid, PointCloud2, PointField, Pose, Time, Transform, Vector3};
+use super::types::{
+    DiagnosticArray, DiagnosticStatus, Header, KeyValue, MapMetaData, OccupancyGrid, PointCloud2, PointField, Pose,
+    Time, Transform, Vector3,
+};
 use edtmap::cpu::query::{voxel_distance, voxel_state};
 use edtmap::{BlockKey, GlobalMap, LocalVolume, PointState, VoxelIndex, BLOCK_VOXELS};
 
@@ -13,10 +16,24 @@ const FLOAT32: u8 = 7;
 /// entry of `points`.
 fn cloud(header: Header, names: &[&str], points: &[f32]) -> PointCloud2 {
     let n = names.len() as u32;
-    let fields = names.iter().enumerate().map(|(i, name)| PointField { name: (*name).into(), offset: 4 * i as u32, datatype: FLOAT32, count: 1 }).collect();
+    let fields = names
+        .iter()
+        .enumerate()
+        .map(|(i, name)| PointField { name: (*name).into(), offset: 4 * i as u32, datatype: FLOAT32, count: 1 })
+        .collect();
     let width = (points.len() / names.len()) as u32;
     let data = points.iter().flat_map(|v| v.to_le_bytes()).collect();
-    PointCloud2 { header, height: 1, width, fields, is_bigendian: false, point_step: 4 * n, row_step: 4 * n * width, data, is_dense: true }
+    PointCloud2 {
+        header,
+        height: 1,
+        width,
+        fields,
+        is_bigendian: false,
+        point_step: 4 * n,
+        row_step: 4 * n * width,
+        data,
+        is_dense: true,
+    }
 }
 
 /// The voxels of `volume` block by block: `f(voxel)` for each voxel of
@@ -90,7 +107,12 @@ fn slice_z(volume: &LocalVolume, height_m: f64) -> i32 {
 /// horizontal layer at `height_m`; the cloud holds every observed voxel
 /// with its distance (the cutoff where none is nearer), the grid -1
 /// unknown, 0 free, 100 occupied.
-pub(crate) fn slice(map: &GlobalMap, volume: &LocalVolume, height_m: f64, header: Header) -> (PointCloud2, OccupancyGrid) {
+pub(crate) fn slice(
+    map: &GlobalMap,
+    volume: &LocalVolume,
+    height_m: f64,
+    header: Header,
+) -> (PointCloud2, OccupancyGrid) {
     let vs = map.voxel_size_m();
     let z = slice_z(volume, height_m);
     let [nx, ny, _] = volume.dims;
@@ -114,13 +136,27 @@ pub(crate) fn slice(map: &GlobalMap, volume: &LocalVolume, height_m: f64, header
     }
     let flat: Vec<f32> = points.into_iter().flatten().collect();
     let corner = VoxelIndex([volume.origin.0[0], volume.origin.0[1], z]);
-    let origin = Pose { translation: Vector3 { x: f64::from(corner.0[0]) * vs, y: f64::from(corner.0[1]) * vs, z: (f64::from(z) + 0.5) * vs }, ..Transform::default() };
-    let info = MapMetaData { map_load_time: header.stamp, resolution: vs as f32, width: nx as u32, height: ny as u32, origin };
+    let origin = Pose {
+        translation: Vector3 {
+            x: f64::from(corner.0[0]) * vs,
+            y: f64::from(corner.0[1]) * vs,
+            z: (f64::from(z) + 0.5) * vs,
+        },
+        ..Transform::default()
+    };
+    let info =
+        MapMetaData { map_load_time: header.stamp, resolution: vs as f32, width: nx as u32, height: ny as u32, origin };
     (cloud(header.clone(), &["x", "y", "z", "distance"], &flat), OccupancyGrid { header, info, data: cells })
 }
 
 /// `/edtmap/frame_stats`: one status named `edtmap` with the given values.
-pub(crate) fn frame_stats(stamp: Time, frame_id: &str, level: u8, message: String, values: Vec<(&str, String)>) -> DiagnosticArray {
+pub(crate) fn frame_stats(
+    stamp: Time,
+    frame_id: &str,
+    level: u8,
+    message: String,
+    values: Vec<(&str, String)>,
+) -> DiagnosticArray {
     let values = values.into_iter().map(|(k, v)| KeyValue { key: k.into(), value: v }).collect();
     let status = DiagnosticStatus { level, name: "edtmap".into(), message, hardware_id: frame_id.into(), values };
     DiagnosticArray { header: Header { stamp, frame_id: frame_id.into() }, status: vec![status] }
@@ -146,11 +182,18 @@ mod tests {
                 wall.push([2.05f32, j as f32 * 0.1 + 0.05, k as f32 * 0.1 + 0.05]);
             }
         }
-        let frame = Frame { stamp_s: 0.0, t_world_sensor: Isometry3::translation(0.0, 0.0, 0.0), measurement: Measurement::Points(PointCloud { points: wall.clone() }) };
+        let frame = Frame {
+            stamp_s: 0.0,
+            t_world_sensor: Isometry3::translation(0.0, 0.0, 0.0),
+            measurement: Measurement::Points(PointCloud { points: wall.clone() }),
+        };
         mapper.integrate_frame(&frame).expect("frame");
         let volume = *mapper.local_volume().expect("volume");
         let map = mapper.map();
-        let occupied: Vec<VoxelIndex> = wall.iter().filter_map(|p| VoxelIndex::containing([f64::from(p[0]), f64::from(p[1]), f64::from(p[2])], vs)).collect();
+        let occupied: Vec<VoxelIndex> = wall
+            .iter()
+            .filter_map(|p| VoxelIndex::containing([f64::from(p[0]), f64::from(p[1]), f64::from(p[2])], vs))
+            .collect();
         let msg = esdf_cloud(map, &volume, [f64::MIN, f64::MAX], Header::default());
         assert_eq!(msg.point_step, 16);
         let values: Vec<f32> = msg.data.chunks(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
@@ -158,7 +201,10 @@ mod tests {
         let cutoff = map.params().max_distance_m;
         for p in values.chunks(4) {
             let v = VoxelIndex::containing([f64::from(p[0]), f64::from(p[1]), f64::from(p[2])], vs).expect("finite");
-            let brute = occupied.iter().map(|o| (0..3).map(|a| f64::from(o.0[a] - v.0[a]).powi(2)).sum::<f64>().sqrt() * vs).fold(f64::INFINITY, f64::min);
+            let brute = occupied
+                .iter()
+                .map(|o| (0..3).map(|a| f64::from(o.0[a] - v.0[a]).powi(2)).sum::<f64>().sqrt() * vs)
+                .fold(f64::INFINITY, f64::min);
             assert!((f64::from(p[3]) - brute).abs() < 1e-5, "{p:?}: {} vs {brute}", p[3]);
             assert!(brute <= cutoff + 1e-9);
         }
@@ -166,7 +212,8 @@ mod tests {
         let band = [-0.1, 0.1];
         let banded = esdf_cloud(map, &volume, band, Header::default());
         let within: Vec<&[f32]> = values.chunks(4).filter(|p| (band[0]..=band[1]).contains(&f64::from(p[2]))).collect();
-        let banded_values: Vec<f32> = banded.data.chunks(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
+        let banded_values: Vec<f32> =
+            banded.data.chunks(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
         assert!(banded.width > 0 && banded.width < msg.width, "{} of {}", banded.width, msg.width);
         assert_eq!(banded_values, within.concat());
         let occ = occupied_cloud(map, Some(&volume), Header::default());

@@ -30,7 +30,10 @@ use ros2_client::dds::rustdds::mio1;
 use ros2_client::dds::rustdds::no_key::{self, DataWriter, SimpleDataReader};
 use ros2_client::dds::rustdds::rpc::SampleIdentity;
 use ros2_client::dds::rustdds::serialization::{deserialize_from_cdr_with_rep_id, to_writer_with_rep_id};
-use ros2_client::dds::rustdds::{DomainParticipant, QosPolicies, QosPolicyBuilder, RepresentationIdentifier, SequenceNumber, Timestamp, TopicKind, WriteOptionsBuilder, GUID};
+use ros2_client::dds::rustdds::{
+    DomainParticipant, QosPolicies, QosPolicyBuilder, RepresentationIdentifier, SequenceNumber, Timestamp, TopicKind,
+    WriteOptionsBuilder, GUID,
+};
 use serde::de::DeserializeOwned;
 use serde::Serialize;
 use std::marker::PhantomData;
@@ -119,12 +122,21 @@ pub(super) trait Request: DeserializeOwned {
 
 /// Whether the sequence whose length is at byte `at` of `bytes` fits in
 /// the bytes after it, at `element_bytes` per element.
-fn declared_fits(bytes: &[u8], encoding: RepresentationIdentifier, at: usize, element_bytes: usize) -> Result<(), String> {
+fn declared_fits(
+    bytes: &[u8],
+    encoding: RepresentationIdentifier,
+    at: usize,
+    element_bytes: usize,
+) -> Result<(), String> {
     if element_bytes == 0 {
         return Ok(());
     }
     let Some(&[a, b, c, d]) = bytes.get(at..at + 4) else { return Err("no sequence length".into()) };
-    let n = if encoding == RepresentationIdentifier::CDR_BE { u32::from_be_bytes([a, b, c, d]) } else { u32::from_le_bytes([a, b, c, d]) };
+    let n = if encoding == RepresentationIdentifier::CDR_BE {
+        u32::from_be_bytes([a, b, c, d])
+    } else {
+        u32::from_le_bytes([a, b, c, d])
+    };
     let left = bytes.len() - at - 4;
     match u64::from(n) * element_bytes as u64 {
         need if need <= left as u64 => Ok(()),
@@ -134,7 +146,12 @@ fn declared_fits(bytes: &[u8], encoding: RepresentationIdentifier, at: usize, el
 
 /// Decodes `T` from `bytes`, which it must fill but for padding, its
 /// leading sequence (at `at`) checked first.
-fn whole<T: DeserializeOwned>(bytes: &[u8], encoding: RepresentationIdentifier, at: usize, element_bytes: usize) -> Result<T, String> {
+fn whole<T: DeserializeOwned>(
+    bytes: &[u8],
+    encoding: RepresentationIdentifier,
+    at: usize,
+    element_bytes: usize,
+) -> Result<T, String> {
     declared_fits(bytes, encoding, at, element_bytes)?;
     let (value, used) = deserialize_from_cdr_with_rep_id::<T>(bytes, encoding).map_err(|e| e.to_string())?;
     match bytes.len() - used.min(bytes.len()) {
@@ -145,13 +162,20 @@ fn whole<T: DeserializeOwned>(bytes: &[u8], encoding: RepresentationIdentifier, 
 
 /// The request in `raw`, with its id, by the layout it fits (see the
 /// module docs); `writer` and `sn` are the sample's own identity.
-pub(super) fn decode<Req: Request>(raw: &Raw, related: Option<SampleIdentity>, writer: GUID, sn: SequenceNumber) -> Result<(RequestId, Req), String> {
+pub(super) fn decode<Req: Request>(
+    raw: &Raw,
+    related: Option<SampleIdentity>,
+    writer: GUID,
+    sn: SequenceNumber,
+) -> Result<(RequestId, Req), String> {
     let bare_id = || {
         let writer_guid = related.map(|r| r.writer_guid).filter(|g| *g != GUID::GUID_UNKNOWN).unwrap_or(writer);
         RequestId::Bare(SampleIdentity { writer_guid, sequence_number: sn })
     };
     if related.is_some_and(|r| r.sequence_number == SequenceNumber::UNKNOWN) {
-        return whole::<Req>(&raw.bytes, raw.encoding, 0, Req::LEADING_ELEMENT_BYTES).map(|r| (bare_id(), r)).map_err(|e| format!("a Fast DDS request: {e}"));
+        return whole::<Req>(&raw.bytes, raw.encoding, 0, Req::LEADING_ELEMENT_BYTES)
+            .map(|r| (bare_id(), r))
+            .map_err(|e| format!("a Fast DDS request: {e}"));
     }
     let header = match whole::<(u64, i64, Req)>(&raw.bytes, raw.encoding, 16, Req::LEADING_ELEMENT_BYTES) {
         Ok((client, seq, req)) => return Ok((RequestId::Header { client, seq }, req)),
@@ -195,7 +219,10 @@ fn refusal_id(raw: &Raw, related: Option<SampleIdentity>, writer: GUID, sn: Sequ
     match head.and_then(|h| <[u8; 16]>::try_from(h).ok()) {
         Some(h) => {
             let le = raw.encoding != RepresentationIdentifier::CDR_BE;
-            let (c, s) = ([h[0], h[1], h[2], h[3], h[4], h[5], h[6], h[7]], [h[8], h[9], h[10], h[11], h[12], h[13], h[14], h[15]]);
+            let (c, s) = (
+                [h[0], h[1], h[2], h[3], h[4], h[5], h[6], h[7]],
+                [h[8], h[9], h[10], h[11], h[12], h[13], h[14], h[15]],
+            );
             if le {
                 RequestId::Header { client: u64::from_le_bytes(c), seq: i64::from_le_bytes(s) }
             } else {
@@ -211,7 +238,13 @@ fn refusal_id(raw: &Raw, related: Option<SampleIdentity>, writer: GUID, sn: Sequ
 
 /// The request in `raw` as [`decode`] reads it, unless it is over
 /// `max_bytes`.
-pub(super) fn receive_one<Req: Request>(raw: &Raw, related: Option<SampleIdentity>, writer: GUID, sn: SequenceNumber, max_bytes: usize) -> Result<(RequestId, Req), Refused> {
+pub(super) fn receive_one<Req: Request>(
+    raw: &Raw,
+    related: Option<SampleIdentity>,
+    writer: GUID,
+    sn: SequenceNumber,
+    max_bytes: usize,
+) -> Result<(RequestId, Req), Refused> {
     if raw.bytes.len() > max_bytes {
         return Err(Refused::TooLarge { id: refusal_id(raw, related, writer, sn), bytes: raw.bytes.len(), max_bytes });
     }
@@ -223,12 +256,39 @@ impl<Req: Request, Resp: Serialize> Server<Req, Resp> {
     /// `rr{service}Reply` (`service` absolute, e.g. `/edtmap/save_map`),
     /// of the types `{package}::srv::dds_::{ty}_Request_` / `_Response_`,
     /// taking requests of at most `max_request_bytes`.
-    pub(super) fn create(dp: &DomainParticipant, service: &str, package: &str, ty: &str, qos: &QosPolicies, max_request_bytes: usize) -> Result<Self, String> {
-        let rq = dp.create_topic(format!("rq{service}Request"), format!("{package}::srv::dds_::{ty}_Request_"), qos, TopicKind::NoKey).map_err(|e| format!("{e:?}"))?;
-        let rr = dp.create_topic(format!("rr{service}Reply"), format!("{package}::srv::dds_::{ty}_Response_"), qos, TopicKind::NoKey).map_err(|e| format!("{e:?}"))?;
+    pub(super) fn create(
+        dp: &DomainParticipant,
+        service: &str,
+        package: &str,
+        ty: &str,
+        qos: &QosPolicies,
+        max_request_bytes: usize,
+    ) -> Result<Self, String> {
+        let rq = dp
+            .create_topic(
+                format!("rq{service}Request"),
+                format!("{package}::srv::dds_::{ty}_Request_"),
+                qos,
+                TopicKind::NoKey,
+            )
+            .map_err(|e| format!("{e:?}"))?;
+        let rr = dp
+            .create_topic(
+                format!("rr{service}Reply"),
+                format!("{package}::srv::dds_::{ty}_Response_"),
+                qos,
+                TopicKind::NoKey,
+            )
+            .map_err(|e| format!("{e:?}"))?;
         let none = QosPolicyBuilder::new().build();
-        let requests = dp.create_subscriber(&none).and_then(|s| s.create_simple_datareader_no_key::<Raw, RawAdapter>(&rq, Some(qos.clone()))).map_err(|e| format!("{e:?}"))?;
-        let replies = dp.create_publisher(&none).and_then(|p| p.create_datawriter_no_key::<Raw, RawAdapter>(&rr, Some(qos.clone()))).map_err(|e| format!("{e:?}"))?;
+        let requests = dp
+            .create_subscriber(&none)
+            .and_then(|s| s.create_simple_datareader_no_key::<Raw, RawAdapter>(&rq, Some(qos.clone())))
+            .map_err(|e| format!("{e:?}"))?;
+        let replies = dp
+            .create_publisher(&none)
+            .and_then(|p| p.create_datawriter_no_key::<Raw, RawAdapter>(&rr, Some(qos.clone())))
+            .map_err(|e| format!("{e:?}"))?;
         Ok(Server { requests, replies, max_request_bytes, types: PhantomData })
     }
 
@@ -257,10 +317,20 @@ impl<Req: Request, Resp: Serialize> Server<Req, Resp> {
 }
 
 impl<Req, Resp> mio1::event::Source for Server<Req, Resp> {
-    fn register(&mut self, registry: &mio1::Registry, token: mio1::Token, interests: mio1::Interest) -> std::io::Result<()> {
+    fn register(
+        &mut self,
+        registry: &mio1::Registry,
+        token: mio1::Token,
+        interests: mio1::Interest,
+    ) -> std::io::Result<()> {
         self.requests.register(registry, token, interests)
     }
-    fn reregister(&mut self, registry: &mio1::Registry, token: mio1::Token, interests: mio1::Interest) -> std::io::Result<()> {
+    fn reregister(
+        &mut self,
+        registry: &mio1::Registry,
+        token: mio1::Token,
+        interests: mio1::Interest,
+    ) -> std::io::Result<()> {
         self.requests.reregister(registry, token, interests)
     }
     fn deregister(&mut self, registry: &mio1::Registry) -> std::io::Result<()> {
@@ -286,33 +356,52 @@ mod tests {
     }
 
     fn request() -> GetDistancesRequest {
-        GetDistancesRequest { points: vec![Point { x: 1.0, y: -2.0, z: 0.5 }, Point { x: 3.0, y: 0.0, z: 0.0 }], signed_distance: true }
+        GetDistancesRequest {
+            points: vec![Point { x: 1.0, y: -2.0, z: 0.5 }, Point { x: 3.0, y: 0.0, z: 0.0 }],
+            signed_distance: true,
+        }
     }
 
     #[test]
     fn a_fast_dds_request_is_answered_to_its_reply_reader_with_its_own_sequence_number() {
         let related = SampleIdentity { writer_guid: guid(7), sequence_number: SequenceNumber::UNKNOWN };
-        let (id, req) = decode::<GetDistancesRequest>(&raw(&request()), Some(related), guid(3), SequenceNumber::from(12)).expect("decode");
+        let (id, req) =
+            decode::<GetDistancesRequest>(&raw(&request()), Some(related), guid(3), SequenceNumber::from(12))
+                .expect("decode");
         assert_eq!(req, request());
-        assert_eq!(id, RequestId::Bare(SampleIdentity { writer_guid: guid(7), sequence_number: SequenceNumber::from(12) }));
+        assert_eq!(
+            id,
+            RequestId::Bare(SampleIdentity { writer_guid: guid(7), sequence_number: SequenceNumber::from(12) })
+        );
     }
 
     #[test]
     fn a_cyclone_request_is_answered_with_its_header() {
-        let (id, req) = decode::<GetDistancesRequest>(&raw(&(0xdead_beef_u64, 5_i64, request())), None, guid(3), SequenceNumber::from(1)).expect("decode");
+        let (id, req) = decode::<GetDistancesRequest>(
+            &raw(&(0xdead_beef_u64, 5_i64, request())),
+            None,
+            guid(3),
+            SequenceNumber::from(1),
+        )
+        .expect("decode");
         assert_eq!((id, req), (RequestId::Header { client: 0xdead_beef, seq: 5 }, request()));
         let (reply, related) = encode(id, &SaveMapRequest { path: "x".into() }).expect("encode");
         assert_eq!(related, None);
-        let (client, seq, back): (u64, i64, SaveMapRequest) = deserialize_from_cdr_with_rep_id(&reply.bytes, reply.encoding).expect("decode").0;
+        let (client, seq, back): (u64, i64, SaveMapRequest) =
+            deserialize_from_cdr_with_rep_id(&reply.bytes, reply.encoding).expect("decode").0;
         assert_eq!((client, seq, back.path.as_str()), (0xdead_beef, 5, "x"));
     }
 
     #[test]
     fn a_bare_request_without_identity_is_answered_to_its_writer() {
         for req in [request(), GetDistancesRequest::default()] {
-            let (id, got) = decode::<GetDistancesRequest>(&raw(&req), None, guid(3), SequenceNumber::from(9)).expect("decode");
+            let (id, got) =
+                decode::<GetDistancesRequest>(&raw(&req), None, guid(3), SequenceNumber::from(9)).expect("decode");
             assert_eq!(got, req);
-            assert_eq!(id, RequestId::Bare(SampleIdentity { writer_guid: guid(3), sequence_number: SequenceNumber::from(9) }));
+            assert_eq!(
+                id,
+                RequestId::Bare(SampleIdentity { writer_guid: guid(3), sequence_number: SequenceNumber::from(9) })
+            );
         }
         let path = SaveMapRequest { path: "/tmp/some/map.edtmap".into() };
         let (id, got) = decode::<SaveMapRequest>(&raw(&path), None, guid(3), SequenceNumber::from(2)).expect("decode");
@@ -325,7 +414,8 @@ mod tests {
         let mut bare = vec![0xff, 0xff, 0xff, 0xff];
         bare.extend([0; 8]);
         let bare = Raw { bytes: Bytes::from(bare), encoding: RepresentationIdentifier::CDR_LE };
-        let err = decode::<GetDistancesRequest>(&bare, None, guid(3), SequenceNumber::from(1)).expect_err("cannot hold them");
+        let err =
+            decode::<GetDistancesRequest>(&bare, None, guid(3), SequenceNumber::from(1)).expect_err("cannot hold them");
         assert!(err.contains("4294967295 elements"), "{err}");
         let mut header = vec![1; 16];
         header.extend(bare.bytes.iter());
@@ -338,11 +428,19 @@ mod tests {
     fn a_request_over_the_size_limit_is_refused_undecoded_to_its_client() {
         let cyclone = raw(&(0xdead_beef_u64, 5_i64, request()));
         let max = cyclone.bytes.len() - 1;
-        let refused = receive_one::<GetDistancesRequest>(&cyclone, None, guid(3), SequenceNumber::from(1), max).expect_err("too large");
-        assert_eq!(refused, Refused::TooLarge { id: RequestId::Header { client: 0xdead_beef, seq: 5 }, bytes: max + 1, max_bytes: max });
+        let refused = receive_one::<GetDistancesRequest>(&cyclone, None, guid(3), SequenceNumber::from(1), max)
+            .expect_err("too large");
+        assert_eq!(
+            refused,
+            Refused::TooLarge { id: RequestId::Header { client: 0xdead_beef, seq: 5 }, bytes: max + 1, max_bytes: max }
+        );
         let fast = SampleIdentity { writer_guid: guid(7), sequence_number: SequenceNumber::UNKNOWN };
-        let refused = receive_one::<GetDistancesRequest>(&raw(&request()), Some(fast), guid(3), SequenceNumber::from(12), 8).expect_err("too large");
-        assert!(matches!(refused, Refused::TooLarge { id: RequestId::Bare(SampleIdentity { writer_guid, sequence_number }), .. } if writer_guid == guid(7) && sequence_number == SequenceNumber::from(12)));
+        let refused =
+            receive_one::<GetDistancesRequest>(&raw(&request()), Some(fast), guid(3), SequenceNumber::from(12), 8)
+                .expect_err("too large");
+        assert!(
+            matches!(refused, Refused::TooLarge { id: RequestId::Bare(SampleIdentity { writer_guid, sequence_number }), .. } if writer_guid == guid(7) && sequence_number == SequenceNumber::from(12))
+        );
         assert!(receive_one::<GetDistancesRequest>(&cyclone, None, guid(3), SequenceNumber::from(1), max + 1).is_ok());
     }
 
@@ -350,7 +448,8 @@ mod tests {
     fn a_request_that_fits_no_layout_is_an_error() {
         let bytes = Raw { bytes: Bytes::from_static(&[0xff; 40]), encoding: RepresentationIdentifier::CDR_LE };
         assert!(decode::<GetDistancesRequest>(&bytes, None, guid(3), SequenceNumber::from(1)).is_err());
-        let truncated = Raw { bytes: Bytes::from_static(&[2, 0, 0, 0, 0, 0, 0, 0, 1]), encoding: RepresentationIdentifier::CDR_LE };
+        let truncated =
+            Raw { bytes: Bytes::from_static(&[2, 0, 0, 0, 0, 0, 0, 0, 1]), encoding: RepresentationIdentifier::CDR_LE };
         let fast = SampleIdentity { writer_guid: guid(7), sequence_number: SequenceNumber::UNKNOWN };
         assert!(decode::<GetDistancesRequest>(&truncated, Some(fast), guid(3), SequenceNumber::from(1)).is_err());
     }

@@ -1,10 +1,13 @@
 //! The node's services, answered from the latest map snapshot on their own
 //! thread: `get_distances`, `get_esdf_box`, `save_map`.
 
-use super::rpc::{Refused, Request};
-use super::types::{GetDistancesRequest, GetDistancesResponse, GetEsdfBoxRequest, GetEsdfBoxResponse, Point, SaveMapRequest, SaveMapResponse, Time, Vector3};
 use super::live::Skipped;
 use super::rpc::Server;
+use super::rpc::{Refused, Request};
+use super::types::{
+    GetDistancesRequest, GetDistancesResponse, GetEsdfBoxRequest, GetEsdfBoxResponse, Point, SaveMapRequest,
+    SaveMapResponse, Time, Vector3,
+};
 use super::{NodeError, Shared, Snapshot};
 use edtmap::cpu::query;
 use ros2_client::dds::rustdds::mio1::{Events, Interest, Poll, Token};
@@ -46,8 +49,14 @@ pub struct QueryLimits {
 impl QueryLimits {
     /// The limits under a memory budget of `budget_bytes` (none: the fixed caps).
     pub fn of_budget(budget_bytes: Option<u64>) -> Self {
-        let fit = |per: u64, cap: usize| budget_bytes.map_or(cap, |b| usize::try_from(b / REQUEST_BUDGET_SHARE / per).unwrap_or(usize::MAX).clamp(1, cap));
-        QueryLimits { points: fit(BYTES_PER_QUERY_POINT, MAX_QUERY_POINTS), box_voxels: fit(BYTES_PER_BOX_VOXEL, MAX_BOX_VOXELS) }
+        let fit = |per: u64, cap: usize| {
+            budget_bytes
+                .map_or(cap, |b| usize::try_from(b / REQUEST_BUDGET_SHARE / per).unwrap_or(usize::MAX).clamp(1, cap))
+        };
+        QueryLimits {
+            points: fit(BYTES_PER_QUERY_POINT, MAX_QUERY_POINTS),
+            box_voxels: fit(BYTES_PER_BOX_VOXEL, MAX_BOX_VOXELS),
+        }
     }
 
     /// Largest `get_distances` payload, bytes: the points at 24 bytes, a
@@ -80,14 +89,26 @@ pub(super) struct Servers {
 /// Services' QoS, as ROS 2's default for services: reliable, volatile,
 /// keep last 10.
 fn qos() -> QosPolicies {
-    QosPolicies::from(QosProfile::publisher_default().reliability_reliable(WhenFull::Wait(Duration::from_millis(100))).durability(Durability::Volatile).history(History::KeepLast { depth: 10 }))
+    QosPolicies::from(
+        QosProfile::publisher_default()
+            .reliability_reliable(WhenFull::Wait(Duration::from_millis(100)))
+            .durability(Durability::Volatile)
+            .history(History::KeepLast { depth: 10 }),
+    )
 }
 
 /// The server `NAMESPACE/edtmap/BASE` of `edtmap_msgs/srv/TY`.
-fn server<Req: Request, Resp: Serialize>(dp: &DomainParticipant, namespace: &str, base: &str, ty: &str, max_request_bytes: usize) -> Result<Server<Req, Resp>, NodeError> {
+fn server<Req: Request, Resp: Serialize>(
+    dp: &DomainParticipant,
+    namespace: &str,
+    base: &str,
+    ty: &str,
+    max_request_bytes: usize,
+) -> Result<Server<Req, Resp>, NodeError> {
     let name = super::own_name(namespace, base)?.to_string();
     let service = if name.starts_with('/') { name } else { format!("/{name}") };
-    Server::create(dp, &service, "edtmap_msgs", ty, &qos(), max_request_bytes).map_err(|e| NodeError::Dds(format!("service edtmap/{base}: {e}")))
+    Server::create(dp, &service, "edtmap_msgs", ty, &qos(), max_request_bytes)
+        .map_err(|e| NodeError::Dds(format!("service edtmap/{base}: {e}")))
 }
 
 impl Servers {
@@ -128,21 +149,39 @@ impl Servers {
     fn answer(&self, shared: &Shared) {
         let limits = self.limits;
         let refused = |kind: &'static str, message: &str| shared.skip(&Skipped { kind, reason: message.to_string() });
-        answer_all(&self.distances, "get_distances", shared, |req| {
-            let resp = distances(&shared.snapshot(), req, &limits);
-            if !resp.success {
-                refused("refused: get_distances over the point limit", &resp.message);
-            }
-            resp
-        }, |message| GetDistancesResponse { success: false, message, ..Default::default() });
-        answer_all(&self.esdf_box, "get_esdf_box", shared, |req| {
-            let resp = esdf_box(&shared.snapshot(), req, &limits);
-            if !resp.success && resp.size == [0; 3] && resp.message.contains("voxel limit") {
-                refused("refused: get_esdf_box over the voxel limit", &resp.message);
-            }
-            resp
-        }, |message| GetEsdfBoxResponse { success: false, message, ..Default::default() });
-        answer_all(&self.save, "save_map", shared, |req| save(&shared.snapshot(), req), |message| SaveMapResponse { success: false, message });
+        answer_all(
+            &self.distances,
+            "get_distances",
+            shared,
+            |req| {
+                let resp = distances(&shared.snapshot(), req, &limits);
+                if !resp.success {
+                    refused("refused: get_distances over the point limit", &resp.message);
+                }
+                resp
+            },
+            |message| GetDistancesResponse { success: false, message, ..Default::default() },
+        );
+        answer_all(
+            &self.esdf_box,
+            "get_esdf_box",
+            shared,
+            |req| {
+                let resp = esdf_box(&shared.snapshot(), req, &limits);
+                if !resp.success && resp.size == [0; 3] && resp.message.contains("voxel limit") {
+                    refused("refused: get_esdf_box over the voxel limit", &resp.message);
+                }
+                resp
+            },
+            |message| GetEsdfBoxResponse { success: false, message, ..Default::default() },
+        );
+        answer_all(
+            &self.save,
+            "save_map",
+            shared,
+            |req| save(&shared.snapshot(), req),
+            |message| SaveMapResponse { success: false, message },
+        );
     }
 }
 
@@ -150,12 +189,21 @@ impl Servers {
 /// (no reply can be addressed) or answered is counted by kind and logged
 /// the first time; one larger than the server takes is answered
 /// `refuse(why)` undecoded.
-fn answer_all<Req: Request, Resp: Serialize>(server: &Server<Req, Resp>, service: &str, shared: &Shared, f: impl Fn(&Req) -> Resp, refuse: impl Fn(String) -> Resp) {
+fn answer_all<Req: Request, Resp: Serialize>(
+    server: &Server<Req, Resp>,
+    service: &str,
+    shared: &Shared,
+    f: impl Fn(&Req) -> Resp,
+    refuse: impl Fn(String) -> Resp,
+) {
     while let Some(request) = server.receive() {
         let (id, resp) = match request {
             Ok((id, req)) => (id, f(&req)),
             Err(Refused::Undecodable(e)) => {
-                shared.skip(&Skipped { kind: "bad request", reason: format!("{service}: a request that decodes in no RMW's layout: {e}") });
+                shared.skip(&Skipped {
+                    kind: "bad request",
+                    reason: format!("{service}: a request that decodes in no RMW's layout: {e}"),
+                });
                 continue;
             }
             Err(Refused::TooLarge { id, bytes, max_bytes }) => {
@@ -176,7 +224,10 @@ fn save(snap: &Snapshot, req: &SaveMapRequest) -> SaveMapResponse {
     match req.path.trim() {
         "" => SaveMapResponse { success: false, message: "path is empty: give the file to write".into() },
         path => match edtmap::save_map(&snap.map, std::path::Path::new(path)) {
-            Ok(()) => SaveMapResponse { success: true, message: format!("saved the map after {} frames to {path}", snap.frames) },
+            Ok(()) => SaveMapResponse {
+                success: true,
+                message: format!("saved the map after {} frames to {path}", snap.frames),
+            },
             Err(e) => SaveMapResponse { success: false, message: e.to_string() },
         },
     }
@@ -241,7 +292,13 @@ pub(super) fn esdf_box(snap: &Snapshot, req: &GetEsdfBoxRequest, limits: &QueryL
                 states: b.state,
             }
         }
-        Err(e) => GetEsdfBoxResponse { success: false, message: e.to_string(), map_stamp: stamp, voxel_size: vs, ..Default::default() },
+        Err(e) => GetEsdfBoxResponse {
+            success: false,
+            message: e.to_string(),
+            map_stamp: stamp,
+            voxel_size: vs,
+            ..Default::default()
+        },
     }
 }
 
@@ -293,22 +350,40 @@ mod tests {
         assert_eq!(small, QueryLimits { points: (16 << 20) / 192, box_voxels: (16 << 20) / 34 });
         let snap = snapshot();
         let few = QueryLimits { points: 3, box_voxels: 1000 };
-        let ok = distances(&snap, &GetDistancesRequest { points: vec![Point::default(); 3], signed_distance: false }, &few);
+        let ok =
+            distances(&snap, &GetDistancesRequest { points: vec![Point::default(); 3], signed_distance: false }, &few);
         assert!(ok.success && ok.distances.len() == 3, "{}", ok.message);
-        let over = distances(&snap, &GetDistancesRequest { points: vec![Point::default(); 4], signed_distance: false }, &few);
+        let over =
+            distances(&snap, &GetDistancesRequest { points: vec![Point::default(); 4], signed_distance: false }, &few);
         assert!(!over.success && over.distances.is_empty() && over.message.contains("at most 3"), "{}", over.message);
         assert_eq!(over.map_stamp, Time::from_ns(7));
         let vs = snap.map.voxel_size_m();
         let corner = |v: f64| Point { x: v * vs, y: v * vs, z: v * vs };
-        let fits = esdf_box(&snap, &GetEsdfBoxRequest { min_corner: corner(0.0), max_corner: corner(10.0), signed_distance: false }, &few);
+        let fits = esdf_box(
+            &snap,
+            &GetEsdfBoxRequest { min_corner: corner(0.0), max_corner: corner(10.0), signed_distance: false },
+            &few,
+        );
         assert!(fits.success && fits.distances.len() == 1000, "{}", fits.message);
-        let big = esdf_box(&snap, &GetEsdfBoxRequest { min_corner: corner(0.0), max_corner: corner(10.5), signed_distance: false }, &few);
+        let big = esdf_box(
+            &snap,
+            &GetEsdfBoxRequest { min_corner: corner(0.0), max_corner: corner(10.5), signed_distance: false },
+            &few,
+        );
         assert!(!big.success && big.distances.is_empty() && big.message.contains("1331 voxels"), "{}", big.message);
         // A box the size of the world is refused before anything is allocated.
-        let world = esdf_box(&snap, &GetEsdfBoxRequest { min_corner: corner(-1e9), max_corner: corner(1e9), signed_distance: false }, &limits);
+        let world = esdf_box(
+            &snap,
+            &GetEsdfBoxRequest { min_corner: corner(-1e9), max_corner: corner(1e9), signed_distance: false },
+            &limits,
+        );
         assert!(!world.success && world.message.contains("voxel limit"), "{}", world.message);
         // Corners that are no box still get the query's own reason.
-        let nan = esdf_box(&snap, &GetEsdfBoxRequest { min_corner: Point { x: f64::NAN, ..Point::default() }, ..Default::default() }, &limits);
+        let nan = esdf_box(
+            &snap,
+            &GetEsdfBoxRequest { min_corner: Point { x: f64::NAN, ..Point::default() }, ..Default::default() },
+            &limits,
+        );
         assert!(!nan.success && nan.message.contains("finite"), "{}", nan.message);
     }
 
@@ -316,10 +391,12 @@ mod tests {
     fn box_gradients_are_exact_on_a_linear_field() {
         let dims = [4, 3, 2];
         let vs = 0.5;
-        let d: Vec<f32> = (0..24).map(|i| {
-            let (x, y, z) = (i % 4, (i / 4) % 3, i / 12);
-            0.5 * x as f32 * vs - 2.0 * y as f32 * vs + 3.0 * z as f32 * vs
-        }).collect();
+        let d: Vec<f32> = (0..24)
+            .map(|i| {
+                let (x, y, z) = (i % 4, (i / 4) % 3, i / 12);
+                0.5 * x as f32 * vs - 2.0 * y as f32 * vs + 3.0 * z as f32 * vs
+            })
+            .collect();
         let g = box_gradients(&d, dims, vs);
         for v in g.chunks(3) {
             assert!((v[0] - 0.5).abs() < 1e-5 && (v[1] + 2.0).abs() < 1e-5 && (v[2] - 3.0).abs() < 1e-5, "{v:?}");

@@ -95,15 +95,43 @@ pub struct PointCloud2 {
 
 impl From<PointCloud2> for msg::PointCloud2 {
     fn from(m: PointCloud2) -> Self {
-        let fields = m.fields.into_iter().map(|f| msg::PointField { name: f.name, offset: f.offset, datatype: f.datatype, count: f.count }).collect();
-        msg::PointCloud2 { header: m.header.into(), height: m.height, width: m.width, fields, is_bigendian: m.is_bigendian, point_step: m.point_step, row_step: m.row_step, data: m.data, is_dense: m.is_dense }
+        let fields = m
+            .fields
+            .into_iter()
+            .map(|f| msg::PointField { name: f.name, offset: f.offset, datatype: f.datatype, count: f.count })
+            .collect();
+        msg::PointCloud2 {
+            header: m.header.into(),
+            height: m.height,
+            width: m.width,
+            fields,
+            is_bigendian: m.is_bigendian,
+            point_step: m.point_step,
+            row_step: m.row_step,
+            data: m.data,
+            is_dense: m.is_dense,
+        }
     }
 }
 
 impl From<msg::PointCloud2> for PointCloud2 {
     fn from(m: msg::PointCloud2) -> Self {
-        let fields = m.fields.into_iter().map(|f| PointField { name: f.name, offset: f.offset, datatype: f.datatype, count: f.count }).collect();
-        PointCloud2 { header: m.header.into(), height: m.height, width: m.width, fields, is_bigendian: m.is_bigendian, point_step: m.point_step, row_step: m.row_step, data: m.data, is_dense: m.is_dense }
+        let fields = m
+            .fields
+            .into_iter()
+            .map(|f| PointField { name: f.name, offset: f.offset, datatype: f.datatype, count: f.count })
+            .collect();
+        PointCloud2 {
+            header: m.header.into(),
+            height: m.height,
+            width: m.width,
+            fields,
+            is_bigendian: m.is_bigendian,
+            point_step: m.point_step,
+            row_step: m.row_step,
+            data: m.data,
+            is_dense: m.is_dense,
+        }
     }
 }
 
@@ -129,13 +157,29 @@ pub struct Image {
 
 impl From<Image> for msg::Image {
     fn from(m: Image) -> Self {
-        msg::Image { header: m.header.into(), height: m.height, width: m.width, encoding: m.encoding, is_bigendian: m.is_bigendian != 0, step: m.step, data: m.data }
+        msg::Image {
+            header: m.header.into(),
+            height: m.height,
+            width: m.width,
+            encoding: m.encoding,
+            is_bigendian: m.is_bigendian != 0,
+            step: m.step,
+            data: m.data,
+        }
     }
 }
 
 impl From<msg::Image> for Image {
     fn from(m: msg::Image) -> Self {
-        Image { header: m.header.into(), height: m.height, width: m.width, encoding: m.encoding, is_bigendian: u8::from(m.is_bigendian), step: m.step, data: m.data }
+        Image {
+            header: m.header.into(),
+            height: m.height,
+            width: m.width,
+            encoding: m.encoding,
+            is_bigendian: u8::from(m.is_bigendian),
+            step: m.step,
+            data: m.data,
+        }
     }
 }
 
@@ -183,7 +227,14 @@ pub struct CameraInfo {
 
 impl From<CameraInfo> for msg::CameraInfo {
     fn from(m: CameraInfo) -> Self {
-        msg::CameraInfo { header: m.header.into(), height: m.height, width: m.width, distortion_model: m.distortion_model, d: m.d, k: m.k }
+        msg::CameraInfo {
+            header: m.header.into(),
+            height: m.height,
+            width: m.width,
+            distortion_model: m.distortion_model,
+            d: m.d,
+            k: m.k,
+        }
     }
 }
 
@@ -321,7 +372,10 @@ impl Transform {
     /// From an isometry.
     pub fn from_isometry(p: &Isometry3<f64>) -> Self {
         let (t, q) = (p.translation.vector, p.rotation.quaternion());
-        Transform { translation: Vector3 { x: t.x, y: t.y, z: t.z }, rotation: Quaternion { x: q.i, y: q.j, z: q.k, w: q.w } }
+        Transform {
+            translation: Vector3 { x: t.x, y: t.y, z: t.z },
+            rotation: Quaternion { x: q.i, y: q.j, z: q.k, w: q.w },
+        }
     }
 }
 
@@ -338,7 +392,11 @@ pub struct TransformStamped {
 
 impl From<&msg::StampedTransform> for TransformStamped {
     fn from(t: &msg::StampedTransform) -> Self {
-        TransformStamped { header: t.header.clone().into(), child_frame_id: t.child_frame.clone(), transform: Transform::from_isometry(&t.transform) }
+        TransformStamped {
+            header: t.header.clone().into(),
+            child_frame_id: t.child_frame.clone(),
+            transform: Transform::from_isometry(&t.transform),
+        }
     }
 }
 
@@ -563,13 +621,21 @@ pub(crate) fn tf_message(m: TfMessage) -> Result<msg::Message, String> {
 /// `nav_msgs/Odometry` → the pose of its child frame.
 pub(crate) fn odometry(m: Odometry) -> Result<msg::Message, String> {
     let transform = m.pose.pose.isometry()?;
-    Ok(msg::Message::Odometry(msg::StampedTransform { header: m.header.into(), child_frame: m.child_frame_id, transform }))
+    Ok(msg::Message::Odometry(msg::StampedTransform {
+        header: m.header.into(),
+        child_frame: m.child_frame_id,
+        transform,
+    }))
 }
 
 /// `geometry_msgs/PoseStamped` → its pose.
 pub(crate) fn pose_stamped(m: PoseStamped) -> Result<msg::Message, String> {
     let transform = m.pose.isometry()?;
-    Ok(msg::Message::PoseStamped(msg::StampedTransform { header: m.header.into(), child_frame: String::new(), transform }))
+    Ok(msg::Message::PoseStamped(msg::StampedTransform {
+        header: m.header.into(),
+        child_frame: String::new(),
+        transform,
+    }))
 }
 
 /// `geometry_msgs/TransformStamped` → its transform.
@@ -586,17 +652,143 @@ mod tests {
     /// ROS 2 code generator (`rosidl_generator_c` rejects `bool signed`).
     const KEYWORDS: &[&str] = &[
         // C
-        "alignas", "alignof", "auto", "bool", "break", "case", "char", "const", "constexpr", "continue", "default", "do", "double", "else", "enum", "extern", "false", "float", "for", "goto", "if",
-        "inline", "int", "long", "nullptr", "register", "restrict", "return", "short", "signed", "sizeof", "static", "static_assert", "struct", "switch", "thread_local", "true", "typedef", "typeof",
-        "typeof_unqual", "union", "unsigned", "void", "volatile", "while", "_Alignas", "_Alignof", "_Atomic", "_BitInt", "_Bool", "_Complex", "_Decimal128", "_Decimal32", "_Decimal64", "_Generic",
-        "_Imaginary", "_Noreturn", "_Static_assert", "_Thread_local",
+        "alignas",
+        "alignof",
+        "auto",
+        "bool",
+        "break",
+        "case",
+        "char",
+        "const",
+        "constexpr",
+        "continue",
+        "default",
+        "do",
+        "double",
+        "else",
+        "enum",
+        "extern",
+        "false",
+        "float",
+        "for",
+        "goto",
+        "if",
+        "inline",
+        "int",
+        "long",
+        "nullptr",
+        "register",
+        "restrict",
+        "return",
+        "short",
+        "signed",
+        "sizeof",
+        "static",
+        "static_assert",
+        "struct",
+        "switch",
+        "thread_local",
+        "true",
+        "typedef",
+        "typeof",
+        "typeof_unqual",
+        "union",
+        "unsigned",
+        "void",
+        "volatile",
+        "while",
+        "_Alignas",
+        "_Alignof",
+        "_Atomic",
+        "_BitInt",
+        "_Bool",
+        "_Complex",
+        "_Decimal128",
+        "_Decimal32",
+        "_Decimal64",
+        "_Generic",
+        "_Imaginary",
+        "_Noreturn",
+        "_Static_assert",
+        "_Thread_local",
         // C++
-        "and", "and_eq", "asm", "bitand", "bitor", "catch", "char16_t", "char32_t", "char8_t", "class", "co_await", "co_return", "co_yield", "compl", "concept", "consteval", "constinit",
-        "const_cast", "decltype", "delete", "dynamic_cast", "explicit", "export", "friend", "mutable", "namespace", "new", "noexcept", "not", "not_eq", "operator", "or", "or_eq", "private",
-        "protected", "public", "reinterpret_cast", "requires", "static_cast", "template", "this", "throw", "try", "typeid", "typename", "using", "virtual", "wchar_t", "xor", "xor_eq",
+        "and",
+        "and_eq",
+        "asm",
+        "bitand",
+        "bitor",
+        "catch",
+        "char16_t",
+        "char32_t",
+        "char8_t",
+        "class",
+        "co_await",
+        "co_return",
+        "co_yield",
+        "compl",
+        "concept",
+        "consteval",
+        "constinit",
+        "const_cast",
+        "decltype",
+        "delete",
+        "dynamic_cast",
+        "explicit",
+        "export",
+        "friend",
+        "mutable",
+        "namespace",
+        "new",
+        "noexcept",
+        "not",
+        "not_eq",
+        "operator",
+        "or",
+        "or_eq",
+        "private",
+        "protected",
+        "public",
+        "reinterpret_cast",
+        "requires",
+        "static_cast",
+        "template",
+        "this",
+        "throw",
+        "try",
+        "typeid",
+        "typename",
+        "using",
+        "virtual",
+        "wchar_t",
+        "xor",
+        "xor_eq",
         // Python
-        "False", "None", "True", "as", "assert", "async", "await", "def", "del", "elif", "except", "finally", "from", "global", "import", "in", "is", "lambda", "nonlocal", "pass", "raise",
-        "with", "yield", "match", "type", "_",
+        "False",
+        "None",
+        "True",
+        "as",
+        "assert",
+        "async",
+        "await",
+        "def",
+        "del",
+        "elif",
+        "except",
+        "finally",
+        "from",
+        "global",
+        "import",
+        "in",
+        "is",
+        "lambda",
+        "nonlocal",
+        "pass",
+        "raise",
+        "with",
+        "yield",
+        "match",
+        "type",
+        "_",
     ];
 
     fn interface_files(dir: &Path, out: &mut Vec<PathBuf>) {
@@ -631,14 +823,17 @@ mod tests {
             let text = std::fs::read_to_string(f).expect("readable");
             let names = field_names(&text);
             assert!(!names.is_empty(), "{} has no fields", f.display());
-            bad.extend(names.into_iter().filter(|n| KEYWORDS.contains(&n.as_str())).map(|n| format!("{}: {n}", f.display())));
+            bad.extend(
+                names.into_iter().filter(|n| KEYWORDS.contains(&n.as_str())).map(|n| format!("{}: {n}", f.display())),
+            );
         }
         assert!(bad.is_empty(), "fields named like keywords: {bad:?}");
     }
 
     #[test]
     fn field_names_are_read_as_the_generators_read_them() {
-        let names = field_names("# c\nuint8 STATE_FREE=2   # x\ngeometry_msgs/Point[] points\n---\nbool signed\nuint8 A = 1\n");
+        let names =
+            field_names("# c\nuint8 STATE_FREE=2   # x\ngeometry_msgs/Point[] points\n---\nbool signed\nuint8 A = 1\n");
         assert_eq!(names, ["STATE_FREE", "points", "signed", "A"]);
     }
 }

@@ -38,7 +38,14 @@ pub(crate) struct Msg {
 
 impl Msg {
     pub(crate) fn new(topic: &str, message: Message, log_time_s: f64) -> Self {
-        Msg { topic: topic.into(), msg_type: message.type_name().into(), message: Some(message), raw: Vec::new(), log_time_s, truncate_payload: false }
+        Msg {
+            topic: topic.into(),
+            msg_type: message.type_name().into(),
+            message: Some(message),
+            raw: Vec::new(),
+            log_time_s,
+            truncate_payload: false,
+        }
     }
 
     pub(crate) fn raw(topic: &str, msg_type: &str, raw: Vec<u8>, log_time_s: f64) -> Self {

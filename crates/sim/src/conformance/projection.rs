@@ -4,8 +4,13 @@
 //! every voxel it decides, and it may leave only a few undecided.
 
 use super::SplitMix;
-use edtmap_core::sensor::{DepthData, DepthImage, Frame, LaserScan, LidarScan, Measurement, PinholeCamera, RangeLimits, Sensor, SpinningLidar};
-use edtmap_core::{Backend, LocalVolume, Observations, ProjectJob, VoxelIndex, OBS_MISS, OBS_NONE, PROJ_MISS, PROJ_NOT_MISS, PROJ_UNCERTAIN};
+use edtmap_core::sensor::{
+    DepthData, DepthImage, Frame, LaserScan, LidarScan, Measurement, PinholeCamera, RangeLimits, Sensor, SpinningLidar,
+};
+use edtmap_core::{
+    Backend, LocalVolume, Observations, ProjectJob, VoxelIndex, OBS_MISS, OBS_NONE, PROJ_MISS, PROJ_NOT_MISS,
+    PROJ_UNCERTAIN,
+};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use std::f64::consts::{PI, TAU};
 
@@ -88,7 +93,15 @@ fn depth_image(rng: &mut SplitMix, cam: &PinholeCamera, u16_data: bool) -> Depth
     let base = uniform(rng, 1.0, 4.0);
     let (gu, gv) = (uniform(rng, -0.01, 0.01), uniform(rng, -0.01, 0.01));
     let boxes: Vec<[f64; 5]> = (0..4)
-        .map(|_| [uniform(rng, 0.0, w as f64), uniform(rng, 0.0, h as f64), uniform(rng, 5.0, 40.0), uniform(rng, 5.0, 40.0), uniform(rng, 0.3, 2.0)])
+        .map(|_| {
+            [
+                uniform(rng, 0.0, w as f64),
+                uniform(rng, 0.0, h as f64),
+                uniform(rng, 5.0, 40.0),
+                uniform(rng, 5.0, 40.0),
+                uniform(rng, 0.3, 2.0),
+            ]
+        })
         .collect();
     let mut metres = Vec::with_capacity(w * h);
     for v in 0..h {
@@ -109,7 +122,8 @@ fn depth_image(rng: &mut SplitMix, cam: &PinholeCamera, u16_data: bool) -> Depth
         }
     }
     let data = if u16_data {
-        let values = metres.iter().map(|&d| if d.is_finite() { (d * 1000.0).round().min(65535.0) as u16 } else { 0 }).collect();
+        let values =
+            metres.iter().map(|&d| if d.is_finite() { (d * 1000.0).round().min(65535.0) as u16 } else { 0 }).collect();
         DepthData::U16 { values, metres_per_unit: 0.001 }
     } else {
         DepthData::Metres(metres)
@@ -174,7 +188,8 @@ pub fn projection_cases(depth: usize, planar: usize, lidar: usize) -> Vec<Projec
         let (volume, t) = volume_and_position(&mut rng, [72, 64, 40], voxel_size_m, aligned);
         let half_diagonal = (voxel_size_m * 3f64.sqrt() / 2.0) as f32;
         let (fx, fy, cx, cy) = if aligned { (100.0, 100.0, 79.5, 59.5) } else { (150.0, 149.0, 79.5, 60.25) };
-        let cam = PinholeCamera { fx, fy, cx, cy, width: 160, height: 120, range: RangeLimits { min_m: 0.2, max_m: 5.0 } };
+        let cam =
+            PinholeCamera { fx, fy, cx, cy, width: 160, height: 120, range: RangeLimits { min_m: 0.2, max_m: 5.0 } };
         let mut image = depth_image(&mut rng, &cam, k % 2 == 1 && !aligned);
         if let (true, DepthData::Metres(d)) = (aligned, &mut image.data) {
             // Every free range a multiple of half a voxel.
@@ -183,8 +198,20 @@ pub fn projection_cases(depth: usize, planar: usize, lidar: usize) -> Vec<Projec
         }
         // Optical frame: z forward; any orientation.
         let rot = random_rotation(&mut rng, PI, aligned);
-        let frame = Frame { stamp_s: k as f64, t_world_sensor: Isometry3::from_parts(Translation3::from(Vector3::from(t)), rot), measurement: Measurement::Depth(image) };
-        cases.push(ProjectionCase { sensor: Sensor::Depth(cam), frame, volume, free_margin_m: half_diagonal, clear_no_return: k % 4 >= 2, planar_half_thickness_m: 0.0, aligned });
+        let frame = Frame {
+            stamp_s: k as f64,
+            t_world_sensor: Isometry3::from_parts(Translation3::from(Vector3::from(t)), rot),
+            measurement: Measurement::Depth(image),
+        };
+        cases.push(ProjectionCase {
+            sensor: Sensor::Depth(cam),
+            frame,
+            volume,
+            free_margin_m: half_diagonal,
+            clear_no_return: k % 4 >= 2,
+            planar_half_thickness_m: 0.0,
+            aligned,
+        });
     }
     for k in 0..planar {
         let voxel_size_m = [0.05, 0.1][k % 2];
@@ -198,10 +225,22 @@ pub fn projection_cases(depth: usize, planar: usize, lidar: usize) -> Vec<Projec
             scan.ranges.truncate(360);
         }
         let rot = random_rotation(&mut rng, 0.05, aligned);
-        let frame = Frame { stamp_s: k as f64, t_world_sensor: Isometry3::from_parts(Translation3::from(Vector3::from(t)), rot), measurement: Measurement::Scan(scan) };
+        let frame = Frame {
+            stamp_s: k as f64,
+            t_world_sensor: Isometry3::from_parts(Translation3::from(Vector3::from(t)), rot),
+            measurement: Measurement::Scan(scan),
+        };
         let half = (voxel_size_m / 2.0) as f32;
         let margin = (voxel_size_m * 3f64.sqrt() / 2.0) as f32;
-        cases.push(ProjectionCase { sensor: Sensor::Planar, frame, volume, free_margin_m: margin, clear_no_return: k % 3 == 0, planar_half_thickness_m: half, aligned });
+        cases.push(ProjectionCase {
+            sensor: Sensor::Planar,
+            frame,
+            volume,
+            free_margin_m: margin,
+            clear_no_return: k % 3 == 0,
+            planar_half_thickness_m: half,
+            aligned,
+        });
     }
     for k in 0..lidar {
         let voxel_size_m = [0.1, 0.2, 0.05][k % 3];
@@ -223,12 +262,27 @@ pub fn projection_cases(depth: usize, planar: usize, lidar: usize) -> Vec<Projec
         if aligned {
             let half = voxel_size_m / 2.0;
             let half_diagonal = voxel_size_m * 3f64.sqrt() / 2.0;
-            scan.ranges.iter_mut().filter(|d| d.is_finite()).for_each(|d| *d = ((f64::from(*d) / half).round() * half + half_diagonal) as f32);
+            scan.ranges
+                .iter_mut()
+                .filter(|d| d.is_finite())
+                .for_each(|d| *d = ((f64::from(*d) / half).round() * half + half_diagonal) as f32);
         }
         let rot = random_rotation(&mut rng, 0.1, aligned);
-        let frame = Frame { stamp_s: k as f64, t_world_sensor: Isometry3::from_parts(Translation3::from(Vector3::from(t)), rot), measurement: Measurement::Lidar(scan) };
+        let frame = Frame {
+            stamp_s: k as f64,
+            t_world_sensor: Isometry3::from_parts(Translation3::from(Vector3::from(t)), rot),
+            measurement: Measurement::Lidar(scan),
+        };
         let margin = (voxel_size_m * 3f64.sqrt() / 2.0) as f32;
-        cases.push(ProjectionCase { sensor: Sensor::Lidar(sensor), frame, volume, free_margin_m: margin, clear_no_return: k % 2 == 0, planar_half_thickness_m: 0.0, aligned });
+        cases.push(ProjectionCase {
+            sensor: Sensor::Lidar(sensor),
+            frame,
+            volume,
+            free_margin_m: margin,
+            clear_no_return: k % 2 == 0,
+            planar_half_thickness_m: 0.0,
+            aligned,
+        });
     }
     cases
 }
@@ -274,7 +328,12 @@ pub fn check_projection(backend: &mut dyn Backend) -> Result<usize, String> {
             let c = [i % nx, (i / nx) % ny, i / (nx * ny)];
             let want = if job.is_miss(&geom, c) { OBS_MISS } else { OBS_NONE };
             if obs.get(i) != want {
-                return Err(format!("case {n} ({}): voxel {c:?} is {}, the definition says {want}; point {:?}", case.sensor.kind(), obs.get(i), geom.point(c)));
+                return Err(format!(
+                    "case {n} ({}): voxel {c:?} is {}, the definition says {want}; point {:?}",
+                    case.sensor.kind(),
+                    obs.get(i),
+                    geom.point(c)
+                ));
             }
         }
         checked += case.volume.len();
@@ -288,7 +347,9 @@ pub fn check_projection(backend: &mut dyn Backend) -> Result<usize, String> {
 /// `false` where the device does not project. `Ok(None)` when it never
 /// does, else the tally of uncertain voxels, or the first voxel it decided
 /// differently from `ProjectJob::is_miss`.
-pub fn check_projection_bits(mut project: impl FnMut(&ProjectJob<'_>, &mut Vec<u8>) -> Result<bool, String>) -> Result<Option<ProjectionTally>, String> {
+pub fn check_projection_bits(
+    mut project: impl FnMut(&ProjectJob<'_>, &mut Vec<u8>) -> Result<bool, String>,
+) -> Result<Option<ProjectionTally>, String> {
     let mut tally = ProjectionTally::default();
     let mut bits = Vec::new();
     for (n, case) in projection_cases(12, 12, 8).iter().enumerate() {
@@ -308,7 +369,13 @@ pub fn check_projection_bits(mut project: impl FnMut(&ProjectJob<'_>, &mut Vec<u
             match b {
                 PROJ_UNCERTAIN => uncertain += 1,
                 b if b == want => {}
-                b => return Err(format!("case {n} ({}): voxel {c:?} is {b}, the definition says {want}; point {:?}", case.sensor.kind(), geom.point(c))),
+                b => {
+                    return Err(format!(
+                        "case {n} ({}): voxel {c:?} is {b}, the definition says {want}; point {:?}",
+                        case.sensor.kind(),
+                        geom.point(c)
+                    ))
+                }
             }
         }
         let slot = match (case.aligned, &case.sensor) {

@@ -24,7 +24,10 @@ impl Aabb {
 
     /// The smallest box holding both boxes.
     pub fn union(&self, other: &Aabb) -> Aabb {
-        Aabb { min: [0, 1, 2].map(|i| self.min[i].min(other.min[i])), max: [0, 1, 2].map(|i| self.max[i].max(other.max[i])) }
+        Aabb {
+            min: [0, 1, 2].map(|i| self.min[i].min(other.min[i])),
+            max: [0, 1, 2].map(|i| self.max[i].max(other.max[i])),
+        }
     }
 
     /// See [`super::Primitive::ray_hit`].

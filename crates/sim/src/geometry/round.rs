@@ -71,7 +71,12 @@ impl Cylinder {
     /// The cylinder moved by `shift` metres.
     pub fn translated(&self, shift: [f64; 3]) -> Cylinder {
         let [x, y] = self.centre_xy;
-        Cylinder { centre_xy: [x + shift[0], y + shift[1]], z_min: self.z_min + shift[2], z_max: self.z_max + shift[2], ..*self }
+        Cylinder {
+            centre_xy: [x + shift[0], y + shift[1]],
+            z_min: self.z_min + shift[2],
+            z_max: self.z_max + shift[2],
+            ..*self
+        }
     }
 }
 

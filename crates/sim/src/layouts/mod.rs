@@ -90,7 +90,12 @@ impl KeepOut {
 
 /// `count` solids from `draw` that `keep` allows, redrawing refused ones
 /// (at most 100 draws per solid, so a crowded field gets fewer).
-fn scatter(rng: &mut StdRng, count: usize, keep: &KeepOut, mut draw: impl FnMut(&mut StdRng) -> Primitive) -> Vec<Primitive> {
+fn scatter(
+    rng: &mut StdRng,
+    count: usize,
+    keep: &KeepOut,
+    mut draw: impl FnMut(&mut StdRng) -> Primitive,
+) -> Vec<Primitive> {
     let mut out = Vec::with_capacity(count);
     for _ in 0..count * 100 {
         if out.len() == count {

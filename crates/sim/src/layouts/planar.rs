@@ -41,7 +41,14 @@ pub(super) fn build(seed: u64) -> Layout {
         let centre_xy = [cm(r, -h..h), cm(r, -h..h)];
         Cylinder { centre_xy, radius_m: cm(r, 0.15..0.5), z_min: 0.0, z_max: cm(r, 2.0..2.6) }.into()
     }));
-    Layout { statics, walkers: Vec::new(), trajectory, sensor: Sensor::Planar, frame_period_s: 0.1, default_frames: 120 }
+    Layout {
+        statics,
+        walkers: Vec::new(),
+        trajectory,
+        sensor: Sensor::Planar,
+        frame_period_s: 0.1,
+        default_frames: 120,
+    }
 }
 
 /// Outer walls, an L-shaped partition inside the loop and two stubs.

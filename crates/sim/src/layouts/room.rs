@@ -36,8 +36,23 @@ pub(super) fn build(seed: u64) -> Layout {
     statics.extend(sofa());
     statics.extend(cow());
     statics.extend(small_things(&mut rng));
-    let camera = PinholeCamera { fx: 277.0, fy: 277.0, cx: 159.5, cy: 119.5, width: 320, height: 240, range: RangeLimits { min_m: 0.3, max_m: 5.0 } };
-    Layout { statics, walkers: Vec::new(), trajectory, sensor: Sensor::Depth(camera), frame_period_s: 0.1, default_frames: 150 }
+    let camera = PinholeCamera {
+        fx: 277.0,
+        fy: 277.0,
+        cx: 159.5,
+        cy: 119.5,
+        width: 320,
+        height: 240,
+        range: RangeLimits { min_m: 0.3, max_m: 5.0 },
+    };
+    Layout {
+        statics,
+        walkers: Vec::new(),
+        trajectory,
+        sensor: Sensor::Depth(camera),
+        frame_period_s: 0.1,
+        default_frames: 150,
+    }
 }
 
 fn jitter(rng: &mut StdRng, m: f64) -> [f64; 2] {
@@ -78,7 +93,11 @@ fn table(c: [f64; 2]) -> Vec<Primitive> {
 fn shelves() -> Vec<Primitive> {
     let (x0, x1, y1) = (-2.2, -0.6, HALF[1]);
     let y0 = y1 - 0.4;
-    let mut out = vec![block([x0, y0, 0.0], [x0 + 0.03, y1, 1.9]), block([x1 - 0.03, y0, 0.0], [x1, y1, 1.9]), block([x0, y1 - 0.02, 0.0], [x1, y1, 1.9])];
+    let mut out = vec![
+        block([x0, y0, 0.0], [x0 + 0.03, y1, 1.9]),
+        block([x1 - 0.03, y0, 0.0], [x1, y1, 1.9]),
+        block([x0, y1 - 0.02, 0.0], [x1, y1, 1.9]),
+    ];
     for z in [0.05, 0.5, 0.95, 1.4, 1.87] {
         out.push(block([x0, y0, z], [x1, y1, z + 0.03]));
     }

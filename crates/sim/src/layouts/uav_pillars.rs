@@ -39,6 +39,19 @@ pub(super) fn build(seed: u64) -> Layout {
         let (w, d) = (cm(r, 0.4..1.6), cm(r, 0.4..1.6));
         block([x, y, 0.0], [x + w, y + d, cm(r, 3.0..8.0)])
     }));
-    let lidar = SpinningLidar::uniform(32, -15f64.to_radians(), 15f64.to_radians(), 900, RangeLimits { min_m: 0.2, max_m: 20.0 });
-    Layout { statics, walkers: Vec::new(), trajectory, sensor: Sensor::Lidar(lidar), frame_period_s: 0.1, default_frames: 120 }
+    let lidar = SpinningLidar::uniform(
+        32,
+        -15f64.to_radians(),
+        15f64.to_radians(),
+        900,
+        RangeLimits { min_m: 0.2, max_m: 20.0 },
+    );
+    Layout {
+        statics,
+        walkers: Vec::new(),
+        trajectory,
+        sensor: Sensor::Lidar(lidar),
+        frame_period_s: 0.1,
+        default_frames: 120,
+    }
 }

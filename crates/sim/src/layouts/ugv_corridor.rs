@@ -41,8 +41,21 @@ pub(super) fn build(seed: u64) -> Layout {
     };
     let mut statics = vec![Ground { height_m: 0.0 }.into()];
     statics.extend(walls());
-    let lidar = SpinningLidar::uniform(16, -15f64.to_radians(), 15f64.to_radians(), 900, RangeLimits { min_m: 0.2, max_m: 20.0 });
-    Layout { statics, walkers: pedestrians(&mut rng), trajectory, sensor: Sensor::Lidar(lidar), frame_period_s: 0.1, default_frames: 150 }
+    let lidar = SpinningLidar::uniform(
+        16,
+        -15f64.to_radians(),
+        15f64.to_radians(),
+        900,
+        RangeLimits { min_m: 0.2, max_m: 20.0 },
+    );
+    Layout {
+        statics,
+        walkers: pedestrians(&mut rng),
+        trajectory,
+        sensor: Sensor::Lidar(lidar),
+        frame_period_s: 0.1,
+        default_frames: 150,
+    }
 }
 
 fn walls() -> Vec<Primitive> {

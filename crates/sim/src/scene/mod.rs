@@ -11,8 +11,8 @@ pub use name::{SceneName, SceneOptions};
 pub use render::{points_pattern, PLANAR_BEAMS, PLANAR_RANGE};
 
 use crate::geometry::{Aabb, Primitive};
-use crate::pedestrian::Pedestrian;
 use crate::layouts::{self, Layout};
+use crate::pedestrian::Pedestrian;
 use crate::trajectory::Trajectory;
 use crate::SimError;
 use edtmap_core::sensor::Sensor;
@@ -144,7 +144,8 @@ fn body_from_optical() -> Isometry3<f64> {
 fn world_extent(statics: &[Primitive]) -> Aabb {
     let finite = |b: &Aabb| b.min.iter().chain(&b.max).all(|v| v.is_finite());
     let bounds: Vec<Aabb> = statics.iter().map(Primitive::bounds).collect();
-    let mut extent = bounds.iter().filter(|b| finite(b)).fold(None, |acc: Option<Aabb>, b| Some(acc.map_or(*b, |a| a.union(b))));
+    let mut extent =
+        bounds.iter().filter(|b| finite(b)).fold(None, |acc: Option<Aabb>, b| Some(acc.map_or(*b, |a| a.union(b))));
     let ground = bounds.iter().filter(|b| !finite(b)).map(|b| b.max[2]).fold(f64::INFINITY, f64::min);
     if let Some(e) = &mut extent {
         e.min[2] = e.min[2].min(ground);

@@ -47,7 +47,10 @@ impl FromStr for SceneName {
     type Err = SimError;
 
     fn from_str(s: &str) -> Result<Self, Self::Err> {
-        SceneName::ALL.into_iter().find(|n| n.as_str() == s).ok_or_else(|| SimError::UnknownScene { name: s.to_owned() })
+        SceneName::ALL
+            .into_iter()
+            .find(|n| n.as_str() == s)
+            .ok_or_else(|| SimError::UnknownScene { name: s.to_owned() })
     }
 }
 
@@ -75,10 +78,18 @@ impl SceneOptions {
     /// probability.
     pub fn validate(&self) -> Result<(), SimError> {
         if !(self.range_noise_m.is_finite() && self.range_noise_m >= 0.0) {
-            return Err(SimError::InvalidOption { field: "range_noise_m", value: self.range_noise_m.to_string(), reason: "must be finite and at least 0" });
+            return Err(SimError::InvalidOption {
+                field: "range_noise_m",
+                value: self.range_noise_m.to_string(),
+                reason: "must be finite and at least 0",
+            });
         }
         if !(0.0..=1.0).contains(&self.dropout) {
-            return Err(SimError::InvalidOption { field: "dropout", value: self.dropout.to_string(), reason: "must be a probability in [0, 1]" });
+            return Err(SimError::InvalidOption {
+                field: "dropout",
+                value: self.dropout.to_string(),
+                reason: "must be a probability in [0, 1]",
+            });
         }
         Ok(())
     }

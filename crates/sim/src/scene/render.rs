@@ -6,7 +6,10 @@ use super::Scene;
 use crate::geometry::Primitive;
 use crate::noise::RayNoise;
 use crate::SimError;
-use edtmap_core::sensor::{DepthData, DepthImage, Frame, LaserScan, LidarScan, Measurement, PinholeCamera, PointCloud, RangeLimits, Sensor, SpinningLidar};
+use edtmap_core::sensor::{
+    DepthData, DepthImage, Frame, LaserScan, LidarScan, Measurement, PinholeCamera, PointCloud, RangeLimits, Sensor,
+    SpinningLidar,
+};
 use nalgebra::{Isometry3, Matrix3, Vector3};
 use rayon::prelude::*;
 use std::f64::consts::{PI, TAU};
@@ -132,7 +135,8 @@ struct Caster {
 impl Caster {
     fn new(solids: Vec<Primitive>, pose: &Isometry3<f64>, reach_m: f64, noise: RayNoise) -> Caster {
         let origin: [f64; 3] = pose.translation.vector.into();
-        let mut solids: Vec<Candidate> = solids.into_iter().map(|s| candidate(s, origin)).filter(|c| c.near_m <= reach_m).collect();
+        let mut solids: Vec<Candidate> =
+            solids.into_iter().map(|s| candidate(s, origin)).filter(|c| c.near_m <= reach_m).collect();
         solids.sort_by(|a, b| a.near_m.total_cmp(&b.near_m));
         Caster { solids, origin, rotation: pose.rotation.to_rotation_matrix().into_inner(), noise }
     }

@@ -16,11 +16,23 @@ fn still(statics: Vec<Primitive>, at: [f64; 3], sensor: Sensor, options: SceneOp
         bob_cycles: 0.0,
         heading: Heading::AlongPath,
     };
-    Scene::from_layout(SceneName::Room, options, Layout { statics, walkers: Vec::new(), trajectory, sensor, frame_period_s: 0.1, default_frames: 1 })
+    Scene::from_layout(
+        SceneName::Room,
+        options,
+        Layout { statics, walkers: Vec::new(), trajectory, sensor, frame_period_s: 0.1, default_frames: 1 },
+    )
 }
 
 fn camera() -> PinholeCamera {
-    PinholeCamera { fx: 277.0, fy: 277.0, cx: 159.5, cy: 119.5, width: 320, height: 240, range: RangeLimits { min_m: 0.3, max_m: 5.0 } }
+    PinholeCamera {
+        fx: 277.0,
+        fy: 277.0,
+        cx: 159.5,
+        cy: 119.5,
+        width: 320,
+        height: 240,
+        range: RangeLimits { min_m: 0.3, max_m: 5.0 },
+    }
 }
 
 fn lidar() -> SpinningLidar {

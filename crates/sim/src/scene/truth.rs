@@ -31,7 +31,14 @@ impl Scene {
 }
 
 /// Marks the voxels of slice `z` within `xs × ys` that meet `solid`.
-fn rasterise(solid: &Primitive, volume: &LocalVolume, z: usize, xs: &Range<usize>, ys: &Range<usize>, flags: &mut [bool]) {
+fn rasterise(
+    solid: &Primitive,
+    volume: &LocalVolume,
+    z: usize,
+    xs: &Range<usize>,
+    ys: &Range<usize>,
+    flags: &mut [bool],
+) {
     let s = volume.voxel_size_m;
     let corner = |a: usize, local: usize| (volume.origin.0[a] as f64 + local as f64) * s;
     let (z_lo, z_hi) = (corner(2, z), corner(2, z + 1));
