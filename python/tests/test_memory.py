@@ -84,13 +84,15 @@ LEAN_CHILD = textwrap.dedent("""
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc/self/status")
-def test_without_room_for_the_field_the_results_are_the_same():
-    done = subprocess.run([sys.executable, "-c", LEAN_CHILD], capture_output=True, text=True, timeout=300)
+def test_without_room_for_the_field_the_results_are_the_same(tmp_path):
+    # From a folder of its own: `python -c` puts the working folder first on
+    # sys.path, and from python/ that is the source tree, not the package.
+    done = subprocess.run([sys.executable, "-c", LEAN_CHILD], capture_output=True, text=True, timeout=300, cwd=tmp_path)
     assert done.returncode == 0 and "equal" in done.stdout, f"exit {done.returncode}\n{done.stdout}\n{done.stderr}"
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc/self/status")
-def test_too_large_raises_memory_error():
-    done = subprocess.run([sys.executable, "-c", CHILD], capture_output=True, text=True, timeout=300)
+def test_too_large_raises_memory_error(tmp_path):
+    done = subprocess.run([sys.executable, "-c", CHILD], capture_output=True, text=True, timeout=300, cwd=tmp_path)
     assert done.returncode == 0, f"exit {done.returncode}\n{done.stdout}\n{done.stderr}"
     assert done.stdout.count("->") == 6, done.stdout
