@@ -16,6 +16,11 @@
 //! * Block payloads are the blocks' raw little-endian values, with no
 //!   compression: saving and loading are as fast as the disk, and `f32`
 //!   log-odds (−∞ for unobserved voxels included) come back bit-identical.
+//!   The EDT is stored as memory holds it, an `i16` offset to the nearest
+//!   obstacle per axis (6 bytes a voxel); its squared distance is
+//!   recomputed on load. Version 1 files, which stored the squared
+//!   distance and the obstacle's `i32` index (16 bytes a voxel), still
+//!   load.
 //! * Loading trusts nothing: the magic, version, length and checksum are
 //!   checked before anything else is read, every count is checked against
 //!   the bytes that remain before anything is allocated, and the contents
@@ -56,7 +61,7 @@ use thiserror::Error;
 use crate::IoError;
 
 /// The format version this build writes; it reads versions 1 to this one.
-pub const MAP_FORMAT_VERSION: u32 = 1;
+pub const MAP_FORMAT_VERSION: u32 = 2;
 
 /// The first 8 bytes of every map file. The CR LF pair makes a file that
 /// went through a text-mode line-ending conversion fail the magic check.

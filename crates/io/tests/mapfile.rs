@@ -5,8 +5,8 @@ use std::fs;
 use std::path::Path;
 
 use edtmap_core::{
-    BlockKey, Connectivity, EdtMap, ForbiddenZone, GlobalMap, GlobalParams, IntegrationMode, OccupancyMap,
-    OccupancyParams, StaticMap, VoxelIndex, BLOCK_VOXELS, FAR_DIST_SQ, NO_OBSTACLE, UNOBSERVED,
+    BlockKey, BlockMap, Connectivity, EdtMap, ForbiddenZone, GlobalMap, GlobalParams, IntegrationMode, OccupancyMap,
+    OccupancyParams, StaticMap, VoxelIndex, BLOCK_VOXELS, FAR_DIST_SQ, NO_OBSTACLE, NO_OFFSET, UNOBSERVED,
 };
 use edtmap_io::mapfile::{self, MapFileError, MAP_FORMAT_VERSION};
 use edtmap_io::IoError;
@@ -18,7 +18,9 @@ const VOXEL_SIZE_M: f64 = 0.05;
 const PARAMS_LEN_AT: usize = 32;
 /// Bytes of an occupancy, EDT and fixed block record (key and payload).
 const OCC_RECORD: usize = 12 + 4 * 512;
-const EDT_RECORD: usize = 12 + 16 * 512;
+const EDT_RECORD: usize = 12 + 6 * 512;
+/// Bytes of a version 1 EDT block record.
+const EDT_V1_RECORD: usize = 12 + 16 * 512;
 
 /// The layers and parameters of a map as plain fields the tests can set,
 /// and the [`GlobalMap`] they make.
@@ -142,6 +144,69 @@ fn assert_same(a: &MapContents, b: &MapContents) {
     for (key, block) in a.fixed.iter() {
         assert_eq!(Some(block), b.fixed.get(key), "block {key:?}");
     }
+}
+
+/// Every voxel of every EDT block of `a` or `b`, and a shell of voxels
+/// around each, has the same distance and nearest obstacle in both, as
+/// the map answers them.
+fn assert_same_entries(a: &GlobalMap, b: &GlobalMap) {
+    let keys: Vec<BlockKey> = a.edt().iter().chain(b.edt().iter()).map(|(key, _)| key).collect();
+    for key in keys {
+        for offset in 0..BLOCK_VOXELS {
+            let v = key.voxel(offset);
+            for v in [v, VoxelIndex([v.0[0].saturating_sub(8), v.0[1], v.0[2].saturating_add(8)])] {
+                assert_eq!(a.entry(v), b.entry(v), "voxel {:?}", v.0);
+            }
+        }
+    }
+}
+
+/// The sorted blocks of a section.
+fn sorted<B: Default>(map: &BlockMap<B>) -> Vec<(BlockKey, &B)> {
+    let mut blocks: Vec<_> = map.iter().collect();
+    blocks.sort_unstable_by_key(|&(key, _)| key);
+    blocks
+}
+
+/// Appends a section as docs/FORMAT.md lays it out: the count, then each
+/// key and the payload `put` appends.
+fn put_section<B: Default>(out: &mut Vec<u8>, map: &BlockMap<B>, put: impl Fn(BlockKey, &B, &mut Vec<u8>)) {
+    out.extend((map.len() as u64).to_le_bytes());
+    for (key, block) in sorted(map) {
+        key.0.iter().for_each(|c| out.extend(c.to_le_bytes()));
+        put(key, block, out);
+    }
+}
+
+/// The version 1 file of `map`, written from the version 1 layout of
+/// docs/FORMAT.md (the EDT as 512 `u32` squared distances, then 512 nearest
+/// obstacles as three `i32`), independently of the crate's writer.
+fn encode_v1(map: &MapContents) -> Vec<u8> {
+    #[derive(serde::Serialize)]
+    struct Params<'a> {
+        occupancy: &'a OccupancyParams,
+        global: &'a GlobalParams,
+    }
+    let text = toml::to_string(&Params { occupancy: &map.occupancy_params, global: &map.global_params }).expect("TOML");
+    let mut out = b"EDTMAP\r\n".to_vec();
+    out.extend(1u32.to_le_bytes());
+    out.extend(0u32.to_le_bytes());
+    out.extend(0u64.to_le_bytes()); // the length, set below
+    out.extend(map.voxel_size_m.to_le_bytes());
+    out.extend((text.len() as u32).to_le_bytes());
+    out.extend(text.as_bytes());
+    put_section(&mut out, &map.occupancy, |_, b, out| {
+        b.log_odds.iter().for_each(|v| out.extend(v.to_bits().to_le_bytes()))
+    });
+    put_section(&mut out, &map.edt, |key, b, out| {
+        (0..BLOCK_VOXELS).for_each(|i| out.extend(b.dist_sq(i).to_le_bytes()));
+        (0..BLOCK_VOXELS).for_each(|i| b.nearest(key, i).0.iter().for_each(|c| out.extend(c.to_le_bytes())));
+    });
+    put_section(&mut out, &map.fixed, |_, b, out| b.bits.iter().for_each(|w| out.extend(w.to_le_bytes())));
+    let total = out.len() as u64 + 4;
+    out[16..24].copy_from_slice(&total.to_le_bytes());
+    out.extend(crc32fast::hash(&out).to_le_bytes());
+    out
 }
 
 /// Recomputes the trailing CRC-32 after a deliberate patch.
@@ -292,7 +357,11 @@ fn newer_version_is_named() {
     );
     let message = read_map(&path).expect_err("newer").to_string();
     assert!(message.contains("future.edtmap"), "{message}");
-    assert!(message.contains("written by a newer edtmap: format version 2, this build reads up to 1"), "{message}");
+    let expected = format!(
+        "written by a newer edtmap: format version {}, this build reads up to {MAP_FORMAT_VERSION}",
+        MAP_FORMAT_VERSION + 1
+    );
+    assert!(message.contains(&expected), "{message}");
 }
 
 #[test]
@@ -310,7 +379,7 @@ fn empty_and_random_files_are_rejected() {
         let mut framed = bytes.clone();
         framed.resize(len.max(64), 0);
         framed[..8].copy_from_slice(b"EDTMAP\r\n");
-        framed[8..12].copy_from_slice(&1u32.to_le_bytes());
+        framed[8..12].copy_from_slice(&rng.random_range(1..=MAP_FORMAT_VERSION).to_le_bytes());
         let total = framed.len() as u64;
         framed[16..24].copy_from_slice(&total.to_le_bytes());
         fix_crc(&mut framed);
@@ -369,13 +438,13 @@ fn duplicate_and_unsorted_keys_are_corrupt() {
 }
 
 #[test]
-fn edt_entry_that_disagrees_with_its_obstacle_is_corrupt() {
+fn version_1_edt_entry_that_disagrees_with_its_obstacle_is_corrupt() {
     let mut map = empty_map();
     let key = BlockKey([1, -2, 3]);
     let block = map.edt.get_or_insert(key);
     let v = key.voxel(0);
     block.set(key, 0, 5, VoxelIndex([v.0[0] + 1, v.0[1] - 2, v.0[2]])).expect("near");
-    let original = encode_map(&map).expect("valid");
+    let original = encode_v1(&map);
     let edt = sections_at(&original) + 8 + 8;
     let dist_at = edt + 12;
     let mut bytes = original.clone();
@@ -387,7 +456,7 @@ fn edt_entry_that_disagrees_with_its_obstacle_is_corrupt() {
     bytes[dist_at..dist_at + 4].copy_from_slice(&FAR_DIST_SQ.to_le_bytes());
     fix_crc(&mut bytes);
     assert!(matches!(decode_err(&bytes), MapFileError::Corrupt(m) if m.contains("beyond the cutoff")));
-    assert_eq!(edt + EDT_RECORD + 8 + 4, original.len(), "one EDT block, no fixed block");
+    assert_eq!(edt + EDT_V1_RECORD + 8 + 4, original.len(), "one EDT block, no fixed block");
     // The map cannot hold the same inconsistency; the writer refuses an
     // entry beyond the cutoff.
     let block = map.edt.get_or_insert(key);
@@ -399,14 +468,15 @@ fn edt_entry_that_disagrees_with_its_obstacle_is_corrupt() {
 }
 
 #[test]
-fn edt_entry_whose_obstacle_is_out_of_the_offsets_range_is_corrupt() {
+fn version_1_edt_entry_whose_obstacle_is_out_of_the_offsets_range_is_corrupt() {
     // The map holds each nearest obstacle as an i16 offset from its voxel;
-    // a file naming one farther away on an axis is refused, not wrapped.
+    // a version 1 file naming one farther away on an axis is refused, not
+    // wrapped.
     let mut map = empty_map();
     let key = BlockKey([1, -2, 3]);
     let v = key.voxel(0);
     map.edt.get_or_insert(key).set(key, 0, 1, VoxelIndex([v.0[0] + 1, v.0[1], v.0[2]])).expect("near");
-    let original = encode_map(&map).expect("valid");
+    let original = encode_v1(&map);
     let nearest_at = sections_at(&original) + 8 + 8 + 12 + 4 * BLOCK_VOXELS;
     let mut bytes = original.clone();
     bytes[nearest_at..nearest_at + 4].copy_from_slice(&(v.0[0] + 40_000).to_le_bytes());
@@ -416,6 +486,155 @@ fn edt_entry_whose_obstacle_is_out_of_the_offsets_range_is_corrupt() {
         matches!(&err, MapFileError::Corrupt(m) if m.contains("EDT voxel [8, -16, 24]: its nearest obstacle") && m.contains("more than 32767 voxels away")),
         "{err}"
     );
+}
+
+/// A map with one EDT block at `key` whose voxel 0 has an obstacle at
+/// offset (1, 2, 0), its bytes, and where that voxel's offset lies in them.
+fn one_edt_entry(key: BlockKey) -> (MapContents, Vec<u8>, usize) {
+    let mut map = empty_map();
+    let v = key.voxel(0);
+    map.edt.get_or_insert(key).set(key, 0, 5, VoxelIndex([v.0[0] + 1, v.0[1] + 2, v.0[2]])).expect("near");
+    let bytes = encode_map(&map).expect("valid");
+    let offset_at = sections_at(&bytes) + 8 + 8 + 12;
+    assert_eq!(bytes[offset_at..offset_at + 6], [1, 0, 2, 0, 0, 0], "three little-endian i16");
+    assert_eq!(offset_at - 12 + EDT_RECORD + 8 + 4, bytes.len(), "one EDT block, no fixed block");
+    (map, bytes, offset_at)
+}
+
+/// `bytes` with the offset at `at` replaced by `o`, checksum fixed.
+fn with_offset(bytes: &[u8], at: usize, o: [i16; 3]) -> Vec<u8> {
+    let mut bytes = bytes.to_vec();
+    for (a, c) in o.iter().enumerate() {
+        bytes[at + 2 * a..at + 2 * a + 2].copy_from_slice(&c.to_le_bytes());
+    }
+    fix_crc(&mut bytes);
+    bytes
+}
+
+#[test]
+fn edt_offset_beyond_the_cutoff_is_corrupt() {
+    let (map, original, at) = one_edt_entry(BlockKey([1, -2, 3]));
+    let reach = map.global_params.cutoff(map.voxel_size_m).expect("valid").reach as i16;
+    decode_map(&with_offset(&original, at, [reach, 0, 0])).expect("at the cutoff");
+    for o in [[reach + 1, 0, 0], [0, -reach, 1], [i16::MAX; 3], [-i16::MAX; 3]] {
+        let err = decode_err(&with_offset(&original, at, o));
+        let named = format!("EDT voxel [8, -16, 24] holds offset {o:?}");
+        assert!(
+            matches!(&err, MapFileError::Corrupt(m) if m.contains(&named) && m.contains("beyond the cutoff")),
+            "{err}"
+        );
+    }
+}
+
+#[test]
+fn edt_offset_that_is_partly_the_sentinel_is_corrupt() {
+    let (_, original, at) = one_edt_entry(BlockKey([1, -2, 3]));
+    let back = mapfile::decode_map(&with_offset(&original, at, NO_OFFSET)).expect("the whole sentinel");
+    assert_eq!(back.entry(VoxelIndex([8, -16, 24])), (FAR_DIST_SQ, NO_OBSTACLE));
+    for o in [[i16::MIN, 3, 4], [3, i16::MIN, 4], [0, 0, i16::MIN], [i16::MIN, i16::MIN, 0]] {
+        let err = decode_err(&with_offset(&original, at, o));
+        let named = format!("EDT voxel [8, -16, 24] holds offset {o:?}");
+        assert!(matches!(&err, MapFileError::Corrupt(m) if m.contains(&named) && m.contains("sentinel")), "{err}");
+    }
+}
+
+#[test]
+fn edt_offset_to_an_obstacle_outside_the_index_range_is_corrupt() {
+    // At the lowest key, voxel 0 has index i32::MIN on every axis: one step
+    // lower leaves the index range, and from voxel 1 one step lower in x
+    // lands on the index that marks no obstacle.
+    let edge = -(1 << 28);
+    let (_, original, at) = one_edt_entry(BlockKey([edge; 3]));
+    for (at, o, voxel) in [(at, [-1, 0, 0], 0), (at, [0, 0, -3], 0), (at + 6, [-1, 0, 0], 1)] {
+        let err = decode_err(&with_offset(&original, at, o));
+        let named = format!("EDT voxel [{}, {}, {}] holds offset {o:?}", i32::MIN + voxel, i32::MIN, i32::MIN);
+        assert!(
+            matches!(&err, MapFileError::Corrupt(m) if m.contains(&named) && m.contains("outside the voxel index range")),
+            "{err}"
+        );
+    }
+}
+
+#[test]
+fn round_trip_keeps_every_distance_and_nearest_obstacle() {
+    let map = random_map(15, 120);
+    let bytes = encode_map(&map).expect("valid");
+    assert_eq!(bytes[8..12], MAP_FORMAT_VERSION.to_le_bytes());
+    assert_eq!(MAP_FORMAT_VERSION, 2);
+    let back = mapfile::decode_map(&bytes).expect("round trip");
+    assert_same_entries(&map.global().expect("valid"), &back);
+    assert_same(&map, &MapContents::of(&back));
+}
+
+#[test]
+fn version_1_file_loads_equal() {
+    let map = random_map(16, 120);
+    let v1 = encode_v1(&map);
+    let text_len = sections_at(&v1) - 36;
+    let expected = 36
+        + text_len
+        + 3 * 8
+        + OCC_RECORD * map.occupancy.len()
+        + EDT_V1_RECORD * map.edt.len()
+        + 76 * map.fixed.len()
+        + 4;
+    assert_eq!(v1.len(), expected, "the version 1 length of docs/FORMAT.md");
+    let back = mapfile::decode_map(&v1).expect("version 1 loads");
+    assert_same_entries(&map.global().expect("valid"), &back);
+    assert_same(&map, &MapContents::of(&back));
+    assert_eq!(
+        mapfile::encode_map(&back).expect("valid"),
+        encode_map(&map).expect("valid"),
+        "saved again as version 2"
+    );
+}
+
+/// A floor as a 2D laser maps it: one layer of observed blocks with a wall
+/// across it, and the wall's EDT within the cutoff.
+fn wall_map() -> MapContents {
+    let mut map = empty_map();
+    let cutoff = map.global_params.cutoff(VOXEL_SIZE_M).expect("valid");
+    let lo = map.occupancy_params.log_odds().expect("valid");
+    let (wall_y, wall_x) = (16, 0..32);
+    for key in (0..4).flat_map(|x| (0..4).map(move |y| BlockKey([x, y, 0]))) {
+        let block = map.occupancy.get_or_insert(key);
+        for (offset, l) in block.log_odds.iter_mut().enumerate() {
+            let v = key.voxel(offset).0;
+            *l = if v[2] != 0 {
+                UNOBSERVED
+            } else if v[1] == wall_y {
+                lo.max
+            } else {
+                lo.min
+            };
+        }
+    }
+    let r = cutoff.reach;
+    for x in wall_x.start - r..wall_x.end + r {
+        for (y, z) in (wall_y - r..=wall_y + r).flat_map(|y| (-r..=r).map(move |z| (y, z))) {
+            let nearest = VoxelIndex([x.clamp(wall_x.start, wall_x.end - 1), wall_y, 0]);
+            let dist_sq = [x - nearest.0[0], y - wall_y, z].iter().map(|d| (d * d) as u32).sum::<u32>();
+            if dist_sq <= cutoff.max_dist_sq {
+                let v = VoxelIndex([x, y, z]);
+                let key = v.block();
+                map.edt.get_or_insert(key).set(key, v.offset_in_block(), dist_sq, nearest).expect("within the cutoff");
+            }
+        }
+    }
+    map
+}
+
+#[test]
+fn version_2_file_is_less_than_half_the_version_1_file() {
+    let map = wall_map();
+    assert!(map.edt.len() > map.occupancy.len(), "the EDT reaches past the wall's blocks");
+    let (v1, v2) = (encode_v1(&map), encode_map(&map).expect("valid"));
+    assert_same_entries(&mapfile::decode_map(&v1).expect("v1"), &mapfile::decode_map(&v2).expect("v2"));
+    let ratio = v1.len() as f64 / v2.len() as f64;
+    assert!(ratio >= 2.0, "{} bytes in version 1, {} in version 2: {ratio:.2}", v1.len(), v2.len());
+    let edt_bytes = |record: usize| (record * map.edt.len()) as f64;
+    assert_eq!(v1.len() - v2.len(), (EDT_V1_RECORD - EDT_RECORD) * map.edt.len(), "only the EDT payload shrinks");
+    assert!(edt_bytes(EDT_V1_RECORD) / edt_bytes(EDT_RECORD) > 2.6);
 }
 
 #[test]

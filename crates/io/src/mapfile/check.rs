@@ -87,8 +87,9 @@ fn check_edt(map: &EdtMap, cutoff: Cutoff) -> Result<(), MapFileError> {
             let d = block.dist_sq(i);
             if d != FAR_DIST_SQ && d > cutoff.max_dist_sq {
                 return Err(MapFileError::Corrupt(format!(
-                    "EDT voxel {:?} holds dist_sq {d}, beyond the cutoff's {}",
+                    "EDT voxel {:?} holds offset {:?} to its nearest obstacle, dist_sq {d}, beyond the cutoff's {}",
                     key.voxel(i).0,
+                    block.to_nearest[i],
                     cutoff.max_dist_sq
                 )));
             }

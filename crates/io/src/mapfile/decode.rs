@@ -9,11 +9,11 @@ use super::{check, MapFileError, MAP_FORMAT_VERSION, MAP_MAGIC};
 
 /// The map held by `bytes`.
 pub(super) fn decode(bytes: &[u8]) -> Result<GlobalMap, MapFileError> {
-    let body = framing(bytes)?;
+    let (version, body) = framing(bytes)?;
     let mut cur = Cursor { bytes: body, pos: 12 };
     let flags = cur.u32("the flags")?;
     if flags != 0 {
-        return Err(MapFileError::Corrupt(format!("unknown flags {flags:#x} (format version 1 defines none)")));
+        return Err(MapFileError::Corrupt(format!("unknown flags {flags:#x} (format version {version} defines none)")));
     }
     cur.take(8, "the file length")?;
     let voxel_size_m = f64::from_bits(cur.u64("the voxel size")?);
@@ -23,9 +23,9 @@ pub(super) fn decode(bytes: &[u8]) -> Result<GlobalMap, MapFileError> {
         std::str::from_utf8(text).map_err(|e| MapFileError::InvalidParams(format!("the text is not UTF-8 ({e})")))?;
     let params: ParamsText = toml::from_str(text).map_err(|e| MapFileError::InvalidParams(e.message().to_string()))?;
     check::check_params(voxel_size_m, &params.occupancy, &params.global)?;
-    let occupancy = read_section::<OccupancyBlock>(&mut cur)?;
-    let edt = read_section::<EdtBlock>(&mut cur)?;
-    let fixed = read_section::<StaticBlock>(&mut cur)?;
+    let occupancy = read_section::<OccupancyBlock>(&mut cur, version)?;
+    let edt = read_section::<EdtBlock>(&mut cur, version)?;
+    let fixed = read_section::<StaticBlock>(&mut cur, version)?;
     if cur.remaining() != 0 {
         return Err(MapFileError::Corrupt(format!(
             "{} unused bytes between the last section and the checksum",
@@ -39,8 +39,8 @@ pub(super) fn decode(bytes: &[u8]) -> Result<GlobalMap, MapFileError> {
 }
 
 /// Checks the magic, version, stated length and checksum; returns the
-/// bytes before the checksum.
-fn framing(bytes: &[u8]) -> Result<&[u8], MapFileError> {
+/// version and the bytes before the checksum.
+fn framing(bytes: &[u8]) -> Result<(u32, &[u8]), MapFileError> {
     let actual = bytes.len() as u64;
     if bytes.is_empty() {
         return Err(MapFileError::NotMapFile("the file is empty".into()));
@@ -78,13 +78,15 @@ fn framing(bytes: &[u8]) -> Result<&[u8], MapFileError> {
     if stored != computed {
         return Err(MapFileError::Checksum { stored, computed });
     }
-    Ok(body)
+    Ok((version, body))
 }
 
-/// The block count, then the blocks; keys must ascend strictly.
-fn read_section<B: Payload>(cur: &mut Cursor<'_>) -> Result<BlockMap<B>, MapFileError> {
+/// The block count, then the blocks of format `version`; keys must ascend
+/// strictly.
+fn read_section<B: Payload>(cur: &mut Cursor<'_>, version: u32) -> Result<BlockMap<B>, MapFileError> {
     let count = cur.u64("a block count")?;
-    let record = (KEY_LEN + B::LEN) as u64;
+    let payload = B::len_in(version);
+    let record = (KEY_LEN + payload) as u64;
     let remaining = cur.remaining() as u64;
     if count > remaining / record {
         return Err(MapFileError::Corrupt(format!(
@@ -107,7 +109,7 @@ fn read_section<B: Payload>(cur: &mut Cursor<'_>) -> Result<BlockMap<B>, MapFile
         }
         previous = Some(key);
         check::check_key::<B>(key)?;
-        map.get_or_insert(key).get(key, cur.take(B::LEN, "a block")?).map_err(MapFileError::Corrupt)?;
+        map.get_or_insert(key).get(key, version, cur.take(payload, "a block")?).map_err(MapFileError::Corrupt)?;
     }
     Ok(map)
 }

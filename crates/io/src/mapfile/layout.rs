@@ -1,8 +1,10 @@
-//! Sizes, offsets and block payloads of format version 1, shared by the
-//! writer and the reader (specified in `docs/FORMAT.md`).
+//! Sizes, offsets and block payloads, shared by the writer and the reader
+//! (specified in `docs/FORMAT.md`). The writer writes the current version;
+//! the reader reads each version's payloads.
 
 use edtmap_core::{
     BlockKey, EdtBlock, GlobalParams, OccupancyBlock, OccupancyParams, StaticBlock, VoxelIndex, BLOCK_VOXELS,
+    NO_OBSTACLE, NO_OFFSET,
 };
 use serde::{Deserialize, Serialize};
 
@@ -33,13 +35,18 @@ pub(super) struct ParamsText {
 pub(super) trait Payload: Default + Clone {
     /// Name of the section, for messages.
     const SECTION: &'static str;
-    /// Bytes of one block's payload (the key not included).
+    /// Bytes of one block's payload (the key not included), as written.
     const LEN: usize;
-    /// Appends the payload of the block at `key` to `out`.
+    /// Bytes of one block's payload in a file of format `version`.
+    fn len_in(_version: u32) -> usize {
+        Self::LEN
+    }
+    /// Appends the payload of the block at `key` to `out`, as written.
     fn put(&self, key: BlockKey, out: &mut Vec<u8>);
-    /// Reads the payload of the block at `key` from `bytes`, exactly
-    /// [`Self::LEN`] long; fails with what it cannot hold.
-    fn get(&mut self, key: BlockKey, bytes: &[u8]) -> Result<(), String>;
+    /// Reads the payload of the block at `key` from `bytes` of format
+    /// `version`, exactly [`Self::len_in`] long; fails with what it cannot
+    /// hold.
+    fn get(&mut self, key: BlockKey, version: u32, bytes: &[u8]) -> Result<(), String>;
 }
 
 impl Payload for OccupancyBlock {
@@ -48,7 +55,7 @@ impl Payload for OccupancyBlock {
     fn put(&self, _: BlockKey, out: &mut Vec<u8>) {
         self.log_odds.iter().for_each(|v| out.extend_from_slice(&v.to_bits().to_le_bytes()));
     }
-    fn get(&mut self, _: BlockKey, bytes: &[u8]) -> Result<(), String> {
+    fn get(&mut self, _: BlockKey, _: u32, bytes: &[u8]) -> Result<(), String> {
         for (v, c) in self.log_odds.iter_mut().zip(bytes.chunks_exact(4)) {
             *v = f32::from_bits(le_u32(c));
         }
@@ -56,19 +63,66 @@ impl Payload for OccupancyBlock {
     }
 }
 
+/// Bytes of a version 1 EDT payload: 512 `u32` squared distances, then 512
+/// nearest obstacles as three `i32` world voxel indices.
+const EDT_V1_LEN: usize = 4 * BLOCK_VOXELS + 12 * BLOCK_VOXELS;
+
+/// From version 2 on, the EDT payload is the block as memory holds it: per
+/// voxel the offset to its nearest obstacle, three `i16` ([`NO_OFFSET`]
+/// beyond the cutoff); the squared distance follows from it.
 impl Payload for EdtBlock {
     const SECTION: &'static str = "EDT";
-    const LEN: usize = 4 * BLOCK_VOXELS + 12 * BLOCK_VOXELS;
-    fn put(&self, key: BlockKey, out: &mut Vec<u8>) {
-        (0..BLOCK_VOXELS).for_each(|i| out.extend_from_slice(&self.dist_sq(i).to_le_bytes()));
-        (0..BLOCK_VOXELS).for_each(|i| put_triple(self.nearest(key, i).0, out));
+    const LEN: usize = 6 * BLOCK_VOXELS;
+    fn len_in(version: u32) -> usize {
+        if version == 1 {
+            EDT_V1_LEN
+        } else {
+            Self::LEN
+        }
     }
-    fn get(&mut self, key: BlockKey, bytes: &[u8]) -> Result<(), String> {
-        let (dist, nearest) = bytes.split_at(4 * BLOCK_VOXELS);
-        for (i, (d, n)) in dist.chunks_exact(4).zip(nearest.chunks_exact(12)).enumerate() {
-            self.set(key, i, le_u32(d), VoxelIndex(get_triple(n))).map_err(|e| format!("EDT {e}"))?;
+    fn put(&self, _: BlockKey, out: &mut Vec<u8>) {
+        self.to_nearest.iter().flatten().for_each(|c| out.extend_from_slice(&c.to_le_bytes()));
+    }
+    fn get(&mut self, key: BlockKey, version: u32, bytes: &[u8]) -> Result<(), String> {
+        if version == 1 {
+            return get_edt_v1(self, key, bytes);
+        }
+        for (i, c) in bytes.chunks_exact(6).enumerate() {
+            let o = [0, 2, 4].map(|at| i16::from_le_bytes([c[at], c[at + 1]]));
+            self.to_nearest[i] = checked_offset(key.voxel(i), o)?;
         }
         Ok(())
+    }
+}
+
+/// Reads a version 1 EDT payload, [`EDT_V1_LEN`] long.
+fn get_edt_v1(block: &mut EdtBlock, key: BlockKey, bytes: &[u8]) -> Result<(), String> {
+    let (dist, nearest) = bytes.split_at(4 * BLOCK_VOXELS);
+    for (i, (d, n)) in dist.chunks_exact(4).zip(nearest.chunks_exact(12)).enumerate() {
+        block.set(key, i, le_u32(d), VoxelIndex(get_triple(n))).map_err(|e| format!("EDT {e}"))?;
+    }
+    Ok(())
+}
+
+/// Offset `o` read for voxel `v`, if it is either the no-obstacle sentinel
+/// whole or an offset to a voxel with an `i32` index other than
+/// [`NO_OBSTACLE`] (the entries a version 1 file can hold; the cutoff is
+/// checked with the whole map's contents).
+fn checked_offset(v: VoxelIndex, o: [i16; 3]) -> Result<[i16; 3], String> {
+    if o == NO_OFFSET {
+        return Ok(o);
+    }
+    if o.contains(&i16::MIN) {
+        return Err(format!(
+            "EDT voxel {:?} holds offset {o:?}: only the whole no-obstacle sentinel {NO_OFFSET:?} may hold {}",
+            v.0,
+            i16::MIN
+        ));
+    }
+    let nearest = [0, 1, 2].map(|a| i32::try_from(i64::from(v.0[a]) + i64::from(o[a])).ok());
+    match nearest {
+        [Some(x), Some(y), Some(z)] if VoxelIndex([x, y, z]) != NO_OBSTACLE => Ok(o),
+        _ => Err(format!("EDT voxel {:?} holds offset {o:?} to an obstacle outside the voxel index range", v.0)),
     }
 }
 
@@ -78,7 +132,7 @@ impl Payload for StaticBlock {
     fn put(&self, _: BlockKey, out: &mut Vec<u8>) {
         self.bits.iter().for_each(|w| out.extend_from_slice(&w.to_le_bytes()));
     }
-    fn get(&mut self, _: BlockKey, bytes: &[u8]) -> Result<(), String> {
+    fn get(&mut self, _: BlockKey, _: u32, bytes: &[u8]) -> Result<(), String> {
         for (w, c) in self.bits.iter_mut().zip(bytes.chunks_exact(8)) {
             *w = u64::from_le_bytes([c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7]]);
         }
