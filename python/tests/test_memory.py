@@ -1,6 +1,7 @@
 """An array too large for the memory left raises MemoryError, as SciPy's
 transform does, instead of aborting the interpreter."""
 
+import os
 import subprocess
 import sys
 import textwrap
@@ -46,6 +47,12 @@ CHILD = textwrap.dedent("""
 """)
 
 
+# The children count address space to the megabyte: one malloc arena for
+# every thread, or a thread that first allocates after the limit maps a
+# fresh 64 MiB arena and takes the room the test leaves for its output.
+CHILD_ENV = dict(os.environ, MALLOC_ARENA_MAX="1")
+
+
 # Room for the outputs but not for the core's nearest-obstacle field: the
 # distance-only transform answers, exactly as the peers.
 LEAN_CHILD = textwrap.dedent("""
@@ -72,8 +79,10 @@ LEAN_CHILD = textwrap.dedent("""
     ones = np.ones_like(grid)
     want_ones = ndimage.distance_transform_edt(ones, sampling=(2, 1, 3))
     edtmap.edt(np.ascontiguousarray(grid[:9, :9, :9]))  # starts the threads before the limit
-    # The float64 output (64 MB) fits, the field besides it (64 MB more) not.
-    soft = vm_size() + (100 << 20)
+    # The float64 output (64 MB, which may come from freed heap or a fresh
+    # mapping) and the lean transform's room fit; the field besides them
+    # (64 MB more) does not whenever the output took fresh address space.
+    soft = vm_size() + (160 << 20)
     resource.setrlimit(resource.RLIMIT_AS, (soft, resource.getrlimit(resource.RLIMIT_AS)[1]))
     assert np.array_equal(edtmap.distance_transform_edt(grid), want_dte)
     assert np.array_equal(edtmap.edt(grid), want_edt)
@@ -87,12 +96,12 @@ LEAN_CHILD = textwrap.dedent("""
 def test_without_room_for_the_field_the_results_are_the_same(tmp_path):
     # From a folder of its own: `python -c` puts the working folder first on
     # sys.path, and from python/ that is the source tree, not the package.
-    done = subprocess.run([sys.executable, "-c", LEAN_CHILD], capture_output=True, text=True, timeout=300, cwd=tmp_path)
+    done = subprocess.run([sys.executable, "-c", LEAN_CHILD], capture_output=True, text=True, timeout=300, cwd=tmp_path, env=CHILD_ENV)
     assert done.returncode == 0 and "equal" in done.stdout, f"exit {done.returncode}\n{done.stdout}\n{done.stderr}"
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc/self/status")
 def test_too_large_raises_memory_error(tmp_path):
-    done = subprocess.run([sys.executable, "-c", CHILD], capture_output=True, text=True, timeout=300, cwd=tmp_path)
+    done = subprocess.run([sys.executable, "-c", CHILD], capture_output=True, text=True, timeout=300, cwd=tmp_path, env=CHILD_ENV)
     assert done.returncode == 0, f"exit {done.returncode}\n{done.stdout}\n{done.stderr}"
     assert done.stdout.count("->") == 6, done.stdout
