@@ -19,6 +19,7 @@
 //! distances are integers, exact in `f32` below 2^24 and in `f64` below
 //! 2^53.
 
+use edtmap_cpu::edt::SharedBuf;
 use rayon::prelude::*;
 
 /// Rows of the first pass handed to one task, voxels.
@@ -192,7 +193,9 @@ where
     V: Value,
 {
     let tiles_per_outer = lines.nx.div_ceil(LANES);
-    let shared = Shared::new(out);
+    // The later passes' tiles interleave in memory: each task writes only
+    // its own tile's voxels (every index below is in bounds by the tiling).
+    let shared = SharedBuf::new(out);
     let scratch = || Scratch { f: Vec::new(), labels: Vec::new(), out: Vec::new(), envelope: Envelope::default() };
     (0..lines.outer * tiles_per_outer).into_par_iter().for_each_init(scratch, |s, tile| {
         let (outer, x0) = (tile / tiles_per_outer, (tile % tiles_per_outer) * LANES);
@@ -330,50 +333,4 @@ fn run(f: &[f64], a: usize, w2: f64, before: Option<f64>, after: Option<f64>, ou
 fn start(f: &[f64], w2: f64, p: usize, q: usize, fq: f64) -> (f64, f64) {
     let d = (q - p) as f64;
     ((fq - f[p]) + w2 * d * (q + p) as f64, 2.0 * w2 * d)
-}
-
-/// The output, written concurrently by tasks that own disjoint voxels: the
-/// later passes' tiles interleave in memory, so no safe split of the slice
-/// hands each task its tile.
-struct Shared<V> {
-    ptr: *mut V,
-    len: usize,
-}
-
-impl<V> Clone for Shared<V> {
-    fn clone(&self) -> Self {
-        *self
-    }
-}
-
-impl<V> Copy for Shared<V> {}
-
-// SAFETY: only a pointer and a length; the tasks sharing it touch disjoint
-// voxels (see `later_pass`).
-unsafe impl<V: Send> Send for Shared<V> {}
-// SAFETY: as above.
-unsafe impl<V: Send> Sync for Shared<V> {}
-
-impl<V: Copy> Shared<V> {
-    fn new(buf: &mut [V]) -> Self {
-        Shared { ptr: buf.as_mut_ptr(), len: buf.len() }
-    }
-
-    /// # Safety
-    /// No other task accesses index `i` concurrently.
-    #[inline]
-    unsafe fn read(self, i: usize) -> V {
-        assert!(i < self.len);
-        // SAFETY: in bounds (checked), exclusive (the caller's promise).
-        unsafe { *self.ptr.add(i) }
-    }
-
-    /// # Safety
-    /// No other task accesses index `i` concurrently.
-    #[inline]
-    unsafe fn write(self, i: usize, value: V) {
-        assert!(i < self.len);
-        // SAFETY: as in `read`.
-        unsafe { *self.ptr.add(i) = value }
-    }
 }

@@ -3,7 +3,7 @@
 /// Scans along the strided axes split the volume into tiles of lines whose
 /// voxels interleave in memory, so no safe slice split can hand each task
 /// its tile. Every task reads and writes only the voxels of its own tile.
-pub(super) struct SharedBuf<T = u32> {
+pub struct SharedBuf<T = u32> {
     ptr: *mut T,
     len: usize,
 }
@@ -23,14 +23,15 @@ unsafe impl<T: Send> Send for SharedBuf<T> {}
 unsafe impl<T: Send> Sync for SharedBuf<T> {}
 
 impl<T: Copy> SharedBuf<T> {
-    pub(super) fn new(buf: &mut [T]) -> Self {
+    /// Shares `buf` for the duration of the tasks that write it.
+    pub fn new(buf: &mut [T]) -> Self {
         SharedBuf { ptr: buf.as_mut_ptr(), len: buf.len() }
     }
 
     /// # Safety
     /// `i < len`, and no other task accesses index `i` concurrently.
     #[inline(always)]
-    pub(super) unsafe fn read(self, i: usize) -> T {
+    pub unsafe fn read(self, i: usize) -> T {
         debug_assert!(i < self.len);
         // SAFETY: guaranteed by the caller.
         unsafe { *self.ptr.add(i) }
@@ -39,7 +40,7 @@ impl<T: Copy> SharedBuf<T> {
     /// # Safety
     /// `i < len`, and no other task accesses index `i` concurrently.
     #[inline(always)]
-    pub(super) unsafe fn write(self, i: usize, value: T) {
+    pub unsafe fn write(self, i: usize, value: T) {
         debug_assert!(i < self.len);
         // SAFETY: guaranteed by the caller.
         unsafe { *self.ptr.add(i) = value }
