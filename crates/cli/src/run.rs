@@ -325,6 +325,7 @@ fn replay(args: &RunArgs, setup: &Setup, mapper: &mut CliMapper, progress: bool)
     let mut out = Replayed { records: Vec::new(), skipped: Vec::new(), stopped: None, interrupted: None };
     let mut truth = (Vec::new(), Vec::new());
     let mut frames = setup.source.frames(&setup.sensor, setup.frames, &setup.name).enumerate();
+    let batch = batch_stage(setup, mapper);
     loop {
         if let Some(signal) = interrupt::requested() {
             out.interrupted = Some(signal);
@@ -346,10 +347,7 @@ fn replay(args: &RunArgs, setup: &Setup, mapper: &mut CliMapper, progress: bool)
             }
         };
         tracing::debug!("frame {i} at {:.3} s: {:.2} ms", frame.stamp_s, stats.total_ms);
-        let mut rec = frame_record(i, &frame, &stats, mapper.map().occupancy().len());
-        if !batch_stage(setup, mapper) {
-            rec.batch_edt_ms = None;
-        }
+        let mut rec = frame_record(i, &frame, &stats, mapper.map().occupancy().len(), batch);
         if let (Some(before), Some(now)) = (counted, mapper.backend().device_counters()) {
             rec.global.extend(device_fields(now.since(before)));
         }
@@ -419,13 +417,14 @@ fn stops_the_run(failure: &Failure, setup: &Setup) -> bool {
 }
 
 /// The report's record of frame `index`, after which the map holds
-/// `occupancy_blocks` occupancy blocks.
-fn frame_record(index: usize, frame: &Frame, stats: &FrameStats, occupancy_blocks: usize) -> FrameRecord {
+/// `occupancy_blocks` occupancy blocks; `batch`: whether the window's batch
+/// EDT is a stage of its own.
+fn frame_record(index: usize, frame: &Frame, stats: &FrameStats, occupancy_blocks: usize, batch: bool) -> FrameRecord {
     FrameRecord {
         index,
         stamp_s: frame.stamp_s,
         ogm_ms: stats.ogm_ms,
-        batch_edt_ms: Some(stats.batch_edt_ms),
+        batch_edt_ms: batch.then_some(stats.batch_edt_ms),
         integrate_ms: stats.integrate_ms,
         total_ms: stats.total_ms,
         voxels_updated: stats.voxels_updated,
