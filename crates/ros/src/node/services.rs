@@ -167,11 +167,11 @@ impl Servers {
             "get_esdf_box",
             shared,
             |req| {
-                let resp = esdf_box(&shared.snapshot(), req, &limits);
-                if !resp.success && resp.size == [0; 3] && resp.message.contains("voxel limit") {
-                    refused("refused: get_esdf_box over the voxel limit", &resp.message);
+                let snap = shared.snapshot();
+                if let Some(message) = over_box_limit(&snap, req, &limits) {
+                    refused("refused: get_esdf_box over the voxel limit", &message);
                 }
-                resp
+                esdf_box(&snap, req, &limits)
             },
             |message| GetEsdfBoxResponse { success: false, message, ..Default::default() },
         );
@@ -271,9 +271,7 @@ fn box_voxels(lo: [f64; 3], hi: [f64; 3], vs: f64) -> f64 {
 pub(super) fn esdf_box(snap: &Snapshot, req: &GetEsdfBoxRequest, limits: &QueryLimits) -> GetEsdfBoxResponse {
     let stamp = Time::from_ns(snap.stamp_ns);
     let vs = snap.map.voxel_size_m();
-    let voxels = box_voxels(xyz(&req.min_corner), xyz(&req.max_corner), vs);
-    if voxels > limits.box_voxels as f64 {
-        let message = format!("a box of {voxels:.0} voxels; at most {} are answered per call (the voxel limit, from the memory budget): ask for smaller boxes", limits.box_voxels);
+    if let Some(message) = over_box_limit(snap, req, limits) {
         return GetEsdfBoxResponse { success: false, message, map_stamp: stamp, voxel_size: vs, ..Default::default() };
     }
     match query::distance_box(&snap.map, xyz(&req.min_corner), xyz(&req.max_corner), req.signed_distance) {
@@ -300,6 +298,18 @@ pub(super) fn esdf_box(snap: &Snapshot, req: &GetEsdfBoxRequest, limits: &QueryL
             ..Default::default()
         },
     }
+}
+
+/// Why the box of `req` is refused unanswered, if it holds more voxels than
+/// [`QueryLimits::box_voxels`].
+fn over_box_limit(snap: &Snapshot, req: &GetEsdfBoxRequest, limits: &QueryLimits) -> Option<String> {
+    let voxels = box_voxels(xyz(&req.min_corner), xyz(&req.max_corner), snap.map.voxel_size_m());
+    (voxels > limits.box_voxels as f64).then(|| {
+        format!(
+            "a box of {voxels:.0} voxels; at most {} are answered per call (the voxel limit, from the memory budget): ask for smaller boxes",
+            limits.box_voxels
+        )
+    })
 }
 
 /// Central differences inside the box, one-sided on its faces (zero along
