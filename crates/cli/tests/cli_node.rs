@@ -170,6 +170,17 @@ fn drive(d: &Path, domain: u16, frames: u64, sensor_topic: &str) {
             qos(),
         )
         .expect("client");
+    // The same service asked as a Fast DDS client asks (the request id in
+    // the RTPS sample identity; the reply carries it as inline QoS).
+    let distances_enhanced = node
+        .create_client::<GetDistancesRequest, GetDistancesResponse>(
+            ServiceMapping::Enhanced,
+            &srv("get_distances"),
+            &ServiceTypeName::new("edtmap_msgs", "GetDistances"),
+            qos(),
+            qos(),
+        )
+        .expect("client");
 
     // The recording's poses (/tf) and clouds, in order.
     let reader = edtmap_ros::mcap::McapReader::open(&d.join("rec.mcap")).expect("recording");
@@ -292,12 +303,36 @@ fn drive(d: &Path, domain: u16, frames: u64, sensor_topic: &str) {
         .map(|p| Point { x: f64::from(p[0]) + 0.031, y: f64::from(p[1]) - 0.047, z: f64::from(p[2]) + 0.012 })
         .collect();
     query.extend((0..50).map(|i| Point { x: 1e3 + f64::from(i), y: -7.0, z: f64::NAN.min(1.0) }));
+    // Then enough points that the reply (34 bytes a point, 3.4 MB) spans
+    // many loopback datagrams: a seeded walk over the mapped region.
+    let mut rng = 0x9e37_79b9_7f4a_7c15_u64;
+    let mut unit = || {
+        rng ^= rng << 13;
+        rng ^= rng >> 7;
+        rng ^= rng << 17;
+        (rng >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let (lo_b, hi_b) = map.occupancy().key_bounds().expect("a mapped box");
+    let side = f64::from(edtmap::BLOCK_SIDE) * map.voxel_size_m();
+    let (lo_m, hi_m) = (lo_b.map(|b| f64::from(b) * side), hi_b.map(|b| f64::from(b + 1) * side));
+    query.extend((0..99_650).map(|_| {
+        let at = |k: usize, u: f64| lo_m[k] + u * (hi_m[k] - lo_m[k]);
+        Point { x: at(0, unit()), y: at(1, unit()), z: at(2, unit()) }
+    }));
     let req = GetDistancesRequest { points: query.clone(), signed_distance: false };
-    let id = distances.send_request(req).expect("request");
+    let id = distances.send_request(req.clone()).expect("request");
     let resp = wait(Duration::from_secs(20), || {
         distances.receive_response().ok().flatten().filter(|(rid, _)| *rid == id).map(|(_, r)| r)
     })
     .expect("get_distances answers");
+    let id = distances_enhanced.send_request(req).expect("request");
+    let resp_enhanced = wait(Duration::from_secs(20), || {
+        distances_enhanced.receive_response().ok().flatten().filter(|(rid, _)| *rid == id).map(|(_, r)| r)
+    })
+    .expect("get_distances answers a Fast DDS-style client");
+    let bits = |r: &GetDistancesResponse| r.distances.iter().map(|d| d.to_bits()).collect::<Vec<_>>();
+    assert_eq!(bits(&resp_enhanced), bits(&resp), "both request layouts get the same distances");
+    assert_eq!((&resp_enhanced.gradients, &resp_enhanced.states), (&resp.gradients, &resp.states));
     let want = edtmap::cpu::query::distances(&map, &query.iter().map(|p| [p.x, p.y, p.z]).collect::<Vec<_>>(), false);
     assert!(resp.success, "{}", resp.message);
     assert_eq!(resp.distances.len(), want.len());
@@ -309,12 +344,11 @@ fn drive(d: &Path, domain: u16, frames: u64, sensor_topic: &str) {
         assert_eq!(resp.states[i], w.state as u8, "point {i}");
     }
     assert!(want.iter().filter(|w| w.distance_m < 1.0).count() > 100, "the queries reach mapped space");
-    assert!(resp.states[300..].iter().all(|&s| s == edtmap::PointState::Outside as u8));
+    assert!(resp.states[300..350].iter().all(|&s| s == edtmap::PointState::Outside as u8));
 
-    // 14 x 14 x 5 voxels: the reply (17 kB) stays within one UDP datagram;
-    // RustDDS loses replies over 64 kB on loopback (see the README).
+    // 40 x 40 x 40 voxels: a 1.1 MB reply.
     let vs = map.voxel_size_m();
-    let (lo, hi) = ([-7.0 * vs, -7.0 * vs, 0.0], [7.0 * vs, 7.0 * vs, 5.0 * vs]);
+    let (lo, hi) = ([-20.0 * vs, -20.0 * vs, -10.0 * vs], [20.0 * vs, 20.0 * vs, 30.0 * vs]);
     let req = GetEsdfBoxRequest {
         min_corner: Point { x: lo[0], y: lo[1], z: lo[2] },
         max_corner: Point { x: hi[0], y: hi[1], z: hi[2] },
