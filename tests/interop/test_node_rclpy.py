@@ -7,9 +7,12 @@ drivers do, with no `world_frame` in the node's config. It subscribes
 with default QoS to /edtmap/distance_slice, /edtmap/occupancy_grid and
 /edtmap/frame_stats, then joins /edtmap/occupancy_grid late with
 transient-local QoS (as Nav2's costmaps and RViz's Map display do), and
-calls /edtmap/get_distances with edtmap_msgs built from ros/edtmap_msgs by
-the wheels' generators. Every distance is checked against a brute-force
-distance between voxel centres; every output must be in frame `odom`.
+calls /edtmap/get_distances (5 points, then 100,000) and
+/edtmap/get_esdf_box (40³ voxels) with edtmap_msgs built from
+ros/edtmap_msgs by the wheels' generators; the large replies (3.4 MB and
+1.1 MB) span many datagrams. Every distance is checked against a
+brute-force distance between voxel centres; every output must be in
+frame `odom`.
 
 Run:  python -m pytest -q tests/interop/test_node_rclpy.py
 (EDTMAP_BIN: the binary, by default target/debug/edtmap from
@@ -26,6 +29,7 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 HERE = Path(__file__).resolve().parent
@@ -164,8 +168,8 @@ def edtmap_msgs(tmp_path_factory):
     for name in ("rosidl_generator_c", "rosidl_typesupport_c", "rosidl_typesupport_fastrtps_c", "rosidl_typesupport_introspection_c", "rosidl_generator_py"):
         ctypes.CDLL(str(lib / f"libedtmap_msgs__{name}.so"), mode=ctypes.RTLD_GLOBAL)
     sys.path.insert(0, str(next(lib.glob("python3*/site-packages"))))
-    from edtmap_msgs.srv import GetDistances
-    return GetDistances
+    from edtmap_msgs.srv import GetDistances, GetEsdfBox
+    return GetDistances, GetEsdfBox
 
 
 # --- the node ---------------------------------------------------------------------
@@ -195,11 +199,11 @@ def test_node_maps_what_rclpy_publishes_and_answers_it(node, edtmap_msgs):
         raise
 
 
-def exercise(proc, GetDistances):
+def exercise(proc, services):
     rclpy.init()
     ros = rclpy.create_node("edtmap_rclpy_test")
     try:
-        run(proc, ros, GetDistances)
+        run(proc, ros, *services)
     finally:
         ros.destroy_node()
         rclpy.shutdown()
@@ -221,7 +225,7 @@ def spin_until(proc, ros, what, pred, timeout_s, every=None):
     pytest.fail(f"timed out after {timeout_s} s waiting for {what}")
 
 
-def run(proc, ros, GetDistances):
+def run(proc, ros, GetDistances, GetEsdfBox):
     got = {"slice": None, "grid": None, "stats": None, "late": None}
 
     def keep(key):
@@ -289,6 +293,47 @@ def run(proc, ros, GetDistances):
         want = min(brute_distance(voxel_of(p), occupied), CUTOFF_M)
         assert abs(d - want) < 1e-5, (p, d, want)
         assert state == (GetDistances.Request.STATE_OCCUPIED if want == 0 else GetDistances.Request.STATE_FREE), (p, state)
+
+    # Large replies: 100,000 voxel centres (a 3.4 MB reply) and a 40³ box
+    # (1.1 MB), over loopback, each in many datagrams.
+    rng = np.random.default_rng(7)
+    cells = rng.integers([-5, -20, -5], [30, 20, 25], size=(100_000, 3))
+    request.points = [Point(x=(i + 0.5) * VOXEL_M, y=(j + 0.5) * VOXEL_M, z=(k + 0.5) * VOXEL_M) for i, j, k in cells.tolist()]
+    future = client.call_async(request)
+    spin_until(proc, ros, "the reply to 100,000 points", future.done, 30)
+    reply = future.result()
+    assert reply.success, reply.message
+    check_observed(cells, np.array(reply.distances), np.array(reply.states), occupied, GetDistances.Request)
+
+    box_client = ros.create_client(GetEsdfBox, "/edtmap/get_esdf_box")
+    assert box_client.wait_for_service(timeout_sec=15), "get_esdf_box is not available to rclpy"
+    box = GetEsdfBox.Request()
+    box.min_corner, box.max_corner = Point(x=-0.95, y=-1.95, z=-0.45), Point(x=2.95, y=1.95, z=3.45)
+    box.signed_distance = False
+    future = box_client.call_async(box)
+    spin_until(proc, ros, "the get_esdf_box reply", future.done, 30)
+    reply = future.result()
+    assert reply.success, reply.message
+    assert list(reply.size) == [40, 40, 40], list(reply.size)
+    first = [round(c / VOXEL_M - 0.5) for c in (reply.origin.x, reply.origin.y, reply.origin.z)]
+    assert first == [-10, -20, -5], first
+    grid = np.stack(np.meshgrid(*(np.arange(40) + f for f in first), indexing="ij"), axis=-1)
+    cells = grid.transpose(2, 1, 0, 3).reshape(-1, 3)  # x fastest, then y, then z
+    check_observed(cells, np.array(reply.distances), np.array(reply.states), occupied, GetDistances.Request)
+
+
+def check_observed(cells, distances, states, occupied, consts):
+    """Every observed voxel's distance equals brute force's, capped at the cutoff."""
+    occ = np.array(occupied)
+    seen = (states == consts.STATE_FREE) | (states == consts.STATE_OCCUPIED)
+    assert seen.sum() > 1000, f"only {seen.sum()} of {len(cells)} voxels observed"
+    want = np.empty(len(cells))
+    for s in range(0, len(cells), 4096):
+        d2 = ((cells[s:s + 4096, None, :] - occ[None, :, :]) ** 2).sum(axis=2).min(axis=1)
+        want[s:s + 4096] = np.minimum(np.sqrt(d2) * VOXEL_M, CUTOFF_M)
+    bad = np.flatnonzero(seen & (np.abs(distances - want) > 1e-5))
+    assert len(bad) == 0, f"{len(bad)} distances differ from brute force, e.g. {[(cells[i].tolist(), distances[i], want[i]) for i in bad[:5]]}"
+    assert np.all((states[seen] == consts.STATE_OCCUPIED) == (want[seen] == 0))
 
 
 def check_grid(grid, occupied):

@@ -248,8 +248,8 @@ fn drive(d: &Path, domain: u16, frames: u64, sensor_topic: &str) {
     }
     assert_eq!(mapped, frames);
     // The node publishes a cloud after each frame it maps: the last frame's
-    // may still be on its way, or lost (RustDDS can lose large samples on
-    // loopback under load; see the README). Wait a while for it; the
+    // may still be on its way, or dropped by the reader's socket when the
+    // clouds come faster than it drains them. Wait a while for it; the
     // cloud checked is the last one that came, against the replay of the
     // frames up to the one it carries the stamp of.
     let stamp_ns = |c: &PointCloud2| i64::from(c.header.stamp.sec) * 1_000_000_000 + i64::from(c.header.stamp.nanosec);
