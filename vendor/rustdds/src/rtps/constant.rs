@@ -39,6 +39,13 @@ pub const REPAIR_INTERVAL_MAX: Duration = Duration::from_millis(100);
 // one reader. A round always sends at least one sample, even a larger one.
 pub const REPAIR_BATCH_MAX_BYTES: usize = 8192;
 
+// Most bytes of fragments one NACK_FRAG repair round sends to one reader (a
+// round is armed NACK_RESPONSE_DELAY after the NACK_FRAG, then every repair
+// interval while fragments are still requested). 64 KiB a round: a large
+// sample that a reader's socket buffer dropped in part is repaired at several
+// MB/s, in bursts well under a default 208 KiB receive buffer.
+pub const REPAIR_FRAGS_MAX_BYTES: usize = 64 * 1024;
+
 // Periodic HEARTBEAT period for reliable Writers. The period is adaptive: while
 // some matched reader is behind (has unacknowledged samples), heartbeats are
 // sent at the FAST period to prompt prompt repair (some peers rely on a

@@ -31,7 +31,7 @@ use crate::{
       DEFAULT_WRITER_MAX_SAMPLES, FALLBACK_MAX_AGGREGATED_DATAGRAM_SIZE, FRAGMENT_SIZE,
       HEARTBEAT_PERIOD_FAST, HEARTBEAT_PERIOD_SLOW, HEARTBEAT_SUBMESSAGE_SERIALIZED_SIZE,
       NACK_RESPONSE_DELAY, NACK_SUPPRESSION_DURATION, REPAIR_BATCH_MAX_BYTES,
-      REPAIR_INTERVAL_DEFAULT, REPAIR_INTERVAL_MAX, REPAIR_INTERVAL_MIN,
+      REPAIR_FRAGS_MAX_BYTES, REPAIR_INTERVAL_DEFAULT, REPAIR_INTERVAL_MAX, REPAIR_INTERVAL_MIN,
     },
     outbound::{SocketId, TrafficClass},
     rtps_reader_proxy::RtpsReaderProxy,
@@ -1579,80 +1579,110 @@ impl Writer {
     }
   }
 
+  // One fragment repair round for a reader: the fragments it asked for with
+  // NACK_FRAG, lowest first, up to REPAIR_FRAGS_MAX_BYTES. Contiguous requested
+  // fragments go out together, as many per DATAFRAG submessage as the reader's
+  // datagram budget holds (as in the first push), so a round costs a few
+  // datagrams, not one per 256-byte fragment. The caller reschedules a round
+  // while fragments are still requested.
   fn handle_repair_frags_send_worker(
     &mut self,
     reader_proxy: &mut RtpsReaderProxy, /* This is mutable proxy temporarily detached from the
                                          * set of reader proxies */
   ) {
-    // Decide the (max) number of frags to be sent
-    let max_send_count = 8;
-
     let reader_guid = reader_proxy.remote_reader_guid;
+    let requested: Vec<(SequenceNumber, FragmentNumber)> = reader_proxy
+      .frags_requested_iterator()
+      .take(REPAIR_FRAGS_MAX_BYTES / FRAGMENT_SIZE)
+      .collect();
+    let Some(&(seq_num, _)) = requested.first() else {
+      return;
+    };
 
-    // Get (an iterator to) frags requested but not yet sent
-    // reader_proxy.
-    // Iterate over frags to be sent
-    for (seq_num, frag_num) in reader_proxy.frags_requested_iterator().take(max_send_count) {
-      // Sanity check request
-      // ^^^ TODO
-
-      if let Some(cache_change) = self.send_buffer.get_by_sn(seq_num) {
-        // If the data is meant for a single reader only, make sure it is the one we're
-        // about to send frags to.
-        if let Some(single_reader_guid) = cache_change.write_options.to_single_reader() {
-          if single_reader_guid != reader_guid {
-            error!(
-              "We were asked to send datafrags meant for the reader {single_reader_guid:?} to a \
-               different reader {reader_guid:?}. Not gonna happen."
-            );
-            return;
-          }
-        }
-
-        // Generate datafrag message
-        let mut message_builder = MessageBuilder::new();
-        if let Some(src_ts) = cache_change.write_options.source_timestamp() {
-          message_builder = message_builder.ts_msg(self.endianness, Some(src_ts));
-        }
-
-        let fragment_size: u32 = FRAGMENT_SIZE as u32;
-        let data_size: u32 = cache_change.data_value.payload_size() as u32; // TODO: overflow check
-
-        message_builder = message_builder.data_frag_msg(
-          &cache_change,
-          reader_guid.entity_id, // reader
-          self.my_guid,          // writer
-          frag_num,
-          // Repair responds to specifically-NACKed fragment numbers (possibly
-          // non-contiguous), so retransmit one fragment per submessage.
-          1,
-          fragment_size as u16, // TODO: overflow check
-          data_size,
-          self.endianness,
-          self.security_plugins.as_ref(),
-        );
-
-        // Repair frags are a reliability action (response to a NACK_FRAG), so
-        // they must actually reach the reader. Use the never-dropped `Control`
-        // queue: dropping repair on WouldBlock livelocks under sustained send
-        // congestion (reader re-NACKs, retransmit dropped again, forever).
-        let _blocked = self.send_message_to_readers(
-          DeliveryMode::Unicast,
-          message_builder.add_header_and_build(self.my_guid.prefix),
-          &mut std::iter::once(&*reader_proxy),
-          TrafficClass::Control,
-        );
-      } else {
+    let Some(cache_change) = self.send_buffer.get_by_sn(seq_num) else {
+      error!(
+        "handle_repair_frags_send_worker: {:?} missing from send buffer. topic={:?}",
+        seq_num, self.my_topic_name
+      );
+      // TODO: Should we send a GAP message then?
+      for (sn, frag_num) in &requested {
+        reader_proxy.mark_frag_sent(*sn, frag_num);
+      }
+      return;
+    };
+    // If the data is meant for a single reader only, make sure it is the one we're
+    // about to send frags to.
+    if let Some(single_reader_guid) = cache_change.write_options.to_single_reader() {
+      if single_reader_guid != reader_guid {
         error!(
-          "handle_repair_frags_send_worker: {:?} missing from send buffer. topic={:?}",
-          seq_num, self.my_topic_name
+          "We were asked to send datafrags meant for the reader {single_reader_guid:?} to a \
+           different reader {reader_guid:?}. Not gonna happen."
         );
-        // TODO: Should we send a GAP message then?
+        return;
+      }
+    }
+
+    let data_size = cache_change.data_value.payload_size();
+    let (num_frags, fragment_size) = self.num_frags_and_frag_size(data_size);
+    let budget = self.datagram_budget(Some(reader_proxy));
+    let mut i = 0;
+    while i < requested.len() {
+      let first = u32::from(requested[i].1);
+      if first < 1 || first > num_frags {
+        // Not a fragment of this sample: nothing to send for it.
+        reader_proxy.mark_frag_sent(seq_num, &requested[i].1);
+        i += 1;
+        continue;
+      }
+      // The run of consecutive requested fragments starting here.
+      let mut run = 1;
+      while i + run < requested.len() && u32::from(requested[i + run].1) == first + run as u32 {
+        run += 1;
       }
 
-      reader_proxy.mark_frag_sent(seq_num, &frag_num);
-    } // for
-  } // fn
+      let mut message_builder = MessageBuilder::new();
+      if let Some(src_ts) = cache_change.write_options.source_timestamp() {
+        message_builder = message_builder.ts_msg(self.endianness, Some(src_ts));
+      }
+      message_builder =
+        message_builder.dst_submessage(self.endianness, reader_guid.prefix);
+      let fit = frags_per_datafrag(
+        message_builder.len_serialized() + inline_qos_len(&cache_change),
+        budget,
+        first,
+        num_frags,
+        fragment_size,
+        data_size,
+      );
+      let count = fit.min(run as u32).min(u32::from(u16::MAX));
+      message_builder = message_builder.data_frag_msg(
+        &cache_change,
+        reader_guid.entity_id, // reader
+        self.my_guid,          // writer
+        FragmentNumber::new(first),
+        count as u16,
+        fragment_size,
+        data_size as u32,
+        self.endianness,
+        self.security_plugins.as_ref(),
+      );
+
+      // Repair frags are a reliability action (response to a NACK_FRAG), so
+      // they must actually reach the reader. Use the never-dropped `Control`
+      // queue: dropping repair on WouldBlock livelocks under sustained send
+      // congestion (reader re-NACKs, retransmit dropped again, forever).
+      let _blocked = self.send_message_to_readers(
+        DeliveryMode::Unicast,
+        message_builder.add_header_and_build(self.my_guid.prefix),
+        &mut std::iter::once(&*reader_proxy),
+        TrafficClass::Control,
+      );
+      for (sn, frag_num) in &requested[i..i + count as usize] {
+        reader_proxy.mark_frag_sent(*sn, frag_num);
+      }
+      i += count as usize;
+    }
+  }
 
   /// Removes permanently cacheChanges from DDSCache.
   /// CacheChanges can be safely removed only if they are acked by all readers.
