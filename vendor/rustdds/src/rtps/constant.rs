@@ -39,6 +39,14 @@ pub const REPAIR_INTERVAL_MAX: Duration = Duration::from_millis(100);
 // one reader. A round always sends at least one sample, even a larger one.
 pub const REPAIR_BATCH_MAX_BYTES: usize = 8192;
 
+// Pacing of a large sample's first push by a user writer: after each burst of
+// PUSH_BURST_MAX_BYTES of DATAFRAGs the writer waits PUSH_PACE_INTERVAL before
+// the next (at most 64 MB/s per writer), so that a reader's socket buffer
+// (208 KiB by default on Linux) drains between bursts instead of dropping
+// most of a multi-megabyte sample. Smaller samples go out in one burst.
+pub const PUSH_BURST_MAX_BYTES: usize = 64 * 1024;
+pub const PUSH_PACE_INTERVAL: std::time::Duration = std::time::Duration::from_millis(1);
+
 // Most bytes of fragments one NACK_FRAG repair round sends to one reader (a
 // round is armed NACK_RESPONSE_DELAY after the NACK_FRAG, then every repair
 // interval while fragments are still requested). 64 KiB a round: a large

@@ -30,7 +30,8 @@ use crate::{
     constant::{
       DEFAULT_WRITER_MAX_SAMPLES, FALLBACK_MAX_AGGREGATED_DATAGRAM_SIZE, FRAGMENT_SIZE,
       HEARTBEAT_PERIOD_FAST, HEARTBEAT_PERIOD_SLOW, HEARTBEAT_SUBMESSAGE_SERIALIZED_SIZE,
-      NACK_RESPONSE_DELAY, NACK_SUPPRESSION_DURATION, REPAIR_BATCH_MAX_BYTES,
+      NACK_RESPONSE_DELAY, NACK_SUPPRESSION_DURATION, PUSH_BURST_MAX_BYTES, PUSH_PACE_INTERVAL,
+      REPAIR_BATCH_MAX_BYTES,
       REPAIR_FRAGS_MAX_BYTES, REPAIR_INTERVAL_DEFAULT, REPAIR_INTERVAL_MAX, REPAIR_INTERVAL_MIN,
     },
     outbound::{SocketId, TrafficClass},
@@ -108,6 +109,9 @@ pub(crate) enum SendProgress {
     cursor: SampleCursor,
     blocked: BTreeSet<SocketId>,
   },
+  /// A burst of PUSH_BURST_MAX_BYTES went out; resume at `cursor` after
+  /// PUSH_PACE_INTERVAL, so that a reader's socket buffer can drain.
+  Paced { cursor: SampleCursor },
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -116,6 +120,8 @@ pub(crate) enum TimedEvent {
   CacheCleaning,
   SendRepairData { to_reader: GUID },
   SendRepairFrags { to_reader: GUID },
+  // The next burst of a paced push (see SendProgress::Paced).
+  ResumePush,
 }
 
 // This is used to construct an actual Writer.
@@ -251,6 +257,10 @@ pub(crate) struct Writer {
   /// sockets' round-robin queues and arms write readiness.
   blocked_sockets: BTreeSet<SocketId>,
 
+  /// While set and in the future, a paced push waits for its ResumePush timer
+  /// (a doorbell meanwhile does not start the next burst early).
+  paced_until: Option<std::time::Instant>,
+
   /// Contains timer that needs to be set to timeout with duration of
   /// self.heartbeat_period timed_event_handler sends notification when timer
   /// is up via mio channel to poll in Dp_eventWrapper this also handles
@@ -357,6 +367,7 @@ impl Writer {
       last_sent: SequenceNumber::zero(),
       sample_cursor: SampleCursor::Fresh,
       blocked_sockets: BTreeSet::new(),
+      paced_until: None,
       timed_event_timer,
       like_stateless: i.like_stateless,
       qos_policies: i.qos_policies,
@@ -522,6 +533,10 @@ impl Writer {
         {
           self.schedule_repair_data(reader_guid, self.repair_interval());
         }
+      }
+      TimedEvent::ResumePush => {
+        self.paced_until = None;
+        self.process_pending();
       }
       TimedEvent::SendRepairFrags {
         to_reader: reader_guid,
@@ -772,6 +787,12 @@ impl Writer {
   }
 
   pub fn process_pending(&mut self) {
+    if let Some(until) = self.paced_until {
+      if std::time::Instant::now() < until {
+        return;
+      }
+      self.paced_until = None;
+    }
     // The doorbell enqueues this writer's id and then wakes. A sample admitted
     // while we are here pushes another id, so the next wake runs us again. The
     // shared buffer's `last_seq` is the source of truth.
@@ -879,9 +900,16 @@ impl Writer {
             target_reader_opt,
             cursor,
             push_class,
+            push_class == TrafficClass::Bulk,
           )
         };
         match progress {
+          SendProgress::Paced { cursor } => {
+            self.sample_cursor = cursor;
+            self.paced_until = Some(std::time::Instant::now() + PUSH_PACE_INTERVAL);
+            self.schedule_timed_event(PUSH_PACE_INTERVAL, TimedEvent::ResumePush);
+            return;
+          }
           SendProgress::Complete => {
             self.last_sent = sequence_number;
             self.sample_cursor = SampleCursor::Fresh;
@@ -966,6 +994,7 @@ impl Writer {
       target_reader_opt,
       SampleCursor::Fresh,
       TrafficClass::Control,
+      false,
     );
     fragmentation_needed
   }
@@ -980,6 +1009,7 @@ impl Writer {
     target_reader_opt: Option<&RtpsReaderProxy>,
     cursor: SampleCursor,
     class: TrafficClass,
+    pace: bool,
   ) -> (bool, SendProgress) {
     // First make sure that if the data is meant for a single reader only, we do
     // not accidentally send it to everyone.
@@ -1010,8 +1040,23 @@ impl Writer {
     let fragmentation_needed = messages_to_send.fragmentation_needed();
 
     // Send the messages, either to all readers or just one, stopping at the
-    // first message that a socket could not accept.
+    // first message that a socket could not accept, or (when pacing) before
+    // the fragment that would start a new burst.
+    let mut burst_bytes = 0;
     for (resume_cursor, msg) in messages_to_send {
+      if pace && burst_bytes >= PUSH_BURST_MAX_BYTES && matches!(resume_cursor, SampleCursor::Frag(_)) {
+        return (
+          fragmentation_needed,
+          SendProgress::Paced {
+            cursor: resume_cursor,
+          },
+        );
+      }
+      burst_bytes += msg
+        .submessages
+        .iter()
+        .map(|s| 4 + usize::from(s.header.content_length))
+        .sum::<usize>();
       let blocked = match target_reader_opt {
         None => self.send_message_to_readers(
           DeliveryMode::Multicast,
@@ -2948,7 +2993,7 @@ mod tests {
               let to_reader = match event {
                 TimedEvent::SendRepairData { to_reader }
                 | TimedEvent::SendRepairFrags { to_reader } => Some(to_reader),
-                TimedEvent::Heartbeat | TimedEvent::CacheCleaning => None,
+                TimedEvent::Heartbeat | TimedEvent::CacheCleaning | TimedEvent::ResumePush => None,
               };
               if to_reader == Some(self.reader_guid) {
                 found.push(event);
