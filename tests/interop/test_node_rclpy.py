@@ -276,6 +276,8 @@ def run(proc, ros, GetDistances, GetEsdfBox):
     assert got["late"].header.frame_id == FRAME
     check_grid(got["late"], occupied)
 
+    check_rviz_layout(ros)
+
     # get_distances, as rclpy on Fast DDS calls it.
     assert client.wait_for_service(timeout_sec=15), "get_distances is not available to rclpy"
     queries = [(1.55, 0.05, 1.05), (1.95, 0.05, 1.05), (1.25, -0.65, 0.75), (0.55, 0.05, 0.25), (2.05, 0.05, 1.05)]
@@ -320,6 +322,42 @@ def run(proc, ros, GetDistances, GetEsdfBox):
     grid = np.stack(np.meshgrid(*(np.arange(40) + f for f in first), indexing="ij"), axis=-1)
     cells = grid.transpose(2, 1, 0, 3).reshape(-1, 3)  # x fastest, then y, then z
     check_observed(cells, np.array(reply.distances), np.array(reply.states), occupied, GetDistances.Request)
+
+
+RVIZ_TYPES = {
+    "rviz_default_plugins/PointCloud2": "sensor_msgs/msg/PointCloud2",
+    "rviz_default_plugins/Map": "nav_msgs/msg/OccupancyGrid",
+}
+
+
+def check_rviz_layout(ros):
+    """Every display of ros/edtmap.rviz names a topic the node publishes,
+    with the display's message type, and a durability the publisher offers."""
+    import yaml
+    layout = yaml.safe_load((ROOT / "ros" / "edtmap.rviz").read_text())
+    displays = [d for d in layout["Visualization Manager"]["Displays"] if "Topic" in d]
+    assert len(displays) == 4, displays
+    graph = {}
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline and not all(d["Topic"]["Value"] in graph for d in displays):
+        graph = dict(ros.get_topic_names_and_types())
+        rclpy.spin_once(ros, timeout_sec=0.05)
+    for d in displays:
+        topic = d["Topic"]["Value"]
+        assert topic in graph, f"{d['Name']}: {topic} is not published ({sorted(graph)})"
+        assert RVIZ_TYPES[d["Class"]] in graph[topic], (topic, graph[topic])
+        offered = [i.qos_profile.durability for i in ros.get_publishers_info_by_topic(topic)]
+        if d["Topic"]["Durability Policy"] == "Transient Local":
+            assert DurabilityPolicy.TRANSIENT_LOCAL in offered, (topic, offered)
+
+
+def test_the_launch_file_compiles_and_starts_the_layout():
+    """ros/launch/edtmap.launch.py (no launch wheels here: it is compiled,
+    and the files it names exist)."""
+    path = ROOT / "ros" / "launch" / "edtmap.launch.py"
+    code = compile(path.read_text(), str(path), "exec")
+    assert "generate_launch_description" in code.co_names
+    assert (ROOT / "configs" / "ros2_lidar.toml").is_file() and (ROOT / "ros" / "edtmap.rviz").is_file()
 
 
 def check_observed(cells, distances, states, occupied, consts):
