@@ -22,11 +22,13 @@ use std::time::{Duration, Instant};
 
 const MIN: Duration = Duration::from_secs(60);
 
+/// Reliable, keeping more samples than a flood publishes at once (a KEEP_LAST
+/// writer drops its oldest samples, sent or not, beyond its depth).
 fn qos() -> QosProfile {
     QosProfile::publisher_default()
         .reliability_reliable(WhenFull::Wait(Duration::from_millis(500)))
         .durability(Durability::Volatile)
-        .history(History::KeepLast { depth: 20 })
+        .history(History::KeepLast { depth: 64 })
 }
 
 /// Waits up to `limit` for `f` to give something.

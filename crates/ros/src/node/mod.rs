@@ -360,12 +360,15 @@ pub fn start(config: &Config, mapper: Mapper) -> Result<NodeHandle, NodeError> {
             pose_qos(100)
         )),
     };
+    // Each writer holds its last `depth` samples, delivered or not (the DDS
+    // memory budget, see the README): few of the large clouds, more of the
+    // small messages.
     let outputs = Outputs {
         esdf: publ!(node, "esdf_pointcloud", "sensor_msgs", "PointCloud2", reliable_qos(2)),
-        occupied: publ!(node, "occupied_pointcloud", "sensor_msgs", "PointCloud2", reliable_qos(2)),
-        slice: publ!(node, "distance_slice", "sensor_msgs", "PointCloud2", reliable_qos(2)),
+        occupied: publ!(node, "occupied_pointcloud", "sensor_msgs", "PointCloud2", reliable_qos(4)),
+        slice: publ!(node, "distance_slice", "sensor_msgs", "PointCloud2", reliable_qos(4)),
         grid: publ!(node, "occupancy_grid", "nav_msgs", "OccupancyGrid", map_qos()),
-        stats: publ!(node, "frame_stats", "diagnostic_msgs", "DiagnosticArray", reliable_qos(2)),
+        stats: publ!(node, "frame_stats", "diagnostic_msgs", "DiagnosticArray", reliable_qos(10)),
     };
     if r.service_mapping != ServiceMapping::Auto {
         tracing::info!(

@@ -45,7 +45,7 @@ use crate::{
     cache_change::CacheChange,
     duration::Duration,
     entity::RTPSEntity,
-    guid::{EntityId, GuidPrefix, GUID},
+    guid::{EntityId, EntityKind, GuidPrefix, GUID},
     locator::Locator,
     sequence_number::{FragmentNumber, SequenceNumber},
     time::Timestamp,
@@ -584,8 +584,29 @@ impl Writer {
         self.remove_all_acked_changes_but_keep_depth(None, resource_limit);
       }
       Some(History::KeepLast { depth: d }) => {
-        self.remove_all_acked_changes_but_keep_depth(Some(d as usize), resource_limit);
+        self.remove_all_acked_changes_but_keep_depth(
+          Some(d as usize),
+          resource_limit.min(self.keep_last_bound().unwrap_or(usize::MAX)),
+        );
       }
+    }
+  }
+
+  // KEEP_LAST as DDS defines it, for a user writer of a topic without keys
+  // (one instance): the history holds the last `depth` samples, acknowledged
+  // or not; a reader that has not received an older one gets a GAP. Keyed and
+  // built-in writers keep the default above (their depth is per instance).
+  // Without it a KEEP_LAST writer of large samples held every sample of the
+  // last cache-cleaning period (4 s) and every unacknowledged one, up to
+  // DEFAULT_WRITER_MAX_SAMPLES: at 10-40 Hz, hundreds of MB.
+  fn keep_last_bound(&self) -> Option<usize> {
+    match self.qos_policies.history {
+      Some(History::KeepLast { depth })
+        if self.my_guid.entity_id.entity_kind == EntityKind::WRITER_NO_KEY_USER_DEFINED =>
+      {
+        Some((depth as usize).max(1))
+      }
+      _ => None,
     }
   }
 
@@ -787,6 +808,17 @@ impl Writer {
   }
 
   pub fn process_pending(&mut self) {
+    // A KEEP_LAST user writer drops what its depth no longer holds as new
+    // samples come, not only at the periodic cache cleaning.
+    if let Some(depth) = self.keep_last_bound() {
+      let (first, last) = (
+        i64::from(self.send_buffer.first_change_sequence_number()),
+        i64::from(self.send_buffer.last_change_sequence_number()),
+      );
+      if last.saturating_sub(first) >= depth as i64 {
+        self.handle_cache_cleaning();
+      }
+    }
     if let Some(until) = self.paced_until {
       if std::time::Instant::now() < until {
         return;
@@ -2842,7 +2874,7 @@ mod tests {
       },
       polling::new_shared_timer,
       rtps::writer_send_buffer::Admission,
-      structure::{guid::EntityKind, sequence_number::SequenceNumberSet},
+      structure::sequence_number::SequenceNumberSet,
       RepresentationIdentifier,
     };
 
