@@ -141,9 +141,17 @@ pub(crate) fn share_out<I: Send, T: Send, S>(
             });
         }
         run(0);
-        // A helper that started is on its last item at most.
+        // A helper that started is on its last item at most: spin for it,
+        // then, if it takes long (another process may hold its core), give
+        // this core up between looks.
+        let mut looks = 0u32;
         while running.load(Ordering::Acquire) > 0 {
-            std::hint::spin_loop();
+            looks += 1;
+            if looks < SPINS_BEFORE_YIELD {
+                std::hint::spin_loop();
+            } else {
+                std::thread::yield_now();
+            }
         }
     });
     let mut results = results.into_inner().unwrap_or_else(PoisonError::into_inner);
@@ -151,19 +159,33 @@ pub(crate) fn share_out<I: Send, T: Send, S>(
     results.into_iter().map(|r| r.1).collect()
 }
 
-/// Looks for work until `done`, or until it found none for [`IDLE_LIMIT`].
+/// Spins of a waiting thread before it yields its core between looks (a
+/// few microseconds).
+const SPINS_BEFORE_YIELD: u32 = 1 << 10;
+
+/// Looks for work until `done`, or until it found none for [`IDLE_LIMIT`];
+/// after [`SPINS_BEFORE_YIELD`] fruitless looks in a row it yields its core
+/// between looks, so that on a loaded machine it does not keep the stage's
+/// own thread (or another process) off a core.
 fn help(done: &AtomicBool) {
     if BUSY.replace(true) {
         return;
     }
     let mut idle_since = Instant::now();
+    let mut looks = 0u32;
     while !done.load(Ordering::Acquire) {
         if rayon::yield_now() == Some(Yield::Executed) {
             idle_since = Instant::now();
+            looks = 0;
         } else if idle_since.elapsed() > IDLE_LIMIT {
             break;
         } else {
-            std::hint::spin_loop();
+            looks += 1;
+            if looks < SPINS_BEFORE_YIELD {
+                std::hint::spin_loop();
+            } else {
+                std::thread::yield_now();
+            }
         }
     }
     BUSY.set(false);
