@@ -7,28 +7,39 @@
 # while a second participant asks get_distances continuously. Prints, per
 # scene, the mapping rate achieved, the latency from publishing a frame to
 # receiving its ESDF cloud, get_distances round trips for 1, 1,000 and
-# 100,000 points (the last as calls of 1,800 points: see the README's
-# known limits), and the node's peak memory. Then a long replay (uav_pillars,
+# 100,000 points (one call each), and the node's peak memory. Then a long
+# replay (uav_pillars,
 # 5 × the frames; the scene's path repeats) without and with map clearing
 # (`map_clearing_radius_m = 8`): the map's bytes (map and kept passes, from
 # /edtmap/frame_stats) at a quarter, half, three quarters and the end.
-# Appends both tables to docs/results.md.
+# With --ros-python, then a Fast DDS subscriber (rclpy, ROS 2's default
+# middleware; bench/node_fastdds.py): every output after every frame at
+# 10 Hz for --fastdds-seconds, with each output's delivery ratio and
+# latency and the node's memory every 10 s.
+# Appends the tables to docs/results.md.
 #
-#   bash bench/node.sh [--frames N] [--no-append]
+#   bash bench/node.sh [--frames N] [--no-append] [--ros-python PY [--fastdds-seconds S]]
 #
-#   --frames N    frames recorded per scene (default 120)
-#   --no-append   print only
+#   --frames N           frames recorded per scene (default 120)
+#   --no-append          print only
+#   --ros-python PY      a Python with tests/interop/requirements-ros.txt
+#                        installed (python3 -m venv V && V/bin/pip install -r ...)
+#   --fastdds-seconds S  how long the Fast DDS run lasts (default 600)
 # Builds with `cargo build --release` (CARGO_PROFILE_RELEASE_* apply).
 set -euo pipefail
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 root="$(cd "$here/.." && pwd)"
 frames=120
 append=1
+ros_python=""
+fastdds_seconds=600
 while [ $# -gt 0 ]; do
     case "$1" in
         --frames) frames="$2"; shift 2 ;;
         --no-append) append=0; shift ;;
-        -h|--help) sed -n '2,21p' "$0"; exit 0 ;;
+        --ros-python) ros_python="$2"; shift 2 ;;
+        --fastdds-seconds) fastdds_seconds="$2"; shift 2 ;;
+        -h|--help) sed -n '2,30p' "$0"; exit 0 ;;
         *) echo "node.sh: unknown argument $1 (see --help)" >&2; exit 2 ;;
     esac
 done
@@ -87,9 +98,32 @@ PY
     long="$long
 $row"
 done
+fastdds=""
+if [ -n "$ros_python" ]; then
+    "$ros_python" "$here/node_fastdds.py" --seconds "$fastdds_seconds" --binary "$edtmap" >"$work/fastdds.json"
+    fastdds=$(python3 - "$work/fastdds.json" <<'PY'
+import json, sys
+r = json.load(open(sys.argv[1]))
+print(f"Fast DDS subscriber (rclpy, default QoS), {r['seconds']:.0f} s at {r['frame_hz']:.0f} Hz, {r['frames_mapped']} of {r['frames_published']} frames mapped, ESDF band {r['esdf_pointcloud_z_m']} m:")
+print()
+print("| output | delivered | latency median / p95 ms |")
+print("|---|---|---|")
+for k, o in r["outputs"].items():
+    print(f"| {k} | {o['received']} ({100 * o['delivery']:.0f} %) | {o['latency_ms_median']} / {o['latency_ms_p95']} |")
+print()
+rss = r["node_rss_every_10_s"]
+marks = [rss[0], rss[len(rss) // 4], rss[len(rss) // 2], rss[3 * len(rss) // 4], rss[-1]]
+print("| node at s | " + " | ".join(str(m["s"]) for m in marks) + " | peak |")
+print("|---|" + "---|" * (len(marks) + 1))
+print("| RSS MiB | " + " | ".join(str(m["rss_mib"]) for m in marks) + f" | {r['node_peak_rss_mib']} |")
+print("| map + kept MiB | " + " | ".join(str(m["map_mib"]) for m in marks) + " | |")
+PY
+)
+fi
 echo "$table"
 echo
 echo "$long"
+[ -n "$fastdds" ] && { echo; echo "$fastdds"; }
 if [ "$append" = 1 ]; then
     {
         echo
@@ -100,5 +134,9 @@ if [ "$append" = 1 ]; then
         echo "$table"
         echo
         echo "$long"
+        if [ -n "$fastdds" ]; then
+            echo
+            echo "$fastdds"
+        fi
     } >>docs/results.md
 fi
