@@ -84,55 +84,6 @@ pub struct SeparableCache {
     valid_for: Option<(MapStamp, Cutoff)>,
     /// Square roots up to the last cutoff's squared distance.
     roots: Option<Roots>,
-    /// Whether a frame's passes are shared out among threads.
-    threads: ThreadChoice,
-}
-
-/// Chooses, frame by frame, whether the exact update shares its passes out
-/// among rayon's threads or runs them on one, from what each way has cost
-/// lately: nanoseconds per entry the passes read or changed, a moving
-/// average per way. The way that costs less runs; every [`EXPLORE`]th
-/// frame runs the other, so that the choice follows the machine: sharing
-/// out pays on large frames of a quiet machine, and loses on small frames
-/// (the threads' hand-offs cost more than the work) and under load (a
-/// thread that another process keeps off its core holds the others up).
-#[derive(Debug, Default)]
-struct ThreadChoice {
-    /// Nanoseconds per unit of work, averaged: one thread, shared out.
-    cost: [Option<f64>; 2],
-    frames: u64,
-}
-
-/// Every this many frames the way that costs more runs once more.
-const EXPLORE: u64 = 16;
-
-/// Frames with less work than this (entries read and changed) are not
-/// counted: their fixed costs say little about the next large frame.
-const MIN_WORK: usize = 4096;
-
-impl ThreadChoice {
-    /// Whether this frame shares its passes out among threads.
-    fn shared(&mut self) -> bool {
-        if rayon::current_num_threads() <= 1 {
-            return false;
-        }
-        self.frames += 1;
-        match self.cost {
-            [_, None] => true,
-            [None, _] => false,
-            [Some(one), Some(many)] => (many < one) != self.frames.is_multiple_of(EXPLORE),
-        }
-    }
-
-    /// Counts a frame that took `took` for `work` entries, `shared` out or not.
-    fn record(&mut self, shared: bool, took: std::time::Duration, work: usize) {
-        if work < MIN_WORK || rayon::current_num_threads() <= 1 {
-            return;
-        }
-        let per = took.as_nanos() as f64 / work as f64;
-        let cost = &mut self.cost[usize::from(shared)];
-        *cost = Some(cost.map_or(per, |c| 0.75 * c + 0.25 * per));
-    }
 }
 
 impl SeparableCache {
@@ -166,17 +117,7 @@ pub fn update_exact(
     cutoff: Cutoff,
     cache: &mut SeparableCache,
 ) -> IntegrateReport {
-    let shared = cache.threads.shared();
-    let start = std::time::Instant::now();
-    let report = if shared {
-        awake(|| update_in_pool(map, obstacles, blocks, cutoff, cache, true))
-    } else {
-        update_in_pool(map, obstacles, blocks, cutoff, cache, false)
-    };
-    let e = &report.exact;
-    let work = e.visited.iter().chain(&e.changed).sum::<usize>();
-    cache.threads.record(shared, start.elapsed(), work);
-    report
+    awake(|| update_in_pool(map, obstacles, blocks, cutoff, cache))
 }
 
 fn update_in_pool(
@@ -185,16 +126,14 @@ fn update_in_pool(
     blocks: &[BlockKey],
     cutoff: Cutoff,
     cache: &mut SeparableCache,
-    parallel: bool,
 ) -> IntegrateReport {
     let roots = match cache.roots.take() {
         Some(r) if r.max == cutoff.max_dist_sq => r,
         _ => Roots::new(cutoff.max_dist_sq),
     };
-    let pass = Pass { reach: cutoff.reach, max: cutoff.max_dist_sq, roots: &roots, parallel };
+    let pass = Pass { reach: cutoff.reach, max: cutoff.max_dist_sq, roots: &roots };
     if cache.valid_for != Some((map.stamp(), cutoff)) {
-        // A rebuild reads the whole map: shared out whenever there are threads.
-        rebuild(map, &Pass { parallel: true, ..pass }, cache);
+        rebuild(map, &pass, cache);
     }
     // Obstacles that appeared or vanished: the map's against `obstacles`,
     // one mask per block. The map's obstacles are its `g1` entries at 0
@@ -202,7 +141,7 @@ fn update_in_pool(
     let (g1, edt): (_, &EdtMap) = (&cache.g1, map);
     let found = share_out(
         blocks.iter().copied(),
-        parallel && blocks.len() >= 2 * MIN_TASKS,
+        blocks.len() >= 2 * MIN_TASKS,
         || (),
         |(), key| {
             let now = obstacles.block_bits(key);
@@ -940,7 +879,7 @@ where
     let view: &L = layer;
     let planned: Vec<Plan> = share_out(
         &tasks,
-        pass.parallel && shared(tasks.len(), keys.len()),
+        shared(tasks.len(), keys.len()),
         || (Vec::new(), Scratch::default()),
         |(found, scratch), r| {
             let ks = &keys[r.clone()];
@@ -1070,7 +1009,7 @@ where
     type Written<L> = Vec<(i32, Option<<L as Layer>::Back>, Mask, Option<Box<Changed>>)>;
     let stats: Vec<(Stats, Written<L>)> = share_out(
         work,
-        pass.parallel && shared(tasks.len(), keys.len()),
+        shared(tasks.len(), keys.len()),
         || (Scratch::default(), Vec::new(), Vec::new(), Sparse::default(), Vec::new(), Vec::new()),
         |(s, out, entries, sparse, rescan, index), (plan, slots)| {
             let mut st = Stats { visited: plan.visited, ..Stats::default() };
@@ -1837,14 +1776,10 @@ impl Scratch {
 }
 
 /// The cutoff, as the passes use it.
-#[derive(Clone, Copy)]
 struct Pass<'a> {
     reach: i32,
     max: u32,
     roots: &'a Roots,
-    /// Whether the passes are shared out among threads ([`shared`] still
-    /// keeps a small pass on one).
-    parallel: bool,
 }
 
 /// `floor(sqrt(v))` and `sqrt(v)` for every `v` up to the cutoff's squared
@@ -1966,47 +1901,6 @@ impl Pass<'_> {
 }
 
 const _: () = assert!(BLOCK_SIDE == 8);
-
-#[cfg(test)]
-mod thread_choice_tests {
-    use super::{ThreadChoice, EXPLORE, MIN_WORK};
-    use std::time::Duration;
-
-    /// The way that has cost less runs, the other every EXPLORE-th frame;
-    /// the choice follows a change of costs; small frames are not counted;
-    /// one thread never shares out.
-    #[test]
-    fn the_cheaper_way_runs_and_the_other_is_tried_now_and_then() {
-        let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().expect("a pool");
-        pool.install(|| {
-            let mut c = ThreadChoice::default();
-            // Shared out first, then one thread, each once.
-            assert!(c.shared());
-            c.record(true, Duration::from_micros(300), 100_000);
-            assert!(!c.shared());
-            c.record(false, Duration::from_micros(200), 100_000);
-            // One thread is cheaper: it runs, but for every EXPLORE-th frame.
-            let picks: Vec<bool> = (0..2 * EXPLORE).map(|_| c.shared()).collect();
-            assert_eq!(picks.iter().filter(|&&s| s).count(), 2, "{picks:?}");
-            // Small frames say nothing.
-            for _ in 0..50 {
-                c.record(true, Duration::from_nanos(1), MIN_WORK - 1);
-            }
-            assert_eq!((0..2 * EXPLORE).filter(|_| c.shared()).count(), 2);
-            // Sharing out becomes cheaper (the machine got quieter): it wins.
-            for _ in 0..8 {
-                c.record(true, Duration::from_micros(100), 100_000);
-            }
-            let picks: Vec<bool> = (0..2 * EXPLORE).map(|_| c.shared()).collect();
-            assert_eq!(picks.iter().filter(|&&s| !s).count(), 2, "{picks:?}");
-        });
-        let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().expect("a pool");
-        one.install(|| {
-            let mut c = ThreadChoice::default();
-            assert!((0..40).all(|_| !c.shared()));
-        });
-    }
-}
 
 #[cfg(test)]
 mod tests {
