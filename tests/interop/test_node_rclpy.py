@@ -7,8 +7,9 @@ drivers do, with no `world_frame` in the node's config. It subscribes
 with default QoS to /edtmap/distance_slice, /edtmap/occupancy_grid and
 /edtmap/frame_stats, then joins /edtmap/occupancy_grid late with
 transient-local QoS (as Nav2's costmaps and RViz's Map display do), and
-calls /edtmap/get_distances (5 points, then 100,000) and
-/edtmap/get_esdf_box (40³ voxels) with edtmap_msgs built from
+calls /edtmap/get_distances (5 points, then 100,000),
+/edtmap/get_esdf_box (40³ voxels) and /edtmap/save_map with edtmap_msgs
+built from
 ros/edtmap_msgs by the wheels' generators; the large replies (3.4 MB and
 1.1 MB) span many datagrams. Every distance is checked against a
 brute-force distance between voxel centres; every output must be in
@@ -168,8 +169,8 @@ def edtmap_msgs(tmp_path_factory):
     for name in ("rosidl_generator_c", "rosidl_typesupport_c", "rosidl_typesupport_fastrtps_c", "rosidl_typesupport_introspection_c", "rosidl_generator_py"):
         ctypes.CDLL(str(lib / f"libedtmap_msgs__{name}.so"), mode=ctypes.RTLD_GLOBAL)
     sys.path.insert(0, str(next(lib.glob("python3*/site-packages"))))
-    from edtmap_msgs.srv import GetDistances, GetEsdfBox
-    return GetDistances, GetEsdfBox
+    from edtmap_msgs.srv import GetDistances, GetEsdfBox, SaveMap
+    return GetDistances, GetEsdfBox, SaveMap
 
 
 # --- the node ---------------------------------------------------------------------
@@ -193,17 +194,17 @@ def node(tmp_path):
 def test_node_maps_what_rclpy_publishes_and_answers_it(node, edtmap_msgs):
     proc, log_dir = node
     try:
-        exercise(proc, edtmap_msgs)
+        exercise(proc, edtmap_msgs, log_dir)
     except BaseException:
         print(f"--- edtmap node stderr (domain {DOMAIN}) ---\n{(log_dir / 'node.stderr').read_text(errors='replace')}")
         raise
 
 
-def exercise(proc, services):
+def exercise(proc, services, log_dir):
     rclpy.init()
     ros = rclpy.create_node("edtmap_rclpy_test")
     try:
-        run(proc, ros, *services)
+        run(proc, ros, *services, log_dir)
     finally:
         ros.destroy_node()
         rclpy.shutdown()
@@ -225,7 +226,7 @@ def spin_until(proc, ros, what, pred, timeout_s, every=None):
     pytest.fail(f"timed out after {timeout_s} s waiting for {what}")
 
 
-def run(proc, ros, GetDistances, GetEsdfBox):
+def run(proc, ros, GetDistances, GetEsdfBox, SaveMap, log_dir):
     got = {"slice": None, "grid": None, "stats": None, "late": None}
 
     def keep(key):
@@ -322,6 +323,19 @@ def run(proc, ros, GetDistances, GetEsdfBox):
     grid = np.stack(np.meshgrid(*(np.arange(40) + f for f in first), indexing="ij"), axis=-1)
     cells = grid.transpose(2, 1, 0, 3).reshape(-1, 3)  # x fastest, then y, then z
     check_observed(cells, np.array(reply.distances), np.array(reply.states), occupied, GetDistances.Request)
+
+    # save_map: the node writes its map where asked; `edtmap info` reads it
+    # back; a path it cannot write is an error reply, not silence.
+    save_client = ros.create_client(SaveMap, "/edtmap/save_map")
+    assert save_client.wait_for_service(timeout_sec=15), "save_map is not available to rclpy"
+    for path, ok in ((log_dir / "saved.edtmap", True), (log_dir / "no-such-dir" / "saved.edtmap", False)):
+        future = save_client.call_async(SaveMap.Request(path=str(path)))
+        spin_until(proc, ros, "the save_map reply", future.done, 30)
+        reply = future.result()
+        assert reply.success == ok, reply.message
+        assert reply.message, "a reply says what was written, or why not"
+    info = subprocess.run([str(BINARY.resolve()), "info", str(log_dir / "saved.edtmap")], capture_output=True, text=True, timeout=60)
+    assert info.returncode == 0 and "mapped box" in info.stdout, info.stdout + info.stderr
 
 
 RVIZ_TYPES = {
