@@ -144,14 +144,9 @@ pub(crate) fn share_out<I: Send, T: Send, S>(
         // A helper that started is on its last item at most: spin for it,
         // then, if it takes long (another process may hold its core), give
         // this core up between looks.
-        let mut looks = 0u32;
+        let mut wait = Backoff::default();
         while running.load(Ordering::Acquire) > 0 {
-            looks += 1;
-            if looks < SPINS_BEFORE_YIELD {
-                std::hint::spin_loop();
-            } else {
-                std::thread::yield_now();
-            }
+            wait.snooze();
         }
     });
     let mut results = results.into_inner().unwrap_or_else(PoisonError::into_inner);
@@ -163,29 +158,42 @@ pub(crate) fn share_out<I: Send, T: Send, S>(
 /// few microseconds).
 const SPINS_BEFORE_YIELD: u32 = 1 << 10;
 
-/// Looks for work until `done`, or until it found none for [`IDLE_LIMIT`];
-/// after [`SPINS_BEFORE_YIELD`] fruitless looks in a row it yields its core
-/// between looks, so that on a loaded machine it does not keep the stage's
-/// own thread (or another process) off a core.
+/// A waiting thread's pause between two looks: a spin for the first
+/// [`SPINS_BEFORE_YIELD`] looks, then a yield of its core, so that on a
+/// loaded machine a waiter does not keep the thread it waits for (or
+/// another process) off a core.
+#[derive(Default)]
+struct Backoff {
+    looks: u32,
+}
+
+impl Backoff {
+    fn snooze(&mut self) {
+        if self.looks < SPINS_BEFORE_YIELD {
+            self.looks += 1;
+            std::hint::spin_loop();
+        } else {
+            std::thread::yield_now();
+        }
+    }
+}
+
+/// Looks for work until `done`, or until it found none for [`IDLE_LIMIT`],
+/// pausing between fruitless looks as a [`Backoff`] does.
 fn help(done: &AtomicBool) {
     if BUSY.replace(true) {
         return;
     }
     let mut idle_since = Instant::now();
-    let mut looks = 0u32;
+    let mut wait = Backoff::default();
     while !done.load(Ordering::Acquire) {
         if rayon::yield_now() == Some(Yield::Executed) {
             idle_since = Instant::now();
-            looks = 0;
+            wait = Backoff::default();
         } else if idle_since.elapsed() > IDLE_LIMIT {
             break;
         } else {
-            looks += 1;
-            if looks < SPINS_BEFORE_YIELD {
-                std::hint::spin_loop();
-            } else {
-                std::thread::yield_now();
-            }
+            wait.snooze();
         }
     }
     BUSY.set(false);
