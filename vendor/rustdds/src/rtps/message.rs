@@ -44,6 +44,18 @@ pub struct Message {
 }
 
 impl Message {
+  /// Bytes of the serialized message: the RTPS header and each submessage
+  /// (`content_length` already includes the 4-byte payload padding, see
+  /// `Data::len_serialized`).
+  pub(crate) fn len_serialized(&self) -> usize {
+    RTPS_MESSAGE_HEADER_SIZE
+      + self
+        .submessages
+        .iter()
+        .map(|s| SUBMESSAGE_HEADER_SIZE + s.header.content_length as usize)
+        .sum::<usize>()
+  }
+
   pub fn add_submessage(&mut self, submessage: Submessage) {
     self.submessages.push(submessage);
   }
@@ -64,17 +76,9 @@ impl Message {
   /// each body in its own endianness (from the submessage header flags),
   /// exactly mirroring the generic `Submessage::write_to`.
   pub(crate) fn write_to_vec_fast(&self, endianness: Endianness) -> Result<Vec<u8>, speedy::Error> {
-    // Capacity hint only: `content_length` already includes the 4-byte payload
-    // padding (see `Data::len_serialized`). If it were ever off the `Vec` simply
-    // grows, so correctness does not depend on it being exact.
-    let total = RTPS_MESSAGE_HEADER_SIZE
-      + self
-        .submessages
-        .iter()
-        .map(|s| SUBMESSAGE_HEADER_SIZE + s.header.content_length as usize)
-        .sum::<usize>();
-
-    let mut buf = Vec::with_capacity(total);
+    // Capacity hint: exact (checked below in debug builds), though a `Vec`
+    // that is off simply grows.
+    let mut buf = Vec::with_capacity(self.len_serialized());
     self.header.write_to_stream_with_ctx(endianness, &mut buf)?;
     for sm in &self.submessages {
       // Mirror the generic Submessage::write_to exactly: the submessage header
@@ -84,7 +88,7 @@ impl Message {
       sm.body
         .write_to_stream_with_ctx(body_endianness, &mut buf)?;
     }
-    debug_assert_eq!(buf.len(), total);
+    debug_assert_eq!(buf.len(), self.len_serialized());
     Ok(buf)
   }
 

@@ -1084,11 +1084,7 @@ impl Writer {
           },
         );
       }
-      burst_bytes += msg
-        .submessages
-        .iter()
-        .map(|s| 4 + usize::from(s.header.content_length))
-        .sum::<usize>();
+      burst_bytes += msg.len_serialized();
       let blocked = match target_reader_opt {
         None => self.send_message_to_readers(
           DeliveryMode::Multicast,
