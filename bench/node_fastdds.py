@@ -2,10 +2,10 @@
 ROS 2's default middleware, from the PyPI wheels of
 tests/interop/requirements-ros.txt), over loopback, for a while.
 
-A LiDAR robot patrols a circle of radius 4 m inside a 12 m cylindrical
-wall with pillars, at FRAME_HZ. The node runs configs/ros2_lidar.toml's
-map and mapping settings with every output published after every frame
-(poses from best-effort odometry, loopback only). The script subscribes
+The scene of bench/node_scene.py: a LiDAR circling inside a 12 m walled
+yard with pillars, frames at --hz, configs/ros2_lidar.toml's mapping with
+every output published after every frame (poses from best-effort
+odometry, loopback only). The script subscribes
 to every output with default QoS (reliable, keep last 10, default socket
 buffers) and to the occupancy grid transient-local as well, and reports:
 
@@ -21,17 +21,15 @@ Prints one JSON object on stdout.
 """
 import argparse
 import json
-import math
 import os
-import statistics
-import struct
 import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parent.parent
+from node_scene import ROOT, cloud_bytes, config, latency_ms, sensor_at, world_points  # noqa: E402  (bench/)
+
 os.environ.setdefault("ROS_DOMAIN_ID", str(100 + os.getpid() % 80))
 os.environ.update(ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", RMW_IMPLEMENTATION="rmw_fastrtps_cpp")
 
@@ -51,39 +49,6 @@ OUTPUTS = {
 }
 
 
-def config(band):
-    text = (ROOT / "configs" / "ros2_lidar.toml").read_text()
-    ros = text.index("[ros]")
-    return text[:ros] + f"""[ros]
-sensor_topic = "/points"
-pose_topic = "/odom"
-pose_type = "odometry"
-localhost_only = true
-esdf_pointcloud_hz = 1000.0
-esdf_pointcloud_z_m = [{band[0]}, {band[1]}]
-occupied_pointcloud_hz = 1000.0
-slice_hz = 1000.0
-slice_height_m = 1.0
-pose_wait_s = 0.5
-map_clearing_radius_m = 60.0
-"""
-
-
-def world_points():
-    """The wall (radius 12 m) and eight pillars (radius 0.5 m at 8 m), 0.1 m apart, -1 to 5 m high."""
-    pts = []
-    heights = [-1.0 + 0.1 * k for k in range(60)]
-    for i in range(760):
-        a = 2 * math.pi * i / 760
-        pts += [(12.0 * math.cos(a), 12.0 * math.sin(a), z) for z in heights]
-    for p in range(8):
-        cx, cy = 8.0 * math.cos(p * math.pi / 4), 8.0 * math.sin(p * math.pi / 4)
-        for i in range(32):
-            a = 2 * math.pi * i / 32
-            pts += [(cx + 0.5 * math.cos(a), cy + 0.5 * math.sin(a), z) for z in heights]
-    return pts
-
-
 def stamp(t):
     sec = int(t)
     return Time(sec=sec, nanosec=int(round((t - sec) * 1e9)))
@@ -97,11 +62,10 @@ def cloud(points, at, t):
     """The world as seen from `at` (sensor frame = world axes, shifted)."""
     m = PointCloud2()
     m.header.stamp, m.header.frame_id = stamp(t), "lidar"
-    xs = [(x - at[0], y - at[1], z - at[2]) for x, y, z in points]
-    m.height, m.width = 1, len(xs)
+    m.height, m.width = 1, len(points)
     m.fields = [PointField(name=n, offset=4 * i, datatype=PointField.FLOAT32, count=1) for i, n in enumerate("xyz")]
-    m.is_bigendian, m.point_step, m.row_step, m.is_dense = False, 12, 12 * len(xs), True
-    m.data = struct.pack(f"<{3 * len(xs)}f", *(c for p in xs for c in p))
+    m.is_bigendian, m.point_step, m.row_step, m.is_dense = False, 12, 12 * len(points), True
+    m.data = cloud_bytes(points, at)
     return m
 
 
@@ -134,19 +98,22 @@ def main():
         sys.exit(f"node_fastdds.py: {args.binary} is missing: cargo build --release -p edtmap-cli (or --binary)")
 
     work = Path(tempfile.mkdtemp(prefix="edtmap-node-fastdds-"))
-    (work / "node.toml").write_text(config(args.band))
+    (work / "node.toml").write_text(config(args.band, 'pose_topic = "/odom"\npose_type = "odometry"'))
     node = subprocess.Popen([str(Path(args.binary).resolve()), "node", "--config", "node.toml"], cwd=work,
                             stdin=subprocess.DEVNULL, stdout=open(work / "node.out", "wb"), stderr=open(work / "node.err", "wb"))
     rclpy.init()
     ros = rclpy.create_node("edtmap_bench_fastdds")
     sent = {}  # frame stamp -> wall time published
     got = {k: {} for k in OUTPUTS}  # output -> frame stamp -> wall time received
+    largest = {k: 0 for k in OUTPUTS}  # output -> largest payload received, bytes
     stats = {"frames": 0, "map_bytes": 0}
 
     def on(key):
         def cb(m):
             now = time.monotonic()
             got[key].setdefault(round(stamp_s(m.header.stamp), 3), now)
+            if key != "frame_stats":
+                largest[key] = max(largest[key], len(m.data))
             if key == "frame_stats":
                 for s in m.status:
                     for kv in s.values:
@@ -175,8 +142,7 @@ def main():
         now = time.monotonic()
         if now >= next_frame:
             t = round(1.0 + k / args.hz, 3)
-            a = 2 * math.pi * k / (args.hz * 40.0)  # one lap in 40 s
-            at = (4.0 * math.cos(a), 4.0 * math.sin(a), 0.0)
+            at = sensor_at(k, args.hz)
             pub_odom.publish(odom(at, t - 0.01))
             pub_odom.publish(odom(at, t + 0.01))
             pub_points.publish(cloud(world, at, t))
@@ -201,12 +167,13 @@ def main():
     frames = stats["frames"]
     per_output = {}
     for key in OUTPUTS:
-        lat = sorted((got[key][s] - sent[s]) * 1e3 for s in got[key] if s in sent)
+        median, p95 = latency_ms(got[key][s] - sent[s] for s in got[key] if s in sent)
         per_output[key] = {
             "received": len(got[key]),
+            "largest_bytes": largest[key],
             "delivery": round(len(got[key]) / frames, 3) if frames else 0.0,
-            "latency_ms_median": round(statistics.median(lat), 1) if lat else None,
-            "latency_ms_p95": round(lat[int(0.95 * (len(lat) - 1))], 1) if lat else None,
+            "latency_ms_median": median,
+            "latency_ms_p95": p95,
         }
     print(json.dumps({
         "seconds": args.seconds, "frames_published": k, "frames_mapped": frames, "frame_hz": args.hz,

@@ -364,7 +364,7 @@ pub fn start(config: &Config, mapper: Mapper) -> Result<NodeHandle, NodeError> {
     // memory budget, see the README): few of the large clouds, more of the
     // small messages.
     let outputs = Outputs {
-        esdf: publ!(node, "esdf_pointcloud", "sensor_msgs", "PointCloud2", reliable_qos(2)),
+        esdf: publ!(node, "esdf_pointcloud", "sensor_msgs", "PointCloud2", reliable_qos(4)),
         occupied: publ!(node, "occupied_pointcloud", "sensor_msgs", "PointCloud2", reliable_qos(4)),
         slice: publ!(node, "distance_slice", "sensor_msgs", "PointCloud2", reliable_qos(4)),
         grid: publ!(node, "occupancy_grid", "nav_msgs", "OccupancyGrid", map_qos()),
