@@ -28,6 +28,25 @@ pub(crate) type CliMapper = edtmap::Mapper<DynBackend>;
 /// saying so; `auto` falls back to the CPU (software GPUs are slower than
 /// the CPU backend, so `auto` never picks them).
 pub(crate) fn open(arg: BackendArg, cpu: CpuBackend) -> Result<DynBackend> {
+    open_for(arg, cpu, false)
+}
+
+/// [`open`] for a map that may be planar (`[global] planar = true`): its
+/// integration runs on the CPU, so `auto` picks the CPU and `gpu` is
+/// refused before any frame.
+pub(crate) fn open_for(arg: BackendArg, cpu: CpuBackend, planar: bool) -> Result<DynBackend> {
+    if planar {
+        match arg {
+            BackendArg::Gpu => anyhow::bail!(
+                "--backend gpu: a planar map ([global] planar = true) is integrated on the CPU; use --backend cpu or auto"
+            ),
+            BackendArg::Auto => {
+                eprintln!("--backend auto: a planar map is integrated on the CPU, using the CPU");
+                return Ok(Box::new(cpu));
+            }
+            BackendArg::Cpu => {}
+        }
+    }
     match arg {
         BackendArg::Cpu => Ok(Box::new(cpu)),
         BackendArg::Gpu => Ok(Box::new(GpuBackend::new().context("--backend gpu")?)),

@@ -36,6 +36,7 @@ pub(crate) fn run(args: &DemoArgs) -> Result<()> {
         voxel_size: None,
         integration: None,
         connectivity: None,
+        planar: false,
         save: Some(args.out.join("map.edtmap")),
         prior: None,
         backend: args.backend,

@@ -101,11 +101,12 @@ pub(crate) fn info(args: &InfoArgs) -> Result<()> {
     let map = load_map(&args.map)?;
     let vs = map.voxel_size_m();
     outln!(
-        "{}: voxel {vs} m, cutoff {} m, connectivity {}, integration {:?}",
+        "{}: voxel {vs} m, cutoff {} m, connectivity {}, integration {:?}{}",
         args.map.display(),
         map.params().max_distance_m,
         u8::from(map.params().connectivity),
-        map.params().mode
+        map.params().mode,
+        if map.params().planar { ", planar (distances within each layer)" } else { "" }
     );
     outln!(
         "blocks: {} occupancy, {} EDT, {} fixed; {:.1} MB",

@@ -55,6 +55,12 @@ pub(crate) struct RunArgs {
     /// Override the config's [global] connectivity: 6, 18 or 26.
     #[arg(long)]
     pub(crate) connectivity: Option<u8>,
+    /// A planar map ([global] planar = true): distances measured within
+    /// each horizontal layer of voxels, none kept above or below the
+    /// layers with obstacles. For planar LiDARs; needs the exact mode and
+    /// the CPU backend.
+    #[arg(long)]
+    pub(crate) planar: bool,
     /// Save the final map (occupancy and global EDT) to this file.
     #[arg(long)]
     pub(crate) save: Option<PathBuf>,
@@ -143,6 +149,10 @@ fn load_config(args: &RunArgs) -> Result<(Config, String)> {
     }
     if let Some(c) = args.connectivity {
         config.global.connectivity = Connectivity::try_from(c).map_err(|e| anyhow::anyhow!("--connectivity: {e}"))?;
+    }
+    if args.planar {
+        config.global.planar = true;
+        config.mapper_params().context("--planar")?;
     }
     Ok((config, origin))
 }
@@ -290,7 +300,7 @@ fn frame_count(args: &RunArgs, name: &str, default_frames: usize) -> Result<usiz
 
 /// The mapper on the chosen backend, with the `--prior` map added.
 fn open_mapper(args: &RunArgs, setup: &Setup) -> Result<CliMapper> {
-    let backend = backend::open(args.backend, CpuBackend::default())?;
+    let backend = backend::open_for(args.backend, CpuBackend::default(), setup.params.global.planar)?;
     let mut mapper = Mapper::new_on(backend, setup.sensor.clone(), setup.params.clone())?;
     if let Some(path) = &args.prior {
         let prior = edtmap::load_map(path)?;

@@ -280,6 +280,17 @@ pub struct GlobalParams {
     pub mode: IntegrationMode,
     /// Boxes that always count as obstacles.
     pub forbidden: Vec<ForbiddenZone>,
+    /// A planar map: distances are measured within each horizontal layer
+    /// of voxels (a 2D EDT per layer, as a planar LiDAR's map needs), and
+    /// no distance is kept above or below the layers that hold obstacles.
+    /// Needs the exact mode. Written to a map file only when set, so other
+    /// maps' files stay as they were.
+    #[serde(skip_serializing_if = "is_false")]
+    pub planar: bool,
+}
+
+fn is_false(b: &bool) -> bool {
+    !*b
 }
 
 impl Default for GlobalParams {
@@ -289,6 +300,7 @@ impl Default for GlobalParams {
             connectivity: Connectivity::default(),
             mode: IntegrationMode::default(),
             forbidden: Vec::new(),
+            planar: false,
         }
     }
 }
@@ -296,8 +308,16 @@ impl Default for GlobalParams {
 impl GlobalParams {
     /// The cutoff as a squared distance and a reach per axis, in voxels of
     /// `voxel_size_m`; fails on a cutoff that is not positive and finite,
-    /// below one voxel, or beyond 10 000 voxels.
+    /// below one voxel, or beyond 10 000 voxels, and on a planar map in
+    /// wavefront mode.
     pub fn cutoff(&self, voxel_size_m: f64) -> Result<Cutoff, CoreError> {
+        if self.planar && self.mode != IntegrationMode::Exact {
+            return Err(CoreError::InvalidParam {
+                field: "planar",
+                value: "true".to_string(),
+                reason: "a planar map needs mode = \"exact\" (the wavefronts are three-dimensional)",
+            });
+        }
         // The tolerance keeps 0.6 m / 0.2 m at 3 voxels, not 2.999….
         let vox = self.max_distance_m / voxel_size_m * (1.0 + 1e-9);
         if !(1.0..=10_000.0).contains(&vox) {
@@ -308,7 +328,7 @@ impl GlobalParams {
             });
         }
         let max_dist_sq = (vox * vox).floor() as u32;
-        Ok(Cutoff { max_dist_sq, reach: vox.floor() as i32 })
+        Ok(Cutoff { max_dist_sq, reach: vox.floor() as i32, planar: self.planar })
     }
 
     /// Checks every forbidden zone: finite corners, min below max.
@@ -333,8 +353,19 @@ pub struct Cutoff {
     /// Largest squared distance stored, voxels².
     pub max_dist_sq: u32,
     /// Largest distance along one axis, voxels: every voxel within the
-    /// cutoff of `v` lies within `reach` of it on each axis.
+    /// cutoff of `v` lies within `reach` of it on each axis (on x and y
+    /// only, for a planar map).
     pub reach: i32,
+    /// Distances within each horizontal layer ([`GlobalParams::planar`]).
+    pub planar: bool,
+}
+
+impl Cutoff {
+    /// How far the cutoff reaches along each axis, voxels: `reach`, and 0
+    /// along z for a planar map.
+    pub fn pad(&self) -> [i32; 3] {
+        [self.reach, self.reach, if self.planar { 0 } else { self.reach }]
+    }
 }
 
 #[cfg(test)]

@@ -40,6 +40,14 @@ impl Region {
         Region { origin: self.origin.map(|o| o - pad), dims: self.dims.map(|d| d + 2 * pad as usize) }
     }
 
+    /// This box grown by `pad[a]` voxels on both sides along each axis `a`.
+    pub fn grown_by(&self, pad: [i32; 3]) -> Region {
+        Region {
+            origin: [0, 1, 2].map(|a| self.origin[a] - pad[a]),
+            dims: [0, 1, 2].map(|a| self.dims[a] + 2 * pad[a] as usize),
+        }
+    }
+
     /// Number of voxels.
     pub fn len(&self) -> usize {
         self.dims.iter().product()
@@ -127,7 +135,8 @@ impl Region {
 pub struct Packing {
     /// The voxels worked on.
     pub region: Region,
-    /// The region grown by the cutoff's reach: where obstacles may lie.
+    /// The region grown by the cutoff's reach ([`Cutoff::pad`]): where
+    /// obstacles may lie.
     pub source: Region,
     /// The cutoff.
     pub cutoff: Cutoff,
@@ -137,7 +146,7 @@ impl Packing {
     /// The packing for `region`; fails when the source box has more than
     /// 2^32 − 1 voxels.
     pub fn new(region: Region, cutoff: Cutoff) -> Result<Self, CoreError> {
-        let source = region.grown(cutoff.reach);
+        let source = region.grown_by(cutoff.pad());
         if source.len() >= u32::MAX as usize {
             return Err(CoreError::TooLarge {
                 dims: source.dims,
@@ -174,7 +183,8 @@ impl Packing {
     /// Source-box coordinates of region voxel `c`.
     #[inline]
     pub fn region_in_source(&self, c: [usize; 3]) -> [usize; 3] {
-        c.map(|x| x + self.cutoff.reach as usize)
+        let pad = self.cutoff.pad();
+        [0, 1, 2].map(|a| c[a] + pad[a] as usize)
     }
 }
 
@@ -454,7 +464,7 @@ mod tests {
 
     #[test]
     fn pack_round_trip_and_order() {
-        let cutoff = Cutoff { max_dist_sq: 25, reach: 5 };
+        let cutoff = Cutoff { max_dist_sq: 25, reach: 5, planar: false };
         let p = Packing::new(Region { origin: [-3, 4, -20], dims: [10, 7, 3] }, cutoff).expect("small");
         let o = VoxelIndex([-8, 0, -17]);
         let v = p.pack(16, o);
@@ -466,7 +476,7 @@ mod tests {
 
     #[test]
     fn write_back_then_copy_in_round_trips() {
-        let cutoff = Cutoff { max_dist_sq: 100, reach: 10 };
+        let cutoff = Cutoff { max_dist_sq: 100, reach: 10, planar: false };
         let p = Packing::new(Region { origin: [-5, -9, 2], dims: [13, 6, 9] }, cutoff).expect("small");
         let mut map = EdtMap::new();
         let (mut old, mut cur) = (Vec::new(), Vec::new());
@@ -501,7 +511,7 @@ mod tests {
         ) {
             let mut state = seed | 1;
             let mut next = move |n: u64| { state ^= state << 13; state ^= state >> 7; state ^= state << 17; state % n };
-            let cutoff = Cutoff { max_dist_sq: 30, reach: 5 };
+            let cutoff = Cutoff { max_dist_sq: 30, reach: 5, planar: false };
             let p = Packing::new(Region { origin, dims }, cutoff).expect("small");
             let keys = p.region.grown(8).blocks();
             let mut map = EdtMap::new();

@@ -3,6 +3,10 @@
 //! voxel centres, signed to the obstacle surface), single or batched (in
 //! parallel), a point's occupancy state, and a dense box of voxel distances.
 //!
+//! On a planar map, distances are those of the point's layer of voxels:
+//! interpolated in x and y, with no gradient along z, and a signed
+//! distance measured within the layer.
+//!
 //! A distance beyond the cutoff reads as `max_distance_m` and is flagged
 //! `saturated`. So does a point outside the mapped area with no obstacle
 //! within the cutoff: a planner may read it as free but unknown, as its
@@ -170,8 +174,13 @@ pub fn distance(map: &GlobalMap, p: [f64; 3], signed: bool) -> Distance {
         return signed::signed_at(map, p, v, state, observed);
     }
     let u = p.map(|c| c / vs - 0.5);
-    let base = u.map(|c| c.floor());
-    let f = [0, 1, 2].map(|a| u[a] - base[a]);
+    let mut base = u.map(|c| c.floor());
+    let mut f = [0, 1, 2].map(|a| u[a] - base[a]);
+    if map.cutoff().planar {
+        // A planar map's distance is its layer's: interpolated in x and y
+        // only, with no gradient along z.
+        (base[2], f[2]) = (f64::from(v.0[2]), 0.0);
+    }
     let mut corner = [[[0.0; 2]; 2]; 2];
     let mut saturated = false;
     for (k, slot) in corner.iter_mut().flatten().flatten().enumerate() {

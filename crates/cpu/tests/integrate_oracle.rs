@@ -38,6 +38,15 @@ proptest! {
         prop_assert_eq!(worst, 0.0);
     }
 
+    /// A planar map: distances within each layer, none across layers,
+    /// with obstacles toggled in every layer of the box.
+    #[test]
+    fn planar_exact_mode_is_exact_in_every_layer(seed in any::<u64>(), cutoff in 2usize..8) {
+        let p = GlobalParams { planar: true, ..params(IntegrationMode::Exact, Connectivity::TwentySix, cutoff as f64 * IntegrationWorld::VOXEL_M) };
+        let worst = run(seed, &p, 12)?;
+        prop_assert_eq!(worst, 0.0);
+    }
+
     #[test]
     fn wavefront_stays_within_its_bound(seed in any::<u64>(), conn in 0usize..3, cutoff in 2usize..8) {
         let c = [Connectivity::Six, Connectivity::Eighteen, Connectivity::TwentySix][conn];

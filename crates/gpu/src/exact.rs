@@ -409,7 +409,7 @@ mod tests {
 
     #[test]
     fn encoding_round_trips_through_the_packing() {
-        let cutoff = Cutoff { max_dist_sq: 400, reach: 20 };
+        let cutoff = Cutoff { max_dist_sq: 400, reach: 20, planar: false };
         let p = Packing::new(Region { origin: [-5, 3, 0], dims: [10, 10, 10] }, cutoff).expect("small");
         let v = VoxelIndex([0, 5, 2]);
         for (n, d) in [(VoxelIndex([3, -4, 2]), 9 + 81), (v, 0), (VoxelIndex([-20, 5, 2]), 400)] {

@@ -324,6 +324,12 @@ impl Backend for GpuBackend {
     fn integrate(&mut self, job: IntegrateJob<'_>) -> Result<IntegrateReport, BackendError> {
         self.ctx.set_stage(Stage::Integrate);
         let IntegrateJob { map, obstacles, cutoff, work } = job;
+        if cutoff.planar {
+            // The device's passes measure distances in three dimensions.
+            return Err(BackendError::Core(edtmap_core::CoreError::Unsupported(
+                "a planar map ([global] planar = true) on the GPU backend; map it with --backend cpu".to_string(),
+            )));
+        }
         match work {
             Integration::Wavefront { window, batch, offsets } => {
                 self.integrator.run(map, window, batch, cutoff, offsets)

@@ -176,6 +176,7 @@ mod tests {
             connectivity: Connectivity::Eighteen,
             mode: IntegrationMode::Exact,
             forbidden: vec![ForbiddenZone { min_m: [-1.0, 0.1, 0.2], max_m: [0.7, 0.2 + 1e-7, 3.0e5] }],
+            planar: false,
         };
         let occupancy_params = OccupancyParams { prob_hit: 0.7000000000000001, ..Default::default() };
         (vs, occupancy_params, global_params)

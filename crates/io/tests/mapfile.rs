@@ -74,6 +74,7 @@ fn empty_map() -> MapContents {
         connectivity: Connectivity::Six,
         mode: IntegrationMode::Exact,
         forbidden: vec![ForbiddenZone { min_m: [-1.0, -0.5, 0.0], max_m: [0.25, 0.5, 0.1] }],
+        planar: false,
     };
     MapContents {
         voxel_size_m: VOXEL_SIZE_M,
@@ -275,6 +276,21 @@ fn empty_map_is_the_minimal_file() {
     assert_same(&map, &decode_map(&bytes).expect("round trip"));
     let text = std::str::from_utf8(&bytes[36..36 + text_len]).expect("UTF-8");
     assert!(text.contains("[occupancy]") && text.contains("[global]") && text.contains("prob_hit = 0.65"), "{text}");
+}
+
+/// A planar map says so in its parameter text and reads back planar; any
+/// other map's text has no `planar` key, so its file is as before.
+#[test]
+fn planar_maps_say_so_and_others_do_not() {
+    let mut map = empty_map();
+    let text = |bytes: &[u8]| String::from_utf8(bytes[36..sections_at(bytes)].to_vec()).expect("UTF-8");
+    assert!(!text(&encode_map(&map).expect("valid")).contains("planar"));
+    map.global_params.planar = true;
+    let bytes = encode_map(&map).expect("valid");
+    assert!(text(&bytes).contains("planar = true"), "{}", text(&bytes));
+    let back = decode_map(&bytes).expect("round trip");
+    assert!(back.global_params.planar);
+    assert_same(&map, &back);
 }
 
 #[test]

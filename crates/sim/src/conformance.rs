@@ -351,9 +351,11 @@ impl IntegrationWorld {
         (window, mask)
     }
 
-    /// Brute-force squared distance of `v`, `FAR_DIST_SQ` beyond `max`.
-    pub fn truth(&self, v: VoxelIndex, max: u32) -> u32 {
-        let best = self.obstacles.iter().map(|o| dist_sq(v, *o)).min().unwrap_or(u64::MAX);
+    /// Brute-force squared distance of `v`, `FAR_DIST_SQ` beyond `max`; to
+    /// the obstacles of `v`'s layer only where `planar`.
+    pub fn truth(&self, v: VoxelIndex, max: u32, planar: bool) -> u32 {
+        let in_reach = |o: &&VoxelIndex| !planar || o.0[2] == v.0[2];
+        let best = self.obstacles.iter().filter(in_reach).map(|o| dist_sq(v, *o)).min().unwrap_or(u64::MAX);
         if best > u64::from(max) {
             FAR_DIST_SQ
         } else {
@@ -362,8 +364,8 @@ impl IntegrationWorld {
     }
 
     /// Checks `edt` against brute force over the box and a margin: every
-    /// stored obstacle is real and at the stored distance, no distance is
-    /// below the truth. Returns the largest excess over the truth, voxels.
+    /// stored obstacle is real and at the stored distance (and in the
+    /// voxel's layer, on a planar map), no distance is below the truth. Returns the largest excess over the truth, voxels.
     pub fn check(&self, edt: &EdtMap, params: &GlobalParams) -> Result<f64, String> {
         let cutoff = params.cutoff(Self::VOXEL_M).map_err(|e| e.to_string())?;
         let r = cutoff.reach + 2;
@@ -374,11 +376,14 @@ impl IntegrationWorld {
             for y in Self::MIN[1] - r..Self::MIN[1] + Self::DIMS[1] + r {
                 for x in Self::MIN[0] - r..Self::MIN[0] + Self::DIMS[0] + r {
                     let v = VoxelIndex([x, y, z]);
-                    let truth = self.truth(v, cutoff.max_dist_sq);
+                    let truth = self.truth(v, cutoff.max_dist_sq, cutoff.planar);
                     let (stored, nearest) = edt.entry(v);
                     if stored != FAR_DIST_SQ {
                         if !self.obstacles.contains(&nearest) {
                             return Err(format!("{v:?}: stored obstacle {nearest:?} is not one"));
+                        }
+                        if cutoff.planar && nearest.0[2] != v.0[2] {
+                            return Err(format!("{v:?}: stored obstacle {nearest:?} is not in its layer"));
                         }
                         if dist_sq(v, nearest) != u64::from(stored) {
                             return Err(format!(

@@ -21,7 +21,8 @@ pub struct ExactBuffers {
 }
 
 /// Recomputes `packing.region` of `map` exactly from `obstacles`, with the
-/// batch EDT of `edt`.
+/// batch EDT of `edt` (of one layer on a planar map: the region must be
+/// one layer thick there, as [`crate::stages::integration`]'s tiles are).
 pub fn recompute_exact<E: BatchEdt + ?Sized>(
     edt: &mut E,
     map: &mut EdtMap,
@@ -29,6 +30,10 @@ pub fn recompute_exact<E: BatchEdt + ?Sized>(
     packing: &Packing,
     buf: &mut ExactBuffers,
 ) -> Result<WriteBack, BackendError> {
+    if packing.cutoff.planar && packing.region.dims[2] > 1 {
+        let what = format!("a planar map's recomputation over {} layers at once", packing.region.dims[2]);
+        return Err(crate::CoreError::Unsupported(what).into());
+    }
     fill_mask(obstacles, &packing.source, &mut buf.mask)?;
     edt.batch_edt(&buf.mask, &mut buf.field)?;
     copy_in(map, packing, &mut buf.old, &mut buf.cur);
@@ -45,13 +50,25 @@ pub fn recompute_exact<E: BatchEdt + ?Sized>(
 
 /// The exact EDT of the global obstacles truncated at `cutoff`, for every
 /// voxel of `region`: squared distances, [`FAR_DIST_SQ`] beyond the cutoff
-/// (the ground truth of the evaluation), with the batch EDT of `edt`.
+/// (the ground truth of the evaluation), with the batch EDT of `edt`; on a
+/// planar map, a batch EDT of each layer.
 pub fn exact_region<E: BatchEdt + ?Sized>(
     edt: &mut E,
     obstacles: &Obstacles<'_>,
     region: &Region,
     cutoff: Cutoff,
 ) -> Result<Vec<u32>, BackendError> {
+    if cutoff.planar && region.dims[2] > 1 {
+        let mut out = Vec::with_capacity(region.len());
+        for z in 0..region.dims[2] {
+            let layer = Region {
+                origin: [region.origin[0], region.origin[1], region.origin[2] + z as i32],
+                dims: [region.dims[0], region.dims[1], 1],
+            };
+            out.extend(exact_region(edt, obstacles, &layer, cutoff)?);
+        }
+        return Ok(out);
+    }
     let packing = Packing::new(*region, cutoff)?;
     let mut mask = Grid3::default();
     let mut field = EdtField::empty();

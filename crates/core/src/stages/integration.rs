@@ -122,7 +122,8 @@ impl IntegrationStage {
 
     /// Recomputes exactly every voxel within the cutoff of the box `bounds`
     /// (forbidden zones, a prior map laid down), in tiles of at most
-    /// `TILE`³ voxels so memory stays bounded.
+    /// `TILE`³ voxels so memory stays bounded (`TILE`² by one layer on a
+    /// planar map).
     pub fn recompute<B: Backend + ?Sized>(
         &self,
         backend: &mut B,
@@ -131,15 +132,18 @@ impl IntegrationStage {
         bounds: &Region,
     ) -> Result<IntegrateReport, BackendError> {
         let mut total = IntegrateReport::default();
-        for z in (0..bounds.dims[2]).step_by(TILE) {
-            for y in (0..bounds.dims[1]).step_by(TILE) {
-                for x in (0..bounds.dims[0]).step_by(TILE) {
+        // A planar map's tiles are one layer thick: a batch EDT of one
+        // layer measures distances within it.
+        let tile_dims = [TILE, TILE, if self.cutoff.planar { 1 } else { TILE }];
+        for z in (0..bounds.dims[2]).step_by(tile_dims[2]) {
+            for y in (0..bounds.dims[1]).step_by(tile_dims[1]) {
+                for x in (0..bounds.dims[0]).step_by(tile_dims[0]) {
                     let c = [x, y, z];
                     let tile = Region {
                         origin: [0, 1, 2].map(|a| bounds.origin[a] + c[a] as i32),
-                        dims: [0, 1, 2].map(|a| TILE.min(bounds.dims[a] - c[a])),
+                        dims: [0, 1, 2].map(|a| tile_dims[a].min(bounds.dims[a] - c[a])),
                     };
-                    let work = Integration::Recompute { region: tile.grown(self.cutoff.reach) };
+                    let work = Integration::Recompute { region: tile.grown_by(self.cutoff.pad()) };
                     let w = backend.integrate(IntegrateJob { map, obstacles, cutoff: self.cutoff, work })?;
                     total.voxels_changed += w.voxels_changed;
                     total.change_sum_vox += w.change_sum_vox;

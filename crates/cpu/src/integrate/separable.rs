@@ -131,7 +131,7 @@ fn update_in_pool(
         Some(r) if r.max == cutoff.max_dist_sq => r,
         _ => Roots::new(cutoff.max_dist_sq),
     };
-    let pass = Pass { reach: cutoff.reach, max: cutoff.max_dist_sq, roots: &roots };
+    let pass = Pass { reach: cutoff.reach, max: cutoff.max_dist_sq, planar: cutoff.planar, roots: &roots };
     if cache.valid_for != Some((map.stamp(), cutoff)) {
         rebuild(map, &pass, cache);
     }
@@ -347,16 +347,21 @@ fn run_passes(
     // loaded again after every write of the lowering.)
     let (exact, max) = (&pass.roots.exact[..], pass.max);
     let truncated = move |d: u32| root(exact, d.min(max));
-    let (changed, z) = drive(
-        map,
-        2,
-        dirty2,
-        Some(&LowerZ { g2 }),
-        pass,
-        |s, seg, col, out| pass.depth(g2, col, seg, s, out),
-        |v: Out| v.0,
-        |o: Out, n: Out| (truncated(n.0) - truncated(o.0)).abs(),
-    );
+    let amount = |o: Out, n: Out| (truncated(n.0) - truncated(o.0)).abs();
+    let (changed, z) = if pass.planar {
+        in_layer(map, dirty2, g2, max, amount)
+    } else {
+        drive(
+            map,
+            2,
+            dirty2,
+            Some(&LowerZ { g2 }),
+            pass,
+            |s, seg, col, out| pass.depth(g2, col, seg, s, out),
+            |v: Out| v.0,
+            amount,
+        )
+    };
     let mut changed_blocks: Vec<BlockKey> = changed.into_iter().map(|c| c.0).collect();
     changed_blocks.sort_unstable();
     let passes = [x, y, z];
@@ -374,6 +379,67 @@ fn run_passes(
             ..ExactCounts::default()
         },
     }
+}
+
+/// Pass z of a planar map: each voxel's distance is its own layer's, its
+/// `g2` entry within the cutoff, so only the outputs at the `g2` entries
+/// that changed (`dirty`) are written, each from its entry alone. Returns
+/// the blocks written and what changed, as [`drive`] does.
+fn in_layer(
+    map: &mut EdtMap,
+    dirty: Marked,
+    g2: &FxHashMap<BlockKey, Box<G2Block>>,
+    max: u32,
+    amount: impl Fn(Out, Out) -> f64 + Sync,
+) -> (Marked, Stats) {
+    let keys: Vec<BlockKey> = dirty.iter().map(|e| e.0).collect();
+    let taken = map.take_shared(&keys);
+    let many = keys.len() >= 2 * MIN_TASKS;
+    let written: Vec<(BlockKey, Option<SharedBlock<EdtBlock>>, Mask, Stats)> = share_out(
+        dirty.into_iter().zip(taken),
+        many,
+        || (),
+        |(), ((key, mask, _), block)| {
+            let mut block = SharedBlock::into_owned(block);
+            let input = g2.get(&key);
+            let (mut st, mut out) = (Stats::default(), [0u64; 8]);
+            for (w, &bits) in mask.iter().enumerate() {
+                let mut bits = bits;
+                while bits != 0 {
+                    let o = 64 * w + bits.trailing_zeros() as usize;
+                    bits &= bits - 1;
+                    let e = input.map_or(NONE2, |b| b[o]);
+                    let d = g2_value(e);
+                    let new = if d > max { (FAR_DIST_SQ, NO_OFFSET) } else { (d, [e[0], e[1], 0]) };
+                    let old = (block.dist_sq(o), block.to_nearest[o]);
+                    st.visited += 1;
+                    if old != new {
+                        block.to_nearest[o] = new.1;
+                        out[w] |= 1 << (o % 64);
+                        st.changed += 1;
+                        st.same += usize::from(old.0 == new.0);
+                        st.sum += amount(old, new);
+                    }
+                }
+            }
+            let back = (!block.is_far()).then(|| SharedBlock::new(block));
+            (key, back, out, st)
+        },
+    );
+    let mut stats = Stats::default();
+    let mut back = Vec::new();
+    let mut changed = Marked::new();
+    for (key, block, mask, st) in written {
+        stats.add(st);
+        if let Some(b) = block {
+            back.push((key, b));
+        }
+        if mask.iter().any(|&w| w != 0) {
+            changed.push((key, mask, None));
+        }
+    }
+    map.restore_shared(back);
+    (changed, stats)
 }
 
 /// A layer of per-voxel values in blocks, taken out to be written by one
@@ -1779,6 +1845,8 @@ impl Scratch {
 struct Pass<'a> {
     reach: i32,
     max: u32,
+    /// A planar map's: pass z keeps each layer's `g2` ([`in_layer`]).
+    planar: bool,
     roots: &'a Roots,
 }
 

@@ -60,7 +60,13 @@ fn nearest_obstacle(map: &GlobalMap, u: [f64; 3], v: VoxelIndex) -> Option<(f64,
 /// the obstacle voxel `v`), searched in the shells of voxels at Chebyshev
 /// distance 1, 2, … from `v` out to `reach`; `None` when every voxel there
 /// is an obstacle.
-fn nearest_free(obstacles: &Obstacles<'_>, u: [f64; 3], v: VoxelIndex, reach: i32) -> Option<(f64, VoxelIndex)> {
+fn nearest_free(
+    obstacles: &Obstacles<'_>,
+    u: [f64; 3],
+    v: VoxelIndex,
+    reach: i32,
+    planar: bool,
+) -> Option<(f64, VoxelIndex)> {
     let mut best: Option<(f64, VoxelIndex)> = None;
     for r in 1..=reach.min(10_000) {
         // `u` lies in `v`'s cube, so every cube of shell `r` is at least
@@ -68,7 +74,7 @@ fn nearest_free(obstacles: &Obstacles<'_>, u: [f64; 3], v: VoxelIndex, reach: i3
         if best.is_some_and(|(b, _)| b <= f64::from(r - 1).powi(2)) {
             break;
         }
-        for_shell(v, r, |w| {
+        for_shell(v, r, planar, |w| {
             if !obstacles.contains(w) {
                 let d2 = dist_sq(u, closest_on_cube(u, w));
                 if best.is_none_or(|(b, _)| d2 < b) {
@@ -80,10 +86,12 @@ fn nearest_free(obstacles: &Obstacles<'_>, u: [f64; 3], v: VoxelIndex, reach: i3
     best
 }
 
-/// Calls `f` on every voxel at Chebyshev distance exactly `r >= 1` from `v`.
-fn for_shell(v: VoxelIndex, r: i32, mut f: impl FnMut(VoxelIndex)) {
+/// Calls `f` on every voxel at Chebyshev distance exactly `r >= 1` from `v`
+/// (in `v`'s layer only, when `planar`).
+fn for_shell(v: VoxelIndex, r: i32, planar: bool, mut f: impl FnMut(VoxelIndex)) {
     let [x, y, z] = v.0;
-    for dz in -r..=r {
+    let layers = if planar { 0..=0 } else { -r..=r };
+    for dz in layers {
         for dy in -r..=r {
             if dz.abs() == r || dy.abs() == r {
                 (-r..=r).for_each(|dx| f(VoxelIndex([x + dx, y + dy, z + dz])));
@@ -101,10 +109,16 @@ fn for_shell(v: VoxelIndex, r: i32, mut f: impl FnMut(VoxelIndex)) {
 pub(super) fn signed_at(map: &GlobalMap, p: [f64; 3], v: VoxelIndex, state: PointState, observed: bool) -> Distance {
     let vs = map.voxel_size_m();
     let max = map.params().max_distance_m;
-    let u = p.map(|c| c / vs);
+    let mut u = p.map(|c| c / vs);
+    let planar = map.cutoff().planar;
+    if planar {
+        // Measured within the layer: from the point's place in it.
+        u[2] = f64::from(v.0[2]) + 0.5;
+    }
     let obstacles = map.obstacles();
     let inside = obstacles.contains(v);
-    let found = if inside { nearest_free(&obstacles, u, v, map.cutoff().reach) } else { nearest_obstacle(map, u, v) };
+    let found =
+        if inside { nearest_free(&obstacles, u, v, map.cutoff().reach, planar) } else { nearest_obstacle(map, u, v) };
     let Some((d2, w)) = found else {
         let distance_m = if inside { -max } else { max };
         return Distance { distance_m, gradient: [0.0; 3], state, observed, saturated: true };

@@ -78,7 +78,8 @@ fn check_log_odds(map: &OccupancyMap) -> Result<(), MapFileError> {
     Ok(())
 }
 
-/// Every EDT entry lies within the cutoff or beyond it. (That its
+/// Every EDT entry lies within the cutoff or beyond it, and on a planar
+/// map in its voxel's layer. (That its
 /// distance is its obstacle's, or far with none, the block itself keeps:
 /// the reader refuses any other as it reads it.)
 fn check_edt(map: &EdtMap, cutoff: Cutoff) -> Result<(), MapFileError> {
@@ -91,6 +92,13 @@ fn check_edt(map: &EdtMap, cutoff: Cutoff) -> Result<(), MapFileError> {
                     key.voxel(i).0,
                     block.to_nearest[i],
                     cutoff.max_dist_sq
+                )));
+            }
+            if cutoff.planar && d != FAR_DIST_SQ && block.to_nearest[i][2] != 0 {
+                return Err(MapFileError::Corrupt(format!(
+                    "EDT voxel {:?} of a planar map holds offset {:?} to its nearest obstacle, outside its layer",
+                    key.voxel(i).0,
+                    block.to_nearest[i]
                 )));
             }
         }
