@@ -18,9 +18,13 @@
 //!   log-odds (−∞ for unobserved voxels included) come back bit-identical.
 //!   The EDT is stored as memory holds it, an `i16` offset to the nearest
 //!   obstacle per axis (6 bytes a voxel); its squared distance is
-//!   recomputed on load. Version 1 files, which stored the squared
-//!   distance and the obstacle's `i32` index (16 bytes a voxel), still
-//!   load.
+//!   recomputed on load. Each block stores only its layers along z that
+//!   hold something other than what a new block holds, named by a mask
+//!   byte: a planar map's blocks store one layer of eight, and a 3D map's
+//!   blocks at the edge of the cutoff or of the observed space fewer than
+//!   eight. Version 1 files, which stored the squared distance and the
+//!   obstacle's `i32` index (16 bytes a voxel), and version 2 files, which
+//!   stored every layer, still load.
 //! * Loading trusts nothing: the magic, version, length and checksum are
 //!   checked before anything else is read, every count is checked against
 //!   the bytes that remain before anything is allocated, and the contents
@@ -61,7 +65,7 @@ use thiserror::Error;
 use crate::IoError;
 
 /// The format version this build writes; it reads versions 1 to this one.
-pub const MAP_FORMAT_VERSION: u32 = 2;
+pub const MAP_FORMAT_VERSION: u32 = 3;
 
 /// The first 8 bytes of every map file. The CR LF pair makes a file that
 /// went through a text-mode line-ending conversion fail the magic check.

@@ -16,11 +16,21 @@ use rand::{Rng, SeedableRng};
 const VOXEL_SIZE_M: f64 = 0.05;
 /// Offset of the parameter text's length (docs/FORMAT.md).
 const PARAMS_LEN_AT: usize = 32;
-/// Bytes of an occupancy, EDT and fixed block record (key and payload).
+/// Bytes of an occupancy and EDT block record (key and payload) in
+/// versions 1 and 2, which store every layer.
 const OCC_RECORD: usize = 12 + 4 * 512;
-const EDT_RECORD: usize = 12 + 6 * 512;
+const EDT_V2_RECORD: usize = 12 + 6 * 512;
 /// Bytes of a version 1 EDT block record.
 const EDT_V1_RECORD: usize = 12 + 16 * 512;
+/// Bytes of one layer of an occupancy and an EDT block (version 3).
+const OCC_LAYER: usize = 4 * 64;
+const EDT_LAYER: usize = 6 * 64;
+
+/// Bytes of the version 3 record at `at` (key, mask, stored layers) of a
+/// section whose layers are `layer` bytes.
+fn record_len(bytes: &[u8], at: usize, layer: usize) -> usize {
+    13 + bytes[at + 12].count_ones() as usize * layer
+}
 
 /// The layers and parameters of a map as plain fields the tests can set,
 /// and the [`GlobalMap`] they make.
@@ -183,6 +193,13 @@ fn put_section<B: Default>(out: &mut Vec<u8>, map: &BlockMap<B>, put: impl Fn(Bl
 /// docs/FORMAT.md (the EDT as 512 `u32` squared distances, then 512 nearest
 /// obstacles as three `i32`), independently of the crate's writer.
 fn encode_v1(map: &MapContents) -> Vec<u8> {
+    encode_old(map, 1)
+}
+
+/// The version 1 or 2 file of `map` (every layer of every block, no mask;
+/// version 2's EDT as three `i16` offsets), from docs/FORMAT.md,
+/// independently of the crate's writer.
+fn encode_old(map: &MapContents, version: u32) -> Vec<u8> {
     #[derive(serde::Serialize)]
     struct Params<'a> {
         occupancy: &'a OccupancyParams,
@@ -190,7 +207,7 @@ fn encode_v1(map: &MapContents) -> Vec<u8> {
     }
     let text = toml::to_string(&Params { occupancy: &map.occupancy_params, global: &map.global_params }).expect("TOML");
     let mut out = b"EDTMAP\r\n".to_vec();
-    out.extend(1u32.to_le_bytes());
+    out.extend(version.to_le_bytes());
     out.extend(0u32.to_le_bytes());
     out.extend(0u64.to_le_bytes()); // the length, set below
     out.extend(map.voxel_size_m.to_le_bytes());
@@ -200,8 +217,12 @@ fn encode_v1(map: &MapContents) -> Vec<u8> {
         b.log_odds.iter().for_each(|v| out.extend(v.to_bits().to_le_bytes()))
     });
     put_section(&mut out, &map.edt, |key, b, out| {
-        (0..BLOCK_VOXELS).for_each(|i| out.extend(b.dist_sq(i).to_le_bytes()));
-        (0..BLOCK_VOXELS).for_each(|i| b.nearest(key, i).0.iter().for_each(|c| out.extend(c.to_le_bytes())));
+        if version == 1 {
+            (0..BLOCK_VOXELS).for_each(|i| out.extend(b.dist_sq(i).to_le_bytes()));
+            (0..BLOCK_VOXELS).for_each(|i| b.nearest(key, i).0.iter().for_each(|c| out.extend(c.to_le_bytes())));
+        } else {
+            b.to_nearest.iter().flatten().for_each(|c| out.extend(c.to_le_bytes()));
+        }
     });
     put_section(&mut out, &map.fixed, |_, b, out| b.bits.iter().for_each(|w| out.extend(w.to_le_bytes())));
     let total = out.len() as u64 + 4;
@@ -441,14 +462,14 @@ fn absurd_counts_are_refused_before_allocating() {
 fn duplicate_and_unsorted_keys_are_corrupt() {
     let original = encode_map(&random_map(13, 8)).expect("valid");
     let first = sections_at(&original) + 8;
-    let second = first + OCC_RECORD;
+    let second = first + record_len(&original, first, OCC_LAYER);
+    let end = second + record_len(&original, second, OCC_LAYER);
     let mut bytes = original.clone();
     bytes.copy_within(first..first + 12, second);
     fix_crc(&mut bytes);
     assert!(matches!(decode_err(&bytes), MapFileError::Corrupt(m) if m.contains("duplicate block key")));
     let mut bytes = original.clone();
-    bytes[first..second + OCC_RECORD]
-        .copy_from_slice(&[&original[second..second + OCC_RECORD], &original[first..second]].concat());
+    bytes[first..end].copy_from_slice(&[&original[second..end], &original[first..second]].concat());
     fix_crc(&mut bytes);
     assert!(matches!(decode_err(&bytes), MapFileError::Corrupt(m) if m.contains("out of order")));
 }
@@ -505,15 +526,20 @@ fn version_1_edt_entry_whose_obstacle_is_out_of_the_offsets_range_is_corrupt() {
 }
 
 /// A map with one EDT block at `key` whose voxel 0 has an obstacle at
-/// offset (1, 2, 0), its bytes, and where that voxel's offset lies in them.
+/// offset (1, 2, 0) (and voxel 1 the same obstacle), its bytes, and where
+/// voxel 0's offset lies in them.
 fn one_edt_entry(key: BlockKey) -> (MapContents, Vec<u8>, usize) {
     let mut map = empty_map();
     let v = key.voxel(0);
-    map.edt.get_or_insert(key).set(key, 0, 5, VoxelIndex([v.0[0] + 1, v.0[1] + 2, v.0[2]])).expect("near");
+    let block = map.edt.get_or_insert(key);
+    block.set(key, 0, 5, VoxelIndex([v.0[0] + 1, v.0[1] + 2, v.0[2]])).expect("near");
+    // Voxel 1 too, so that voxel 0 alone can be made the sentinel.
+    block.set(key, 1, 4, VoxelIndex([v.0[0] + 1, v.0[1] + 2, v.0[2]])).expect("near");
     let bytes = encode_map(&map).expect("valid");
-    let offset_at = sections_at(&bytes) + 8 + 8 + 12;
+    let offset_at = sections_at(&bytes) + 8 + 8 + 13;
+    assert_eq!(bytes[offset_at - 1], 1, "one layer stored, the first");
     assert_eq!(bytes[offset_at..offset_at + 6], [1, 0, 2, 0, 0, 0], "three little-endian i16");
-    assert_eq!(offset_at - 12 + EDT_RECORD + 8 + 4, bytes.len(), "one EDT block, no fixed block");
+    assert_eq!(offset_at - 13 + 13 + EDT_LAYER + 8 + 4, bytes.len(), "one EDT block of one layer, no fixed block");
     (map, bytes, offset_at)
 }
 
@@ -576,7 +602,7 @@ fn round_trip_keeps_every_distance_and_nearest_obstacle() {
     let map = random_map(15, 120);
     let bytes = encode_map(&map).expect("valid");
     assert_eq!(bytes[8..12], MAP_FORMAT_VERSION.to_le_bytes());
-    assert_eq!(MAP_FORMAT_VERSION, 2);
+    assert_eq!(MAP_FORMAT_VERSION, 3);
     let back = mapfile::decode_map(&bytes).expect("round trip");
     assert_same_entries(&map.global().expect("valid"), &back);
     assert_same(&map, &MapContents::of(&back));
@@ -601,8 +627,27 @@ fn version_1_file_loads_equal() {
     assert_eq!(
         mapfile::encode_map(&back).expect("valid"),
         encode_map(&map).expect("valid"),
-        "saved again as version 2"
+        "saved again as the current version"
     );
+}
+
+#[test]
+fn version_2_file_loads_equal() {
+    let map = random_map(17, 120);
+    let v2 = encode_old(&map, 2);
+    let text_len = sections_at(&v2) - 36;
+    let expected = 36
+        + text_len
+        + 3 * 8
+        + OCC_RECORD * map.occupancy.len()
+        + EDT_V2_RECORD * map.edt.len()
+        + 76 * map.fixed.len()
+        + 4;
+    assert_eq!(v2.len(), expected, "the version 2 length of docs/FORMAT.md");
+    let back = mapfile::decode_map(&v2).expect("version 2 loads");
+    assert_same_entries(&map.global().expect("valid"), &back);
+    assert_same(&map, &MapContents::of(&back));
+    assert_eq!(mapfile::encode_map(&back).expect("valid"), encode_map(&map).expect("valid"));
 }
 
 /// A floor as a 2D laser maps it: one layer of observed blocks with a wall
@@ -644,13 +689,80 @@ fn wall_map() -> MapContents {
 fn version_2_file_is_less_than_half_the_version_1_file() {
     let map = wall_map();
     assert!(map.edt.len() > map.occupancy.len(), "the EDT reaches past the wall's blocks");
-    let (v1, v2) = (encode_v1(&map), encode_map(&map).expect("valid"));
+    let (v1, v2) = (encode_v1(&map), encode_old(&map, 2));
     assert_same_entries(&mapfile::decode_map(&v1).expect("v1"), &mapfile::decode_map(&v2).expect("v2"));
     let ratio = v1.len() as f64 / v2.len() as f64;
     assert!(ratio >= 2.0, "{} bytes in version 1, {} in version 2: {ratio:.2}", v1.len(), v2.len());
     let edt_bytes = |record: usize| (record * map.edt.len()) as f64;
-    assert_eq!(v1.len() - v2.len(), (EDT_V1_RECORD - EDT_RECORD) * map.edt.len(), "only the EDT payload shrinks");
-    assert!(edt_bytes(EDT_V1_RECORD) / edt_bytes(EDT_RECORD) > 2.6);
+    assert_eq!(v1.len() - v2.len(), (EDT_V1_RECORD - EDT_V2_RECORD) * map.edt.len(), "only the EDT payload shrinks");
+    assert!(edt_bytes(EDT_V1_RECORD) / edt_bytes(EDT_V2_RECORD) > 2.6);
+}
+
+/// The layers each block stores in version 3, by brute force over its
+/// voxels: those holding something other than a new block holds.
+fn stored_layers(map: &MapContents) -> usize {
+    let occ = map.occupancy.iter().map(|(_, b)| {
+        (0..8).filter(|z| b.log_odds[64 * z..64 * z + 64].iter().any(|l| l.to_bits() != UNOBSERVED.to_bits())).count()
+    });
+    let edt = map
+        .edt
+        .iter()
+        .map(|(_, b)| (0..8).filter(|z| (64 * z..64 * z + 64).any(|o| b.dist_sq(o) != FAR_DIST_SQ)).count());
+    let fixed = map.fixed.iter().map(|(_, b)| (0..8).filter(|&z| b.bits[z] != 0).count());
+    OCC_LAYER * occ.sum::<usize>() + EDT_LAYER * edt.sum::<usize>() + 8 * fixed.sum::<usize>()
+}
+
+#[test]
+fn version_3_stores_only_the_layers_that_hold_something() {
+    // A 3D EDT around a wall on a floor: every layer of its blocks within
+    // the cutoff; the same wall mapped planar: its layer alone.
+    let map3d = wall_map();
+    let mut planar = map3d.clone();
+    planar.global_params.planar = true;
+    let keep: Vec<_> = planar.edt.iter().map(|(k, _)| k).filter(|k| k.0[2] != 0).collect();
+    planar.edt.take(&keep);
+    let keys: Vec<_> = planar.edt.iter().map(|(k, _)| k).collect();
+    for key in keys {
+        let block = planar.edt.get_or_insert(key);
+        for o in 64..512 {
+            block.put(key, o, FAR_DIST_SQ, NO_OBSTACLE);
+        }
+    }
+    for map in [&map3d, &planar] {
+        let (v2, v3) = (encode_old(map, 2), encode_map(map).expect("valid"));
+        assert_same(map, &decode_map(&v3).expect("v3"));
+        assert_same(&decode_map(&v2).expect("v2"), &decode_map(&v3).expect("v3"));
+        let blocks = map.occupancy.len() + map.edt.len() + map.fixed.len();
+        assert_eq!(
+            v3.len() - (v2.len() - OCC_RECORD * map.occupancy.len() - EDT_V2_RECORD * map.edt.len()),
+            13 * blocks + stored_layers(map)
+        );
+    }
+    let ratio = |map: &MapContents| encode_old(map, 2).len() as f64 / encode_map(map).expect("valid").len() as f64;
+    assert!(ratio(&planar) > 7.5, "a planar map's file: {:.2} times smaller", ratio(&planar));
+    assert!(ratio(&map3d) > 1.0, "a 3D map's file: {:.2} times smaller", ratio(&map3d));
+}
+
+#[test]
+fn a_stored_layer_that_holds_nothing_is_corrupt() {
+    let (_, original, at) = one_edt_entry(BlockKey([1, -2, 3]));
+    // The mask says layers 0 and 1; layer 1's bytes are the sentinel.
+    let mut bytes = original[..at - 1].to_vec();
+    bytes.push(0b11);
+    bytes.extend_from_slice(&original[at..at + EDT_LAYER]);
+    (0..64).for_each(|_| bytes.extend_from_slice(&[0, 0x80, 0, 0x80, 0, 0x80]));
+    bytes.extend_from_slice(&original[at + EDT_LAYER..]);
+    let len = bytes.len() as u64;
+    bytes[16..24].copy_from_slice(&len.to_le_bytes());
+    fix_crc(&mut bytes);
+    let err = decode_err(&bytes);
+    assert!(matches!(&err, MapFileError::Corrupt(m) if m.contains("stores a layer that holds only")), "{err}");
+    // A mask naming a layer whose bytes are missing.
+    let mut bytes = original.clone();
+    bytes[at - 1] = 0b11;
+    fix_crc(&mut bytes);
+    let err = decode_err(&bytes);
+    assert!(matches!(&err, MapFileError::Corrupt(m) if m.contains("a block's layers")), "{err}");
 }
 
 #[test]

@@ -4,7 +4,10 @@
 
 use edtmap_core::{BlockKey, BlockMap, EdtBlock, GlobalMap, OccupancyBlock, StaticBlock};
 
-use super::layout::{get_key, le_u32, ParamsText, Payload, CHECKSUM_LEN, KEY_LEN, LENGTH_END, MIN_FILE_LEN};
+use super::layout::{
+    get_key, layer_mask, le_u32, ParamsText, Payload, CHECKSUM_LEN, FIRST_LAYERED_VERSION, KEY_LEN, LAYERS, LENGTH_END,
+    MIN_FILE_LEN,
+};
 use super::{check, MapFileError, MAP_FORMAT_VERSION, MAP_MAGIC};
 
 /// The map held by `bytes`.
@@ -85,8 +88,10 @@ fn framing(bytes: &[u8]) -> Result<(u32, &[u8]), MapFileError> {
 /// strictly.
 fn read_section<B: Payload>(cur: &mut Cursor<'_>, version: u32) -> Result<BlockMap<B>, MapFileError> {
     let count = cur.u64("a block count")?;
+    let layered = version >= FIRST_LAYERED_VERSION;
     let payload = B::len_in(version);
-    let record = (KEY_LEN + payload) as u64;
+    // A layered record is at least its key and mask.
+    let record = if layered { KEY_LEN + 1 } else { KEY_LEN + payload } as u64;
     let remaining = cur.remaining() as u64;
     if count > remaining / record {
         return Err(MapFileError::Corrupt(format!(
@@ -96,6 +101,10 @@ fn read_section<B: Payload>(cur: &mut Cursor<'_>, version: u32) -> Result<BlockM
     }
     let mut map: BlockMap<B> = BlockMap::new();
     let mut previous: Option<BlockKey> = None;
+    let mut full = Vec::with_capacity(payload);
+    let mut empty = Vec::with_capacity(payload);
+    B::default().put(BlockKey::default(), &mut empty);
+    let mut mask_read = 0;
     for _ in 0..count {
         let key = get_key(cur.take(KEY_LEN, "a block key")?);
         if let Some(p) = previous.filter(|&p| p >= key) {
@@ -109,7 +118,30 @@ fn read_section<B: Payload>(cur: &mut Cursor<'_>, version: u32) -> Result<BlockM
         }
         previous = Some(key);
         check::check_key::<B>(key)?;
-        map.get_or_insert(key).get(key, version, cur.take(payload, "a block")?).map_err(MapFileError::Corrupt)?;
+        let bytes = if layered {
+            let mask = cur.take(1, "a block's layer mask")?[0];
+            mask_read = mask;
+            let layer = payload / LAYERS;
+            let stored = cur.take(mask.count_ones() as usize * layer, "a block's layers")?;
+            // The layers not stored as a new block holds them.
+            full.clear();
+            full.extend_from_slice(&empty);
+            for (z, bytes) in (0..LAYERS).filter(|z| mask >> z & 1 == 1).zip(stored.chunks_exact(layer)) {
+                full[z * layer..(z + 1) * layer].copy_from_slice(bytes);
+            }
+            &full[..]
+        } else {
+            cur.take(payload, "a block")?
+        };
+        let block = map.get_or_insert(key);
+        block.get(key, version, bytes).map_err(MapFileError::Corrupt)?;
+        if layered && layer_mask(block) != mask_read {
+            return Err(MapFileError::Corrupt(format!(
+                "block {:?} of the {} section stores a layer that holds only what a new block holds",
+                key.0,
+                B::SECTION
+            )));
+        }
     }
     Ok(map)
 }

@@ -5,7 +5,7 @@ use std::io::{self, Write};
 
 use edtmap_core::{BlockMap, GlobalMap};
 
-use super::layout::{put_key, ParamsText, Payload, CHECKSUM_LEN, COUNT_LEN, HEADER_LEN, KEY_LEN};
+use super::layout::{layer_mask, put_key, ParamsText, Payload, CHECKSUM_LEN, COUNT_LEN, HEADER_LEN, KEY_LEN, LAYERS};
 use super::{check, MapFileError, MAP_FORMAT_VERSION, MAP_MAGIC};
 
 /// A checked map with its parameter text, ready to be written.
@@ -54,20 +54,28 @@ impl<'a> Prepared<'a> {
 }
 
 fn blocks_len<B: Payload>(map: &BlockMap<B>) -> u64 {
-    map.len() as u64 * (KEY_LEN + B::LEN) as u64
+    let layer = (B::LEN / LAYERS) as u64;
+    map.iter().map(|(_, b)| (KEY_LEN + 1) as u64 + u64::from(layer_mask(b).count_ones()) * layer).sum()
 }
 
-/// The block count, then each block's key and payload, keys ascending so the
-/// same map always gives the same bytes.
+/// The block count, then each block's key, layer mask and stored layers,
+/// keys ascending so the same map always gives the same bytes.
 fn write_section<B: Payload, W: Write>(out: &mut W, map: &BlockMap<B>) -> io::Result<()> {
     let mut blocks: Vec<_> = map.iter().collect();
     blocks.sort_unstable_by_key(|&(key, _)| key);
     out.write_all(&(blocks.len() as u64).to_le_bytes())?;
-    let mut record = Vec::with_capacity(KEY_LEN + B::LEN);
+    let layer = B::LEN / LAYERS;
+    let (mut payload, mut record) = (Vec::with_capacity(B::LEN), Vec::with_capacity(KEY_LEN + 1 + B::LEN));
     for (key, block) in blocks {
+        payload.clear();
+        block.put(key, &mut payload);
         record.clear();
         put_key(key, &mut record);
-        block.put(key, &mut record);
+        let mask = layer_mask(block);
+        record.push(mask);
+        for z in (0..LAYERS).filter(|z| mask >> z & 1 == 1) {
+            record.extend_from_slice(&payload[z * layer..(z + 1) * layer]);
+        }
         out.write_all(&record)?;
     }
     Ok(())

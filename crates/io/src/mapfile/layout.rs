@@ -4,7 +4,7 @@
 
 use edtmap_core::{
     BlockKey, EdtBlock, GlobalParams, OccupancyBlock, OccupancyParams, StaticBlock, VoxelIndex, BLOCK_VOXELS,
-    NO_OBSTACLE, NO_OFFSET,
+    NO_OBSTACLE, NO_OFFSET, UNOBSERVED,
 };
 use serde::{Deserialize, Serialize};
 
@@ -47,6 +47,24 @@ pub(super) trait Payload: Default + Clone {
     /// `version`, exactly [`Self::len_in`] long; fails with what it cannot
     /// hold.
     fn get(&mut self, key: BlockKey, version: u32, bytes: &[u8]) -> Result<(), String>;
+    /// Whether layer `z` of the block (its voxels `64 z .. 64 z + 64`)
+    /// holds only what a new block holds.
+    fn layer_empty(&self, z: usize) -> bool;
+}
+
+/// Layers of a block along z, each a contiguous eighth of a payload: a
+/// voxel's offset is `x + 8 (y + 8 z)`.
+pub(super) const LAYERS: usize = 8;
+
+/// From version 3 on, a block's record is its key, one byte whose bit `z`
+/// says whether layer `z` is stored, then the stored layers' payloads in
+/// ascending `z`; a layer not stored holds what a new block holds (a
+/// planar map's blocks store one layer of eight).
+pub(super) const FIRST_LAYERED_VERSION: u32 = 3;
+
+/// The layers of `block` that are not empty, as the record's mask byte.
+pub(super) fn layer_mask<B: Payload>(block: &B) -> u8 {
+    (0..LAYERS).filter(|&z| !block.layer_empty(z)).fold(0, |m, z| m | 1 << z)
 }
 
 impl Payload for OccupancyBlock {
@@ -60,6 +78,9 @@ impl Payload for OccupancyBlock {
             *v = f32::from_bits(le_u32(c));
         }
         Ok(())
+    }
+    fn layer_empty(&self, z: usize) -> bool {
+        self.log_odds[64 * z..64 * z + 64].iter().all(|v| v.to_bits() == UNOBSERVED.to_bits())
     }
 }
 
@@ -92,6 +113,9 @@ impl Payload for EdtBlock {
             self.to_nearest[i] = checked_offset(key.voxel(i), o)?;
         }
         Ok(())
+    }
+    fn layer_empty(&self, z: usize) -> bool {
+        self.to_nearest[64 * z..64 * z + 64].iter().all(|&o| o == NO_OFFSET)
     }
 }
 
@@ -137,6 +161,9 @@ impl Payload for StaticBlock {
             *w = u64::from_le_bytes([c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7]]);
         }
         Ok(())
+    }
+    fn layer_empty(&self, z: usize) -> bool {
+        self.bits[z] == 0
     }
 }
 
