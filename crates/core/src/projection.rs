@@ -19,6 +19,7 @@
 mod cull;
 mod depth;
 mod lidar;
+mod planar;
 
 use crate::sensor::{Measurement, Projection, RangeLimits, Sensor};
 use crate::{LocalVolume, Observations, OBS_MISS};
@@ -26,6 +27,7 @@ use cull::{TileCull, TILE};
 use depth::DepthMiss;
 use lidar::LidarMiss;
 use nalgebra::Isometry3;
+use planar::PlanarMiss;
 use rayon::prelude::*;
 
 /// [`crate::Backend::project_volume`]'s byte for a voxel that is not a miss.
@@ -172,20 +174,24 @@ impl ProjectJob<'_> {
 /// [`ProjectJob::is_miss_at`] (a LiDAR's with the same conditions in a
 /// cheaper order, [`lidar`]; a camera's against per-pixel thresholds,
 /// [`depth`], which also decides whole tiles from the depths their pixels
-/// measured). The misses are exactly the definition's.
+/// measured; a planar scan's against per-beam thresholds, its beam found
+/// without `atan2`, [`planar`]). The misses are exactly the definition's.
 pub fn mark_misses(obs: &Observations, job: &ProjectJob<'_>) {
     let geom = job.voxel_to_sensor();
     let lidar = LidarMiss::new(job);
     let bin_free_below_m = lidar.as_ref().map_or(&[][..], |l| l.bin_free_below_m());
     let depth = DepthMiss::new(job);
-    let decide = match (&lidar, &depth) {
-        (Some(l), _) => Decide::Lidar(l),
-        (None, Some(d)) => Decide::Depth(d),
-        (None, None) => Decide::Definition(job),
+    let planar = PlanarMiss::new(job);
+    let decide = match (&lidar, &depth, &planar) {
+        (Some(l), _, _) => Decide::Lidar(l),
+        (None, Some(d), _) => Decide::Depth(d),
+        (None, None, Some(p)) => Decide::Planar(p),
+        (None, None, None) => Decide::Definition(job),
     };
     let sup = match &decide {
         Decide::Lidar(l) => Some(l.free_below_sup()),
         Decide::Depth(d) => Some(d.free_below_sup()),
+        Decide::Planar(p) => Some(p.free_below_sup()),
         Decide::Definition(_) => None,
     };
     let Some(cull) = TileCull::new(job, &geom, bin_free_below_m, sup) else {
@@ -247,6 +253,8 @@ enum Decide<'a, 'j> {
     Lidar(&'a LidarMiss<'j>),
     /// A camera's per-pixel thresholds.
     Depth(&'a DepthMiss<'j>),
+    /// A planar scan's per-beam thresholds.
+    Planar(&'a PlanarMiss<'j>),
     /// [`ProjectJob::is_miss_at`] itself.
     Definition(&'a ProjectJob<'j>),
 }
@@ -278,6 +286,7 @@ fn mark_tile(obs: &Observations, geom: &VoxelToSensor, decide: &Decide<'_, '_>, 
                 let miss = match decide {
                     Decide::Lidar(l) => l.is_miss_at(p, &mut ring_hint),
                     Decide::Depth(d) => d.is_miss_at(p),
+                    Decide::Planar(s) => s.is_miss_at(p),
                     Decide::Definition(job) => job.is_miss_at(p),
                 };
                 misses |= u32::from(miss) << (x - lo[0]);

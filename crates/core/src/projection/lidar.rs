@@ -258,7 +258,7 @@ const ATAN_STEPS: usize = 1024;
 
 /// `atan(i / ATAN_STEPS)` for `i` in `0..=ATAN_STEPS + 1` (one past the
 /// end, so that `t = 1` interpolates without a test).
-static ATAN: std::sync::LazyLock<Vec<f64>> =
+pub(super) static ATAN: std::sync::LazyLock<Vec<f64>> =
     std::sync::LazyLock::new(|| (0..=ATAN_STEPS + 1).map(|i| (i as f64 / ATAN_STEPS as f64).atan()).collect());
 
 /// `atan2(y, x)` to some 1e-7 rad, for a first guess only: every answer
@@ -268,7 +268,7 @@ static ATAN: std::sync::LazyLock<Vec<f64>> =
 /// division and a table that fits the L1 cache, where a polynomial costs
 /// a chain of eight multiply-adds.
 #[inline]
-fn fast_atan2(y: f64, x: f64, atan: &[f64]) -> f64 {
+pub(super) fn fast_atan2(y: f64, x: f64, atan: &[f64]) -> f64 {
     let (ax, ay) = (x.abs(), y.abs());
     let (num, den) = if ay > ax { (ax, ay) } else { (ay, ax) };
     let t = if den > 0.0 { num / den } else { 0.0 };
