@@ -57,7 +57,9 @@ impl<'a> PlanarMiss<'a> {
     /// [`ProjectJob::is_miss_at`]`(p)`.
     #[inline]
     pub(super) fn is_miss_at(&self, p: [f32; 3]) -> bool {
-        if !(p[2].abs() <= self.job.planar_half_thickness_m) {
+        // As the definition tests it (NaN is not in the plane).
+        let in_plane = p[2].abs() <= self.job.planar_half_thickness_m;
+        if !in_plane {
             return false;
         }
         let Some(beam) = self.beam(p) else {
