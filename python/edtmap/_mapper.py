@@ -81,7 +81,7 @@ _SECTIONS = {
     "occupancy": ("local_size_m", "fixed_height_m", "prob_hit", "prob_miss", "clamp_min", "clamp_max",
                   "occupied_threshold"),
     "edt": ("unknown_as_occupied",),
-    "global": ("max_distance_m", "connectivity", "mode", "forbidden"),
+    "global": ("max_distance_m", "connectivity", "mode", "forbidden", "planar"),
     "sensor": ("construction", "clear_no_return", "free_margin_m", "planar_half_thickness_m"),
 }
 
@@ -164,11 +164,13 @@ class Mapper:
     :class:`PlanarLidar`) and any field of the configuration file's
     ``[occupancy]`` (``local_size_m``, ``fixed_height_m``, ``prob_hit``, ...),
     ``[edt]`` (``unknown_as_occupied``), ``[global]`` (``max_distance_m``,
-    ``connectivity``, ``mode``, ``forbidden``) and ``[sensor]``
+    ``connectivity``, ``mode``, ``forbidden``, ``planar``) and ``[sensor]``
     (``construction``, ``clear_no_return``, ...) sections, plus
     ``max_memory`` (``"4GiB"``). Or :meth:`from_config` with a TOML file.
     ``backend``: ``"cpu"``, or ``"gpu"``/``"auto"`` in a build with the
-    ``gpu`` feature; every backend gives the same map, bit for bit.
+    ``gpu`` feature; every backend gives the same map, bit for bit. A planar
+    map (``planar=True``: distances within each horizontal layer) runs on
+    the CPU (``"auto"`` picks it).
 
     Poses are ``T_world_sensor``: a 4 x 4 rigid transform, or
     ``[x, y, z, qx, qy, qz, qw]``. Integration and queries release the GIL;

@@ -206,6 +206,45 @@ def test_sensor_helpers_build_mappers():
     assert d[0] < 0.2
 
 
+def test_planar_map_distances_are_its_layers_brute_force(tmp_path):
+    # A planar LiDAR in a square room with a pillar, mapped planar: every
+    # distance in the scan's layer equals a brute-force 2D EDT of the
+    # layer's occupied voxels, and nothing is stored above or below it.
+    mapper = edtmap.Mapper(edtmap.PlanarLidar(0.1, 10.0), 0.1, planar=True, local_size_m=[8.0, 8.0, 0.1],
+                           max_distance_m=1.0)
+    angles = -np.pi + (np.arange(720) + 0.5) * (2 * np.pi / 720)
+    c, s = np.cos(angles), np.sin(angles)
+    walls = np.minimum(np.where(c != 0, 2.93 / np.abs(c), np.inf), np.where(s != 0, 2.57 / np.abs(s), np.inf))
+    # The pillar: a disc of radius 0.3 m at (1.2, 0.7).
+    b = 1.2 * c + 0.7 * s
+    disc = b - np.sqrt(np.maximum(b * b - (1.2 ** 2 + 0.7 ** 2 - 0.09), 0.0))
+    hits = np.where((b * b >= 1.2 ** 2 + 0.7 ** 2 - 0.09) & (disc > 0), disc, np.inf)
+    ranges = np.minimum(walls, hits).astype(np.float32)
+    pose = np.eye(4)
+    pose[2, 3] = 1.05
+    for yaw in (0.0, 0.3):
+        pose[:2, :2] = [[np.cos(yaw), -np.sin(yaw)], [np.sin(yaw), np.cos(yaw)]]
+        mapper.integrate_scan(ranges, -np.pi + 0.5 * np.pi / 360 - yaw, 2 * np.pi / 720, pose)
+    xs = (np.arange(-40, 40) + 0.5) * 0.1
+    gx, gy = np.meshgrid(xs, xs, indexing="ij")
+    layer = np.stack([gx.ravel(), gy.ravel(), np.full(gx.size, 1.05)], axis=1)
+    d, g, states = mapper.distance(layer)
+    occupied = layer[states == 3][:, :2]
+    assert len(occupied) > 100
+    truth = np.sqrt(((layer[:, None, :2] - occupied[None]) ** 2).sum(-1)).min(1)
+    np.testing.assert_allclose(d, np.minimum(truth, 1.0), atol=1e-9)
+    assert (g[:, 2] == 0).all()
+    above = layer + [0.0, 0.0, 0.1]
+    d_above, _, _ = mapper.distance(above)
+    assert (d_above == 1.0).all()
+    mapper.save(tmp_path / "planar.edtmap")
+    loaded = edtmap.Mapper.load(tmp_path / "planar.edtmap")
+    for a, b in zip(mapper.distance(layer), loaded.distance(layer)):
+        np.testing.assert_array_equal(a, b)
+    with pytest.raises(ValueError, match="planar"):
+        edtmap.Mapper(edtmap.PlanarLidar(0.1, 10.0), 0.1, planar=True, mode="wavefront")
+
+
 def test_bad_input_raises_and_keeps_the_map(tmp_path):
     mapper = wall_mapper()
     points = np.random.default_rng(3).uniform(-1, 3, size=(100, 3))

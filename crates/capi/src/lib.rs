@@ -419,6 +419,17 @@ fn open_backend(b: edtmap_backend) -> Result<Box<dyn Backend + Send>> {
 fn mapper_from(config: &Config, backend: edtmap_backend, map: Option<GlobalMap>) -> Result<Box<edtmap_mapper>> {
     let (sensor, params) = config.mapper_params()?;
     let scan_range = RangeLimits { min_m: config.sensor.min_range_m, max_m: config.sensor.max_range_m };
+    // A planar map is integrated on the CPU.
+    let backend = match backend {
+        edtmap_backend::EDTMAP_BACKEND_AUTO if params.global.planar => edtmap_backend::EDTMAP_BACKEND_CPU,
+        edtmap_backend::EDTMAP_BACKEND_GPU if params.global.planar => {
+            return fail(
+                edtmap_status::EDTMAP_BACKEND,
+                "a planar map ([global] planar = true) is integrated on the CPU; use EDTMAP_BACKEND_CPU or _AUTO",
+            )
+        }
+        other => other,
+    };
     let backend = open_backend(backend)?;
     let mapper = match map {
         Some(map) => Mapper::with_map_on(backend, sensor, params, map),

@@ -118,3 +118,68 @@ fn run_help_names_scenes_and_every_kind_of_recording() {
         assert!(help.contains(kind), "run --help does not name {kind}: {help}");
     }
 }
+
+/// `--planar`: the EDT stays in the scan's layer with the same distances
+/// there as the 3D EDT of the same scans (queried at the layer's voxel
+/// centres), exact against the evaluation's per-layer EDT; `edtmap info`
+/// says so; the wavefront mode and the GPU backend are refused by name.
+#[test]
+fn planar_maps_keep_the_layers_distances_and_nothing_else() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    let run = |extra: &[&str], name: &str| {
+        let out = d.join(name);
+        let save = d.join(format!("{name}.edtmap"));
+        let mut args = vec!["run", "--scene", "planar", "--frames", "12", "--eval", "--out", path(&out)];
+        args.extend(["--save", path(&save)]);
+        args.extend(extra);
+        let (ok, stdout, stderr) = edtmap(&args);
+        assert!(ok, "{stdout}\n{stderr}");
+        assert!(stdout.contains("global max 0.0000 m"), "{stdout}");
+        save
+    };
+    let (flat, deep) = (run(&["--planar"], "planar"), run(&[], "3d"));
+    let info = |map: &Path| edtmap(&["info", path(map)]).1;
+    let blocks = |text: &str| -> usize {
+        let at = text.find(" EDT,").expect("EDT blocks");
+        text[..at].rsplit(' ').next().expect("count").parse().expect("a number")
+    };
+    let (flat_info, deep_info) = (info(&flat), info(&deep));
+    assert!(flat_info.contains("planar (distances within each layer)") && !deep_info.contains("planar"), "{flat_info}");
+    assert!(blocks(&flat_info) * 3 < blocks(&deep_info), "{flat_info}\n{deep_info}");
+    assert!(std::fs::metadata(&flat).expect("saved").len() * 8 < std::fs::metadata(&deep).expect("saved").len());
+    // The scan plane is the layer at 0.9-1.0 m: its voxel centres, and the
+    // layer above, where only the 3D EDT has distances.
+    let points = d.join("points.csv");
+    let mut csv = String::new();
+    for i in -60..60 {
+        for j in -60..60 {
+            for z in [0.95, 1.05] {
+                csv += &format!("{},{},{z}\n", (f64::from(i) + 0.5) * 0.1, (f64::from(j) + 0.5) * 0.1);
+            }
+        }
+    }
+    std::fs::write(&points, csv).expect("points");
+    let query = |map: &Path| {
+        let (ok, stdout, stderr) = edtmap(&["query", "--points", path(&points), path(map)]);
+        assert!(ok, "{stderr}");
+        stdout.lines().skip(1).map(|l| l.split(',').map(String::from).collect::<Vec<_>>()).collect::<Vec<_>>()
+    };
+    let (a, b) = (query(&flat), query(&deep));
+    let mut far_above = 0;
+    for (p, q) in a.iter().zip(&b) {
+        if p[2] == "0.95" {
+            assert_eq!((&p[3], &p[4], &p[5], &p[7]), (&q[3], &q[4], &q[5], &q[7]), "{p:?} {q:?}");
+            assert_eq!(p[6].trim_start_matches('-'), "0.000000", "no z gradient: {p:?}");
+        } else {
+            assert_eq!(p[3], "2.000000", "nothing above the layer: {p:?}");
+            far_above += usize::from(q[3] != "2.000000");
+        }
+    }
+    assert!(far_above > 1000, "the 3D EDT reaches above the layer at {far_above} points");
+    let (ok, _, stderr) =
+        edtmap(&["run", "--scene", "planar", "--frames", "1", "--planar", "--integration", "wavefront"]);
+    assert!(!ok && stderr.contains("planar") && stderr.contains("exact"), "{stderr}");
+    let (ok, _, stderr) = edtmap(&["run", "--scene", "planar", "--frames", "1", "--planar", "--backend", "gpu"]);
+    assert!(!ok && stderr.contains("--backend cpu"), "{stderr}");
+}

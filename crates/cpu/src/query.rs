@@ -176,15 +176,17 @@ pub fn distance(map: &GlobalMap, p: [f64; 3], signed: bool) -> Distance {
     let u = p.map(|c| c / vs - 0.5);
     let mut base = u.map(|c| c.floor());
     let mut f = [0, 1, 2].map(|a| u[a] - base[a]);
-    if map.cutoff().planar {
-        // A planar map's distance is its layer's: interpolated in x and y
-        // only, with no gradient along z.
+    // A planar map's distance is its layer's: both z corners in the
+    // point's layer, so it is interpolated in x and y only, with no
+    // gradient along z.
+    let planar = map.cutoff().planar;
+    if planar {
         (base[2], f[2]) = (f64::from(v.0[2]), 0.0);
     }
     let mut corner = [[[0.0; 2]; 2]; 2];
     let mut saturated = false;
     for (k, slot) in corner.iter_mut().flatten().flatten().enumerate() {
-        let (dx, dy, dz) = ((k >> 2) & 1, (k >> 1) & 1, k & 1);
+        let (dx, dy, dz) = ((k >> 2) & 1, (k >> 1) & 1, if planar { 0 } else { k & 1 });
         let c = VoxelIndex([base[0] as i32 + dx as i32, base[1] as i32 + dy as i32, base[2] as i32 + dz as i32]);
         let (d, s) = voxel_distance(map, c, false);
         saturated |= s;

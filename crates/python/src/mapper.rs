@@ -101,6 +101,15 @@ impl PyMapper {
     pub(crate) fn from_parsed(config: &Config, map: Option<GlobalMap>, backend: &str) -> PyResult<PyMapper> {
         let (sensor, params) = config.mapper_params().map_err(map_err)?;
         let scan_range = RangeLimits { min_m: config.sensor.min_range_m, max_m: config.sensor.max_range_m };
+        // A planar map is integrated on the CPU.
+        let backend =
+            match backend {
+                "auto" if params.global.planar => "cpu",
+                "gpu" if params.global.planar => return Err(PyValueError::new_err(
+                    "backend='gpu': a planar map (planar=True) is integrated on the CPU; use backend='cpu' or 'auto'",
+                )),
+                other => other,
+            };
         let backend = open_backend(backend)?;
         let mapper = match map {
             Some(map) => Mapper::with_map_on(backend, sensor, params, map),
