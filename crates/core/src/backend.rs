@@ -97,6 +97,13 @@ pub trait Backend: BatchEdt {
         false
     }
 
+    /// Whether [`Backend::integrate`] integrates planar maps
+    /// ([`crate::GlobalParams::planar`]); a mapper refuses a planar map on
+    /// a backend that does not.
+    fn integrates_planar(&self) -> bool {
+        true
+    }
+
     /// Ray casting (paper §IV-A): walks `rays`, set up at scale `q` for
     /// `obs`'s volume ([`crate::fixed_ray::prepare_rays`]), into `obs`
     /// (freshly reset): [`crate::OBS_MISS`] for every voxel a walk visits,
@@ -272,6 +279,10 @@ impl<B: Backend + ?Sized> Backend for Box<B> {
 
     fn batch_stays_on_device(&self) -> bool {
         (**self).batch_stays_on_device()
+    }
+
+    fn integrates_planar(&self) -> bool {
+        (**self).integrates_planar()
     }
 
     fn cast_rays(&mut self, rays: &[FixedRay], q: u32, obs: &Observations) -> Result<(), BackendError> {

@@ -175,6 +175,10 @@ impl<B: Backend> Mapper<B> {
         params.voxel_size_m = map.voxel_size_m();
         params.occupancy = map.occupancy_params().clone();
         params.global = map.params().clone();
+        if params.global.planar && !backend.integrates_planar() {
+            let what = format!("a planar map ([global] planar = true) on the {} backend; use the CPU", backend.name());
+            return Err(edtmap_core::CoreError::Unsupported(what).into());
+        }
         // Fails early on a bad size, or one past the memory budget, rather
         // than at the first frame.
         crate::budget::check(&params)?;

@@ -122,3 +122,14 @@ fn frames_whose_uncertain_voxels_overflow_the_list_are_the_cpus_too() {
         assert!(snapshot(cpu.map()) == snapshot(gpu.map()), "frame {i}: global maps differ");
     }
 }
+
+/// A planar map's passes run on the CPU only: a mapper on the GPU refuses
+/// it when made, naming it, rather than at the first frame.
+#[test]
+fn a_planar_map_is_refused_on_the_gpu_when_the_mapper_is_made() {
+    let Some(backend) = common::gpu_or_skip("the GPU pipeline") else { return };
+    let (_, sensor, mut params) = setup("planar");
+    params.global.planar = true;
+    let err = Mapper::new_on(backend, sensor, params).err().expect("refused");
+    assert!(err.to_string().contains("planar map") && err.to_string().contains("CPU"), "{err}");
+}

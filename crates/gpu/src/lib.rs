@@ -321,6 +321,10 @@ impl Backend for GpuBackend {
         self.fusion.run(codes, &fixes, map, obs.volume(), lo)
     }
 
+    fn integrates_planar(&self) -> bool {
+        false
+    }
+
     fn integrate(&mut self, job: IntegrateJob<'_>) -> Result<IntegrateReport, BackendError> {
         self.ctx.set_stage(Stage::Integrate);
         let IntegrateJob { map, obstacles, cutoff, work } = job;
