@@ -35,6 +35,10 @@ pub enum MapError {
     /// A thread panicked while it held this (a [`crate::SharedMapper`]'s
     /// mapper or snapshot); what it guards may be half-updated.
     Poisoned(&'static str),
+    /// The GPU backend was asked for in a build without the `gpu` feature.
+    NoGpuBackend,
+    /// A backend name other than `cpu`, `gpu` or `auto`.
+    UnknownBackend(String),
 }
 
 impl fmt::Display for MapError {
@@ -47,6 +51,8 @@ impl fmt::Display for MapError {
             MapError::ConfigFile { path, message } => write!(f, "{path}: {message}"),
             MapError::Config { section, source } => write!(f, "config [{section}] {source}"),
             MapError::Poisoned(what) => write!(f, "{what} was left half-updated by a panic in another thread; make a new mapper (saving this one's map first may keep what it had)"),
+            MapError::NoGpuBackend => write!(f, "this build of edtmap has no GPU backend (it was built without the `gpu` feature)"),
+            MapError::UnknownBackend(name) => write!(f, "backend must be 'cpu', 'gpu' or 'auto', not {name:?}"),
         }
     }
 }
@@ -60,7 +66,11 @@ impl std::error::Error for MapError {
             MapError::Cpu(e) => e.source(),
             MapError::Backend(e) => e.source(),
             MapError::Io(e) => e.source(),
-            MapError::ConfigFile { .. } | MapError::Config { .. } | MapError::Poisoned(_) => None,
+            MapError::ConfigFile { .. }
+            | MapError::Config { .. }
+            | MapError::Poisoned(_)
+            | MapError::NoGpuBackend
+            | MapError::UnknownBackend(_) => None,
         }
     }
 }

@@ -51,6 +51,7 @@
 #![warn(missing_docs)]
 
 mod budget;
+mod choice;
 pub mod config;
 mod error;
 pub mod eval;
@@ -62,6 +63,7 @@ pub use edtmap_core::*;
 /// The CPU backend (rayon), the reference implementation.
 pub use edtmap_cpu as cpu;
 pub use edtmap_cpu::query::{Distance, DistanceBox, PointState};
+pub use choice::{open_backend, BackendChoice, DynBackend, OpenedBackend};
 pub use error::MapError;
 pub use mapfile::{load_map, save_map};
 pub use mapper::{Cleared, FrameStats, Mapper, MapperParams};
