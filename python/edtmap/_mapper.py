@@ -167,10 +167,11 @@ class Mapper:
     ``connectivity``, ``mode``, ``forbidden``, ``planar``) and ``[sensor]``
     (``construction``, ``clear_no_return``, ...) sections, plus
     ``max_memory`` (``"4GiB"``). Or :meth:`from_config` with a TOML file.
-    ``backend``: ``"cpu"``, or ``"gpu"``/``"auto"`` in a build with the
-    ``gpu`` feature; every backend gives the same map, bit for bit. A planar
-    map (``planar=True``: distances within each horizontal layer) runs on
-    the CPU (``"auto"`` picks it).
+    ``backend``: ``"cpu"``, ``"gpu"`` (in a build with the ``gpu``
+    feature) or ``"auto"`` (a hardware GPU where there is one, else the
+    CPU); every backend gives the same map, bit for bit. A planar map
+    (``planar=True``: distances within each horizontal layer) runs on the
+    CPU (``"auto"`` picks it).
 
     Poses are ``T_world_sensor``: a 4 x 4 rigid transform, or
     ``[x, y, z, qx, qy, qz, qw]``. Integration and queries release the GIL;

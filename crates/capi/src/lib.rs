@@ -49,7 +49,7 @@ use std::sync::Arc;
 use edtmap::config::Config;
 use edtmap::cpu::CpuBackend;
 use edtmap::sensor::{DepthData, DepthImage, Frame, LaserScan, LidarScan, Measurement, PointCloud, RangeLimits};
-use edtmap::{Backend, FrameStats, GlobalMap, MapError, Mapper, PointState, SharedMapper};
+use edtmap::{BackendChoice, DynBackend, FrameStats, GlobalMap, MapError, Mapper, PointState, SharedMapper};
 use edtmap_cpu::query;
 use rayon::prelude::*;
 
@@ -227,7 +227,7 @@ pub const EDTMAP_STATE_OCCUPIED: u8 = 3;
 
 /// A mapping pipeline: its mapper and the snapshot queries read.
 pub struct edtmap_mapper {
-    shared: SharedMapper<Box<dyn Backend + Send>>,
+    shared: SharedMapper<DynBackend>,
     /// A planar LiDAR's range limits (`[sensor]` min and max range).
     scan_range: RangeLimits,
 }
@@ -393,44 +393,28 @@ fn flag(field: &str, raw: u8) -> Result<bool> {
     }
 }
 
-fn open_backend(b: edtmap_backend) -> Result<Box<dyn Backend + Send>> {
-    match b {
-        edtmap_backend::EDTMAP_BACKEND_CPU => Ok(Box::new(CpuBackend::default())),
-        #[cfg(feature = "gpu")]
-        edtmap_backend::EDTMAP_BACKEND_GPU => {
-            let gpu = edtmap_gpu::GpuBackend::new().or_else(|e| fail(edtmap_status::EDTMAP_BACKEND, e.to_string()))?;
-            Ok(Box::new(gpu))
-        }
-        #[cfg(feature = "gpu")]
-        edtmap_backend::EDTMAP_BACKEND_AUTO => match edtmap_gpu::GpuBackend::new() {
-            Ok(gpu) if !gpu.context().is_software() => Ok(Box::new(gpu)),
-            _ => Ok(Box::new(CpuBackend::default())),
-        },
-        #[cfg(not(feature = "gpu"))]
-        edtmap_backend::EDTMAP_BACKEND_GPU => fail(
+/// The backend `b` names ([`edtmap::open_backend`]); a planar map's is the
+/// CPU.
+fn open_backend(b: edtmap_backend, planar: bool) -> Result<DynBackend> {
+    let choice = match b {
+        edtmap_backend::EDTMAP_BACKEND_CPU => BackendChoice::Cpu,
+        edtmap_backend::EDTMAP_BACKEND_GPU => BackendChoice::Gpu,
+        edtmap_backend::EDTMAP_BACKEND_AUTO => BackendChoice::Auto,
+    };
+    match edtmap::open_backend(choice, CpuBackend::default(), planar) {
+        Ok(opened) => Ok(opened.backend),
+        Err(MapError::NoGpuBackend) => fail(
             edtmap_status::EDTMAP_BACKEND,
             "this build of libedtmap_c has no GPU backend; build it with the `gpu` feature (cmake -DEDTMAP_GPU=ON)",
         ),
-        #[cfg(not(feature = "gpu"))]
-        edtmap_backend::EDTMAP_BACKEND_AUTO => Ok(Box::new(CpuBackend::default())),
+        Err(e) => fail(edtmap_status::EDTMAP_BACKEND, e.to_string()),
     }
 }
 
 fn mapper_from(config: &Config, backend: edtmap_backend, map: Option<GlobalMap>) -> Result<Box<edtmap_mapper>> {
     let (sensor, params) = config.mapper_params()?;
     let scan_range = RangeLimits { min_m: config.sensor.min_range_m, max_m: config.sensor.max_range_m };
-    // A planar map is integrated on the CPU.
-    let backend = match backend {
-        edtmap_backend::EDTMAP_BACKEND_AUTO if params.global.planar => edtmap_backend::EDTMAP_BACKEND_CPU,
-        edtmap_backend::EDTMAP_BACKEND_GPU if params.global.planar => {
-            return fail(
-                edtmap_status::EDTMAP_BACKEND,
-                "a planar map ([global] planar = true) is integrated on the CPU; use EDTMAP_BACKEND_CPU or _AUTO",
-            )
-        }
-        other => other,
-    };
-    let backend = open_backend(backend)?;
+    let backend = open_backend(backend, params.global.planar)?;
     let mapper = match map {
         Some(map) => Mapper::with_map_on(backend, sensor, params, map),
         None => Mapper::new_on(backend, sensor, params),

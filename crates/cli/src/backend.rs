@@ -3,8 +3,7 @@
 use anyhow::{Context, Result};
 use clap::ValueEnum;
 use edtmap::cpu::CpuBackend;
-use edtmap::Backend;
-use edtmap_gpu::GpuBackend;
+use edtmap::BackendChoice;
 
 /// Values of `--backend`.
 #[derive(ValueEnum, Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -19,7 +18,7 @@ pub(crate) enum BackendArg {
 }
 
 /// The backend the mapper runs on, chosen at run time.
-pub(crate) type DynBackend = Box<dyn Backend>;
+pub(crate) type DynBackend = edtmap::DynBackend;
 
 /// The mapper the commands drive.
 pub(crate) type CliMapper = edtmap::Mapper<DynBackend>;
@@ -35,31 +34,14 @@ pub(crate) fn open(arg: BackendArg, cpu: CpuBackend) -> Result<DynBackend> {
 /// integration runs on the CPU, so `auto` picks the CPU and `gpu` is
 /// refused before any frame.
 pub(crate) fn open_for(arg: BackendArg, cpu: CpuBackend, planar: bool) -> Result<DynBackend> {
-    if planar {
-        match arg {
-            BackendArg::Gpu => anyhow::bail!(
-                "--backend gpu: a planar map ([global] planar = true) is integrated on the CPU; use --backend cpu or auto"
-            ),
-            BackendArg::Auto => {
-                eprintln!("--backend auto: a planar map is integrated on the CPU, using the CPU");
-                return Ok(Box::new(cpu));
-            }
-            BackendArg::Cpu => {}
-        }
+    let (choice, name) = match arg {
+        BackendArg::Cpu => (BackendChoice::Cpu, "cpu"),
+        BackendArg::Gpu => (BackendChoice::Gpu, "gpu"),
+        BackendArg::Auto => (BackendChoice::Auto, "auto"),
+    };
+    let opened = edtmap::open_backend(choice, cpu, planar).with_context(|| format!("--backend {name}"))?;
+    if let Some(why) = opened.fell_back {
+        eprintln!("--backend {name}: {why}, using the CPU");
     }
-    match arg {
-        BackendArg::Cpu => Ok(Box::new(cpu)),
-        BackendArg::Gpu => Ok(Box::new(GpuBackend::new().context("--backend gpu")?)),
-        BackendArg::Auto => match GpuBackend::new() {
-            Ok(gpu) if !gpu.context().is_software() => Ok(Box::new(gpu)),
-            Ok(gpu) => {
-                eprintln!("--backend auto: {} is a software adapter, using the CPU", gpu.context().name());
-                Ok(Box::new(cpu))
-            }
-            Err(e) => {
-                eprintln!("--backend auto: using the CPU ({e})");
-                Ok(Box::new(cpu))
-            }
-        },
-    }
+    Ok(opened.backend)
 }

@@ -181,5 +181,5 @@ fn planar_maps_keep_the_layers_distances_and_nothing_else() {
         edtmap(&["run", "--scene", "planar", "--frames", "1", "--planar", "--integration", "wavefront"]);
     assert!(!ok && stderr.contains("planar") && stderr.contains("exact"), "{stderr}");
     let (ok, _, stderr) = edtmap(&["run", "--scene", "planar", "--frames", "1", "--planar", "--backend", "gpu"]);
-    assert!(!ok && stderr.contains("--backend cpu"), "{stderr}");
+    assert!(!ok && stderr.contains("--backend gpu") && stderr.contains("planar") && stderr.contains("CPU"), "{stderr}");
 }

@@ -46,7 +46,10 @@ pub struct OpenedBackend {
 
 impl std::fmt::Debug for OpenedBackend {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("OpenedBackend").field("backend", &self.backend.name()).field("fell_back", &self.fell_back).finish()
+        f.debug_struct("OpenedBackend")
+            .field("backend", &self.backend.name())
+            .field("fell_back", &self.fell_back)
+            .finish()
     }
 }
 

@@ -13,7 +13,7 @@ use edtmap::cpu::CpuBackend;
 use edtmap::sensor::{
     DepthData, DepthImage, Frame, LaserScan, LidarScan, Measurement, PointCloud, RangeLimits, Sensor,
 };
-use edtmap::{Backend, FrameStats, GlobalMap, MapError, Mapper, PointState, SharedMapper};
+use edtmap::{Backend, BackendChoice, FrameStats, GlobalMap, MapError, Mapper, PointState, SharedMapper};
 use edtmap_cpu::query;
 use nalgebra::{Isometry3, Quaternion, Translation3};
 use numpy::{PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
@@ -26,31 +26,21 @@ use rayon::prelude::*;
 type Answers<'py> = (Bound<'py, PyArray1<f64>>, Bound<'py, PyArray2<f64>>, Bound<'py, PyArray1<u8>>);
 
 /// The backend a mapper runs on, chosen when it is made.
-pub(crate) type DynBackend = Box<dyn Backend + Send>;
+pub(crate) type DynBackend = edtmap::DynBackend;
 
-/// Opens the backend `name` names: `cpu`, and with the `gpu` feature
-/// `gpu` (an error without an adapter) or `auto` (a hardware GPU, else the
-/// CPU).
-fn open_backend(name: &str) -> PyResult<DynBackend> {
-    match name {
-        "cpu" => Ok(Box::new(CpuBackend::default())),
-        #[cfg(feature = "gpu")]
-        "gpu" => {
-            let gpu =
-                edtmap_gpu::GpuBackend::new().map_err(|e| PyRuntimeError::new_err(format!("backend='gpu': {e}")))?;
-            Ok(Box::new(gpu))
-        }
-        #[cfg(feature = "gpu")]
-        "auto" => match edtmap_gpu::GpuBackend::new() {
-            Ok(gpu) if !gpu.context().is_software() => Ok(Box::new(gpu)),
-            _ => Ok(Box::new(CpuBackend::default())),
-        },
-        #[cfg(not(feature = "gpu"))]
-        "gpu" | "auto" => Err(PyValueError::new_err(format!(
+/// Opens the backend `name` names ([`edtmap::open_backend`]): `cpu`, `gpu`
+/// (an error without an adapter or the `gpu` feature) or `auto` (a
+/// hardware GPU, else the CPU); a planar map's is the CPU.
+fn open_backend(name: &str, planar: bool) -> PyResult<DynBackend> {
+    let choice: BackendChoice = name.parse().map_err(|e: MapError| PyValueError::new_err(e.to_string()))?;
+    match edtmap::open_backend(choice, CpuBackend::default(), planar) {
+        Ok(opened) => Ok(opened.backend),
+        Err(MapError::NoGpuBackend) => Err(PyValueError::new_err(format!(
             "backend={name:?}: this build of edtmap has no GPU backend; install it with \
              MATURIN_PEP517_ARGS=\"--features gpu\" pip install ./python"
         ))),
-        other => Err(PyValueError::new_err(format!("backend must be 'cpu', 'gpu' or 'auto', not {other:?}"))),
+        Err(e @ MapError::Backend(_)) => Err(PyRuntimeError::new_err(format!("backend={name:?}: {e}"))),
+        Err(e) => Err(PyValueError::new_err(format!("backend={name:?}: {e}"))),
     }
 }
 
@@ -101,16 +91,7 @@ impl PyMapper {
     pub(crate) fn from_parsed(config: &Config, map: Option<GlobalMap>, backend: &str) -> PyResult<PyMapper> {
         let (sensor, params) = config.mapper_params().map_err(map_err)?;
         let scan_range = RangeLimits { min_m: config.sensor.min_range_m, max_m: config.sensor.max_range_m };
-        // A planar map is integrated on the CPU.
-        let backend =
-            match backend {
-                "auto" if params.global.planar => "cpu",
-                "gpu" if params.global.planar => return Err(PyValueError::new_err(
-                    "backend='gpu': a planar map (planar=True) is integrated on the CPU; use backend='cpu' or 'auto'",
-                )),
-                other => other,
-            };
-        let backend = open_backend(backend)?;
+        let backend = open_backend(backend, params.global.planar)?;
         let mapper = match map {
             Some(map) => Mapper::with_map_on(backend, sensor, params, map),
             None => Mapper::new_on(backend, sensor, params),
