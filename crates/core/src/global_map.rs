@@ -3,7 +3,7 @@
 //! update it, the queries read it, the map file stores it.
 
 use crate::{
-    BlockMap, CoreError, Cutoff, EdtMap, GlobalParams, LogOdds, Obstacles, OccupancyMap, OccupancyParams, StaticMap,
+    BlockMap, CoreError, Cutoff, EdtMap, FixedMap, GlobalParams, LogOdds, Obstacles, OccupancyMap, OccupancyParams,
     VoxelIndex, VoxelState,
 };
 
@@ -17,7 +17,7 @@ pub struct GlobalMap {
     voxel_size_m: f64,
     occupancy: OccupancyMap,
     edt: EdtMap,
-    fixed: StaticMap,
+    fixed: FixedMap,
     occupancy_params: OccupancyParams,
     log_odds: LogOdds,
     params: GlobalParams,
@@ -34,7 +34,7 @@ impl GlobalMap {
             params,
             OccupancyMap::new(),
             EdtMap::new(),
-            StaticMap::new(),
+            FixedMap::new(),
         )?;
         for zone in &map.params.forbidden {
             map.fixed.add_zone(zone, voxel_size_m)?;
@@ -51,7 +51,7 @@ impl GlobalMap {
         params: GlobalParams,
         occupancy: OccupancyMap,
         edt: EdtMap,
-        fixed: StaticMap,
+        fixed: FixedMap,
     ) -> Result<Self, CoreError> {
         crate::check_voxel_size(voxel_size_m)?;
         let log_odds = occupancy_params.log_odds()?;
@@ -82,13 +82,13 @@ impl GlobalMap {
     }
 
     /// The fixed-obstacle layer (forbidden zones, a prior map).
-    pub fn fixed_obstacles(&self) -> &StaticMap {
+    pub fn fixed_obstacles(&self) -> &FixedMap {
         &self.fixed
     }
 
     /// The fixed-obstacle layer, to add to. The EDT does not follow by
     /// itself: the mapper lays new fixed obstacles down.
-    pub fn fixed_obstacles_mut(&mut self) -> &mut StaticMap {
+    pub fn fixed_obstacles_mut(&mut self) -> &mut FixedMap {
         &mut self.fixed
     }
 

@@ -61,7 +61,7 @@ pub use grid::Grid3;
 pub use index::{BlockKey, VoxelIndex, BLOCK_SIDE, BLOCK_VOXELS};
 pub use memory::MemoryBudget;
 pub use observations::Observations;
-pub use obstacles::{Obstacles, StaticBlock, StaticMap, MAX_STATIC_BLOCKS};
+pub use obstacles::{FixedBlock, FixedMap, Obstacles, MAX_FIXED_BLOCKS};
 pub use occupancy::{
     par_fill, BlockMap, LogOdds, MapStamp, OccupancyBlock, OccupancyMap, OccupancyParams, SharedBlock, OBS_HIT,
     OBS_MISS, OBS_NONE, UNOBSERVED,

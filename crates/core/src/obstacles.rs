@@ -5,20 +5,20 @@ use crate::edt_map::ForbiddenZone;
 use crate::{BlockMap, CoreError, LogOdds, OccupancyMap, VoxelIndex, VoxelState, BLOCK_SIDE, UNOBSERVED};
 
 /// Most blocks a set of fixed obstacles may span (about 200 MB).
-pub const MAX_STATIC_BLOCKS: usize = 1 << 21;
+pub const MAX_FIXED_BLOCKS: usize = 1 << 21;
 
 /// One 8³ block of fixed obstacles, one bit per voxel.
 #[derive(Debug, Clone, PartialEq, Eq, Default)]
 #[repr(C)]
-pub struct StaticBlock {
+pub struct FixedBlock {
     /// Bit `offset % 64` of word `offset / 64` is set for an obstacle.
     pub bits: [u64; 8],
 }
 
 /// Fixed obstacles: voxels that count as occupied whatever the sensors say.
-pub type StaticMap = BlockMap<StaticBlock>;
+pub type FixedMap = BlockMap<FixedBlock>;
 
-impl StaticMap {
+impl FixedMap {
     /// Makes voxel `v` a fixed obstacle.
     pub fn insert(&mut self, v: VoxelIndex) {
         let i = v.offset_in_block();
@@ -34,7 +34,7 @@ impl StaticMap {
     /// Makes every voxel (of `vs` metres) that overlaps `zone` a fixed
     /// obstacle; returns how many. Fails, leaving the map as it was, on a
     /// zone that is not a box or would take the map past
-    /// [`MAX_STATIC_BLOCKS`].
+    /// [`MAX_FIXED_BLOCKS`].
     pub fn add_zone(&mut self, zone: &ForbiddenZone, vs: f64) -> Result<usize, CoreError> {
         let bad = |reason| CoreError::InvalidParam {
             field: "forbidden",
@@ -52,7 +52,7 @@ impl StaticMap {
         }
         let side = i64::from(BLOCK_SIDE);
         let blocks: i64 = (0..3).map(|a| hi[a].div_euclid(side) - lo[a].div_euclid(side) + 1).product();
-        if blocks as usize + self.len() > MAX_STATIC_BLOCKS {
+        if blocks as usize + self.len() > MAX_FIXED_BLOCKS {
             return Err(bad("the zones would span more than 2^21 blocks"));
         }
         let mut count = 0;
@@ -77,7 +77,7 @@ pub struct Obstacles<'a> {
     /// How its log-odds read as states.
     pub log_odds: &'a LogOdds,
     /// Fixed obstacles.
-    pub fixed: &'a StaticMap,
+    pub fixed: &'a FixedMap,
     /// Whether unknown voxels count as obstacles.
     pub unknown_as_occupied: bool,
 }
@@ -148,7 +148,7 @@ mod tests {
 
     #[test]
     fn zone_covers_overlapping_voxels() {
-        let mut fixed = StaticMap::new();
+        let mut fixed = FixedMap::new();
         let zone = ForbiddenZone { min_m: [-0.2, 0.0, 0.0], max_m: [0.6, 0.5, 0.1] };
         assert_eq!(fixed.add_zone(&zone, 0.5).expect("valid"), 3);
         for x in -1..=1 {
@@ -164,7 +164,7 @@ mod tests {
     fn rows_match_single_voxel_test() {
         let lo = OccupancyParams::default().log_odds().expect("defaults");
         let mut map = OccupancyMap::new();
-        let mut fixed = StaticMap::new();
+        let mut fixed = FixedMap::new();
         for x in [-9, -3, 0, 5, 12] {
             let v = VoxelIndex([x, 2, -1]);
             map.get_or_insert(v.block()).log_odds[v.offset_in_block()] = lo.max;

@@ -14,8 +14,8 @@
 use edtmap_core::region::{Packing, Region};
 use edtmap_core::stages::exact::{recompute_exact, ExactBuffers};
 use edtmap_core::{
-    Backend, BlockKey, Cutoff, EdtMap, GlobalParams, IntegrateJob, Integration, LogOdds, Obstacles, OccupancyMap,
-    OccupancyParams, StaticMap, VoxelIndex, BLOCK_VOXELS, FAR_DIST_SQ, NO_OFFSET,
+    Backend, BlockKey, Cutoff, EdtMap, FixedMap, GlobalParams, IntegrateJob, Integration, LogOdds, Obstacles,
+    OccupancyMap, OccupancyParams, VoxelIndex, BLOCK_VOXELS, FAR_DIST_SQ, NO_OFFSET,
 };
 use edtmap_cpu::CpuBackend;
 use proptest::prelude::*;
@@ -28,7 +28,7 @@ const DIMS: [i32; 3] = [30, 22, 15];
 struct World {
     lo: LogOdds,
     occ: OccupancyMap,
-    fixed: StaticMap,
+    fixed: FixedMap,
     set: BTreeSet<VoxelIndex>,
 }
 
@@ -113,7 +113,7 @@ fn step(world: &mut World, (kind, a, b, c): (u8, u32, u32, u32)) -> Vec<BlockKey
 /// voxels, checking the map after each.
 fn check(cutoff_tenths: u32, steps: Vec<(u8, u32, u32, u32)>, clone_at: usize) -> Result<(), TestCaseError> {
     let lo = OccupancyParams::default().log_odds().expect("default parameters");
-    let mut world = World { lo, occ: OccupancyMap::new(), fixed: StaticMap::new(), set: BTreeSet::new() };
+    let mut world = World { lo, occ: OccupancyMap::new(), fixed: FixedMap::new(), set: BTreeSet::new() };
     let params = GlobalParams { max_distance_m: f64::from(cutoff_tenths) / 10.0, ..Default::default() };
     let cutoff = params.cutoff(1.0).expect("valid cutoff");
     let mut backend = CpuBackend::default();

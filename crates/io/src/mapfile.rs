@@ -169,8 +169,8 @@ pub fn read_map(path: &Path) -> Result<GlobalMap, IoError> {
 mod tests {
     use super::*;
     use edtmap_core::{
-        BlockKey, Connectivity, EdtMap, ForbiddenZone, GlobalParams, IntegrationMode, OccupancyMap, OccupancyParams,
-        StaticMap,
+        BlockKey, Connectivity, EdtMap, FixedMap, ForbiddenZone, GlobalParams, IntegrationMode, OccupancyMap,
+        OccupancyParams,
     };
 
     fn small_params() -> (f64, OccupancyParams, GlobalParams) {
@@ -194,7 +194,7 @@ mod tests {
             global_params,
             OccupancyMap::new(),
             EdtMap::new(),
-            StaticMap::new(),
+            FixedMap::new(),
         )
         .expect("valid");
         map.occupancy_mut().get_or_insert(BlockKey([-1, 2, 3])).log_odds[7] = -0.25;
@@ -232,7 +232,7 @@ mod tests {
             global_params,
             OccupancyMap::new(),
             EdtMap::new(),
-            StaticMap::new(),
+            FixedMap::new(),
         )
         .expect_err("bad zone");
         assert!(err.to_string().contains("forbidden"), "{err}");

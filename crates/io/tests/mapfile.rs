@@ -5,8 +5,8 @@ use std::fs;
 use std::path::Path;
 
 use edtmap_core::{
-    BlockKey, BlockMap, Connectivity, EdtMap, ForbiddenZone, GlobalMap, GlobalParams, IntegrationMode, OccupancyMap,
-    OccupancyParams, StaticMap, VoxelIndex, BLOCK_VOXELS, FAR_DIST_SQ, NO_OBSTACLE, NO_OFFSET, UNOBSERVED,
+    BlockKey, BlockMap, Connectivity, EdtMap, FixedMap, ForbiddenZone, GlobalMap, GlobalParams, IntegrationMode,
+    OccupancyMap, OccupancyParams, VoxelIndex, BLOCK_VOXELS, FAR_DIST_SQ, NO_OBSTACLE, NO_OFFSET, UNOBSERVED,
 };
 use edtmap_io::mapfile::{self, MapFileError, MAP_FORMAT_VERSION};
 use edtmap_io::IoError;
@@ -41,7 +41,7 @@ struct MapContents {
     global_params: GlobalParams,
     occupancy: OccupancyMap,
     edt: EdtMap,
-    fixed: StaticMap,
+    fixed: FixedMap,
 }
 
 impl MapContents {
@@ -92,7 +92,7 @@ fn empty_map() -> MapContents {
         global_params,
         occupancy: OccupancyMap::new(),
         edt: EdtMap::new(),
-        fixed: StaticMap::new(),
+        fixed: FixedMap::new(),
     }
 }
 

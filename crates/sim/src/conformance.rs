@@ -14,8 +14,8 @@ use edtmap_core::fixed_ray::{fixed_scale, setup_ray, walk, FixedRay, NO_HIT};
 use edtmap_core::stages::IntegrationStage;
 use edtmap_core::{Backend, Connectivity, IntegrationMode, Observations, OBS_HIT, OBS_MISS};
 use edtmap_core::{
-    BatchEdt, EdtField, EdtMap, GlobalParams, Grid3, LocalVolume, LogOdds, Obstacles, OccupancyMap, OccupancyParams,
-    StaticMap, VoxelIndex, FAR_DIST_SQ, NO_SITE, UNREACHABLE_DIST_SQ,
+    BatchEdt, EdtField, EdtMap, FixedMap, GlobalParams, Grid3, LocalVolume, LogOdds, Obstacles, OccupancyMap,
+    OccupancyParams, VoxelIndex, FAR_DIST_SQ, NO_SITE, UNREACHABLE_DIST_SQ,
 };
 
 /// The batch EDT with the tie rule of `edtmap_core::backend` (scans along
@@ -276,7 +276,7 @@ macro_rules! conformance_tests {
 pub struct IntegrationWorld {
     lo: LogOdds,
     map: OccupancyMap,
-    fixed: StaticMap,
+    fixed: FixedMap,
     /// Every obstacle voxel.
     pub obstacles: Vec<VoxelIndex>,
     rng: SplitMix,
@@ -298,7 +298,7 @@ impl IntegrationWorld {
         IntegrationWorld {
             lo,
             map: OccupancyMap::new(),
-            fixed: StaticMap::new(),
+            fixed: FixedMap::new(),
             obstacles: Vec::new(),
             rng: SplitMix(seed),
         }

@@ -2,7 +2,7 @@
 //! then the parameters and the sections, every count checked against the
 //! bytes that remain before anything is allocated.
 
-use edtmap_core::{BlockKey, BlockMap, EdtBlock, GlobalMap, OccupancyBlock, StaticBlock};
+use edtmap_core::{BlockKey, BlockMap, EdtBlock, FixedBlock, GlobalMap, OccupancyBlock};
 
 use super::layout::{
     get_key, layer_mask, le_u32, ParamsText, Payload, CHECKSUM_LEN, FIRST_LAYERED_VERSION, KEY_LEN, LAYERS, LENGTH_END,
@@ -28,7 +28,7 @@ pub(super) fn decode(bytes: &[u8]) -> Result<GlobalMap, MapFileError> {
     check::check_params(voxel_size_m, &params.occupancy, &params.global)?;
     let occupancy = read_section::<OccupancyBlock>(&mut cur, version)?;
     let edt = read_section::<EdtBlock>(&mut cur, version)?;
-    let fixed = read_section::<StaticBlock>(&mut cur, version)?;
+    let fixed = read_section::<FixedBlock>(&mut cur, version)?;
     if cur.remaining() != 0 {
         return Err(MapFileError::Corrupt(format!(
             "{} unused bytes between the last section and the checksum",

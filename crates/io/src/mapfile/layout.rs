@@ -3,7 +3,7 @@
 //! the reader reads each version's payloads.
 
 use edtmap_core::{
-    BlockKey, EdtBlock, GlobalParams, OccupancyBlock, OccupancyParams, StaticBlock, VoxelIndex, BLOCK_VOXELS,
+    BlockKey, EdtBlock, FixedBlock, GlobalParams, OccupancyBlock, OccupancyParams, VoxelIndex, BLOCK_VOXELS,
     NO_OBSTACLE, NO_OFFSET, UNOBSERVED,
 };
 use serde::{Deserialize, Serialize};
@@ -150,7 +150,7 @@ fn checked_offset(v: VoxelIndex, o: [i16; 3]) -> Result<[i16; 3], String> {
     }
 }
 
-impl Payload for StaticBlock {
+impl Payload for FixedBlock {
     const SECTION: &'static str = "fixed";
     const LEN: usize = 64;
     fn put(&self, _: BlockKey, out: &mut Vec<u8>) {
