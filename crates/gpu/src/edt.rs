@@ -17,10 +17,10 @@ const MAX_DIAG_SQ: u64 = 1 << 30;
 /// mask, the scan along y, a transpose, the scan along z.
 const SLOTS: usize = 4;
 
-/// Uniform parameters of one dispatch (`Params` in the shader).
+/// Uniform parameters of one dispatch (`BatchEdtParams` in the shader).
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Default, bytemuck::Pod, bytemuck::Zeroable)]
-struct Params {
+struct BatchEdtParams {
     len: u32,
     count: u32,
     aux: u32,
@@ -32,8 +32,8 @@ struct Params {
     nb: [u32; 4],
 }
 
-/// Bytes of [`Params`].
-const PARAMS_BYTES: u64 = std::mem::size_of::<Params>() as u64;
+/// Bytes of [`BatchEdtParams`].
+const PARAMS_BYTES: u64 = std::mem::size_of::<BatchEdtParams>() as u64;
 
 /// Where the batch EDT's obstacles come from.
 #[derive(Debug, Clone, Copy)]
@@ -192,11 +192,11 @@ impl GpuEdt {
             Mask::Bits(_) => ([0; 4], [0; 4]),
             Mask::Blocks { o8, nb, .. } => ([o8[0], o8[1], o8[2], 0], [nb[0], nb[1], nb[2], 0]),
         };
-        let slots: [Params; SLOTS] = [
-            Params { len: nx, count: ny * nz, aux: nz, total, o8, nb },
-            Params { len: ny, count: nz * nx, ..Params::default() },
-            Params { len: nz, count: nx * ny, ..Params::default() },
-            Params { len: nz, count: nx * ny, ..Params::default() },
+        let slots: [BatchEdtParams; SLOTS] = [
+            BatchEdtParams { len: nx, count: ny * nz, aux: nz, total, o8, nb },
+            BatchEdtParams { len: ny, count: nz * nx, ..BatchEdtParams::default() },
+            BatchEdtParams { len: nz, count: nx * ny, ..BatchEdtParams::default() },
+            BatchEdtParams { len: nz, count: nx * ny, ..BatchEdtParams::default() },
         ];
         for (k, p) in slots.iter().enumerate() {
             let at = k * self.slot_bytes as usize;

@@ -44,10 +44,10 @@ const BLOCK_BYTES: u64 = 4 * BLOCK_VOXELS as u64;
 /// The fewest pool slots allocated.
 const MIN_SLOTS: usize = 1024;
 
-/// Uniform parameters (`Params` in the shader).
+/// Uniform parameters (`ExactParams` in the shader).
 #[repr(C)]
 #[derive(Debug, Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
-struct Params {
+struct ExactParams {
     source: [u32; 4],
     region: [u32; 4],
     o8: [u32; 4],
@@ -107,7 +107,7 @@ impl GpuExact {
             let compare = Kernel::new(ctx, &module, &layout, "compare");
             let params = ctx.buffer(
                 "exact params",
-                std::mem::size_of::<Params>() as u64,
+                std::mem::size_of::<ExactParams>() as u64,
                 wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             );
             let ctrl = ctx.buffer(
@@ -209,7 +209,7 @@ impl GpuExact {
         let first = keys[0].first_voxel().0;
         let o8 = [0, 1, 2].map(|a| (p.region.origin[a] - first[a]) as u32);
         let nb3 = [0, 1, 2].map(|a| (o8[a] + p.region.dims[a] as u32).div_ceil(8));
-        let params = Params {
+        let params = ExactParams {
             source: [p.source.dims[0] as u32, p.source.dims[1] as u32, p.source.dims[2] as u32, p.cutoff.reach as u32],
             region: [p.region.dims[0] as u32, p.region.dims[1] as u32, p.region.dims[2] as u32, p.region.len() as u32],
             o8: [o8[0], o8[1], o8[2], p.cutoff.max_dist_sq],

@@ -40,10 +40,10 @@ const MIN_SLOTS: usize = 1024;
 /// holds a voxel's index times four.
 pub(crate) const MAX_VOXELS: usize = 1 << 30;
 
-/// Uniform parameters (`Params` in the shader).
+/// Uniform parameters (`FuseParams` in the shader).
 #[repr(C)]
 #[derive(Debug, Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
-struct Params {
+struct FuseParams {
     dims: [u32; 4],
     o8: [u32; 4],
     blocks: [u32; 4],
@@ -103,7 +103,7 @@ impl GpuFusion {
                 fuse: Kernel::new(ctx, &module, &layout, "fuse"),
                 params: ctx.buffer(
                     "fuse params",
-                    std::mem::size_of::<Params>() as u64,
+                    std::mem::size_of::<FuseParams>() as u64,
                     wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
                 ),
                 layout,
@@ -178,7 +178,7 @@ impl GpuFusion {
         self.ensure_buffers(nb, self.fixes.len())?;
         self.assign_slots(map, &keys)?;
         let key = |bits: u32| if bits & 0x8000_0000 != 0 { !bits } else { bits | 0x8000_0000 };
-        let params = Params {
+        let params = FuseParams {
             dims: [vol.dims[0] as u32, vol.dims[1] as u32, vol.dims[2] as u32, vol.len() as u32],
             o8: [o8[0], o8[1], o8[2], 0],
             blocks: [nb3[0], nb3[1], nb3[2], nb as u32],

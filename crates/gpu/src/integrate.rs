@@ -45,10 +45,10 @@ const A_FRONT: u64 = 24;
 const A_NEXT: u64 = 36;
 const A_GATHER: u64 = 48;
 
-/// Uniform parameters (`Params` in the shader).
+/// Uniform parameters (`IntegrateParams` in the shader).
 #[repr(C)]
 #[derive(Debug, Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
-struct Params {
+struct IntegrateParams {
     region: [u32; 4],
     window: [u32; 4],
     source: [u32; 4],
@@ -66,7 +66,7 @@ struct Params {
 /// One frame's region and the kernels' parameters for it.
 struct FrameJob {
     packing: Packing,
-    params: Params,
+    params: IntegrateParams,
     /// Whether the device already held the previous region.
     resident: bool,
     /// Blocks of the region per axis, the lowest block key, and all blocks.
@@ -176,7 +176,7 @@ impl GpuIntegrator {
             let buffer = |label, size, usage| ctx.buffer(label, size, usage);
             let params = buffer(
                 "integrate params",
-                std::mem::size_of::<Params>() as u64,
+                std::mem::size_of::<IntegrateParams>() as u64,
                 wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             );
             let args = buffer("integrate args", 60, wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::INDIRECT);
@@ -342,7 +342,7 @@ impl GpuIntegrator {
             ],
             None => [0; 4],
         };
-        let mut params = Params {
+        let mut params = IntegrateParams {
             region: dims4(region.dims, r),
             window: dims4(window.dims, w),
             source: dims4(packing.source.dims, packing.source.len()),

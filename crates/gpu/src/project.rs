@@ -18,10 +18,10 @@ use edtmap_core::sensor::{Measurement, Sensor};
 use edtmap_core::{BackendError, ProjectJob};
 use std::f64::consts::TAU;
 
-/// Uniform parameters (`Params` in the shader).
+/// Uniform parameters (`ProjectParams` in the shader).
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Default, bytemuck::Pod, bytemuck::Zeroable)]
-struct Params {
+struct ProjectParams {
     dims: [u32; 4],
     base: [i32; 4],
     frac: [f32; 4],
@@ -34,7 +34,7 @@ struct Params {
     lidar: [u32; 4],
 }
 
-/// `Params::base[3]` of a depth camera and of a planar scan.
+/// `ProjectParams::base[3]` of a depth camera and of a planar scan.
 const KIND_DEPTH: i32 = 0;
 const KIND_PLANAR: i32 = 1;
 const KIND_LIDAR: i32 = 2;
@@ -101,7 +101,7 @@ impl GpuProject {
                 "project.wgsl",
                 include_str!("project.wgsl"),
                 "project",
-                std::mem::size_of::<Params>() as u64,
+                std::mem::size_of::<ProjectParams>() as u64,
                 2,
             );
             GpuProject {
@@ -237,12 +237,15 @@ impl GpuProject {
 
     /// The shader's parameters for `job`, with `self.free_below` filled;
     /// `None` where the shader does not apply.
-    fn prepare(&mut self, job: &ProjectJob<'_>) -> Option<Params> {
+    fn prepare(&mut self, job: &ProjectJob<'_>) -> Option<ProjectParams> {
         let geom = job.voxel_to_sensor();
         let s = geom.voxel_size_m;
         let dims = job.volume.dims;
         let voxels = u32::try_from(job.volume.len()).ok()?;
-        let mut p = Params { dims: [dims[0] as u32, dims[1] as u32, dims[2] as u32, voxels], ..Params::default() };
+        let mut p = ProjectParams {
+            dims: [dims[0] as u32, dims[1] as u32, dims[2] as u32, voxels],
+            ..ProjectParams::default()
+        };
         let mut magnitude = 0.0;
         for (k, &dim) in dims.iter().enumerate() {
             // d / s = x + 1/2 - o / s = (x - n) - f, with n an integer.

@@ -8,10 +8,10 @@ use crate::dispatch::{groups_1d, in_out_kernel, unpack_codes, Kernel};
 use edtmap_core::fixed_ray::{fixed_scale, FixedRay};
 use edtmap_core::BackendError;
 
-/// Uniform parameters (`Params` in the shader).
+/// Uniform parameters (`RaycastParams` in the shader).
 #[repr(C)]
 #[derive(Debug, Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
-struct Params {
+struct RaycastParams {
     dims: [u32; 4],
     q: u32,
     rays: u32,
@@ -51,7 +51,7 @@ impl GpuRaycast {
                 "raycast.wgsl",
                 include_str!("raycast.wgsl"),
                 "cast_rays",
-                std::mem::size_of::<Params>() as u64,
+                std::mem::size_of::<RaycastParams>() as u64,
                 1,
             );
             GpuRaycast { ctx: ctx.clone(), kernel, layout, params, bufs: None }
@@ -103,7 +103,7 @@ impl GpuRaycast {
         let words = voxels.div_ceil(16) as u64;
         self.ensure_buffers(rays.len().max(1), voxels)?;
         let bufs = self.bufs.as_ref().ok_or_else(|| BackendError::Device("buffers missing".into()))?;
-        let params = Params {
+        let params = RaycastParams {
             dims: [dims[0] as u32, dims[1] as u32, dims[2] as u32, voxels as u32],
             q,
             rays: rays.len() as u32,
