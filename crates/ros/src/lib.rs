@@ -15,14 +15,14 @@ mod msg_tests;
 #[cfg(feature = "node")]
 pub mod node;
 mod poses;
-pub mod record;
 pub mod recording;
 pub mod replay;
 pub mod tf;
 mod wire;
+pub mod writer;
 
-pub use record::RecordingWriter;
 pub use replay::{FrameError, RosOptions, RosReplay};
+pub use writer::RecordingWriter;
 
 use std::path::Path;
 
