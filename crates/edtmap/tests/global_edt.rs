@@ -137,3 +137,57 @@ fn forbidden_zones_and_prior_maps_are_obstacles() {
     let region = edt_extent(fresh.map()).expect("EDT");
     assert_eq!(edt_errors(fresh.map(), &region).expect("errors").max_m, 0.0);
 }
+
+/// A planar map with a forbidden zone several layers tall and a prior map:
+/// both laid down a layer at a time, every stored distance that of its own
+/// layer's obstacles by brute force, none across layers.
+#[test]
+fn a_planar_maps_zones_and_priors_are_laid_down_layer_by_layer() {
+    let zone = ForbiddenZone { min_m: [3.0, -1.0, 0.5], max_m: [3.3, 1.0, 1.5] };
+    let (scene, sensor, mut params) = setup("planar");
+    params.global.forbidden = vec![zone];
+    params.global.planar = true;
+    let mut mapper = Mapper::new(sensor.clone(), params).expect("mapper");
+    let (planar_run, _, _) = run("planar", 4, 5, |_| {});
+    mapper.add_prior(planar_run.map()).expect("same voxel size");
+    mapper.integrate_frame(&scene.frame(&sensor, 7).expect("frame")).expect("integrate");
+    let map = mapper.map();
+    let obstacles: Vec<edtmap::VoxelIndex> = {
+        let o = map.obstacles();
+        let mut all = Vec::new();
+        let keys: std::collections::BTreeSet<edtmap::BlockKey> =
+            map.fixed_obstacles().iter().map(|(k, _)| k).chain(map.occupancy().iter().map(|(k, _)| k)).collect();
+        for key in keys {
+            for offset in 0..edtmap::BLOCK_VOXELS {
+                let v = key.voxel(offset);
+                if o.contains(v) {
+                    all.push(v);
+                }
+            }
+        }
+        all.sort_unstable();
+        all.dedup();
+        all
+    };
+    let layers: std::collections::BTreeSet<i32> = obstacles.iter().map(|v| v.0[2]).collect();
+    assert!(layers.len() >= 8, "the zone spans layers: {layers:?}");
+    let max = map.cutoff().max_dist_sq;
+    let mut checked = 0;
+    for (key, block) in map.edt().iter() {
+        for offset in 0..edtmap::BLOCK_VOXELS {
+            let v = key.voxel(offset);
+            let truth = obstacles
+                .iter()
+                .filter(|o| o.0[2] == v.0[2])
+                .map(|o| ((o.0[0] - v.0[0]).pow(2) + (o.0[1] - v.0[1]).pow(2)) as u32)
+                .min()
+                .filter(|&d| d <= max)
+                .unwrap_or(edtmap::FAR_DIST_SQ);
+            assert_eq!(block.dist_sq(offset), truth, "{v:?}");
+            checked += usize::from(truth != edtmap::FAR_DIST_SQ);
+        }
+    }
+    assert!(checked > 10_000, "{checked} voxels within the cutoff");
+    let region = edt_extent(map).expect("EDT");
+    assert_eq!(edt_errors(map, &region).expect("errors").max_m, 0.0);
+}
