@@ -48,9 +48,9 @@ use std::sync::Arc;
 
 use edtmap::config::Config;
 use edtmap::cpu::CpuBackend;
+use edtmap::query;
 use edtmap::sensor::{DepthData, DepthImage, Frame, LaserScan, LidarScan, Measurement, PointCloud, RangeLimits};
 use edtmap::{BackendChoice, DynBackend, FrameStats, GlobalMap, MapError, Mapper, PointState, SharedMapper};
-use edtmap_cpu::query;
 use rayon::prelude::*;
 
 /// The outcome of a call.

@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{anyhow, bail, Context, Result};
 use clap::Args;
-use edtmap::cpu::query::{distance_box, distances, max_query_coordinate_m, DistanceBox, MAX_QUERY_INDEX};
+use edtmap::query::{distance_box, distances, max_query_coordinate_m, DistanceBox, MAX_QUERY_INDEX};
 use edtmap::{load_map, GlobalMap, PointState, VoxelIndex, VoxelState};
 use edtmap_io::files;
 use edtmap_io::map_server::{write_map_server, OccupancyGrid2d};

@@ -335,7 +335,7 @@ fn drive(d: &Path, domain: u16, frames: u64, sensor_topic: &str) {
     let bits = |r: &GetDistancesResponse| r.distances.iter().map(|d| d.to_bits()).collect::<Vec<_>>();
     assert_eq!(bits(&resp_enhanced), bits(&resp), "both request layouts get the same distances");
     assert_eq!((&resp_enhanced.gradients, &resp_enhanced.states), (&resp.gradients, &resp.states));
-    let want = edtmap::cpu::query::distances(&map, &query.iter().map(|p| [p.x, p.y, p.z]).collect::<Vec<_>>(), false);
+    let want = edtmap::query::distances(&map, &query.iter().map(|p| [p.x, p.y, p.z]).collect::<Vec<_>>(), false);
     assert!(resp.success, "{}", resp.message);
     assert_eq!(resp.distances.len(), want.len());
     for (i, w) in want.iter().enumerate() {
@@ -362,7 +362,7 @@ fn drive(d: &Path, domain: u16, frames: u64, sensor_topic: &str) {
         Err(e) => panic!("get_esdf_box: {e:?}"),
     })
     .expect("get_esdf_box answers");
-    let want = edtmap::cpu::query::distance_box(&map, lo, hi, false).expect("box");
+    let want = edtmap::query::distance_box(&map, lo, hi, false).expect("box");
     assert!(resp.success, "{}", resp.message);
     assert_eq!(resp.size, want.dims.map(|d| d as u32));
     assert_eq!(resp.distances, want.distance_m);
@@ -375,7 +375,7 @@ fn drive(d: &Path, domain: u16, frames: u64, sensor_topic: &str) {
     for p in values.chunks(4) {
         let at = [f64::from(p[0]), f64::from(p[1]), f64::from(p[2])];
         let v = edtmap::VoxelIndex::containing(at, map.voxel_size_m()).expect("finite");
-        let (dist, saturated) = edtmap::cpu::query::voxel_distance(cloud_map, v, false);
+        let (dist, saturated) = edtmap::query::voxel_distance(cloud_map, v, false);
         assert!(!saturated && dist as f32 == p[3], "{p:?} vs {dist}");
     }
 }

@@ -38,6 +38,7 @@ mod observations;
 mod obstacles;
 mod occupancy;
 pub mod projection;
+pub mod query;
 pub mod region;
 pub mod sensor;
 pub mod stages;

@@ -28,7 +28,6 @@ mod backend;
 pub mod edt;
 mod error;
 pub mod integrate;
-pub mod query;
 
 pub use backend::CpuBackend;
 pub use error::CpuError;

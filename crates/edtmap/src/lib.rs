@@ -60,10 +60,10 @@ mod mapper;
 mod shared;
 
 pub use choice::{open_backend, BackendChoice, DynBackend, OpenedBackend};
+pub use edtmap_core::query::{Distance, DistanceBox, PointState};
 pub use edtmap_core::*;
 /// The CPU backend (rayon), the reference implementation.
 pub use edtmap_cpu as cpu;
-pub use edtmap_cpu::query::{Distance, DistanceBox, PointState};
 pub use error::MapError;
 pub use mapfile::{load_map, save_map};
 pub use mapper::{Cleared, FrameStats, Mapper, MapperParams};

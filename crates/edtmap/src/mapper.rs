@@ -1,13 +1,13 @@
 //! The mapping pipeline of paper Fig. 1, one frame at a time.
 
 use crate::MapError;
+use edtmap_core::query::{self, Distance, PointState};
 use edtmap_core::sensor::{Frame, Sensor};
 use edtmap_core::stages::{local_field, BatchEdtStage, IntegrationStage, OccupancyStage, OgmOptions};
 use edtmap_core::{
     read_states, Backend, BlockKey, EdtField, EdtParams, ExactCounts, GlobalMap, GlobalParams, Grid3, IntegrateReport,
     IntegrationMode, LocalVolume, OccupancyParams, Region, VolumeParams, VoxelIndex, VoxelState, WaveCounts,
 };
-use edtmap_cpu::query::{self, Distance, PointState};
 use edtmap_cpu::CpuBackend;
 use std::sync::OnceLock;
 use std::time::Instant;
@@ -449,7 +449,7 @@ impl<B: Backend> Mapper<B> {
 
     /// Signed distance at world point `p` (metres) to the surface of the
     /// obstacle voxels, with a unit gradient: negative exactly when `p`'s
-    /// voxel is an obstacle (see [`edtmap_cpu::query`]).
+    /// voxel is an obstacle (see [`crate::query`]).
     pub fn signed_distance(&self, p: [f64; 3]) -> Distance {
         query::distance(&self.map, p, true)
     }

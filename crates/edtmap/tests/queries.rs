@@ -4,8 +4,8 @@
 //! centres.
 
 use edtmap::cpu::edt::{edt_with, ScanLayout};
-use edtmap::cpu::query::{distance, distance_box, distances, PointState};
 use edtmap::cpu::CpuBackend;
+use edtmap::query::{distance, distance_box, distances, PointState};
 use edtmap::stages::IntegrationStage;
 use edtmap::{GlobalMap, GlobalParams, Grid3, IntegrationMode, LocalVolume, OccupancyParams, VoxelIndex};
 

@@ -10,11 +10,11 @@ use std::sync::{Arc, MutexGuard};
 
 use edtmap::config::Config;
 use edtmap::cpu::CpuBackend;
+use edtmap::query;
 use edtmap::sensor::{
     DepthData, DepthImage, Frame, LaserScan, LidarScan, Measurement, PointCloud, RangeLimits, Sensor,
 };
 use edtmap::{Backend, BackendChoice, FrameStats, GlobalMap, MapError, Mapper, PointState, SharedMapper};
-use edtmap_cpu::query;
 use nalgebra::{Isometry3, Quaternion, Translation3};
 use numpy::{PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyOSError, PyRuntimeError, PyValueError};

@@ -6,7 +6,7 @@ use super::types::{
     DiagnosticArray, DiagnosticStatus, Header, KeyValue, MapMetaData, OccupancyGrid, PointCloud2, PointField, Pose,
     Time, Transform, Vector3,
 };
-use edtmap::cpu::query::{voxel_distance, voxel_state};
+use edtmap::query::{voxel_distance, voxel_state};
 use edtmap::{BlockKey, GlobalMap, LocalVolume, PointState, VoxelIndex, BLOCK_VOXELS};
 
 /// PointField type code of float32.

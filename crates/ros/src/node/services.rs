@@ -9,7 +9,7 @@ use super::types::{
     SaveMapResponse, Time, Vector3,
 };
 use super::{NodeError, Shared, Snapshot};
-use edtmap::cpu::query;
+use edtmap::query;
 use ros2_client::dds::rustdds::mio1::{Events, Interest, Poll, Token};
 use ros2_client::dds::rustdds::{DomainParticipant, QosPolicies};
 use ros2_client::qos::{Durability, History, WhenFull};

@@ -52,8 +52,7 @@
 
 mod signed;
 
-use crate::CpuError;
-use edtmap_core::{CoreError, GlobalMap, VoxelIndex, VoxelState, FAR_DIST_SQ};
+use crate::{CoreError, GlobalMap, VoxelIndex, VoxelState, FAR_DIST_SQ};
 use rayon::prelude::*;
 
 /// Largest voxel index, in absolute value on any axis, that a distance
@@ -231,25 +230,25 @@ pub struct DistanceBox {
 pub const MAX_BOX_VOXELS: usize = 1 << 28;
 
 /// Every voxel overlapping the box `[min_m, max_m)` (metres).
-pub fn distance_box(map: &GlobalMap, min_m: [f64; 3], max_m: [f64; 3], signed: bool) -> Result<DistanceBox, CpuError> {
+pub fn distance_box(map: &GlobalMap, min_m: [f64; 3], max_m: [f64; 3], signed: bool) -> Result<DistanceBox, CoreError> {
     let vs = map.voxel_size_m();
     let bad = |reason| CoreError::InvalidParam { field: "box", value: format!("{min_m:?} .. {max_m:?}"), reason };
     if (0..3).any(|a| !min_m[a].is_finite() || !max_m[a].is_finite() || min_m[a] >= max_m[a]) {
-        return Err(bad("corners must be finite with min below max on every axis").into());
+        return Err(bad("corners must be finite with min below max on every axis"));
     }
     let lo = VoxelIndex::containing(min_m, vs).ok_or(bad("corners must be finite"))?;
     // The last voxel overlapping [min, max) on each axis.
     let last = max_m.map(|m| (m / vs).ceil() - 1.0);
     if last.iter().any(|&l| !(l >= f64::from(i32::MIN) && l <= f64::from(i32::MAX))) {
-        return Err(bad("corners must lie in the voxel index range").into());
+        return Err(bad("corners must lie in the voxel index range"));
     }
     let hi = VoxelIndex(last.map(|l| l as i32));
     if !in_query_range(lo) || !in_query_range(hi) {
-        return Err(bad("corners must lie within 2^30 voxels of the origin on every axis").into());
+        return Err(bad("corners must lie within 2^30 voxels of the origin on every axis"));
     }
     let dims = [0, 1, 2].map(|a| (i64::from(hi.0[a]) - i64::from(lo.0[a]) + 1) as usize);
     if dims.iter().try_fold(1usize, |acc, &d| acc.checked_mul(d)).is_none_or(|n| n > MAX_BOX_VOXELS) {
-        return Err(bad("more than 2^28 voxels").into());
+        return Err(bad("more than 2^28 voxels"));
     }
     let [nx, ny, nz] = dims;
     let at = |i: usize| {
