@@ -37,7 +37,7 @@ impl Region {
 
     /// This box grown by `pad` voxels on every side.
     pub fn grown(&self, pad: i32) -> Region {
-        Region { origin: self.origin.map(|o| o - pad), dims: self.dims.map(|d| d + 2 * pad as usize) }
+        self.grown_by([pad; 3])
     }
 
     /// This box grown by `pad[a]` voxels on both sides along each axis `a`.

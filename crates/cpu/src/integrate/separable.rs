@@ -394,10 +394,9 @@ fn in_layer(
 ) -> (Marked, Stats) {
     let keys: Vec<BlockKey> = dirty.iter().map(|e| e.0).collect();
     let taken = map.take_shared(&keys);
-    let many = keys.len() >= 2 * MIN_TASKS;
     let written: Vec<(BlockKey, Option<SharedBlock<EdtBlock>>, Mask, Stats)> = share_out(
         dirty.into_iter().zip(taken),
-        many,
+        shared(keys.len(), keys.len()),
         || (),
         |(), ((key, mask, _), block)| {
             let mut block = SharedBlock::into_owned(block);

@@ -104,7 +104,6 @@ fn read_section<B: Payload>(cur: &mut Cursor<'_>, version: u32) -> Result<BlockM
     let mut full = Vec::with_capacity(payload);
     let mut empty = Vec::with_capacity(payload);
     B::default().put(BlockKey::default(), &mut empty);
-    let mut mask_read = 0;
     for _ in 0..count {
         let key = get_key(cur.take(KEY_LEN, "a block key")?);
         if let Some(p) = previous.filter(|&p| p >= key) {
@@ -118,9 +117,8 @@ fn read_section<B: Payload>(cur: &mut Cursor<'_>, version: u32) -> Result<BlockM
         }
         previous = Some(key);
         check::check_key::<B>(key)?;
-        let bytes = if layered {
+        let (bytes, mask) = if layered {
             let mask = cur.take(1, "a block's layer mask")?[0];
-            mask_read = mask;
             let layer = payload / LAYERS;
             let stored = cur.take(mask.count_ones() as usize * layer, "a block's layers")?;
             // The layers not stored as a new block holds them.
@@ -129,13 +127,13 @@ fn read_section<B: Payload>(cur: &mut Cursor<'_>, version: u32) -> Result<BlockM
             for (z, bytes) in (0..LAYERS).filter(|z| mask >> z & 1 == 1).zip(stored.chunks_exact(layer)) {
                 full[z * layer..(z + 1) * layer].copy_from_slice(bytes);
             }
-            &full[..]
+            (&full[..], Some(mask))
         } else {
-            cur.take(payload, "a block")?
+            (cur.take(payload, "a block")?, None)
         };
         let block = map.get_or_insert(key);
         block.get(key, version, bytes).map_err(MapFileError::Corrupt)?;
-        if layered && layer_mask(block) != mask_read {
+        if mask.is_some_and(|m| m != layer_mask(block)) {
             return Err(MapFileError::Corrupt(format!(
                 "block {:?} of the {} section stores a layer that holds only what a new block holds",
                 key.0,
