@@ -12,11 +12,11 @@
 //!
 //!   node_player RECORDING.mcap SENSOR_TOPIC DOMAIN [FRAMES]
 
-use edtmap_ros::msg::Message;
-use edtmap_ros::node::types::{
+use edtmap_node::types::{
     CameraInfo, DiagnosticArray, GetDistancesRequest, GetDistancesResponse, Image, LaserScan, Point, PointCloud2,
     TfMessage, TransformStamped,
 };
+use edtmap_ros::msg::Message;
 use ros2_client::dds::rustdds::DomainParticipantBuilder;
 use ros2_client::qos::{Durability, History, WhenFull};
 use ros2_client::{

@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use edtmap::config::Config;
-use edtmap_ros::node;
+use edtmap_node as node;
 
 /// Arguments of `edtmap node`.
 #[derive(Args, Debug, Clone)]

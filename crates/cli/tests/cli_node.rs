@@ -7,11 +7,11 @@
 mod common;
 
 use common::{bin, finish, run_in};
-use edtmap_ros::msg::Message;
-use edtmap_ros::node::types::{
+use edtmap_node::types::{
     CameraInfo, DiagnosticArray, GetDistancesRequest, GetDistancesResponse, GetEsdfBoxRequest, GetEsdfBoxResponse,
     Image, LaserScan, Point, PointCloud2, TfMessage, TransformStamped,
 };
+use edtmap_ros::msg::Message;
 use ros2_client::dds::rustdds::DomainParticipantBuilder;
 use ros2_client::qos::{Durability, History, WhenFull};
 use ros2_client::{Context, MessageTypeName, Name, NodeName, NodeOptions, QosProfile, ServiceMapping, ServiceTypeName};

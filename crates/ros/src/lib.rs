@@ -12,9 +12,7 @@ pub mod mcap;
 pub mod msg;
 #[cfg(test)]
 mod msg_tests;
-#[cfg(feature = "node")]
-pub mod node;
-mod poses;
+pub mod poses;
 pub mod recording;
 pub mod replay;
 pub mod tf;

@@ -388,7 +388,7 @@ fn read_rigid(r: &mut WireReader<'_>, what: &str) -> WireResult<Isometry3<f64>> 
 
 /// The rigid transform of a translation and a quaternion `[x, y, z, w]`,
 /// as every pose message gives them; `what` names it in the error.
-pub(crate) fn rigid(t: [f64; 3], [x, y, z, w]: [f64; 4], what: &str) -> WireResult<Isometry3<f64>> {
+pub fn rigid(t: [f64; 3], [x, y, z, w]: [f64; 4], what: &str) -> WireResult<Isometry3<f64>> {
     if t.iter().any(|v| !v.is_finite()) {
         return Err(format!("{what}: translation {t:?} is not finite"));
     }

@@ -12,7 +12,7 @@ use nalgebra::Isometry3;
 
 /// The robot's poses so far.
 #[derive(Debug, Clone)]
-pub(crate) enum Poses {
+pub enum Poses {
     /// `T_world_body` samples of one topic.
     Topic(Trajectory),
     /// The transform tree, with the fixed frame.
@@ -21,7 +21,7 @@ pub(crate) enum Poses {
 
 impl Poses {
     /// Empty poses of the kind `is_tf` says.
-    pub(crate) fn new(is_tf: bool, opts: &RosOptions) -> Self {
+    pub fn new(is_tf: bool, opts: &RosOptions) -> Self {
         if is_tf {
             Poses::Tf(TfBuffer::default(), opts.world_frame.clone())
         } else {
@@ -30,7 +30,7 @@ impl Poses {
     }
 
     /// Whether no pose has come yet.
-    pub(crate) fn is_empty(&self) -> bool {
+    pub fn is_empty(&self) -> bool {
         match self {
             Poses::Topic(t) => t.is_empty(),
             Poses::Tf(tf, _) => tf.edges() == 0,
@@ -39,7 +39,7 @@ impl Poses {
 
     /// Adds the poses of `msg`; `is_static` for `/tf_static`. A pose in
     /// another frame than the configured world frame is an error.
-    pub(crate) fn add(&mut self, msg: &Message, is_static: bool, opts: &RosOptions) -> Result<(), String> {
+    pub fn add(&mut self, msg: &Message, is_static: bool, opts: &RosOptions) -> Result<(), String> {
         let one = |t: &StampedTransform| -> Result<(), String> {
             if let Some(world) = &opts.world_frame {
                 let world = world.trim_start_matches('/');
@@ -65,8 +65,7 @@ impl Poses {
 
     /// Drops poses older than `t` (one before it kept), bounding a live
     /// node's history.
-    #[cfg(feature = "node")]
-    pub(crate) fn forget_before(&mut self, t: f64) {
+    pub fn forget_before(&mut self, t: f64) {
         match self {
             Poses::Topic(traj) => traj.forget_before(t),
             Poses::Tf(tf, _) => tf.forget_before(t),
@@ -93,8 +92,7 @@ impl Poses {
 
     /// The latest time a message in `frame_id` has a pose at, if any: a
     /// live node waits for it to pass a message's stamp.
-    #[cfg(feature = "node")]
-    pub(crate) fn latest(&self, frame_id: &str, opts: &RosOptions) -> Option<f64> {
+    pub fn latest(&self, frame_id: &str, opts: &RosOptions) -> Option<f64> {
         match self {
             Poses::Topic(traj) => traj.span().map(|s| s.1),
             Poses::Tf(tf, world) => {
@@ -105,12 +103,7 @@ impl Poses {
     }
 
     /// `T_world_sensor` at `stamp_s` for a message in `frame_id`.
-    pub(crate) fn sensor_pose(
-        &self,
-        stamp_s: f64,
-        frame_id: &str,
-        opts: &RosOptions,
-    ) -> Result<Isometry3<f64>, String> {
+    pub fn sensor_pose(&self, stamp_s: f64, frame_id: &str, opts: &RosOptions) -> Result<Isometry3<f64>, String> {
         let gap = opts.max_pose_gap_s;
         let t_world_body = match self {
             Poses::Topic(traj) => {
@@ -126,7 +119,7 @@ impl Poses {
 }
 
 /// The measurement of a decoded sensor message, with its stamp and frame.
-pub(crate) fn measurement(msg: Message, depth_scale_m: f32) -> Result<(Measurement, i64, String), String> {
+pub fn measurement(msg: Message, depth_scale_m: f32) -> Result<(Measurement, i64, String), String> {
     match msg {
         Message::PointCloud2(m) => Ok((Measurement::Points(m.xyz()?), m.header.stamp_ns, m.header.frame_id)),
         Message::Image(m) => Ok((Measurement::Depth(m.depth(depth_scale_m)?), m.header.stamp_ns, m.header.frame_id)),

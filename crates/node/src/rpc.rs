@@ -341,7 +341,7 @@ impl<Req, Resp> mio1::event::Source for Server<Req, Resp> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::node::types::{GetDistancesRequest, Point, SaveMapRequest};
+    use crate::types::{GetDistancesRequest, Point, SaveMapRequest};
 
     fn raw<T: Serialize>(value: &T) -> Raw {
         let mut out = Vec::new();

@@ -24,11 +24,11 @@ pub mod types;
 
 pub use services::{QueryLimits, MAX_BOX_VOXELS, MAX_QUERY_POINTS};
 
-use crate::msg::{CameraInfo, Message};
-use crate::RosOptions;
 use edtmap::config::{Config, Intrinsics, OccupiedScope, PoseType, SensorKind, ServiceMapping};
 use edtmap::sensor::Frame;
 use edtmap::{GlobalMap, LocalVolume, MapError, Mapper};
+use edtmap_ros::msg::{CameraInfo, Message};
+use edtmap_ros::RosOptions;
 use live::{LiveFrames, Skipped};
 use ros2_client::dds::rustdds::mio1::{Events, Interest, Poll, Token};
 use ros2_client::dds::rustdds::DomainParticipantBuilder;

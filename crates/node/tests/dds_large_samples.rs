@@ -3,7 +3,6 @@
 //! than one sample (as a Fast DDS reader's default 208 KiB is for a
 //! multi-megabyte ESDF cloud), and fragmented samples that carry a
 //! request id (service requests and replies).
-#![cfg(feature = "node")]
 
 use ros2_client::dds::rustdds::policy::{History, Reliability};
 use ros2_client::dds::rustdds::rpc::SampleIdentity;

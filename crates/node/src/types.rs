@@ -1,11 +1,11 @@
 //! ROS 2 message and service types as DDS carries them: one struct per
 //! IDL type, fields in IDL order (CDR is positional), serialized by
 //! `ros2-client`'s CDR serde. Sensor and pose messages convert into the
-//! crate's [`crate::msg`] types, so a live message meets the same decoding
+//! recordings' [`edtmap_ros::msg`] types, so a live message meets the same decoding
 //! (`PointCloud2::xyz`, `Image::depth`, `LaserScanMsg::scan`) and the same
 //! errors as a recorded one.
 
-use crate::msg;
+use edtmap_ros::msg;
 use nalgebra::Isometry3;
 use serde::{Deserialize, Serialize};
 

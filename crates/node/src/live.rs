@@ -10,10 +10,10 @@
 //! window ends, the newest [`MAX_STARTUP_WAITING`] of them; then the
 //! per-message wait alone applies.
 
-use crate::msg::{CameraInfo, Message};
-use crate::poses::{measurement, Poses};
-use crate::RosOptions;
 use edtmap_core::sensor::{Frame, Measurement};
+use edtmap_ros::msg::{CameraInfo, Message};
+use edtmap_ros::poses::{measurement, Poses};
+use edtmap_ros::RosOptions;
 use std::collections::VecDeque;
 use std::time::{Duration, Instant};
 
@@ -228,7 +228,7 @@ impl LiveFrames {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::msg::{Header, PointCloud2, StampedTransform};
+    use edtmap_ros::msg::{Header, PointCloud2, StampedTransform};
     use nalgebra::{Isometry3, Vector3};
 
     fn opts() -> RosOptions {
@@ -344,7 +344,7 @@ mod tests {
 
     #[test]
     fn each_malformation_has_its_own_kind() {
-        use crate::msg::{Image, LaserScanMsg};
+        use edtmap_ros::msg::{Image, LaserScanMsg};
         let good = PointCloud2::from_points(Header::default(), &[[1.0, 0.0, 0.0], [2.0, 0.0, 0.0]]);
         let cloud = |f: &dyn Fn(&mut PointCloud2)| {
             let mut c = good.clone();
