@@ -2,14 +2,14 @@
 //! pipeline: one trait, [`Backend`], with a method per device stage, that
 //! every backend implements in full.
 //!
-//! Every backend gives the same integer answers: the conformance suite in
-//! `edtmap-sim` checks each one against the same oracles, bit for bit.
+//! Every backend gives the same integer answers: the conformance suite
+//! (`edtmap-conformance`) checks each one against the same oracles, bit for bit.
 //!
 //! # The batch EDT's tie rule
 //! A voxel can have several nearest obstacles. Every backend picks the same
 //! one: the separable scans run along x, then y, then z, and each scan keeps
 //! the candidate at the lowest position along its axis among those at the
-//! smallest value. `edtmap_sim::conformance::separable_oracle` computes it
+//! smallest value. `edtmap_conformance::separable_oracle` computes it
 //! by brute force.
 
 use crate::fixed_ray::FixedRay;

@@ -1,12 +1,12 @@
-//! The backend conformance suite (`edtmap_sim::conformance`) on the CPU,
+//! The backend conformance suite (`edtmap_conformance`) on the CPU,
 //! through the `Backend` trait, plus the batch EDT in every scan layout:
 //! all must give the same integer results.
 
+use edtmap_conformance::check_batch_edt;
 use edtmap_cpu::edt::ScanLayout;
 use edtmap_cpu::CpuBackend;
-use edtmap_sim::conformance::check_batch_edt;
 
-edtmap_sim::conformance_tests!(Some(CpuBackend::default()));
+edtmap_conformance::conformance_tests!(Some(CpuBackend::default()));
 
 #[test]
 fn batch_edt_matches_the_separable_oracle_in_every_layout() {

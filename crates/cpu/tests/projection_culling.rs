@@ -6,11 +6,11 @@
 //! (whole tiles behind them skipped by azimuth bin), against the
 //! definition voxel by voxel.
 
+use edtmap_conformance::SplitMix;
 use edtmap_core::sensor::{
     DepthData, DepthImage, LaserScan, LidarScan, Measurement, PinholeCamera, RangeLimits, Sensor, SpinningLidar,
 };
 use edtmap_core::{mark_misses, LocalVolume, Observations, ProjectJob, VoxelIndex, OBS_MISS, OBS_NONE};
-use edtmap_sim::conformance::SplitMix;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use std::f64::consts::{PI, TAU};
 

@@ -12,8 +12,8 @@ use gpu_common as common;
 
 use edtmap::cpu::CpuBackend;
 use edtmap::stages::IntegrationStage;
+use edtmap_conformance::IntegrationWorld;
 use edtmap_core::{BatchEdt, Connectivity, EdtField, EdtMap, GlobalParams, IntegrationMode};
-use edtmap_sim::conformance::IntegrationWorld;
 
 /// Sorted (key, block) pairs of `map`, for an exact comparison.
 fn blocks(map: &EdtMap) -> Vec<(edtmap_core::BlockKey, edtmap_core::EdtBlock)> {

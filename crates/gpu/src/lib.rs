@@ -2,7 +2,7 @@
 //! shaders in WGSL (each `.wgsl` file beside the module that dispatches
 //! it), on Vulkan, Metal or DX12, and on Mesa's lavapipe (software Vulkan)
 //! where there is no GPU. Every result is an integer bit-identical to the
-//! CPU backend's; the conformance suite of `edtmap-sim` checks both.
+//! CPU backend's; the conformance suite (`edtmap-conformance`) checks both.
 //!
 //! [`GpuBackend::new`] fails with [`BackendError::NoAdapter`] when no
 //! adapter exists; a lost device is [`BackendError::DeviceLost`] on the

@@ -1,4 +1,4 @@
-//! The backend conformance suite (`edtmap_sim::conformance`) on the GPU,
+//! The backend conformance suite (`edtmap_conformance`) on the GPU,
 //! through the `Backend` trait: the same oracles as the CPU, bit for bit.
 //! Without an adapter the tests say so and pass, unless
 //! `EDTMAP_REQUIRE_GPU=1` (CI sets it, with lavapipe installed), where a
@@ -6,9 +6,9 @@
 
 mod common;
 
-use edtmap_sim::conformance::check_projection_bits;
+use edtmap_conformance::check_projection_bits;
 
-edtmap_sim::conformance_tests!(common::gpu_or_skip("GPU conformance"));
+edtmap_conformance::conformance_tests!(common::gpu_or_skip("GPU conformance"));
 
 /// The device's own projection bytes, before the host decides: right
 /// wherever it decides, and uncertain on few voxels.

@@ -10,12 +10,12 @@ mod common;
 
 use std::collections::HashMap;
 
+use edtmap_conformance::IntegrationWorld;
 use edtmap_core::region::{Packing, Region};
 use edtmap_core::stages::exact::{recompute_exact, ExactBuffers};
 use edtmap_core::stages::IntegrationStage;
 use edtmap_core::{Backend, BlockKey, EdtMap, GlobalParams, IntegrateReport, IntegrationMode, VoxelIndex};
 use edtmap_cpu::CpuBackend;
-use edtmap_sim::conformance::IntegrationWorld;
 
 /// Every block of `map`, sorted, as comparable rows.
 fn rows(map: &EdtMap) -> Vec<(BlockKey, Vec<[i16; 3]>)> {

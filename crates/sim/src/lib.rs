@@ -21,7 +21,6 @@
 //! ```
 #![warn(missing_docs)]
 
-pub mod conformance;
 mod error;
 pub mod geometry;
 mod grids;

@@ -9,7 +9,6 @@ mod projection;
 
 pub use projection::{check_projection, check_projection_bits, projection_cases, ProjectionCase, ProjectionTally};
 
-use crate::random_grid;
 use edtmap_core::fixed_ray::{fixed_scale, setup_ray, walk, FixedRay, NO_HIT};
 use edtmap_core::stages::IntegrationStage;
 use edtmap_core::{Backend, Connectivity, IntegrationMode, Observations, OBS_HIT, OBS_MISS};
@@ -17,6 +16,7 @@ use edtmap_core::{
     BatchEdt, EdtField, EdtMap, FixedMap, GlobalParams, Grid3, LocalVolume, LogOdds, Obstacles, OccupancyMap,
     OccupancyParams, VoxelIndex, FAR_DIST_SQ, NO_SITE, UNREACHABLE_DIST_SQ,
 };
+use edtmap_sim::random_grid;
 
 /// The batch EDT with the tie rule of `edtmap_core::backend` (scans along
 /// x, y, z; each keeps the lowest position among its smallest values), by
@@ -241,28 +241,28 @@ macro_rules! conformance_tests {
         #[test]
         fn batch_edt_matches_the_separable_oracle() {
             let Some(mut backend) = $make else { return };
-            let checked = $crate::conformance::check_batch_edt(&mut backend).unwrap_or_else(|e| panic!("{e}"));
+            let checked = $crate::check_batch_edt(&mut backend).unwrap_or_else(|e| panic!("{e}"));
             assert!(checked > 100_000);
         }
 
         #[test]
         fn ray_casting_matches_the_walk_definition() {
             let Some(mut backend) = $make else { return };
-            let checked = $crate::conformance::check_raycast(&mut backend).unwrap_or_else(|e| panic!("{e}"));
+            let checked = $crate::check_raycast(&mut backend).unwrap_or_else(|e| panic!("{e}"));
             assert!(checked > 9_000);
         }
 
         #[test]
         fn projection_matches_the_definition() {
             let Some(mut backend) = $make else { return };
-            let checked = $crate::conformance::check_projection(&mut backend).unwrap_or_else(|e| panic!("{e}"));
+            let checked = $crate::check_projection(&mut backend).unwrap_or_else(|e| panic!("{e}"));
             assert!(checked > 100_000);
         }
 
         #[test]
         fn integration_matches_brute_force() {
             let Some(mut backend) = $make else { return };
-            let steps = $crate::conformance::check_integration(&mut backend).unwrap_or_else(|e| panic!("{e}"));
+            let steps = $crate::check_integration(&mut backend).unwrap_or_else(|e| panic!("{e}"));
             assert_eq!(steps, 240);
         }
     };
