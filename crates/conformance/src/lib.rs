@@ -219,7 +219,7 @@ pub fn check_integration(backend: &mut dyn Backend) -> Result<usize, String> {
                 let (window, mask) = world.step();
                 backend.batch_edt(&mask, &mut batch).map_err(|e| format!("{at}: {e}"))?;
                 stage
-                    .integrate(backend, &mut map, world.obstacles(), &window, &batch)
+                    .merge_window(backend, &mut map, world.obstacles(), &window, &batch)
                     .map_err(|e| format!("{at}: {e}"))?;
                 let worst = world.check(&map, &params).map_err(|e| format!("{at}: {e}"))?;
                 if mode == IntegrationMode::Exact && worst != 0.0 {

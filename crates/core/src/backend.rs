@@ -90,7 +90,7 @@ pub trait Backend: BatchEdt {
     }
 
     /// Whether the wavefront integration should be given the window's
-    /// obstacles ([`Integration::WavefrontMask`]) rather than its batch
+    /// obstacles ([`IntegrationWork::WavefrontMask`]) rather than its batch
     /// EDT: true for a device, which computes the EDT where the
     /// integration reads it instead of sending it to the host and back.
     fn batch_stays_on_device(&self) -> bool {
@@ -138,15 +138,15 @@ pub trait Backend: BatchEdt {
         Ok(crate::fuse::fuse(map, obs, lo))
     }
 
-    /// Global integration (paper §IV-C): one [`IntegrateJob`] into
+    /// Global integration (paper §IV-C): one [`IntegrationJob`] into
     /// `job.map`, writing back only the voxels that changed. Every
     /// backend gives the same map, bit for bit.
-    fn integrate(&mut self, job: IntegrateJob<'_>) -> Result<IntegrateReport, BackendError>;
+    fn integrate(&mut self, job: IntegrationJob<'_>) -> Result<IntegrationReport, BackendError>;
 }
 
 /// One integration, as [`Backend::integrate`] receives it.
 #[derive(Debug)]
-pub struct IntegrateJob<'a> {
+pub struct IntegrationJob<'a> {
     /// The global EDT.
     pub map: &'a mut EdtMap,
     /// The obstacles the EDT is that of (the other layers of the map).
@@ -154,12 +154,12 @@ pub struct IntegrateJob<'a> {
     /// The cutoff in voxels.
     pub cutoff: Cutoff,
     /// What to do.
-    pub work: Integration<'a>,
+    pub work: IntegrationWork<'a>,
 }
 
 /// The kinds of integration ([`crate::IntegrationMode`]).
 #[derive(Debug, Clone, Copy)]
-pub enum Integration<'a> {
+pub enum IntegrationWork<'a> {
     /// The paper's wavefronts (Algorithms 2 and 3): merges `batch`, the
     /// exact EDT of `window`'s obstacles (unknown voxels free), into the
     /// map, over the window grown by the cutoff's reach plus one.
@@ -171,7 +171,7 @@ pub enum Integration<'a> {
         /// Neighbour offsets the waves move along (6, 18 or 26).
         offsets: &'a [[i32; 3]],
     },
-    /// [`Integration::Wavefront`] with the batch EDT still to compute, of
+    /// [`IntegrationWork::Wavefront`] with the batch EDT still to compute, of
     /// `mask` (the window's obstacles, unknown voxels free), by the
     /// backend itself: a device keeps it where the integration reads it,
     /// and nothing of it crosses to the host
@@ -204,7 +204,7 @@ pub enum Integration<'a> {
 
 /// What one integration did.
 #[derive(Debug, Clone, Default, PartialEq)]
-pub struct IntegrateReport {
+pub struct IntegrationReport {
     /// Voxels whose distance or nearest obstacle changed.
     pub voxels_changed: usize,
     /// Sum of |new − old| distance over those voxels, voxels, distances
@@ -301,7 +301,7 @@ impl<B: Backend + ?Sized> Backend for Box<B> {
         (**self).fuse(map, obs, lo)
     }
 
-    fn integrate(&mut self, job: IntegrateJob<'_>) -> Result<IntegrateReport, BackendError> {
+    fn integrate(&mut self, job: IntegrationJob<'_>) -> Result<IntegrationReport, BackendError> {
         (**self).integrate(job)
     }
 }

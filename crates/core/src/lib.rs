@@ -46,7 +46,7 @@ mod state;
 mod volume;
 
 pub use backend::{
-    Backend, BackendError, BatchEdt, DeviceCounters, ExactCounts, IntegrateJob, IntegrateReport, Integration,
+    Backend, BackendError, BatchEdt, DeviceCounters, ExactCounts, IntegrationJob, IntegrationReport, IntegrationWork,
     WaveCounts,
 };
 pub use edt::{dist_sq_to_vox, EdtField, EdtParams, NO_SITE, UNREACHABLE_DIST_SQ};

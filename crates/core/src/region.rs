@@ -275,8 +275,8 @@ pub struct WriteBack {
 impl WriteBack {
     /// The integration's report: this write-back over `region_voxels`
     /// voxels, with the wavefront's counters.
-    pub fn into_report(self, region_voxels: usize, waves: crate::WaveCounts) -> crate::IntegrateReport {
-        crate::IntegrateReport {
+    pub fn into_report(self, region_voxels: usize, waves: crate::WaveCounts) -> crate::IntegrationReport {
+        crate::IntegrationReport {
             voxels_changed: self.voxels_changed,
             change_sum_vox: self.change_sum_vox,
             changed_blocks: self.changed_blocks,

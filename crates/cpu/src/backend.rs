@@ -9,7 +9,7 @@ use edtmap_core::projection::mark_misses;
 use edtmap_core::region::{Packing, Region};
 use edtmap_core::stages::exact::{recompute_exact, ExactBuffers};
 use edtmap_core::{
-    Backend, BackendError, BatchEdt, EdtField, Grid3, IntegrateJob, IntegrateReport, Integration, MapStamp,
+    Backend, BackendError, BatchEdt, EdtField, Grid3, IntegrationJob, IntegrationReport, IntegrationWork, MapStamp,
     Observations, ProjectJob, WaveCounts,
 };
 
@@ -26,7 +26,7 @@ pub struct CpuBackend {
     exact: ExactBuffers,
     separable: SeparableCache,
     seen: Option<MapStamp>,
-    /// The window's batch EDT of an [`Integration::WavefrontMask`].
+    /// The window's batch EDT of an [`IntegrationWork::WavefrontMask`].
     window_edt: EdtField,
 }
 
@@ -88,30 +88,30 @@ impl Backend for CpuBackend {
         Ok(())
     }
 
-    fn integrate(&mut self, job: IntegrateJob<'_>) -> Result<IntegrateReport, BackendError> {
-        let IntegrateJob { map, obstacles, cutoff, work } = job;
+    fn integrate(&mut self, job: IntegrationJob<'_>) -> Result<IntegrationReport, BackendError> {
+        let IntegrationJob { map, obstacles, cutoff, work } = job;
         if self.seen != Some(map.stamp()) {
             self.waves.forget_all();
         }
         let (written, waves, region) = match work {
-            Integration::Wavefront { window, batch, offsets } => {
+            IntegrationWork::Wavefront { window, batch, offsets } => {
                 let packing = Packing::new(Region::around(window, cutoff.reach + 1), cutoff)?;
                 let (w, c) = integrate_wavefront(map, window, batch, &packing, offsets, &mut self.waves);
                 (w, c, packing.region)
             }
-            Integration::WavefrontMask { window, mask, offsets } => {
+            IntegrationWork::WavefrontMask { window, mask, offsets } => {
                 let packing = Packing::new(Region::around(window, cutoff.reach + 1), cutoff)?;
                 self.edt.batch_edt(mask, &mut self.window_edt)?;
                 let (w, c) = integrate_wavefront(map, window, &self.window_edt, &packing, offsets, &mut self.waves);
                 (w, c, packing.region)
             }
-            Integration::Changes { blocks } => {
+            IntegrationWork::Changes { blocks } => {
                 let report = update_exact(map, &obstacles, blocks, cutoff, &mut self.separable);
                 self.waves.forget(&report.changed_blocks);
                 self.seen = Some(map.stamp());
                 return Ok(report);
             }
-            Integration::Recompute { region } => {
+            IntegrationWork::Recompute { region } => {
                 let packing = Packing::new(region, cutoff)?;
                 let w = recompute_exact(&mut self.edt, map, &obstacles, &packing, &mut self.exact)?;
                 self.waves.forget(&w.changed_blocks);

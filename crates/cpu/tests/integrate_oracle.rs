@@ -18,7 +18,7 @@ fn run(seed: u64, params: &GlobalParams, steps: usize) -> Result<f64, TestCaseEr
     for _ in 0..steps {
         let (window, mask) = world.step();
         let batch = edt_with(&mask, |&o| o, ScanLayout::default()).expect("batch");
-        stage.integrate(&mut cpu, &mut edt, world.obstacles(), &window, &batch).expect("integrate");
+        stage.merge_window(&mut cpu, &mut edt, world.obstacles(), &window, &batch).expect("integrate");
         worst = worst.max(world.check(&edt, params).map_err(TestCaseError::fail)?);
     }
     Ok(worst)

@@ -1,4 +1,4 @@
-//! The exact mode's incremental update (`Integration::Changes`) against an
+//! The exact mode's incremental update (`IntegrationWork::Changes`) against an
 //! independent answer: after every step, the map must equal a fresh exact
 //! batch EDT of all the obstacles (the shared `recompute_exact`, through the
 //! batch EDT whose tie rule `separable_oracle` checks), block for block,
@@ -14,7 +14,7 @@
 use edtmap_core::region::{Packing, Region};
 use edtmap_core::stages::exact::{recompute_exact, ExactBuffers};
 use edtmap_core::{
-    Backend, BlockKey, Cutoff, EdtMap, FixedMap, GlobalParams, IntegrateJob, Integration, LogOdds, Obstacles,
+    Backend, BlockKey, Cutoff, EdtMap, FixedMap, GlobalParams, IntegrationJob, IntegrationWork, LogOdds, Obstacles,
     OccupancyMap, OccupancyParams, VoxelIndex, BLOCK_VOXELS, FAR_DIST_SQ, NO_OFFSET,
 };
 use edtmap_cpu::CpuBackend;
@@ -126,11 +126,11 @@ fn check(cutoff_tenths: u32, steps: Vec<(u8, u32, u32, u32)>, clone_at: usize) -
         let blocks = step(&mut world, s);
         let before = map.clone();
         let report = backend
-            .integrate(IntegrateJob {
+            .integrate(IntegrationJob {
                 map: &mut map,
                 obstacles: world.obstacles(),
                 cutoff,
-                work: Integration::Changes { blocks: &blocks },
+                work: IntegrationWork::Changes { blocks: &blocks },
             })
             .expect("cpu");
         // The blocks reported changed are those where some voxel changed.

@@ -5,8 +5,8 @@ use edtmap_core::query::{self, Distance, PointState};
 use edtmap_core::sensor::{Frame, Sensor};
 use edtmap_core::stages::{local_field, BatchEdtStage, IntegrationStage, OccupancyStage, OgmOptions};
 use edtmap_core::{
-    read_states, Backend, BlockKey, EdtField, EdtParams, ExactCounts, GlobalMap, GlobalParams, Grid3, IntegrateReport,
-    IntegrationMode, LocalVolume, OccupancyParams, Region, VolumeParams, VoxelIndex, VoxelState, WaveCounts,
+    read_states, Backend, BlockKey, EdtField, EdtParams, ExactCounts, GlobalMap, GlobalParams, Grid3, IntegrationMode,
+    IntegrationReport, LocalVolume, OccupancyParams, Region, VolumeParams, VoxelIndex, VoxelState, WaveCounts,
 };
 use edtmap_cpu::CpuBackend;
 use std::sync::OnceLock;
@@ -304,7 +304,7 @@ impl<B: Backend> Mapper<B> {
         cpu: Option<&mut CpuBackend>,
         volume: &LocalVolume,
         changed: &[BlockKey],
-    ) -> Result<IntegrateReport, MapError> {
+    ) -> Result<IntegrationReport, MapError> {
         let wavefront = self.wavefront();
         let (edt, obstacles) = self.map.edt_and_obstacles();
         let backend: &mut dyn Backend = match cpu {
@@ -312,11 +312,11 @@ impl<B: Backend> Mapper<B> {
             None => &mut self.backend,
         };
         Ok(if wavefront && !self.batch_on_host {
-            self.integration.integrate_mask(backend, edt, obstacles, volume, self.batch.mask_for_global())?
+            self.integration.merge_window_mask(backend, edt, obstacles, volume, self.batch.mask_for_global())?
         } else if wavefront {
-            self.integration.integrate(backend, edt, obstacles, volume, self.batch.for_global())?
+            self.integration.merge_window(backend, edt, obstacles, volume, self.batch.for_global())?
         } else {
-            self.integration.update(backend, edt, obstacles, changed)?
+            self.integration.apply_changes(backend, edt, obstacles, changed)?
         })
     }
 
@@ -358,7 +358,7 @@ impl<B: Backend> Mapper<B> {
         }
         // The obstacles of the dropped blocks vanish: the exact update over them.
         let (edt, obstacles) = self.map.edt_and_obstacles();
-        self.integration.update(&mut self.backend, edt, obstacles, &gone)?;
+        self.integration.apply_changes(&mut self.backend, edt, obstacles, &gone)?;
         // Every obstacle left lies in a block within the radius, or is fixed:
         // EDT blocks beyond the radius by more than the cutoff and a block
         // diagonal hold no distance within the cutoff.

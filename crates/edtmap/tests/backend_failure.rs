@@ -5,7 +5,7 @@
 use edtmap::config::Config;
 use edtmap::cpu::CpuBackend;
 use edtmap::{
-    Backend, BackendError, BatchEdt, EdtField, FixedRay, Grid3, IntegrateJob, IntegrateReport, IntegrationMode,
+    Backend, BackendError, BatchEdt, EdtField, FixedRay, Grid3, IntegrationJob, IntegrationMode, IntegrationReport,
     MapError, Mapper, Observations, ProjectJob,
 };
 use edtmap_sim::{Scene, SceneName, SceneOptions};
@@ -43,7 +43,7 @@ impl Backend for Flaky {
     fn project_volume(&mut self, job: &ProjectJob<'_>, obs: &Observations) -> Result<(), BackendError> {
         self.cpu.project_volume(job, obs)
     }
-    fn integrate(&mut self, job: IntegrateJob<'_>) -> Result<IntegrateReport, BackendError> {
+    fn integrate(&mut self, job: IntegrationJob<'_>) -> Result<IntegrationReport, BackendError> {
         self.integrations += 1;
         if self.integrations == self.fail_integrate_at {
             // The map is written only once the device is done: untouched.
@@ -118,7 +118,7 @@ impl Backend for LostInRaycast {
     fn project_volume(&mut self, job: &ProjectJob<'_>, obs: &Observations) -> Result<(), BackendError> {
         self.0.project_volume(job, obs)
     }
-    fn integrate(&mut self, job: IntegrateJob<'_>) -> Result<IntegrateReport, BackendError> {
+    fn integrate(&mut self, job: IntegrationJob<'_>) -> Result<IntegrationReport, BackendError> {
         self.0.integrate(job)
     }
 }
@@ -168,7 +168,7 @@ impl Backend for LostInFusion {
         }
         self.0.fuse(map, obs, lo)
     }
-    fn integrate(&mut self, job: IntegrateJob<'_>) -> Result<IntegrateReport, BackendError> {
+    fn integrate(&mut self, job: IntegrationJob<'_>) -> Result<IntegrationReport, BackendError> {
         self.0.integrate(job)
     }
 }

@@ -46,8 +46,10 @@ fn wavefront_integration_is_bit_identical_to_the_cpu() {
         for step in 0..10 {
             let (window, mask) = world.step();
             gpu.batch_edt(&mask, &mut batch).expect("batch EDT");
-            let cpu_report = stage.integrate(&mut cpu, &mut cpu_map, world.obstacles(), &window, &batch).expect("cpu");
-            let gpu_report = stage.integrate(&mut gpu, &mut gpu_map, world.obstacles(), &window, &batch).expect("gpu");
+            let cpu_report =
+                stage.merge_window(&mut cpu, &mut cpu_map, world.obstacles(), &window, &batch).expect("cpu");
+            let gpu_report =
+                stage.merge_window(&mut gpu, &mut gpu_map, world.obstacles(), &window, &batch).expect("gpu");
             let at = format!("seed {seed}, {} neighbours, cutoff {cutoff_vox}, step {step}", u8::from(connectivity));
             assert!(blocks(&cpu_map) == blocks(&gpu_map), "{at}: the maps differ");
             assert_eq!(cpu_report.changed_blocks, gpu_report.changed_blocks, "{at}");
@@ -63,7 +65,7 @@ fn wavefront_integration_is_bit_identical_to_the_cpu() {
                 ("gpu", &mut gpu_masked, &mut gpu_mask_map),
             ] {
                 let report = stage
-                    .integrate_mask(backend, map, world.obstacles(), &window, &mask)
+                    .merge_window_mask(backend, map, world.obstacles(), &window, &mask)
                     .unwrap_or_else(|e| panic!("{at}, {name} from the mask: {e}"));
                 assert!(blocks(&cpu_map) == blocks(map), "{at}: {name} from the mask differs");
                 assert_eq!(

@@ -26,7 +26,7 @@ fn map_of(lo: [i32; 3], dims: [usize; 3], obstacle: impl Fn([f64; 3]) -> bool) -
     let batch = edt_with(&mask, |&o| o, ScanLayout::default()).expect("batch");
     let stage = IntegrationStage::new(map.params(), VS).expect("valid");
     let (edt, obstacles) = map.edt_and_obstacles();
-    stage.integrate(&mut CpuBackend::default(), edt, obstacles, &window, &batch).expect("integrate");
+    stage.merge_window(&mut CpuBackend::default(), edt, obstacles, &window, &batch).expect("integrate");
     map
 }
 

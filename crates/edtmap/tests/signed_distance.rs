@@ -58,7 +58,7 @@ fn mapper_of(vs: f64, lo: [i32; 3], dims: [usize; 3], obstacle: impl Fn([f64; 3]
     let batch = edt_with(&mask, |&o| o, ScanLayout::default()).expect("batch");
     let stage = IntegrationStage::new(map.params(), vs).expect("valid");
     let (edt, obstacles) = map.edt_and_obstacles();
-    stage.integrate(&mut CpuBackend::default(), edt, obstacles, &window, &batch).expect("integrate");
+    stage.merge_window(&mut CpuBackend::default(), edt, obstacles, &window, &batch).expect("integrate");
     Mapper::with_map(sensor(), MapperParams::for_voxel_size(vs), map).expect("mapper")
 }
 

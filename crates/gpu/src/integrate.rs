@@ -17,7 +17,7 @@ use crate::context::GpuContext;
 use crate::dispatch::{groups_1d, storage_entry, uniform_entry, Kernel};
 use edtmap_core::region::{read_region_except, write_back_offsets, Packing, Region, WriteBack, FAR};
 use edtmap_core::{
-    BackendError, BlockKey, Cutoff, EdtField, EdtMap, IntegrateReport, LocalVolume, MapStamp, WaveCounts, NO_OFFSET,
+    BackendError, BlockKey, Cutoff, EdtField, EdtMap, IntegrationReport, LocalVolume, MapStamp, WaveCounts, NO_OFFSET,
 };
 
 /// Levels encoded per submission before the host checks for the end.
@@ -245,7 +245,7 @@ impl GpuIntegrator {
         batch: &EdtField,
         cutoff: Cutoff,
         offsets: &[[i32; 3]],
-    ) -> Result<IntegrateReport, BackendError> {
+    ) -> Result<IntegrationReport, BackendError> {
         if batch.dims() != window.dims {
             return Err(BackendError::Device(format!(
                 "batch EDT of {:?} voxels for a window of {:?}",
@@ -267,7 +267,7 @@ impl GpuIntegrator {
         pairs: &wgpu::Buffer,
         cutoff: Cutoff,
         offsets: &[[i32; 3]],
-    ) -> Result<IntegrateReport, BackendError> {
+    ) -> Result<IntegrationReport, BackendError> {
         self.merge(map, window, WindowBatch::Device(pairs), cutoff, offsets)
     }
 
@@ -278,7 +278,7 @@ impl GpuIntegrator {
         batch: WindowBatch<'_>,
         cutoff: Cutoff,
         offsets: &[[i32; 3]],
-    ) -> Result<IntegrateReport, BackendError> {
+    ) -> Result<IntegrationReport, BackendError> {
         if self.seen != Some(map.stamp()) {
             // Changed by other means (another backend, fixed obstacles
             // laid down, another map): what the device holds is stale.

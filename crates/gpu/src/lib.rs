@@ -34,8 +34,9 @@ use edtmap_core::fixed_ray::{cast_fixed, FixedRay};
 use edtmap_core::region::{Packing, Region};
 use edtmap_core::stages::exact::{recompute_exact, ExactBuffers};
 use edtmap_core::{
-    decide_uncertain, mark_misses, Backend, BackendError, BatchEdt, EdtField, FuseReport, Grid3, IntegrateJob,
-    IntegrateReport, Integration, LocalVolume, LogOdds, Observations, OccupancyMap, ProjectJob, OBS_MISS, OBS_NONE,
+    decide_uncertain, mark_misses, Backend, BackendError, BatchEdt, EdtField, FuseReport, Grid3, IntegrationJob,
+    IntegrationReport, IntegrationWork, LocalVolume, LogOdds, Observations, OccupancyMap, ProjectJob, OBS_MISS,
+    OBS_NONE,
 };
 use rayon::prelude::*;
 
@@ -158,7 +159,7 @@ impl GpuBackend {
         obstacles: &edtmap_core::Obstacles<'_>,
         region: Region,
         cutoff: edtmap_core::Cutoff,
-    ) -> Result<IntegrateReport, BackendError> {
+    ) -> Result<IntegrationReport, BackendError> {
         let limits = self.ctx.limits();
         // The batch EDT's largest buffers hold 8 bytes per source voxel.
         let max_voxels =
@@ -169,7 +170,7 @@ impl GpuBackend {
             limit: 8 * max_voxels,
         })?;
         self.exact.reserve(region.block_count());
-        let mut total = IntegrateReport::default();
+        let mut total = IntegrationReport::default();
         for z in (0..region.dims[2]).step_by(tile[2]) {
             for y in (0..region.dims[1]).step_by(tile[1]) {
                 for x in (0..region.dims[0]).step_by(tile[0]) {
@@ -325,9 +326,9 @@ impl Backend for GpuBackend {
         false
     }
 
-    fn integrate(&mut self, job: IntegrateJob<'_>) -> Result<IntegrateReport, BackendError> {
+    fn integrate(&mut self, job: IntegrationJob<'_>) -> Result<IntegrationReport, BackendError> {
         self.ctx.set_stage(Stage::Integrate);
-        let IntegrateJob { map, obstacles, cutoff, work } = job;
+        let IntegrationJob { map, obstacles, cutoff, work } = job;
         if cutoff.planar {
             // The device's passes measure distances in three dimensions.
             return Err(BackendError::Core(edtmap_core::CoreError::Unsupported(
@@ -335,10 +336,10 @@ impl Backend for GpuBackend {
             )));
         }
         match work {
-            Integration::Wavefront { window, batch, offsets } => {
+            IntegrationWork::Wavefront { window, batch, offsets } => {
                 self.integrator.run(map, window, batch, cutoff, offsets)
             }
-            Integration::WavefrontMask { window, mask, offsets } => {
+            IntegrationWork::WavefrontMask { window, mask, offsets } => {
                 if mask.dims() != window.dims {
                     return Err(BackendError::Device(format!(
                         "obstacle mask of {:?} voxels for a window of {:?}",
@@ -359,13 +360,13 @@ impl Backend for GpuBackend {
                 let pairs = self.edt.output().ok_or_else(|| BackendError::Device("EDT buffers missing".into()))?;
                 self.integrator.run_resident(map, window, pairs, cutoff, offsets)
             }
-            Integration::Changes { blocks } => {
+            IntegrationWork::Changes { blocks } => {
                 // Exact over every voxel within the cutoff of the changed
                 // blocks: the same map as the CPU's line-by-line update.
-                let Some(region) = Region::bounding(blocks) else { return Ok(IntegrateReport::default()) };
+                let Some(region) = Region::bounding(blocks) else { return Ok(IntegrationReport::default()) };
                 self.recompute(map, &obstacles, region.grown(cutoff.reach), cutoff)
             }
-            Integration::Recompute { region } => self.recompute(map, &obstacles, region, cutoff),
+            IntegrationWork::Recompute { region } => self.recompute(map, &obstacles, region, cutoff),
         }
     }
 }

@@ -14,7 +14,7 @@ use edtmap_conformance::IntegrationWorld;
 use edtmap_core::region::{Packing, Region};
 use edtmap_core::stages::exact::{recompute_exact, ExactBuffers};
 use edtmap_core::stages::IntegrationStage;
-use edtmap_core::{Backend, BlockKey, EdtMap, GlobalParams, IntegrateReport, IntegrationMode, VoxelIndex};
+use edtmap_core::{Backend, BlockKey, EdtMap, GlobalParams, IntegrationMode, IntegrationReport, VoxelIndex};
 use edtmap_cpu::CpuBackend;
 
 /// Every block of `map`, sorted, as comparable rows.
@@ -33,7 +33,7 @@ fn stage(cutoff_vox: u64) -> IntegrationStage {
     IntegrationStage::new(&params, IntegrationWorld::VOXEL_M).expect("valid cutoff")
 }
 
-fn same_report(a: &IntegrateReport, b: &IntegrateReport, at: &str) {
+fn same_report(a: &IntegrationReport, b: &IntegrationReport, at: &str) {
     assert_eq!(a.voxels_changed, b.voxels_changed, "{at}: voxels changed");
     assert_eq!(a.changed_blocks, b.changed_blocks, "{at}: changed blocks");
     assert!((a.change_sum_vox - b.change_sum_vox).abs() <= 1e-9 * a.change_sum_vox.max(1.0), "{at}: change sum");
@@ -60,11 +60,12 @@ fn resident_pool_gives_the_cpu_map_frame_after_frame() {
                 let at = format!("{name}, seed {seed}, step {step}");
                 let (window, _) = world.step();
                 let blocks = window.region().blocks();
-                let want = stage.update(&mut cpu, &mut cpu_map, world.obstacles(), &blocks).expect("cpu");
+                let want = stage.apply_changes(&mut cpu, &mut cpu_map, world.obstacles(), &blocks).expect("cpu");
                 let mut other = CpuBackend::default();
                 let on: &mut dyn Backend = if step % 3 == 2 { &mut other } else { &mut *backend };
-                let got =
-                    stage.update(on, &mut gpu_map, world.obstacles(), &blocks).unwrap_or_else(|e| panic!("{at}: {e}"));
+                let got = stage
+                    .apply_changes(on, &mut gpu_map, world.obstacles(), &blocks)
+                    .unwrap_or_else(|e| panic!("{at}: {e}"));
                 same_report(&got, &want, &at);
                 assert!(rows(&gpu_map) == rows(&cpu_map), "{at}: maps differ");
             }
@@ -95,8 +96,9 @@ fn unknown_as_occupied_gives_the_cpu_map() {
             let (window, _) = world.step();
             let blocks = window.region().blocks();
             let obstacles = edtmap_core::Obstacles { unknown_as_occupied: true, ..world.obstacles() };
-            let want = stage.update(&mut cpu, &mut cpu_map, obstacles, &blocks).expect("cpu");
-            let got = stage.update(&mut gpu, &mut gpu_map, obstacles, &blocks).unwrap_or_else(|e| panic!("{at}: {e}"));
+            let want = stage.apply_changes(&mut cpu, &mut cpu_map, obstacles, &blocks).expect("cpu");
+            let got =
+                stage.apply_changes(&mut gpu, &mut gpu_map, obstacles, &blocks).unwrap_or_else(|e| panic!("{at}: {e}"));
             same_report(&got, &want, &at);
             assert!(rows(&gpu_map) == rows(&cpu_map), "{at}: maps differ");
         }
@@ -115,7 +117,7 @@ fn values_the_pool_cannot_encode_are_rewritten_as_the_definition_says() {
     let (window, _) = world.step();
     let blocks = window.region().blocks();
     let mut start = EdtMap::new();
-    stage.update(&mut CpuBackend::default(), &mut start, world.obstacles(), &blocks).expect("cpu");
+    stage.apply_changes(&mut CpuBackend::default(), &mut start, world.obstacles(), &blocks).expect("cpu");
     let odd = [
         (window.world([3, 4, 2]), 3, [1, 1, -1]),
         (window.world([9, 2, 5]), 490_000, [700, 0, 0]),
@@ -138,7 +140,7 @@ fn values_the_pool_cannot_encode_are_rewritten_as_the_definition_says() {
         &mut ExactBuffers::default(),
     )
     .expect("host");
-    let got = stage.update(&mut gpu, &mut gpu_map, world.obstacles(), &blocks).expect("gpu");
+    let got = stage.apply_changes(&mut gpu, &mut gpu_map, world.obstacles(), &blocks).expect("gpu");
     assert_eq!((got.voxels_changed, &got.changed_blocks), (want.voxels_changed, &want.changed_blocks));
     assert!(want.voxels_changed >= 2, "the odd voxels rewritten");
     assert!(rows(&gpu_map) == rows(&host_map), "maps differ");
@@ -162,7 +164,7 @@ fn a_warm_frame_moves_only_changed_blocks() {
     let all = Region { origin: [-32, -24, -24], dims: [64, 48, 48] };
     let blocks = all.blocks();
     let before = gpu.device_counters().expect("counters");
-    stage.update(&mut gpu, &mut map, world.obstacles(), &blocks).expect("gpu");
+    stage.apply_changes(&mut gpu, &mut map, world.obstacles(), &blocks).expect("gpu");
     let cold = gpu.device_counters().expect("counters").since(before);
     // The bits of each block the device was last sent, as the test counts
     // them: a block goes up when its bits differ from these.
@@ -198,7 +200,7 @@ fn a_warm_frame_moves_only_changed_blocks() {
         let nb = region.blocks().len() as u64;
         let source = region.grown(cutoff.reach);
         let before = gpu.device_counters().expect("counters");
-        let report = stage.update(&mut gpu, &mut map, world.obstacles(), &blocks).expect("gpu");
+        let report = stage.apply_changes(&mut gpu, &mut map, world.obstacles(), &blocks).expect("gpu");
         let d = gpu.device_counters().expect("counters").since(before);
         let changed = report.changed_blocks.len() as u64;
         assert_eq!(d.downloaded_bytes, 16 + 4 * nb + 2048 * changed, "step {step}: {d:?}");

@@ -123,7 +123,7 @@ pub(crate) enum Heading {
 
 /// A path driven at constant speed with height `base + amp·sin(2π·cycles·s/L)`.
 #[derive(Debug, Clone, PartialEq)]
-pub(crate) struct Trajectory {
+pub(crate) struct Route {
     /// The planar path.
     pub(crate) path: Path,
     /// Speed along the path, m/s.
@@ -140,7 +140,7 @@ pub(crate) struct Trajectory {
     pub(crate) heading: Heading,
 }
 
-impl Trajectory {
+impl Route {
     /// Position at arc length `s` and the path heading there.
     pub(crate) fn position_at(&self, s: f64) -> ([f64; 3], f64) {
         let ([x, y], h) = self.path.at(s);
@@ -170,7 +170,7 @@ impl Trajectory {
     }
 
     /// The trajectory moved by `shift` metres.
-    pub(crate) fn translated(mut self, shift: [f64; 3]) -> Trajectory {
+    pub(crate) fn translated(mut self, shift: [f64; 3]) -> Route {
         self.path = self.path.translated([shift[0], shift[1]]);
         self.height_m += shift[2];
         if let Heading::LookAt(q) = &mut self.heading {
@@ -205,7 +205,7 @@ mod tests {
 
     #[test]
     fn look_at_points_the_body_x_axis_at_the_target() {
-        let t = Trajectory {
+        let t = Route {
             path: Path::new([1.0, 1.0], 0.0),
             speed_mps: 0.0,
             start_s: 0.0,

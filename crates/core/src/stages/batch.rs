@@ -45,7 +45,7 @@ impl BatchEdtStage {
 
     /// The window's obstacles as the global integration counts them
     /// (unknown voxels free), without their EDT: for a backend that
-    /// computes it where it integrates ([`crate::Integration::WavefrontMask`]).
+    /// computes it where it integrates ([`crate::IntegrationWork::WavefrontMask`]).
     /// [`Self::local`] and [`Self::for_global`] then hold an older frame's.
     pub fn global_mask(&mut self, map: &GlobalMap, volume: &LocalVolume) -> Result<&Grid3<bool>, CoreError> {
         let mut obstacles = map.obstacles();

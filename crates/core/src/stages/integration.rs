@@ -10,8 +10,8 @@
 
 use crate::region::Region;
 use crate::{
-    Backend, BackendError, BlockKey, CoreError, Cutoff, EdtField, EdtMap, GlobalParams, Grid3, IntegrateJob,
-    IntegrateReport, Integration, IntegrationMode, LocalVolume, Obstacles,
+    Backend, BackendError, BlockKey, CoreError, Cutoff, EdtField, EdtMap, GlobalParams, Grid3, IntegrationJob,
+    IntegrationMode, IntegrationReport, IntegrationWork, LocalVolume, Obstacles,
 };
 
 /// Side of the tiles [`IntegrationStage::recompute`] works in, voxels: the
@@ -50,32 +50,32 @@ impl IntegrationStage {
     /// `batch` is the exact EDT of `window` with `obstacles` (unknown
     /// voxels free), used by the wavefront mode; the exact mode reads
     /// `obstacles` directly and looks for changes in every block of the
-    /// window ([`Self::update`] with the blocks a frame changed is the
+    /// window ([`Self::apply_changes`] with the blocks a frame changed is the
     /// mapper's way).
-    pub fn integrate<B: Backend + ?Sized>(
+    pub fn merge_window<B: Backend + ?Sized>(
         &self,
         backend: &mut B,
         map: &mut EdtMap,
         obstacles: Obstacles<'_>,
         window: &LocalVolume,
         batch: &EdtField,
-    ) -> Result<IntegrateReport, BackendError> {
-        let work = Integration::Wavefront { window, batch, offsets: &self.offsets };
+    ) -> Result<IntegrationReport, BackendError> {
+        let work = IntegrationWork::Wavefront { window, batch, offsets: &self.offsets };
         self.wavefront(backend, map, obstacles, window, ("batch EDT", batch.dims()), work)
     }
 
     /// Wavefront mode, with the batch EDT of `mask` (the window's
     /// obstacles, unknown voxels free) computed by `backend` itself, where
-    /// its integration reads it ([`Integration::WavefrontMask`]).
-    pub fn integrate_mask<B: Backend + ?Sized>(
+    /// its integration reads it ([`IntegrationWork::WavefrontMask`]).
+    pub fn merge_window_mask<B: Backend + ?Sized>(
         &self,
         backend: &mut B,
         map: &mut EdtMap,
         obstacles: Obstacles<'_>,
         window: &LocalVolume,
         mask: &Grid3<bool>,
-    ) -> Result<IntegrateReport, BackendError> {
-        let work = Integration::WavefrontMask { window, mask, offsets: &self.offsets };
+    ) -> Result<IntegrationReport, BackendError> {
+        let work = IntegrationWork::WavefrontMask { window, mask, offsets: &self.offsets };
         self.wavefront(backend, map, obstacles, window, ("obstacle mask", mask.dims()), work)
     }
 
@@ -89,34 +89,36 @@ impl IntegrationStage {
         obstacles: Obstacles<'_>,
         window: &LocalVolume,
         (what, dims): (&str, [usize; 3]),
-        work: Integration<'_>,
-    ) -> Result<IntegrateReport, BackendError> {
+        work: IntegrationWork<'_>,
+    ) -> Result<IntegrationReport, BackendError> {
         if dims != window.dims {
             return Err(
                 CoreError::Unsupported(format!("{what} of {dims:?} voxels for a window of {:?}", window.dims)).into()
             );
         }
         match self.mode {
-            IntegrationMode::Wavefront => backend.integrate(IntegrateJob { map, obstacles, cutoff: self.cutoff, work }),
-            IntegrationMode::Exact => self.update(backend, map, obstacles, &window.region().blocks()),
+            IntegrationMode::Wavefront => {
+                backend.integrate(IntegrationJob { map, obstacles, cutoff: self.cutoff, work })
+            }
+            IntegrationMode::Exact => self.apply_changes(backend, map, obstacles, &window.region().blocks()),
         }
     }
 
     /// Exact mode: brings `map` up to date with `obstacles`, which changed
     /// only inside the blocks `changed` (a frame's `FuseReport`), on
     /// `backend`. Needs no batch EDT of the window.
-    pub fn update<B: Backend + ?Sized>(
+    pub fn apply_changes<B: Backend + ?Sized>(
         &self,
         backend: &mut B,
         map: &mut EdtMap,
         obstacles: Obstacles<'_>,
         changed: &[BlockKey],
-    ) -> Result<IntegrateReport, BackendError> {
-        backend.integrate(IntegrateJob {
+    ) -> Result<IntegrationReport, BackendError> {
+        backend.integrate(IntegrationJob {
             map,
             obstacles,
             cutoff: self.cutoff,
-            work: Integration::Changes { blocks: changed },
+            work: IntegrationWork::Changes { blocks: changed },
         })
     }
 
@@ -130,8 +132,8 @@ impl IntegrationStage {
         map: &mut EdtMap,
         obstacles: Obstacles<'_>,
         bounds: &Region,
-    ) -> Result<IntegrateReport, BackendError> {
-        let mut total = IntegrateReport::default();
+    ) -> Result<IntegrationReport, BackendError> {
+        let mut total = IntegrationReport::default();
         // A planar map's tiles are one layer thick: a batch EDT of one
         // layer measures distances within it.
         let tile_dims = [TILE, TILE, if self.cutoff.planar { 1 } else { TILE }];
@@ -143,8 +145,8 @@ impl IntegrationStage {
                         origin: [0, 1, 2].map(|a| bounds.origin[a] + c[a] as i32),
                         dims: [0, 1, 2].map(|a| tile_dims[a].min(bounds.dims[a] - c[a])),
                     };
-                    let work = Integration::Recompute { region: tile.grown_by(self.cutoff.pad()) };
-                    let w = backend.integrate(IntegrateJob { map, obstacles, cutoff: self.cutoff, work })?;
+                    let work = IntegrationWork::Recompute { region: tile.grown_by(self.cutoff.pad()) };
+                    let w = backend.integrate(IntegrationJob { map, obstacles, cutoff: self.cutoff, work })?;
                     total.voxels_changed += w.voxels_changed;
                     total.change_sum_vox += w.change_sum_vox;
                     total.changed_blocks.extend(w.changed_blocks);

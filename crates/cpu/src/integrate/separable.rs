@@ -54,7 +54,7 @@
 use crate::awake::{awake, share_out};
 use crate::edt::envelope::{envelope, sweep_row, EnvelopeScratch, Line};
 use edtmap_core::{
-    BlockKey, BlockMap, Cutoff, EdtBlock, EdtMap, ExactCounts, IntegrateReport, MapStamp, Obstacles, SharedBlock,
+    BlockKey, BlockMap, Cutoff, EdtBlock, EdtMap, ExactCounts, IntegrationReport, MapStamp, Obstacles, SharedBlock,
     VoxelIndex, WaveCounts, BLOCK_SIDE, BLOCK_VOXELS, FAR_DIST_SQ, NO_OFFSET, NO_SITE, UNREACHABLE_DIST_SQ,
 };
 use rayon::prelude::*;
@@ -116,7 +116,7 @@ pub fn update_exact(
     blocks: &[BlockKey],
     cutoff: Cutoff,
     cache: &mut SeparableCache,
-) -> IntegrateReport {
+) -> IntegrationReport {
     awake(|| update_in_pool(map, obstacles, blocks, cutoff, cache))
 }
 
@@ -126,7 +126,7 @@ fn update_in_pool(
     blocks: &[BlockKey],
     cutoff: Cutoff,
     cache: &mut SeparableCache,
-) -> IntegrateReport {
+) -> IntegrationReport {
     let roots = match cache.roots.take() {
         Some(r) if r.max == cutoff.max_dist_sq => r,
         _ => Roots::new(cutoff.max_dist_sq),
@@ -310,7 +310,7 @@ fn run_passes(
     dirty: Marked,
     flips: &Dirty,
     last: bool,
-) -> IntegrateReport {
+) -> IntegrationReport {
     let SeparableCache { g1, g2, .. } = cache;
     // Pass x: the rows through the obstacles that changed.
     let edt: &EdtMap = map;
@@ -338,7 +338,7 @@ fn run_passes(
         |_, _| 0.0,
     );
     if !last {
-        return IntegrateReport::default();
+        return IntegrationReport::default();
     }
     // Pass z: the lines through the g2 entries that changed, into the map.
     let g2: &FxHashMap<_, _> = g2;
@@ -365,7 +365,7 @@ fn run_passes(
     let mut changed_blocks: Vec<BlockKey> = changed.into_iter().map(|c| c.0).collect();
     changed_blocks.sort_unstable();
     let passes = [x, y, z];
-    IntegrateReport {
+    IntegrationReport {
         voxels_changed: z.changed,
         change_sum_vox: z.sum,
         changed_blocks,

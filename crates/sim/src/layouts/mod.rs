@@ -10,7 +10,7 @@ mod ugv_corridor;
 
 use crate::geometry::{Aabb, Primitive};
 use crate::pedestrian::Pedestrian;
-use crate::trajectory::Trajectory;
+use crate::trajectory::Route;
 use crate::SceneName;
 use edtmap_core::sensor::Sensor;
 use rand::rngs::StdRng;
@@ -25,7 +25,7 @@ pub(crate) struct Layout {
     /// Walking pedestrians.
     pub(crate) walkers: Vec<Pedestrian>,
     /// The sensor's path.
-    pub(crate) trajectory: Trajectory,
+    pub(crate) trajectory: Route,
     /// The scene's own sensor.
     pub(crate) sensor: Sensor,
     /// Time between frames, seconds.
@@ -77,7 +77,7 @@ struct KeepOut {
 const SAMPLE_SPACING_M: f64 = 0.05;
 
 impl KeepOut {
-    fn new(trajectory: &Trajectory, clearance_m: f64) -> KeepOut {
+    fn new(trajectory: &Route, clearance_m: f64) -> KeepOut {
         // A path point lies within half a spacing of a sample.
         KeepOut { samples: trajectory.samples(SAMPLE_SPACING_M), clearance_m: clearance_m + SAMPLE_SPACING_M / 2.0 }
     }

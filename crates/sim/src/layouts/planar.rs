@@ -7,7 +7,7 @@
 
 use super::{block, cm, scatter, KeepOut, Layout};
 use crate::geometry::{Cylinder, Ground, Primitive};
-use crate::trajectory::{Heading, Path, Trajectory};
+use crate::trajectory::{Heading, Path, Route};
 use edtmap_core::sensor::Sensor;
 use rand::rngs::StdRng;
 use rand::SeedableRng;
@@ -19,7 +19,7 @@ const CYLINDERS: usize = 25;
 
 pub(super) fn build(seed: u64) -> Layout {
     let mut rng = StdRng::seed_from_u64(seed);
-    let trajectory = Trajectory {
+    let trajectory = Route {
         path: Path::rounded_rect([-6.5, -6.5], [13.0, 13.0], 2.5),
         speed_mps: 1.5,
         start_s: 0.0,

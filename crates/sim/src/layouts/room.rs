@@ -9,7 +9,7 @@
 
 use super::{block, cm, Layout};
 use crate::geometry::{Cylinder, Primitive, Sphere};
-use crate::trajectory::{Heading, Path, Trajectory};
+use crate::trajectory::{Heading, Path, Route};
 use edtmap_core::sensor::{PinholeCamera, RangeLimits, Sensor};
 use rand::rngs::StdRng;
 use rand::SeedableRng;
@@ -21,7 +21,7 @@ const WALL_M: f64 = 0.2;
 
 pub(super) fn build(seed: u64) -> Layout {
     let mut rng = StdRng::seed_from_u64(seed);
-    let trajectory = Trajectory {
+    let trajectory = Route {
         path: Path::new([1.5, 0.0], 90f64.to_radians()).turn(1.5, 360.0),
         speed_mps: 0.6,
         start_s: 0.0,

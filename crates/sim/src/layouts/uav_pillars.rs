@@ -6,7 +6,7 @@
 
 use super::{block, cm, scatter, KeepOut, Layout};
 use crate::geometry::{Cylinder, Ground};
-use crate::trajectory::{Heading, Path, Trajectory};
+use crate::trajectory::{Heading, Path, Route};
 use edtmap_core::sensor::{RangeLimits, Sensor, SpinningLidar};
 use rand::rngs::StdRng;
 use rand::SeedableRng;
@@ -17,7 +17,7 @@ const BOXES: usize = 40;
 
 pub(super) fn build(seed: u64) -> Layout {
     let mut rng = StdRng::seed_from_u64(seed);
-    let trajectory = Trajectory {
+    let trajectory = Route {
         path: Path::rounded_rect([-13.0, -13.0], [26.0, 26.0], 5.0),
         speed_mps: 2.0,
         start_s: 0.0,

@@ -11,7 +11,7 @@
 use super::{block, Layout};
 use crate::geometry::{Ground, Primitive};
 use crate::pedestrian::Pedestrian;
-use crate::trajectory::{Heading, Path, Trajectory};
+use crate::trajectory::{Heading, Path, Route};
 use edtmap_core::sensor::{RangeLimits, Sensor, SpinningLidar};
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
@@ -30,7 +30,7 @@ const DOOR_HEIGHT_M: f64 = 2.0;
 pub(super) fn build(seed: u64) -> Layout {
     let mut rng = StdRng::seed_from_u64(seed);
     let lane = 0.3;
-    let trajectory = Trajectory {
+    let trajectory = Route {
         path: Path::rounded_rect([-lane, -lane], [LOOP[0] + 2.0 * lane, LOOP[1] + 2.0 * lane], 0.6),
         speed_mps: 1.0,
         start_s: 9.4,

@@ -13,7 +13,7 @@ pub use render::{points_pattern, PLANAR_BEAMS, PLANAR_RANGE};
 use crate::geometry::{Aabb, Primitive};
 use crate::layouts::{self, Layout};
 use crate::pedestrian::Pedestrian;
-use crate::trajectory::Trajectory;
+use crate::trajectory::Route;
 use crate::SimError;
 use edtmap_core::sensor::Sensor;
 use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion};
@@ -30,7 +30,7 @@ pub struct Scene {
     options: SceneOptions,
     statics: Vec<Primitive>,
     walkers: Vec<Pedestrian>,
-    trajectory: Trajectory,
+    trajectory: Route,
     sensor: Sensor,
     frame_period_s: f64,
     default_frames: usize,

@@ -7,7 +7,7 @@ use edtmap_core::sensor::{Frame, Measurement, PinholeCamera, RangeLimits, Spinni
 
 /// A scene of `statics` seen from a sensor standing still at `at`, facing +x.
 fn still(statics: Vec<Primitive>, at: [f64; 3], sensor: Sensor, options: SceneOptions) -> Scene {
-    let trajectory = Trajectory {
+    let trajectory = Route {
         path: Path::new([at[0], at[1]], 0.0),
         speed_mps: 0.0,
         start_s: 0.0,
