@@ -86,6 +86,53 @@ _SECTIONS = {
 }
 
 
+# The type each keyword takes: "number" (metres or a probability),
+# "numbers3" (three numbers), "bool", "int", "str", or None (checked by the
+# core: forbidden zones, the memory budget).
+_KINDS = {
+    "local_size_m": "numbers3", "fixed_height_m": "number", "prob_hit": "number", "prob_miss": "number",
+    "clamp_min": "number", "clamp_max": "number", "occupied_threshold": "number",
+    "unknown_as_occupied": "bool", "max_distance_m": "number", "connectivity": "int", "mode": "str",
+    "forbidden": None, "planar": "bool", "construction": "str", "clear_no_return": "bool",
+    "free_margin_m": "number", "planar_half_thickness_m": "number",
+}
+
+
+def _typed(key: str, value: Any) -> Any:
+    """``value`` of the keyword ``key`` as the configuration takes it, or a
+    ``TypeError`` naming the keyword and what it takes."""
+    kind = _KINDS.get(key)
+    if isinstance(value, np.ndarray):
+        value = value.tolist()
+    elif isinstance(value, np.generic):
+        value = value.item()
+
+    def number(v: Any, name: str) -> float:
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            raise TypeError(f"{name} must be a number, not {type(v).__name__}")
+        return float(v)
+
+    if kind == "number":
+        return number(value, key)
+    if kind == "numbers3":
+        if not isinstance(value, (list, tuple)) or len(value) != 3:
+            raise TypeError(f"{key} must be three numbers (x, y, z), not {value!r}")
+        return [number(v, f"{key}[{i}]") for i, v in enumerate(value)]
+    if kind == "bool":
+        if not isinstance(value, bool):
+            raise TypeError(f"{key} must be True or False, not {type(value).__name__}")
+        return value
+    if kind == "int":
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise TypeError(f"{key} must be an integer, not {type(value).__name__}")
+        return value
+    if kind == "str":
+        if not isinstance(value, str):
+            raise TypeError(f"{key} must be a string, not {type(value).__name__}")
+        return value
+    return value
+
+
 def _finite(value: Any, name: str) -> Any:
     """``value`` with every number in it checked finite (JSON, which carries
     the parameters to the core, has no NaN or infinity)."""
@@ -118,11 +165,7 @@ def _config(sensor: _Sensor, voxel_size_m: float, params: Dict[str, Any]) -> Dic
         if section is None:
             known = sorted(k for keys in _SECTIONS.values() for k in keys) + ["max_memory"]
             raise TypeError(f"Mapper() got an unknown parameter {key!r}; known: {', '.join(known)}")
-        if isinstance(value, np.ndarray):
-            value = value.tolist()
-        elif isinstance(value, np.generic):
-            value = value.item()
-        config.setdefault(section, {})[key] = _finite(value, key)
+        config.setdefault(section, {})[key] = _finite(_typed(key, value), key)
     return config
 
 

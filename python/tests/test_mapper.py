@@ -298,6 +298,26 @@ def test_non_finite_parameters_name_the_argument(field, value):
         edtmap.Mapper(edtmap.PointSensor(), voxel, **params)
 
 
+@pytest.mark.parametrize("field, value, words", [
+    ("max_distance_m", "2", "max_distance_m must be a number, not str"),
+    ("local_size_m", [4.0, 4.0], r"local_size_m must be three numbers \(x, y, z\)"),
+    ("local_size_m", [4.0, "4", 2.0], r"local_size_m\[1\] must be a number, not str"),
+    ("prob_hit", True, "prob_hit must be a number, not bool"),
+    ("planar", 1, "planar must be True or False, not int"),
+    ("connectivity", 26.0, "connectivity must be an integer, not float"),
+    ("mode", 1, "mode must be a string, not int"),
+])
+def test_parameters_of_the_wrong_type_name_the_argument(field, value, words):
+    with pytest.raises(TypeError, match=f"^{words}"):
+        edtmap.Mapper(edtmap.PointSensor(), 0.1, **{field: value})
+
+
+def test_numpy_parameters_are_taken_as_numbers():
+    m = edtmap.Mapper(edtmap.PointSensor(), np.float32(0.5), max_distance_m=np.float64(2.0),
+                      local_size_m=np.array([4.0, 4.0, 2.0]), connectivity=np.int64(26), planar=np.bool_(False))
+    assert m is not None
+
+
 def test_non_finite_sensor_fields_name_the_argument():
     cam = edtmap.DepthCamera(np.nan, 500.0, 32.0, 24.0, 64, 48)
     with pytest.raises(ValueError, match="^DepthCamera fx must be a finite number, got nan$"):

@@ -46,11 +46,15 @@ use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::Path;
 use std::sync::Arc;
 
-use edtmap::config::Config;
+use edtmap::config::{CameraFields, Config, ConstructionName, LidarFields, SensorKind, SensorSection};
 use edtmap::cpu::CpuBackend;
 use edtmap::query;
+use edtmap::sensor::Sensor;
 use edtmap::sensor::{DepthData, DepthImage, Frame, LaserScan, LidarScan, Measurement, PointCloud, RangeLimits};
-use edtmap::{BackendChoice, DynBackend, FrameStats, GlobalMap, MapError, Mapper, PointState, SharedMapper};
+use edtmap::{
+    BackendChoice, DynBackend, FrameStats, GlobalMap, GlobalParams, IntegrationMode, MapError, Mapper, MapperParams,
+    PointState, SharedMapper, VolumeParams,
+};
 use rayon::prelude::*;
 
 /// The outcome of a call.
@@ -414,6 +418,16 @@ fn open_backend(b: edtmap_backend, planar: bool) -> Result<DynBackend> {
 fn mapper_from(config: &Config, backend: edtmap_backend, map: Option<GlobalMap>) -> Result<Box<edtmap_mapper>> {
     let (sensor, params) = config.mapper_params()?;
     let scan_range = RangeLimits { min_m: config.sensor.min_range_m, max_m: config.sensor.max_range_m };
+    mapper_on(sensor, params, scan_range, backend, map)
+}
+
+fn mapper_on(
+    sensor: Sensor,
+    params: MapperParams,
+    scan_range: RangeLimits,
+    backend: edtmap_backend,
+    map: Option<GlobalMap>,
+) -> Result<Box<edtmap_mapper>> {
     let backend = open_backend(backend, params.global.planar)?;
     let mapper = match map {
         Some(map) => Mapper::with_map_on(backend, sensor, params, map),
@@ -422,73 +436,75 @@ fn mapper_from(config: &Config, backend: edtmap_backend, map: Option<GlobalMap>)
     Ok(Box::new(edtmap_mapper { shared: SharedMapper::new(mapper), scan_range }))
 }
 
-/// The configuration `p` stands for, checked as a file's would be.
-fn config_of(p: &edtmap_params) -> Result<Config> {
-    use serde_json::json;
+/// A parameter of `edtmap_params` that is out of its range, named as the
+/// struct's field (`edtmap_params.fx = 0: must be ...`).
+fn param_failure(e: MapError) -> Failure {
+    match e {
+        MapError::Config { source: edtmap::CoreError::InvalidParam { field, value, reason }, .. } => {
+            let field = if field == "mode" { "exact" } else { field };
+            Failure(edtmap_status::EDTMAP_CONFIG, format!("edtmap_params.{field} = {value}: {reason}"))
+        }
+        other => other.into(),
+    }
+}
+
+/// The sensor and mapper parameters `p` stands for, checked as a
+/// configuration file's are (`SensorSection::checked`,
+/// `MapperParams::validate`), with the range of a planar sensor's scans.
+fn params_of(p: &edtmap_params) -> Result<(Sensor, MapperParams, RangeLimits)> {
     let kind = enum_value("edtmap_params.sensor", p.sensor, &edtmap_sensor::VALUES)?;
     let exact = flag("edtmap_params.exact", p.exact)?;
     let clear_no_return = flag("edtmap_params.clear_no_return", p.clear_no_return)?;
-    let numbers = [
-        ("voxel_size_m", p.voxel_size_m),
-        ("local_size_m[0]", p.local_size_m[0]),
-        ("local_size_m[1]", p.local_size_m[1]),
-        ("local_size_m[2]", p.local_size_m[2]),
-        ("max_distance_m", p.max_distance_m),
-        ("min_range_m", f64::from(p.min_range_m)),
-        ("max_range_m", f64::from(p.max_range_m)),
-        ("fx", p.fx),
-        ("fy", p.fy),
-        ("cx", p.cx),
-        ("cy", p.cy),
-        ("elevation_min_deg", p.elevation_min_deg),
-        ("elevation_max_deg", p.elevation_max_deg),
-    ];
-    if let Some((name, value)) = numbers.iter().find(|(_, v)| !v.is_finite()) {
-        return fail(edtmap_status::EDTMAP_CONFIG, format!("edtmap_params.{name} = {value}: must be a finite number"));
-    }
-    let kind_name = match kind {
-        edtmap_sensor::EDTMAP_SENSOR_POINTS => "points",
-        edtmap_sensor::EDTMAP_SENSOR_DEPTH => "depth",
-        edtmap_sensor::EDTMAP_SENSOR_LIDAR => "lidar",
-        edtmap_sensor::EDTMAP_SENSOR_PLANAR => "planar",
-    };
-    let mut sensor = json!({
-        "kind": kind_name,
-        "min_range_m": p.min_range_m,
-        "max_range_m": p.max_range_m,
-        "clear_no_return": clear_no_return,
-    });
-    match kind {
+    let (kind, lidar, camera) = match kind {
+        edtmap_sensor::EDTMAP_SENSOR_POINTS => (SensorKind::Points, LidarFields::default(), CameraFields::default()),
+        edtmap_sensor::EDTMAP_SENSOR_PLANAR => (SensorKind::Planar, LidarFields::default(), CameraFields::default()),
         edtmap_sensor::EDTMAP_SENSOR_DEPTH => {
-            for (k, v) in [
-                ("fx", json!(p.fx)),
-                ("fy", json!(p.fy)),
-                ("cx", json!(p.cx)),
-                ("cy", json!(p.cy)),
-                ("width", json!(p.width)),
-                ("height", json!(p.height)),
-            ] {
-                sensor[k] = v;
-            }
+            let camera = CameraFields {
+                fx: Some(p.fx),
+                fy: Some(p.fy),
+                cx: Some(p.cx),
+                cy: Some(p.cy),
+                width: Some(p.width),
+                height: Some(p.height),
+            };
+            (SensorKind::Depth, LidarFields::default(), camera)
         }
         edtmap_sensor::EDTMAP_SENSOR_LIDAR => {
-            for (k, v) in [
-                ("rings", json!(p.rings)),
-                ("elevation_min_deg", json!(p.elevation_min_deg)),
-                ("elevation_max_deg", json!(p.elevation_max_deg)),
-                ("azimuth_bins", json!(p.azimuth_bins)),
-            ] {
-                sensor[k] = v;
-            }
+            let lidar = LidarFields {
+                rings: Some(p.rings as usize),
+                elevation_min_deg: Some(p.elevation_min_deg),
+                elevation_max_deg: Some(p.elevation_max_deg),
+                ring_elevations_deg: None,
+                azimuth_bins: Some(p.azimuth_bins as usize),
+            };
+            (SensorKind::Lidar, lidar, CameraFields::default())
         }
-        _ => {}
-    }
-    let value = json!({
-        "sensor": sensor,
-        "occupancy": { "voxel_size_m": p.voxel_size_m, "local_size_m": p.local_size_m },
-        "global": { "max_distance_m": p.max_distance_m, "mode": if exact { "exact" } else { "wavefront" } },
-    });
-    serde_json::from_value(value).or_else(|e| fail(edtmap_status::EDTMAP_CONFIG, format!("edtmap_params: {e}")))
+    };
+    let section = SensorSection {
+        kind,
+        construction: ConstructionName::Auto,
+        clear_no_return,
+        min_range_m: p.min_range_m,
+        max_range_m: p.max_range_m,
+        free_margin_m: None,
+        planar_half_thickness_m: None,
+        lidar,
+        camera,
+    };
+    let in_sensor = |source| param_failure(MapError::Config { section: "sensor", source });
+    let (sensor, ogm) = section.checked().map_err(in_sensor)?;
+    let params = MapperParams {
+        volume: VolumeParams { size_m: p.local_size_m, fixed_height_m: None },
+        ogm,
+        global: GlobalParams {
+            max_distance_m: p.max_distance_m,
+            mode: if exact { IntegrationMode::Exact } else { IntegrationMode::Wavefront },
+            ..GlobalParams::default()
+        },
+        ..MapperParams::for_voxel_size(p.voxel_size_m)
+    };
+    params.validate().map_err(param_failure)?;
+    Ok((sensor, params, RangeLimits { min_m: p.min_range_m, max_m: p.max_range_m }))
 }
 
 /// The library's version, e.g. `"0.1.0"` (static storage: never free it).
@@ -550,7 +566,8 @@ pub unsafe extern "C" fn edtmap_mapper_new(
         // SAFETY: the caller passes a valid `edtmap_params` or null.
         let p = unsafe { handle(params, "params") }?;
         let backend = enum_value("edtmap_params.backend", p.backend, &edtmap_backend::VALUES)?;
-        let mapper = mapper_from(&config_of(p)?, backend, None)?;
+        let (sensor, params, scan_range) = params_of(p)?;
+        let mapper = mapper_on(sensor, params, scan_range, backend, None)?;
         // SAFETY: the caller passes a writable pointer or null.
         unsafe { put(out, Box::into_raw(mapper), "out") }
     })
@@ -1069,5 +1086,52 @@ mod tests {
             "{message}"
         );
         assert!(flag("f", 1).is_ok_and(|b| b) && flag("f", 0).is_ok_and(|b| !b));
+    }
+
+    /// The struct's numbers are checked as a configuration file's are, and
+    /// a value out of range is named as the struct's field.
+    #[test]
+    fn parameters_out_of_range_name_the_struct_field() {
+        let mut defaults = std::mem::MaybeUninit::<edtmap_params>::uninit();
+        // SAFETY: a valid out-pointer to an `edtmap_params`.
+        assert_eq!(unsafe { edtmap_params_default(defaults.as_mut_ptr()) }, edtmap_status::EDTMAP_OK);
+        // SAFETY: `edtmap_params_default` filled it.
+        let p = unsafe { defaults.assume_init() };
+        let (sensor, params, _) = params_of(&p).unwrap_or_else(|Failure(_, m)| panic!("{m}"));
+        assert!(matches!(sensor, Sensor::Points(_)));
+        assert_eq!((params.voxel_size_m, params.global.max_distance_m), (p.voxel_size_m, p.max_distance_m));
+        let refused = |edit: &dyn Fn(&mut edtmap_params)| {
+            let mut q = p;
+            edit(&mut q);
+            match params_of(&q) {
+                Err(Failure(status, message)) => (status, message),
+                Ok(_) => panic!("accepted"),
+            }
+        };
+        let cases: [(&dyn Fn(&mut edtmap_params), &str); 6] = [
+            (&|q| q.voxel_size_m = f64::NAN, "edtmap_params.voxel_size_m = NaN: must be finite"),
+            (&|q| q.voxel_size_m = 20.0, "edtmap_params.voxel_size_m = 20.0: must be finite, in [1e-4, 10] metres"),
+            (&|q| q.local_size_m[2] = 0.0, "edtmap_params.local_size_m = [10.0, 10.0, 0.0]"),
+            (&|q| q.max_distance_m = -1.0, "edtmap_params.max_distance_m = -1.0"),
+            (
+                &|q| {
+                    q.sensor = edtmap_sensor::EDTMAP_SENSOR_DEPTH as u32;
+                    q.fx = 0.5;
+                },
+                "edtmap_params.fx = 0.5: must be finite, in [1, 1e6] pixels",
+            ),
+            (
+                &|q| {
+                    q.sensor = edtmap_sensor::EDTMAP_SENSOR_LIDAR as u32;
+                    q.elevation_max_deg = 90.0;
+                },
+                "edtmap_params.elevation_max_deg = 90.0: must be finite, in (-90, 90) degrees",
+            ),
+        ];
+        for (edit, want) in cases {
+            let (status, message) = refused(edit);
+            assert_eq!(status, edtmap_status::EDTMAP_CONFIG, "{message}");
+            assert!(message.starts_with(want), "{message:?} should start with {want:?}");
+        }
     }
 }

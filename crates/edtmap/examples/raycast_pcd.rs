@@ -70,8 +70,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let opts = OgmOptions {
         construction: Construction::RayCasting,
         clear_no_return: true,
-        free_margin_m: 0.0,
-        ..OgmOptions::for_voxel_size(args.voxel_size_m)
+        free_margin_m: Some(0.0),
+        ..OgmOptions::default()
     };
     let lo = OccupancyParams::default().log_odds()?;
     let mut stage = OccupancyStage::default();

@@ -138,33 +138,21 @@ impl Config {
     }
 
     /// The sensor and mapper parameters, validated: every number in its
-    /// range, then the stages' own checks.
+    /// range, then the stages' own checks ([`MapperParams::validate`]).
     pub fn mapper_params(&self) -> Result<(Sensor, MapperParams), MapError> {
         self.check_limits()?;
         let occ = &self.occupancy;
-        let in_occ = |source| MapError::Config { section: "occupancy", source };
-        edtmap_core::check_voxel_size(occ.voxel_size_m).map_err(in_occ)?;
-        occ.probabilities.log_odds().map_err(in_occ)?;
-        let volume = VolumeParams { size_m: occ.local_size_m, fixed_height_m: occ.fixed_height_m };
-        edtmap_core::LocalVolume::centred(&volume, occ.voxel_size_m, [0.0; 3]).map_err(in_occ)?;
-        let sensor = self.sensor.model().map_err(|source| MapError::Config { section: "sensor", source })?;
-        let ogm = self
-            .sensor
-            .ogm_options(occ.voxel_size_m, &sensor)
-            .map_err(|source| MapError::Config { section: "sensor", source })?;
-        let in_global = |source| MapError::Config { section: "global", source };
-        self.global.cutoff(occ.voxel_size_m).map_err(in_global)?;
-        self.global.check_forbidden().map_err(in_global)?;
-        let global = self.global.clone();
+        let (sensor, ogm) = self.sensor.checked().map_err(|source| MapError::Config { section: "sensor", source })?;
         let params = MapperParams {
             voxel_size_m: occ.voxel_size_m,
-            volume,
+            volume: VolumeParams { size_m: occ.local_size_m, fixed_height_m: occ.fixed_height_m },
             occupancy: occ.probabilities.clone(),
             ogm,
             edt: self.edt,
-            global,
+            global: self.global.clone(),
             max_memory_bytes: self.memory.max_bytes()?,
         };
+        params.validate()?;
         Ok((sensor, params))
     }
 

@@ -41,7 +41,7 @@ impl MapperParams {
             voxel_size_m,
             volume: VolumeParams::default(),
             occupancy: OccupancyParams::default(),
-            ogm: OgmOptions::for_voxel_size(voxel_size_m),
+            ogm: OgmOptions::default(),
             edt: EdtParams::default(),
             global: GlobalParams::default(),
             max_memory_bytes: None,
@@ -156,6 +156,7 @@ impl<B: Backend> Mapper<B> {
     /// A mapper for `sensor` on `backend`, checking every parameter.
     pub fn new_on(backend: B, sensor: Sensor, params: MapperParams) -> Result<Self, MapError> {
         sensor.validate()?;
+        params.validate()?;
         let map = GlobalMap::new(params.voxel_size_m, params.occupancy.clone(), params.global.clone())?;
         Self::with_map_on(backend, sensor, params, map)
     }
@@ -175,6 +176,7 @@ impl<B: Backend> Mapper<B> {
         params.voxel_size_m = map.voxel_size_m();
         params.occupancy = map.occupancy_params().clone();
         params.global = map.params().clone();
+        params.validate()?;
         if params.global.planar && !backend.integrates_planar() {
             let what = format!("a planar map ([global] planar = true) on the {} backend; use the CPU", backend.name());
             return Err(edtmap_core::CoreError::Unsupported(what).into());

@@ -112,6 +112,26 @@ fn save_and_load_round_trip_bit_identical() {
 }
 
 #[test]
+fn a_loaded_maps_voxel_size_sets_the_derived_lengths() {
+    // The free margin and the planar half thickness default to fractions of
+    // a voxel: a mapper going on from a map follows the map's voxel size,
+    // whatever voxel size the configuration it was given said.
+    let (scene, sensor, params) = setup("room");
+    let vs = params.voxel_size_m;
+    let mut first = Mapper::new(sensor.clone(), params.clone()).expect("mapper");
+    first.integrate_frame(&scene.frame(&sensor, 0).expect("frame")).expect("integrate");
+    let (_, _, other) = setup_with("room", |c| c.occupancy.voxel_size_m = 4.0 * vs);
+    let go_on = |params: MapperParams| {
+        let mut m = Mapper::with_map(sensor.clone(), params, first.map().clone()).expect("mapper");
+        m.integrate_frame(&scene.frame(&sensor, 20).expect("frame")).expect("integrate");
+        let mut occ: Vec<_> = m.map().occupancy().iter().map(|(k, b)| (k, b.log_odds.map(f32::to_bits))).collect();
+        occ.sort_by_key(|b| b.0);
+        occ
+    };
+    assert!(go_on(other) == go_on(params), "the map's voxel size, not the configuration's, sets the free margin");
+}
+
+#[test]
 fn forbidden_zones_and_prior_maps_are_obstacles() {
     // A forbidden box far from where any sensor looks: in the EDT at once.
     let zone = ForbiddenZone { min_m: [101.0, 0.4, 0.0], max_m: [101.4, 0.8, 1.0] };

@@ -23,8 +23,10 @@ pub enum Construction {
     Projection,
 }
 
-/// Options of the occupancy stage.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// Options of the occupancy stage. The lengths left `None` follow the
+/// voxel size of the map in use (a loaded map's, whatever a configuration
+/// said).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct OgmOptions {
     /// Which construction runs.
     pub construction: Construction,
@@ -33,25 +35,25 @@ pub struct OgmOptions {
     /// Both constructions: a voxel is free only if it lies more than this
     /// in front of the return (ray casting: the ray leaves it that far
     /// before the return), metres. Voxels between are left unobserved, as
-    /// the surface is only located to a voxel.
-    pub free_margin_m: f32,
+    /// the surface is only located to a voxel. `None`: half a voxel
+    /// diagonal.
+    pub free_margin_m: Option<f32>,
     /// Projection of planar scans: voxels within this height of the scan
-    /// plane are observed, metres.
-    pub planar_half_thickness_m: f32,
+    /// plane are observed, metres. `None`: half a voxel.
+    pub planar_half_thickness_m: Option<f32>,
 }
 
 impl OgmOptions {
-    /// Defaults for a voxel size: half a voxel of planar thickness, half a
-    /// voxel diagonal of free margin.
-    pub fn for_voxel_size(voxel_size_m: f64) -> Self {
-        let half = (voxel_size_m / 2.0) as f32;
-        let half_diagonal = (voxel_size_m * 3f64.sqrt() / 2.0) as f32;
-        OgmOptions {
-            construction: Construction::Auto,
-            clear_no_return: false,
-            free_margin_m: half_diagonal,
-            planar_half_thickness_m: half,
-        }
+    /// The free margin at `voxel_size_m`: the one set, or half a voxel
+    /// diagonal.
+    pub fn free_margin_at(&self, voxel_size_m: f64) -> f32 {
+        self.free_margin_m.unwrap_or((voxel_size_m * 3f64.sqrt() / 2.0) as f32)
+    }
+
+    /// The planar scans' half thickness at `voxel_size_m`: the one set, or
+    /// half a voxel.
+    pub fn planar_half_thickness_at(&self, voxel_size_m: f64) -> f32 {
+        self.planar_half_thickness_m.unwrap_or((voxel_size_m / 2.0) as f32)
     }
 }
 
@@ -97,7 +99,7 @@ impl OccupancyStage {
                 obs.volume(),
                 &frame.t_world_sensor,
                 &self.rays,
-                opts.free_margin_m,
+                opts.free_margin_at(volume.voxel_size_m),
                 &mut self.fixed_rays,
             )?;
             backend.cast_rays(&self.fixed_rays, q, obs)?;
@@ -113,9 +115,9 @@ pub fn project_job<'a>(sensor: &'a Sensor, frame: &'a Frame, volume: LocalVolume
         measurement: &frame.measurement,
         t_world_sensor: &frame.t_world_sensor,
         volume,
-        free_margin_m: opts.free_margin_m,
+        free_margin_m: opts.free_margin_at(volume.voxel_size_m),
         clear_no_return: opts.clear_no_return,
-        planar_half_thickness_m: opts.planar_half_thickness_m,
+        planar_half_thickness_m: opts.planar_half_thickness_at(volume.voxel_size_m),
     }
 }
 

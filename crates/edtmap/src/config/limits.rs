@@ -5,9 +5,9 @@
 //! overflow. The ranges are generous; the stages check the relations
 //! between fields (min below max, cutoff at least one voxel).
 
-use super::{CameraFields, Config, LidarFields, OccupancySection, OutputSection, SceneSection, SensorSection};
-use crate::MapError;
-use edtmap_core::{CoreError, GlobalParams};
+use super::{CameraFields, Config, LidarFields, OutputSection, SceneSection, SensorSection};
+use crate::{MapError, MapperParams};
+use edtmap_core::{CoreError, GlobalParams, LocalVolume};
 
 /// A closed, half-open or open interval of accepted values.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -153,18 +153,44 @@ fn short(v: f64) -> String {
 }
 
 impl Config {
-    /// Checks that every number of the file is finite and in its range,
-    /// naming the section and field of the first that is not.
+    /// Checks that every number of the application's sections is finite and
+    /// in its range, naming the section and field of the first that is not
+    /// ([`SensorSection::checked`] and [`MapperParams::validate`] check the
+    /// rest).
     pub(crate) fn check_limits(&self) -> Result<(), MapError> {
         let in_section = |section| move |source| MapError::Config { section, source };
         if let Some(scene) = &self.scene {
             scene.check_limits().map_err(in_section("scene"))?;
         }
-        self.sensor.check_limits().map_err(in_section("sensor"))?;
-        self.occupancy.check_limits().map_err(in_section("occupancy"))?;
-        check_global(&self.global).map_err(in_section("global"))?;
         self.output.check_limits().map_err(in_section("output"))?;
         self.dataset.validate().map_err(in_section("dataset"))
+    }
+}
+
+impl MapperParams {
+    /// Checks every parameter, however the parameters were made (a file, the
+    /// Python keywords, the C struct, by hand): each number finite and in
+    /// its range, then the relations between them (the local volume's size
+    /// in voxels, the log-odds, the cutoff, the forbidden zones). An error
+    /// names the configuration section and field the value belongs to.
+    pub fn validate(&self) -> Result<(), MapError> {
+        let in_section = |section| move |source| MapError::Config { section, source };
+        let in_occupancy = in_section("occupancy");
+        VOXEL_M.f64("voxel_size_m", self.voxel_size_m).map_err(in_occupancy)?;
+        LOCAL_SIZE_M.all("local_size_m", &self.volume.size_m).map_err(in_occupancy)?;
+        WORLD_M.opt("fixed_height_m", self.volume.fixed_height_m).map_err(in_occupancy)?;
+        edtmap_core::check_voxel_size(self.voxel_size_m).map_err(in_occupancy)?;
+        self.occupancy.log_odds().map_err(in_occupancy)?;
+        LocalVolume::centred(&self.volume, self.voxel_size_m, [0.0; 3]).map_err(in_occupancy)?;
+        let margins =
+            [("free_margin_m", self.ogm.free_margin_m), ("planar_half_thickness_m", self.ogm.planar_half_thickness_m)];
+        for (field, v) in margins {
+            v.map_or(Ok(()), |v| MARGIN_M.f32(field, v)).map_err(in_section("sensor"))?;
+        }
+        let in_global = in_section("global");
+        check_global(&self.global).map_err(in_global)?;
+        self.global.cutoff(self.voxel_size_m).map_err(in_global)?;
+        self.global.check_forbidden().map_err(in_global)
     }
 }
 
@@ -176,7 +202,7 @@ impl SceneSection {
 }
 
 impl SensorSection {
-    fn check_limits(&self) -> Result<(), CoreError> {
+    pub(super) fn check_limits(&self) -> Result<(), CoreError> {
         RANGE_M.f32("min_range_m", self.min_range_m)?;
         RANGE_M.f32("max_range_m", self.max_range_m)?;
         for (field, v) in
@@ -220,14 +246,6 @@ fn principal_point(
     let (Some(v), Some(n)) = (value, size) else { return Ok(()) };
     let images = v / f64::from(n.max(1));
     limit.check(field, images, format!("{v:?} (image {size_name} {n})"))
-}
-
-impl OccupancySection {
-    fn check_limits(&self) -> Result<(), CoreError> {
-        VOXEL_M.f64("voxel_size_m", self.voxel_size_m)?;
-        LOCAL_SIZE_M.all("local_size_m", &self.local_size_m)?;
-        WORLD_M.opt("fixed_height_m", self.fixed_height_m)
-    }
 }
 
 impl OutputSection {

@@ -158,8 +158,19 @@ fn need<T: Copy>(v: Option<T>, field: &'static str, kind: &'static str) -> Resul
 }
 
 impl SensorSection {
-    /// The sensor model this section describes.
-    pub fn model(&self) -> Result<Sensor, CoreError> {
+    /// The sensor model and how its frames become occupancy, every field
+    /// checked: each number in its range, then the model's own checks. An
+    /// error names the field.
+    pub fn checked(&self) -> Result<(Sensor, OgmOptions), CoreError> {
+        self.check_limits()?;
+        let sensor = self.model()?;
+        let ogm = self.ogm_options(&sensor)?;
+        Ok((sensor, ogm))
+    }
+
+    /// The sensor model this section describes (its numbers' ranges
+    /// unchecked: [`Self::checked`] checks them first).
+    fn model(&self) -> Result<Sensor, CoreError> {
         let range = RangeLimits { min_m: self.min_range_m, max_m: self.max_range_m };
         let sensor = match self.kind {
             SensorKind::Depth => Sensor::Depth(self.camera.camera(range)?),
@@ -178,9 +189,10 @@ impl SensorSection {
         Ok(sensor)
     }
 
-    /// How frames of `sensor` become occupancy at `voxel_size_m`.
-    pub(crate) fn ogm_options(&self, voxel_size_m: f64, sensor: &Sensor) -> Result<OgmOptions, CoreError> {
-        let mut o = OgmOptions::for_voxel_size(voxel_size_m);
+    /// How frames of `sensor` become occupancy (lengths not set follow the
+    /// voxel size in use).
+    fn ogm_options(&self, sensor: &Sensor) -> Result<OgmOptions, CoreError> {
+        let mut o = OgmOptions::default();
         o.clear_no_return = self.clear_no_return;
         o.construction = match self.construction {
             ConstructionName::Auto => Construction::Auto,
@@ -194,9 +206,9 @@ impl SensorSection {
                 })
             }
         };
-        // Both are in range: `Config::check_limits` ran first.
-        o.free_margin_m = self.free_margin_m.unwrap_or(o.free_margin_m);
-        o.planar_half_thickness_m = self.planar_half_thickness_m.unwrap_or(o.planar_half_thickness_m);
+        // Both are in range: `Self::checked` checked them first.
+        o.free_margin_m = self.free_margin_m;
+        o.planar_half_thickness_m = self.planar_half_thickness_m;
         Ok(o)
     }
 }
