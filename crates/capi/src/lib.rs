@@ -1108,7 +1108,8 @@ mod tests {
                 Ok(_) => panic!("accepted"),
             }
         };
-        let cases: [(&dyn Fn(&mut edtmap_params), &str); 6] = [
+        type Edit<'a> = &'a dyn Fn(&mut edtmap_params);
+        let cases: [(Edit<'_>, &str); 6] = [
             (&|q| q.voxel_size_m = f64::NAN, "edtmap_params.voxel_size_m = NaN: must be finite"),
             (&|q| q.voxel_size_m = 20.0, "edtmap_params.voxel_size_m = 20.0: must be finite, in [1e-4, 10] metres"),
             (&|q| q.local_size_m[2] = 0.0, "edtmap_params.local_size_m = [10.0, 10.0, 0.0]"),

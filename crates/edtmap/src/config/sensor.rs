@@ -192,9 +192,7 @@ impl SensorSection {
     /// How frames of `sensor` become occupancy (lengths not set follow the
     /// voxel size in use).
     fn ogm_options(&self, sensor: &Sensor) -> Result<OgmOptions, CoreError> {
-        let mut o = OgmOptions::default();
-        o.clear_no_return = self.clear_no_return;
-        o.construction = match self.construction {
+        let construction = match self.construction {
             ConstructionName::Auto => Construction::Auto,
             ConstructionName::Raycast => Construction::RayCasting,
             ConstructionName::Projection if sensor.supports_projection() => Construction::Projection,
@@ -206,10 +204,13 @@ impl SensorSection {
                 })
             }
         };
-        // Both are in range: `Self::checked` checked them first.
-        o.free_margin_m = self.free_margin_m;
-        o.planar_half_thickness_m = self.planar_half_thickness_m;
-        Ok(o)
+        // Both lengths are in range: `Self::checked` checked them first.
+        Ok(OgmOptions {
+            construction,
+            clear_no_return: self.clear_no_return,
+            free_margin_m: self.free_margin_m,
+            planar_half_thickness_m: self.planar_half_thickness_m,
+        })
     }
 }
 
