@@ -58,6 +58,7 @@ pub mod eval;
 mod mapfile;
 mod mapper;
 mod shared;
+mod update;
 
 pub use choice::{open_backend, BackendChoice, DynBackend, OpenedBackend};
 pub use edtmap_core::query::{Distance, DistanceBox, PointState};

@@ -1,12 +1,13 @@
 //! The mapping pipeline of paper Fig. 1, one frame at a time.
 
+use crate::update::{ms_since, GlobalUpdate};
 use crate::MapError;
 use edtmap_core::query::{self, Distance, PointState};
 use edtmap_core::sensor::{Frame, Sensor};
-use edtmap_core::stages::{local_field, BatchEdtStage, IntegrationStage, OccupancyStage, OgmOptions};
+use edtmap_core::stages::{local_field, OccupancyStage, OgmOptions};
 use edtmap_core::{
-    read_states, Backend, BlockKey, EdtField, EdtParams, ExactCounts, GlobalMap, GlobalParams, Grid3, IntegrationMode,
-    IntegrationReport, LocalVolume, OccupancyParams, Region, VolumeParams, VoxelIndex, VoxelState, WaveCounts,
+    read_states, Backend, BlockKey, EdtField, EdtParams, ExactCounts, GlobalMap, GlobalParams, Grid3, LocalVolume,
+    OccupancyParams, Region, VolumeParams, VoxelIndex, VoxelState, WaveCounts,
 };
 use edtmap_cpu::CpuBackend;
 use std::sync::OnceLock;
@@ -127,11 +128,8 @@ pub struct Mapper<B: Backend = CpuBackend> {
     sensor: Sensor,
     map: GlobalMap,
     occupancy: OccupancyStage,
-    batch: BatchEdtStage,
-    /// Whether `batch` holds this frame's fields (wavefront mode): not
-    /// when the backend computed the window's EDT on its device.
-    batch_on_host: bool,
-    integration: IntegrationStage,
+    /// The global EDT's update: exact, or the paper's wavefronts.
+    global: GlobalUpdate,
     volume: Option<LocalVolume>,
     local_states: OnceLock<Grid3<VoxelState>>,
     /// Exact mode, or wavefront mode on a device: the local volume's batch
@@ -184,16 +182,14 @@ impl<B: Backend> Mapper<B> {
         // Fails early on a bad size, or one past the memory budget, rather
         // than at the first frame.
         crate::budget::check(&params)?;
-        let integration = IntegrationStage::new(&params.global, params.voxel_size_m)?;
+        let global = GlobalUpdate::new(&params.global, params.voxel_size_m, params.edt.unknown_as_occupied)?;
         let mut mapper = Mapper {
             backend,
             fallback: None,
             sensor,
             map,
             occupancy: OccupancyStage::default(),
-            batch: BatchEdtStage::new(params.edt.unknown_as_occupied),
-            batch_on_host: false,
-            integration,
+            global,
             volume: None,
             local_states: OnceLock::new(),
             local: OnceLock::new(),
@@ -207,8 +203,7 @@ impl<B: Backend> Mapper<B> {
     /// EDT at once, rather than when a window first passes over them.
     fn lay_down_fixed(&mut self) -> Result<(), MapError> {
         let Some(keys) = self.map.fixed_obstacles().key_bounds() else { return Ok(()) };
-        let (edt, obstacles) = self.map.edt_and_obstacles();
-        self.integration.recompute(&mut self.backend, edt, obstacles, &Region::of_blocks(keys))?;
+        self.global.recompute(&mut self.backend, &mut self.map, &Region::of_blocks(keys))?;
         Ok(())
     }
 
@@ -228,27 +223,14 @@ impl<B: Backend> Mapper<B> {
         let ogm_ms = ms_since(start);
         self.local = OnceLock::new();
         self.local_states = OnceLock::new();
-        // §IV-B, Alg. 1: exact batch EDT of the local volume (wavefront);
-        // a device computes it inside the integration, where it stays.
-        let t = Instant::now();
-        self.batch_on_host = false;
-        if self.wavefront() && self.backend.batch_stays_on_device() {
-            self.batch.global_mask(&self.map, &volume)?;
-        } else if self.wavefront() {
-            if let Err(e) = self.batch.run(&mut self.backend, &self.map, &volume) {
-                return Err(self.recover(&volume, &fused.changed_blocks, e.into()));
-            }
-            self.batch_on_host = true;
-        }
-        let batch_edt_ms = ms_since(t);
-        // §IV-C: the global EDT brought up to date (exact), or Alg. 2 and
-        // 3: the batch EDT merged into it (wavefront).
-        let t = Instant::now();
-        let merged = match self.integrate(None, &volume, &fused.changed_blocks) {
-            Ok(merged) => merged,
+        // §IV-B and §IV-C: the global EDT brought up to date from the
+        // obstacles the frame changed (exact), or the window's batch EDT
+        // (Alg. 1) merged into it by wavefronts (Alg. 2 and 3).
+        let updated = match self.global.run(&mut self.backend, &mut self.map, &volume, &fused.changed_blocks) {
+            Ok(updated) => updated,
             Err(e) => return Err(self.recover(&volume, &fused.changed_blocks, e)),
         };
-        let integrate_ms = ms_since(t);
+        let (batch_edt_ms, integrate_ms, merged) = (updated.batch_edt_ms, updated.integrate_ms, updated.report);
         self.volume = Some(volume);
         let mapped_voxels = (self.map.occupancy().len() * edtmap_core::BLOCK_VOXELS).max(1);
         Ok(FrameStats {
@@ -280,12 +262,7 @@ impl<B: Backend> Mapper<B> {
             return failure;
         }
         let mut cpu = self.fallback.take().unwrap_or_default();
-        let mut finished = Ok(());
-        if self.wavefront() {
-            finished = self.batch.run(&mut cpu, &self.map, volume).map_err(MapError::from);
-            self.batch_on_host = finished.is_ok();
-        }
-        let finished = finished.and_then(|()| self.integrate(Some(&mut cpu), volume, changed));
+        let finished = self.global.run(&mut cpu, &mut self.map, volume, changed);
         self.fallback = Some(cpu);
         match finished {
             Ok(_) => {
@@ -294,32 +271,6 @@ impl<B: Backend> Mapper<B> {
             }
             Err(e) => e,
         }
-    }
-
-    fn wavefront(&self) -> bool {
-        self.integration.mode() == IntegrationMode::Wavefront
-    }
-
-    /// The frame's integration on `cpu` when given, else on the backend.
-    fn integrate(
-        &mut self,
-        cpu: Option<&mut CpuBackend>,
-        volume: &LocalVolume,
-        changed: &[BlockKey],
-    ) -> Result<IntegrationReport, MapError> {
-        let wavefront = self.wavefront();
-        let (edt, obstacles) = self.map.edt_and_obstacles();
-        let backend: &mut dyn Backend = match cpu {
-            Some(c) => c,
-            None => &mut self.backend,
-        };
-        Ok(if wavefront && !self.batch_on_host {
-            self.integration.merge_window_mask(backend, edt, obstacles, volume, self.batch.mask_for_global())?
-        } else if wavefront {
-            self.integration.merge_window(backend, edt, obstacles, volume, self.batch.for_global())?
-        } else {
-            self.integration.apply_changes(backend, edt, obstacles, changed)?
-        })
     }
 
     /// Whether [`Self::clear_far`] with these arguments would drop a block.
@@ -347,7 +298,7 @@ impl<B: Backend> Mapper<B> {
         if !(radius_m.is_finite() && radius_m > 0.0 && centre_m.iter().all(|c| c.is_finite())) {
             return Err(invalid("must be a positive number of metres, around a finite centre"));
         }
-        if self.wavefront() {
+        if !self.global.is_exact() {
             return Err(invalid("needs [global] mode = \"exact\""));
         }
         let bytes_before = self.map.bytes();
@@ -359,8 +310,7 @@ impl<B: Backend> Mapper<B> {
             return Ok(Cleared { bytes_before, bytes_after: bytes_before, ..Cleared::default() });
         }
         // The obstacles of the dropped blocks vanish: the exact update over them.
-        let (edt, obstacles) = self.map.edt_and_obstacles();
-        self.integration.apply_changes(&mut self.backend, edt, obstacles, &gone)?;
+        self.global.apply_changes(&mut self.backend, &mut self.map, &gone)?;
         // Every obstacle left lies in a block within the radius, or is fixed:
         // EDT blocks beyond the radius by more than the cutoff and a block
         // diagonal hold no distance within the cutoff.
@@ -496,8 +446,8 @@ impl<B: Backend> Mapper<B> {
     /// first call after a frame, on the CPU (every backend gives the same
     /// field), empty before the first frame.
     pub fn local_edt(&self) -> &EdtField {
-        if self.wavefront() && self.batch_on_host {
-            return self.batch.local();
+        if let Some(field) = self.global.local_field() {
+            return field;
         }
         self.local.get_or_init(|| {
             let Some(volume) = &self.volume else { return EdtField::empty() };
@@ -511,8 +461,4 @@ impl<B: Backend> Mapper<B> {
 /// Distance from block `k`'s centre (blocks of `side` metres) to `p`.
 fn block_distance(k: BlockKey, side: f64, p: [f64; 3]) -> f64 {
     (0..3).map(|a| ((f64::from(k.0[a]) + 0.5) * side - p[a]).powi(2)).sum::<f64>().sqrt()
-}
-
-fn ms_since(t: Instant) -> f64 {
-    t.elapsed().as_secs_f64() * 1e3
 }
