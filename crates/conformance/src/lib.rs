@@ -9,8 +9,8 @@ mod projection;
 
 pub use projection::{check_projection, check_projection_bits, projection_cases, ProjectionCase, ProjectionTally};
 
+use edtmap::stages::IntegrationStage;
 use edtmap_core::fixed_ray::{fixed_scale, setup_ray, walk, FixedRay, NO_HIT};
-use edtmap_core::stages::IntegrationStage;
 use edtmap_core::{Backend, Connectivity, IntegrationMode, Observations, OBS_HIT, OBS_MISS};
 use edtmap_core::{
     BatchEdt, EdtField, EdtMap, FixedMap, GlobalParams, Grid3, LocalVolume, LogOdds, Obstacles, OccupancyMap,
@@ -189,7 +189,7 @@ pub fn check_raycast(backend: &mut dyn Backend) -> Result<usize, String> {
 }
 
 /// Runs the integration suite on `backend` through
-/// [`edtmap_core::stages::IntegrationStage`], in both modes, every
+/// [`edtmap::stages::IntegrationStage`], in both modes, every
 /// connectivity and cutoffs of 2 to 7 voxels: after every step the global
 /// EDT must pass [`IntegrationWorld::check`] (every stored obstacle real,
 /// at the stored distance, none nearer missed), and in exact mode equal

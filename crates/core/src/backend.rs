@@ -114,7 +114,7 @@ pub trait Backend: BatchEdt {
     /// Volumetric projection (paper §IV-A): marks every voxel of
     /// `job.volume` for which [`ProjectJob::is_miss`] holds as
     /// [`crate::OBS_MISS`] in `obs` (freshly reset), and no other. Hits
-    /// are left to the host ([`crate::stages::scatter_returns`]).
+    /// are left to the host ([`crate::construction::scatter_returns`]).
     fn project_volume(&mut self, job: &ProjectJob<'_>, obs: &Observations) -> Result<(), BackendError>;
 
     /// Lets [`Backend::cast_rays`] and [`Backend::project_volume`] keep

@@ -117,14 +117,10 @@ impl GlobalMap {
         crate::fuse::fuse(&mut self.occupancy, obs, &self.log_odds)
     }
 
-    /// [`Self::fuse`] on `backend` ([`crate::Backend::fuse`]), which may
-    /// hold some of the observations on its device.
-    pub fn fuse_on<B: crate::Backend + ?Sized>(
-        &mut self,
-        backend: &mut B,
-        obs: &crate::Observations,
-    ) -> Result<crate::FuseReport, crate::BackendError> {
-        backend.fuse(&mut self.occupancy, obs, &self.log_odds)
+    /// The occupancy layer, mutable, beside its log-odds parameters: what a
+    /// backend's fusion ([`crate::Backend::fuse`]) needs in one borrow.
+    pub fn occupancy_and_log_odds(&mut self) -> (&mut OccupancyMap, &LogOdds) {
+        (&mut self.occupancy, &self.log_odds)
     }
 
     /// Voxel edge length in metres.

@@ -12,7 +12,10 @@
 //!   ([`fixed_ray`]), the projection's per-voxel definition
 //!   ([`projection`]), integration regions and write-back ([`region`]),
 //!   frame observations and their fusion ([`Observations`], [`fuse()`]),
-//!   and the three pipeline stages ([`stages`]).
+//!   the occupancy construction's definitions ([`construction`]), the
+//!   exact integration's host side ([`exact`]), and the queries
+//!   ([`query`]). The pipeline's stages, which run these on a backend,
+//!   are the facade's (`edtmap::stages`).
 //!
 //! # Conventions
 //! * A dense grid has dimensions `[nx, ny, nz]` with `x` varying fastest:
@@ -25,9 +28,11 @@
 #![warn(missing_docs)]
 
 pub mod backend;
+pub mod construction;
 mod edt;
 mod edt_map;
 mod error;
+pub mod exact;
 pub mod fixed_ray;
 mod fuse;
 mod global_map;
@@ -41,7 +46,6 @@ pub mod projection;
 pub mod query;
 pub mod region;
 pub mod sensor;
-pub mod stages;
 mod state;
 mod volume;
 

@@ -6,7 +6,7 @@
 //! definition on every voxel, as projection ran before issue 15.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
-use edtmap_core::stages::{project_job, OgmOptions};
+use edtmap_core::construction::{project_job, OgmOptions};
 use edtmap_core::{mark_misses, LocalVolume, Observations, ProjectJob, VolumeParams, OBS_MISS};
 use edtmap_sim::{Scene, SceneName, SceneOptions};
 use rayon::prelude::*;

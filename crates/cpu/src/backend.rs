@@ -4,10 +4,10 @@ use crate::edt::{edt_into, ScanLayout};
 use crate::integrate::separable::{update_exact, SeparableCache};
 use crate::integrate::wavefront::{integrate_wavefront, WaveBuffers};
 use crate::CpuError;
+use edtmap_core::exact::{recompute_exact, ExactBuffers};
 use edtmap_core::fixed_ray::{cast_fixed, FixedRay};
 use edtmap_core::projection::mark_misses;
 use edtmap_core::region::{Packing, Region};
-use edtmap_core::stages::exact::{recompute_exact, ExactBuffers};
 use edtmap_core::{
     Backend, BackendError, BatchEdt, EdtField, Grid3, IntegrationJob, IntegrationReport, IntegrationWork, MapStamp,
     Observations, ProjectJob, WaveCounts,

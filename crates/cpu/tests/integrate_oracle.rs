@@ -1,8 +1,8 @@
 //! The global EDT after every step of random occupancy changes in a window
 //! that moves over the map, against a brute-force EDT of the whole map.
 
+use edtmap::stages::IntegrationStage;
 use edtmap_conformance::IntegrationWorld;
-use edtmap_core::stages::IntegrationStage;
 use edtmap_core::{Connectivity, EdtMap, GlobalParams, IntegrationMode};
 use edtmap_cpu::edt::{edt_with, ScanLayout};
 use edtmap_cpu::CpuBackend;

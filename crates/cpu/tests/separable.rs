@@ -11,8 +11,8 @@
 //! changed) and their change in distance those found by comparing the
 //! maps, as the obstacles it counts added and removed are.
 
+use edtmap_core::exact::{recompute_exact, ExactBuffers};
 use edtmap_core::region::{Packing, Region};
-use edtmap_core::stages::exact::{recompute_exact, ExactBuffers};
 use edtmap_core::{
     Backend, BlockKey, Cutoff, EdtMap, FixedMap, GlobalParams, IntegrationJob, IntegrationWork, LogOdds, Obstacles,
     OccupancyMap, OccupancyParams, VoxelIndex, BLOCK_VOXELS, FAR_DIST_SQ, NO_OFFSET,

@@ -2,8 +2,8 @@
 //! against brute force to the obstacle voxels' surface, on a map whose
 //! global EDT the CPU backend computed.
 
+use edtmap::stages::IntegrationStage;
 use edtmap_core::query::distance;
-use edtmap_core::stages::IntegrationStage;
 use edtmap_core::{
     GlobalMap, GlobalParams, Grid3, IntegrationMode, LocalVolume, OccupancyParams, VoxelIndex, FAR_DIST_SQ,
 };

@@ -13,8 +13,8 @@
 //!   part rightly call it free.
 
 use crate::MapError;
+use edtmap_core::exact::exact_region;
 use edtmap_core::region::Region;
-use edtmap_core::stages::exact::exact_region;
 use edtmap_core::{GlobalMap, VoxelState, FAR_DIST_SQ};
 
 /// Occupancy scores of one volume (or the sum of several).

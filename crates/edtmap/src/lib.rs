@@ -58,6 +58,7 @@ pub mod eval;
 mod mapfile;
 mod mapper;
 mod shared;
+pub mod stages;
 mod update;
 
 pub use choice::{open_backend, BackendChoice, DynBackend, OpenedBackend};

@@ -1,10 +1,10 @@
 //! The mapping pipeline of paper Fig. 1, one frame at a time.
 
+use crate::stages::{fuse_on, local_field, OccupancyStage, OgmOptions};
 use crate::update::{ms_since, GlobalUpdate};
 use crate::MapError;
 use edtmap_core::query::{self, Distance, PointState};
 use edtmap_core::sensor::{Frame, Sensor};
-use edtmap_core::stages::{local_field, OccupancyStage, OgmOptions};
 use edtmap_core::{
     read_states, Backend, BlockKey, EdtField, EdtParams, ExactCounts, GlobalMap, GlobalParams, Grid3, LocalVolume,
     OccupancyParams, Region, VolumeParams, VoxelIndex, VoxelState, WaveCounts,
@@ -107,7 +107,7 @@ pub struct Cleared {
 /// backend `B` (the CPU by default; `edtmap_gpu::GpuBackend` for a GPU).
 /// Every backend gives the same map, bit for bit.
 ///
-/// Each frame runs the stages of `edtmap_core::stages` in turn: occupancy
+/// Each frame runs the stages of [`crate::stages`] in turn: occupancy
 /// (fused into the map), then the global EDT. In the exact mode (the
 /// default) the global EDT is brought up to date from the obstacles the
 /// frame changed, and the local volume's batch EDT is computed only when
@@ -219,7 +219,7 @@ impl<B: Backend> Mapper<B> {
         )?;
         // §IV-A: occupancy of the local volume, fused into the global map.
         let obs = self.occupancy.observe(&mut self.backend, &self.sensor, frame, volume, &self.params.ogm)?;
-        let fused = self.map.fuse_on(&mut self.backend, obs)?;
+        let fused = fuse_on(&mut self.backend, &mut self.map, obs)?;
         let ogm_ms = ms_since(start);
         self.local = OnceLock::new();
         self.local_states = OnceLock::new();

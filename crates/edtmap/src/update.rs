@@ -3,8 +3,8 @@
 //! the mapper calls [`GlobalUpdate::run`] once a frame, on its backend, and
 //! once more on the CPU when the backend failed, whatever the mode.
 
+use crate::stages::{BatchEdtStage, IntegrationStage};
 use crate::MapError;
-use edtmap_core::stages::{BatchEdtStage, IntegrationStage};
 use edtmap_core::{
     Backend, BlockKey, EdtField, GlobalMap, GlobalParams, IntegrationMode, IntegrationReport, LocalVolume, Region,
 };

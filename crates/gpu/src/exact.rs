@@ -1,5 +1,5 @@
 //! Exact integration on the GPU (`exact.wgsl`), bit-identical to the CPU's
-//! [`edtmap_core::stages::exact::recompute_exact`].
+//! [`edtmap_core::exact::recompute_exact`].
 //!
 //! The device keeps a pool of the global EDT's blocks, resident between
 //! frames while the map's stamp says nothing else changed it. A frame

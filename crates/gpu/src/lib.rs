@@ -30,9 +30,9 @@ pub use project::GpuProject;
 use project::Kept;
 pub use raycast::GpuRaycast;
 
+use edtmap_core::exact::{recompute_exact, ExactBuffers};
 use edtmap_core::fixed_ray::{cast_fixed, FixedRay};
 use edtmap_core::region::{Packing, Region};
-use edtmap_core::stages::exact::{recompute_exact, ExactBuffers};
 use edtmap_core::{
     decide_uncertain, mark_misses, Backend, BackendError, BatchEdt, EdtField, FuseReport, Grid3, IntegrationJob,
     IntegrationReport, IntegrationWork, LocalVolume, LogOdds, Observations, OccupancyMap, ProjectJob, OBS_MISS,

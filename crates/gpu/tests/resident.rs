@@ -10,10 +10,10 @@ mod common;
 
 use std::collections::HashMap;
 
+use edtmap::stages::IntegrationStage;
 use edtmap_conformance::IntegrationWorld;
+use edtmap_core::exact::{recompute_exact, ExactBuffers};
 use edtmap_core::region::{Packing, Region};
-use edtmap_core::stages::exact::{recompute_exact, ExactBuffers};
-use edtmap_core::stages::IntegrationStage;
 use edtmap_core::{Backend, BlockKey, EdtMap, GlobalParams, IntegrationMode, IntegrationReport, VoxelIndex};
 use edtmap_cpu::CpuBackend;
 

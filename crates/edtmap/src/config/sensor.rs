@@ -15,8 +15,8 @@
 //! another kind are accepted and unused, as before; a misspelt field is
 //! still refused.
 
+use edtmap_core::construction::{Construction, OgmOptions};
 use edtmap_core::sensor::{PinholeCamera, RangeLimits, Sensor, SpinningLidar};
-use edtmap_core::stages::{Construction, OgmOptions};
 use edtmap_core::CoreError;
 use serde::Deserialize;
 

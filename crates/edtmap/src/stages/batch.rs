@@ -3,8 +3,8 @@
 //! planners read, and, when unknown voxels count as obstacles locally,
 //! the second field the global integration needs (unknown voxels free).
 
-use crate::region::fill_mask;
-use crate::{BackendError, BatchEdt, CoreError, EdtField, GlobalMap, Grid3, LocalVolume};
+use edtmap_core::region::fill_mask;
+use edtmap_core::{BackendError, BatchEdt, CoreError, EdtField, GlobalMap, Grid3, LocalVolume};
 
 /// The batch EDT stage, owning its masks and fields across frames.
 #[derive(Debug)]
@@ -45,7 +45,7 @@ impl BatchEdtStage {
 
     /// The window's obstacles as the global integration counts them
     /// (unknown voxels free), without their EDT: for a backend that
-    /// computes it where it integrates ([`crate::IntegrationWork::WavefrontMask`]).
+    /// computes it where it integrates ([`edtmap_core::IntegrationWork::WavefrontMask`]).
     /// [`Self::local`] and [`Self::for_global`] then hold an older frame's.
     pub fn global_mask(&mut self, map: &GlobalMap, volume: &LocalVolume) -> Result<&Grid3<bool>, CoreError> {
         let mut obstacles = map.obstacles();

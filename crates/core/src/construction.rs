@@ -1,13 +1,13 @@
-//! The occupancy stage (paper §IV-A): a frame's observations of the local
-//! volume, by ray casting or volumetric projection on the backend, with
-//! the host's share (ray set-up, the returns' hits) around it.
+//! How a frame's occupancy is built (paper §IV-A), as every backend and
+//! the mapper's occupancy stage share it: the construction and its
+//! options, the projection job a backend receives, and the returns' hits,
+//! marked on the host.
 //!
 //! Both constructions write one observation per voxel per frame (a hit wins
 //! over a miss), so the fused map does not depend on thread scheduling.
 
-use crate::fixed_ray::{prepare_rays, FixedRay};
-use crate::sensor::{Frame, Measurement, Sensor, SensorRay};
-use crate::{Backend, BackendError, CoreError, LocalVolume, Observations, ProjectJob, OBS_HIT};
+use crate::sensor::{Frame, Sensor, SensorRay};
+use crate::{LocalVolume, Observations, ProjectJob, OBS_HIT};
 use nalgebra::Vector3;
 
 /// How a frame's occupancy is built.
@@ -57,57 +57,6 @@ impl OgmOptions {
     }
 }
 
-/// The occupancy stage with its buffers, reused from frame to frame.
-#[derive(Debug, Default)]
-pub struct OccupancyStage {
-    obs: Option<Observations>,
-    rays: Vec<SensorRay>,
-    fixed_rays: Vec<FixedRay>,
-}
-
-impl OccupancyStage {
-    /// Observes `frame` (already checked against `sensor`) over `volume`,
-    /// casting the rays or projecting the volume on `backend`.
-    pub fn observe<B: Backend + ?Sized>(
-        &mut self,
-        backend: &mut B,
-        sensor: &Sensor,
-        frame: &Frame,
-        volume: LocalVolume,
-        opts: &OgmOptions,
-    ) -> Result<&Observations, BackendError> {
-        if let Some(o) = &mut self.obs {
-            o.reset(volume);
-        }
-        let obs = self.obs.get_or_insert_with(|| Observations::new(volume));
-        let projectable = sensor.supports_projection() && !matches!(frame.measurement, Measurement::Points(_));
-        let project = match opts.construction {
-            Construction::Auto => projectable,
-            Construction::RayCasting => false,
-            Construction::Projection if projectable => true,
-            Construction::Projection => {
-                let what = format!("volumetric projection of a {} from a {}", frame.measurement.kind(), sensor.kind());
-                return Err(CoreError::Unsupported(what).into());
-            }
-        };
-        if project {
-            backend.project_volume(&project_job(sensor, frame, volume, opts), obs)?;
-            scatter_returns(obs, sensor, frame, &mut self.rays);
-        } else {
-            sensor.rays(&frame.measurement, opts.clear_no_return, &mut self.rays);
-            let q = prepare_rays(
-                obs.volume(),
-                &frame.t_world_sensor,
-                &self.rays,
-                opts.free_margin_at(volume.voxel_size_m),
-                &mut self.fixed_rays,
-            )?;
-            backend.cast_rays(&self.fixed_rays, q, obs)?;
-        }
-        Ok(obs)
-    }
-}
-
 /// The projection of `frame` over `volume` as a backend receives it.
 pub fn project_job<'a>(sensor: &'a Sensor, frame: &'a Frame, volume: LocalVolume, opts: &OgmOptions) -> ProjectJob<'a> {
     ProjectJob {
@@ -148,7 +97,7 @@ pub fn scatter_returns(obs: &Observations, sensor: &Sensor, frame: &Frame, rays:
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sensor::{DepthData, DepthImage, PinholeCamera, RangeLimits};
+    use crate::sensor::{DepthData, DepthImage, Measurement, PinholeCamera, RangeLimits};
     use crate::VoxelIndex;
     use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion};
     use proptest::prelude::*;

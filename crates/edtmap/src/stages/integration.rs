@@ -5,11 +5,11 @@
 //!
 //! Two modes ([`IntegrationMode`]): the paper's wavefronts and an exact
 //! recomputation of the region the frame can affect. Both work on a dense
-//! copy of that region ([`crate::region`]) and write back only the voxels
+//! copy of that region ([`edtmap_core::region`]) and write back only the voxels
 //! that changed, returning the blocks they touched.
 
-use crate::region::Region;
-use crate::{
+use edtmap_core::region::Region;
+use edtmap_core::{
     Backend, BackendError, BlockKey, CoreError, Cutoff, EdtField, EdtMap, GlobalParams, Grid3, IntegrationJob,
     IntegrationMode, IntegrationReport, IntegrationWork, LocalVolume, Obstacles,
 };

@@ -22,7 +22,7 @@ pub struct ExactBuffers {
 
 /// Recomputes `packing.region` of `map` exactly from `obstacles`, with the
 /// batch EDT of `edt` (of one layer on a planar map: the region must be
-/// one layer thick there, as [`crate::stages::integration`]'s tiles are).
+/// one layer thick there, as the integration stage's tiles are).
 pub fn recompute_exact<E: BatchEdt + ?Sized>(
     edt: &mut E,
     map: &mut EdtMap,

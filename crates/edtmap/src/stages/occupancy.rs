@@ -1,0 +1,75 @@
+//! The occupancy stage (paper §IV-A): a frame's observations of the local
+//! volume, by ray casting or volumetric projection on the backend, with
+//! the host's share (ray set-up, the returns' hits) around it, then fused
+//! into the map on the backend.
+//!
+//! Both constructions write one observation per voxel per frame (a hit wins
+//! over a miss), so the fused map does not depend on thread scheduling.
+
+use edtmap_core::construction::{project_job, scatter_returns, Construction, OgmOptions};
+use edtmap_core::fixed_ray::{prepare_rays, FixedRay};
+use edtmap_core::sensor::{Frame, Measurement, Sensor, SensorRay};
+use edtmap_core::{Backend, BackendError, CoreError, FuseReport, GlobalMap, LocalVolume, Observations};
+
+/// The occupancy stage with its buffers, reused from frame to frame.
+#[derive(Debug, Default)]
+pub struct OccupancyStage {
+    obs: Option<Observations>,
+    rays: Vec<SensorRay>,
+    fixed_rays: Vec<FixedRay>,
+}
+
+impl OccupancyStage {
+    /// Observes `frame` (already checked against `sensor`) over `volume`,
+    /// casting the rays or projecting the volume on `backend`.
+    pub fn observe<B: Backend + ?Sized>(
+        &mut self,
+        backend: &mut B,
+        sensor: &Sensor,
+        frame: &Frame,
+        volume: LocalVolume,
+        opts: &OgmOptions,
+    ) -> Result<&Observations, BackendError> {
+        if let Some(o) = &mut self.obs {
+            o.reset(volume);
+        }
+        let obs = self.obs.get_or_insert_with(|| Observations::new(volume));
+        let projectable = sensor.supports_projection() && !matches!(frame.measurement, Measurement::Points(_));
+        let project = match opts.construction {
+            Construction::Auto => projectable,
+            Construction::RayCasting => false,
+            Construction::Projection if projectable => true,
+            Construction::Projection => {
+                let what = format!("volumetric projection of a {} from a {}", frame.measurement.kind(), sensor.kind());
+                return Err(CoreError::Unsupported(what).into());
+            }
+        };
+        if project {
+            backend.project_volume(&project_job(sensor, frame, volume, opts), obs)?;
+            scatter_returns(obs, sensor, frame, &mut self.rays);
+        } else {
+            sensor.rays(&frame.measurement, opts.clear_no_return, &mut self.rays);
+            let q = prepare_rays(
+                obs.volume(),
+                &frame.t_world_sensor,
+                &self.rays,
+                opts.free_margin_at(volume.voxel_size_m),
+                &mut self.fixed_rays,
+            )?;
+            backend.cast_rays(&self.fixed_rays, q, obs)?;
+        }
+        Ok(obs)
+    }
+}
+
+/// Fuses `obs` into `map`'s occupancy layer on `backend`
+/// ([`Backend::fuse`]), which may hold some of the observations on its
+/// device.
+pub fn fuse_on<B: Backend + ?Sized>(
+    backend: &mut B,
+    map: &mut GlobalMap,
+    obs: &Observations,
+) -> Result<FuseReport, BackendError> {
+    let (occupancy, log_odds) = map.occupancy_and_log_odds();
+    backend.fuse(occupancy, obs, log_odds)
+}
