@@ -893,7 +893,7 @@ pub unsafe extern "C" fn edtmap_mapper_query(
 ) -> edtmap_status {
     guard("edtmap_mapper_query", || {
         // SAFETY: a mapper from this library or null.
-        let map = unsafe { handle(mapper, "mapper") }?.shared.snapshot()?;
+        let map = unsafe { handle(mapper, "mapper") }?.shared.snapshot();
         // SAFETY: the buffers as documented.
         unsafe { query_into(&map, points, n, signed, distances, gradients, states) }
     })
@@ -972,7 +972,7 @@ pub unsafe extern "C" fn edtmap_mapper_export_box(
 ) -> edtmap_status {
     guard("edtmap_mapper_export_box", || {
         // SAFETY: a mapper from this library or null.
-        let map = unsafe { handle(mapper, "mapper") }?.shared.snapshot()?;
+        let map = unsafe { handle(mapper, "mapper") }?.shared.snapshot();
         // SAFETY: the buffers as documented.
         unsafe { export_box(&map, min_m, max_m, signed, distances, states, capacity, info) }
     })
@@ -1009,7 +1009,7 @@ pub unsafe extern "C" fn edtmap_map_export_box(
 pub unsafe extern "C" fn edtmap_mapper_save(mapper: *const edtmap_mapper, path_: *const c_char) -> edtmap_status {
     guard("edtmap_mapper_save", || {
         // SAFETY: a mapper from this library or null.
-        let map = unsafe { handle(mapper, "mapper") }?.shared.snapshot()?;
+        let map = unsafe { handle(mapper, "mapper") }?.shared.snapshot();
         // SAFETY: a NUL-terminated string or null.
         edtmap::save_map(&map, unsafe { path(path_, "path") }?)?;
         Ok(())

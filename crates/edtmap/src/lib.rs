@@ -69,4 +69,4 @@ pub use edtmap_cpu as cpu;
 pub use error::MapError;
 pub use mapfile::{load_map, save_map};
 pub use mapper::{Cleared, FrameStats, Mapper, MapperParams};
-pub use shared::SharedMapper;
+pub use shared::{SharedMapper, Snapshot};

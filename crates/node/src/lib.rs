@@ -25,8 +25,9 @@ pub mod types;
 pub use services::{QueryLimits, MAX_BOX_VOXELS, MAX_QUERY_POINTS};
 
 use edtmap::config::{Config, Intrinsics, OccupiedScope, PoseType, SensorKind, ServiceMapping};
+use edtmap::cpu::CpuBackend;
 use edtmap::sensor::Frame;
-use edtmap::{GlobalMap, LocalVolume, MapError, Mapper};
+use edtmap::{GlobalMap, MapError, Mapper, SharedMapper};
 use edtmap_ros::msg::{CameraInfo, Message};
 use edtmap_ros::RosOptions;
 use live::{LiveFrames, Skipped};
@@ -38,7 +39,7 @@ use std::collections::BTreeMap;
 use std::net::{IpAddr, Ipv4Addr};
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
-use std::sync::{Arc, Condvar, Mutex, PoisonError, RwLock};
+use std::sync::{Arc, Condvar, Mutex, PoisonError};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 use types::Time;
@@ -57,18 +58,8 @@ pub enum NodeError {
     Dds(String),
 }
 
-/// The map as the queries see it: the state after a whole frame.
-#[derive(Debug, Clone)]
-pub struct Snapshot {
-    /// The map.
-    pub map: GlobalMap,
-    /// The latest frame's local volume, once a frame was mapped.
-    pub volume: Option<LocalVolume>,
-    /// Stamp of the latest frame integrated, nanoseconds (0 before any).
-    pub stamp_ns: i64,
-    /// Frames integrated.
-    pub frames: u64,
-}
+/// The map as the queries see it (the facade's [`edtmap::Snapshot`]).
+pub use edtmap::Snapshot;
 
 /// Counters of a running node.
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
@@ -96,7 +87,9 @@ struct Shared {
     /// and the fixed frame its pose is in.
     slot: Mutex<Option<(Frame, Option<CameraInfo>, String)>>,
     wake: Condvar,
-    snapshot: RwLock<Arc<Snapshot>>,
+    /// The mapper (locked by the mapping thread) and the snapshot the
+    /// services read.
+    mapper: SharedMapper<CpuBackend>,
     received: AtomicU64,
     integrated: AtomicU64,
     dropped: AtomicU64,
@@ -121,7 +114,7 @@ impl Shared {
     }
 
     fn snapshot(&self) -> Arc<Snapshot> {
-        self.snapshot.read().unwrap_or_else(PoisonError::into_inner).clone()
+        self.mapper.snapshot()
     }
 
     fn stats(&self) -> NodeStats {
@@ -385,12 +378,11 @@ pub fn start(config: &Config, mapper: Mapper) -> Result<NodeHandle, NodeError> {
         services::QueryLimits::of_budget(budget.limit_bytes()),
     )?;
 
-    let snapshot = Snapshot { map: mapper.map().clone(), volume: None, stamp_ns: 0, frames: 0 };
     let shared = Arc::new(Shared {
         stop: AtomicBool::new(false),
         slot: Mutex::new(None),
         wake: Condvar::new(),
-        snapshot: RwLock::new(Arc::new(snapshot)),
+        mapper: SharedMapper::new(mapper),
         received: AtomicU64::new(0),
         integrated: AtomicU64::new(0),
         dropped: AtomicU64::new(0),
@@ -420,7 +412,7 @@ pub fn start(config: &Config, mapper: Mapper) -> Result<NodeHandle, NodeError> {
     let camera = needs_camera_info.then(|| config.clone());
     let mapping = std::thread::Builder::new()
         .name("edtmap-mapping".into())
-        .spawn(move || mapping_loop(&s, mapper, outputs, rates, camera))
+        .spawn(move || mapping_loop(&s, outputs, rates, camera))
         .map_err(|e| NodeError::Dds(format!("mapping thread: {e}")))?;
     tracing::info!(
         "node {}edtmap on ROS 2 domain {domain}: {} on {}, poses from {}",
@@ -668,13 +660,7 @@ fn with_camera(
     Ok(())
 }
 
-fn mapping_loop(
-    shared: &Shared,
-    mut mapper: Mapper,
-    out: Outputs,
-    rates: Rates,
-    camera: Option<Config>,
-) -> Result<(), NodeError> {
+fn mapping_loop(shared: &Shared, out: Outputs, rates: Rates, camera: Option<Config>) -> Result<(), NodeError> {
     let (mut last_esdf, mut last_occ, mut last_slice, mut last_clear) = (None, None, None, None);
     let mut cleared_blocks = 0usize;
     let mut warned = false;
@@ -696,6 +682,7 @@ fn mapping_loop(
             }
         };
         let (frame, info, world) = frame;
+        let mut mapper = shared.mapper.lock()?;
         if let (Some(config), Some(info)) = (&camera, &info) {
             if let Err(reason) = with_camera(&mut mapper, config, info, shared.integrated.load(Relaxed), &mut warned) {
                 shared.skip(&Skipped { kind: "bad camera info", reason });
@@ -745,9 +732,8 @@ fn mapping_loop(
                 }
             }
         }
-        let volume = mapper.local_volume().copied();
-        let snapshot = Arc::new(Snapshot { map: mapper.map().clone(), volume, stamp_ns, frames });
-        *shared.snapshot.write().unwrap_or_else(PoisonError::into_inner) = snapshot.clone();
+        let snapshot = shared.mapper.publish(&mapper, stamp_ns, frames);
+        let volume = snapshot.volume;
         let header = types::Header { stamp: Time::from_ns(stamp_ns), frame_id: world.clone() };
         let now = Instant::now();
         let publish_failed = |what: &str, e: String| tracing::debug!("publishing {what}: {e}");

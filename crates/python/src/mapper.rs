@@ -14,7 +14,7 @@ use edtmap::query;
 use edtmap::sensor::{
     DepthData, DepthImage, Frame, LaserScan, LidarScan, Measurement, PointCloud, RangeLimits, Sensor,
 };
-use edtmap::{Backend, BackendChoice, FrameStats, GlobalMap, MapError, Mapper, PointState, SharedMapper};
+use edtmap::{Backend, BackendChoice, FrameStats, GlobalMap, MapError, Mapper, PointState, SharedMapper, Snapshot};
 use nalgebra::{Isometry3, Quaternion, Translation3};
 use numpy::{PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyOSError, PyRuntimeError, PyValueError};
@@ -75,8 +75,8 @@ impl PyMapper {
         self.shared.lock().map_err(map_err)
     }
 
-    fn map(&self) -> PyResult<Arc<GlobalMap>> {
-        self.shared.snapshot().map_err(map_err)
+    fn map(&self) -> PyResult<Arc<Snapshot>> {
+        Ok(self.shared.snapshot())
     }
 
     /// Integrates one frame without the GIL and publishes the new snapshot.
