@@ -441,7 +441,6 @@ fn mapper_on(
 fn param_failure(e: MapError) -> Failure {
     match e {
         MapError::Config { source: edtmap::CoreError::InvalidParam { field, value, reason }, .. } => {
-            let field = if field == "mode" { "exact" } else { field };
             Failure(edtmap_status::EDTMAP_CONFIG, format!("edtmap_params.{field} = {value}: {reason}"))
         }
         other => other.into(),

@@ -179,7 +179,6 @@ impl MapperParams {
         VOXEL_M.f64("voxel_size_m", self.voxel_size_m).map_err(in_occupancy)?;
         LOCAL_SIZE_M.all("local_size_m", &self.volume.size_m).map_err(in_occupancy)?;
         WORLD_M.opt("fixed_height_m", self.volume.fixed_height_m).map_err(in_occupancy)?;
-        edtmap_core::check_voxel_size(self.voxel_size_m).map_err(in_occupancy)?;
         self.occupancy.log_odds().map_err(in_occupancy)?;
         LocalVolume::centred(&self.volume, self.voxel_size_m, [0.0; 3]).map_err(in_occupancy)?;
         let margins =
