@@ -13,8 +13,8 @@
 //!   node_player RECORDING.mcap SENSOR_TOPIC DOMAIN [FRAMES]
 
 use edtmap_node::types::{
-    CameraInfo, DiagnosticArray, GetDistancesRequest, GetDistancesResponse, Image, LaserScan, Point, PointCloud2,
-    TfMessage, TransformStamped,
+    CameraInfo, Dds, DiagnosticArray, GetDistancesRequest, GetDistancesResponse, Image, LaserScanMsg, Point,
+    PointCloud2, TfMessage, TransformStamped,
 };
 use edtmap_ros::msg::Message;
 use ros2_client::dds::rustdds::DomainParticipantBuilder;
@@ -101,13 +101,13 @@ fn main() {
         .new_node(NodeName::new("/", "player").expect("name"), NodeOptions::new().enable_rosout(false))
         .expect("node");
     let parent = sensor_topic.rsplit_once('/').map_or("", |p| p.0);
-    let clouds = publisher::<PointCloud2>(&mut node, sensor_topic, "sensor_msgs", "PointCloud2");
-    let images = publisher::<Image>(&mut node, sensor_topic, "sensor_msgs", "Image");
-    let infos = publisher::<CameraInfo>(&mut node, &format!("{parent}/camera_info"), "sensor_msgs", "CameraInfo");
-    let scans = publisher::<LaserScan>(&mut node, sensor_topic, "sensor_msgs", "LaserScan");
+    let clouds = publisher::<Dds<PointCloud2>>(&mut node, sensor_topic, "sensor_msgs", "PointCloud2");
+    let images = publisher::<Dds<Image>>(&mut node, sensor_topic, "sensor_msgs", "Image");
+    let infos = publisher::<Dds<CameraInfo>>(&mut node, &format!("{parent}/camera_info"), "sensor_msgs", "CameraInfo");
+    let scans = publisher::<Dds<LaserScanMsg>>(&mut node, sensor_topic, "sensor_msgs", "LaserScan");
     let tf = publisher::<TfMessage>(&mut node, "/tf", "tf2_msgs", "TFMessage");
     let stats = subscription::<DiagnosticArray>(&mut node, "/edtmap/frame_stats", "diagnostic_msgs", "DiagnosticArray");
-    let esdf = subscription::<PointCloud2>(&mut node, "/edtmap/esdf_pointcloud", "sensor_msgs", "PointCloud2");
+    let esdf = subscription::<Dds<PointCloud2>>(&mut node, "/edtmap/esdf_pointcloud", "sensor_msgs", "PointCloud2");
 
     // The recording, grouped by frame: its /tf, then camera info and sensor message.
     let reader = edtmap_ros::mcap::McapReader::open(std::path::Path::new(path)).expect("recording");
@@ -168,10 +168,10 @@ fn main() {
 
     std::thread::sleep(Duration::from_secs(2));
     let publish = |m: &Message| match m.clone() {
-        Message::PointCloud2(c) => clouds.publish(c.into()).expect("cloud"),
-        Message::Image(i) => images.publish(i.into()).expect("image"),
-        Message::CameraInfo(i) => infos.publish(i.into()).expect("info"),
-        Message::LaserScan(s) => scans.publish(s.into()).expect("scan"),
+        Message::PointCloud2(c) => clouds.publish(Dds(c)).expect("cloud"),
+        Message::Image(i) => images.publish(Dds(i)).expect("image"),
+        Message::CameraInfo(i) => infos.publish(Dds(i)).expect("info"),
+        Message::LaserScan(s) => scans.publish(Dds(s)).expect("scan"),
         Message::Tf(ts) => {
             tf.publish(TfMessage { transforms: ts.iter().map(TransformStamped::from).collect() }).expect("tf")
         }
@@ -193,18 +193,16 @@ fn main() {
     for (stamp_ns, messages) in &frames {
         let sent = Instant::now();
         messages.iter().for_each(publish);
-        let want_sec = (stamp_ns.div_euclid(1_000_000_000)) as i32;
-        let want_ns = stamp_ns.rem_euclid(1_000_000_000) as u32;
         let (mut got_cloud, mut got_stats) = (false, false);
         while !(got_cloud && got_stats) && sent.elapsed() < Duration::from_secs(10) {
             while let Ok(Some((c, _))) = esdf.take() {
-                if c.header.stamp.sec == want_sec && c.header.stamp.nanosec == want_ns {
+                if c.0.header.stamp_ns == *stamp_ns {
                     latencies.push(sent.elapsed().as_secs_f64() * 1e3);
                     got_cloud = true;
                 }
             }
             while let Ok(Some((s, _))) = stats.take() {
-                if s.header.stamp.sec == want_sec && s.header.stamp.nanosec == want_ns {
+                if s.header.stamp_ns == *stamp_ns {
                     got_stats = true;
                     mapped += 1;
                     memory.push(value(&s, "map_bytes") + value(&s, "kept_bytes"));

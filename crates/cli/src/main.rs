@@ -14,6 +14,7 @@ mod record;
 mod report;
 mod run;
 mod scenes;
+mod sections;
 mod source;
 mod timing;
 

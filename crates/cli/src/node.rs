@@ -9,6 +9,7 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use edtmap::config::Config;
 use edtmap_node as node;
+use node::config::RosSection;
 
 /// Arguments of `edtmap node`.
 #[derive(Args, Debug, Clone)]
@@ -49,10 +50,13 @@ fn catch_signals() {
 }
 
 pub(crate) fn run(args: &NodeArgs) -> Result<()> {
-    let mut config = Config::load(&args.config)?;
+    let text = edtmap::config::read(&args.config)?;
+    let origin = args.config.display().to_string();
+    let config = Config::parse(&text, &origin)?;
+    let mut ros = RosSection::parse(&text, &origin)?;
     if let Some(save) = &args.save {
         edtmap_io::files::check_output(save)?;
-        config.ros.save_on_exit = Some(save.clone());
+        ros.save_on_exit = Some(save.clone());
     }
     if let Some(d) = args.duration_s {
         if !(d.is_finite() && d > 0.0) {
@@ -66,7 +70,7 @@ pub(crate) fn run(args: &NodeArgs) -> Result<()> {
     let mapper =
         node::mapper(&config, map, crate::memory::max_bytes()).with_context(|| args.config.display().to_string())?;
     catch_signals();
-    let handle = node::start(&config, mapper).with_context(|| args.config.display().to_string())?;
+    let handle = node::start(&config, &ros, mapper).with_context(|| args.config.display().to_string())?;
     let started = Instant::now();
     let mut last_report = Instant::now();
     let reason = loop {
@@ -106,20 +110,20 @@ pub(crate) fn run(args: &NodeArgs) -> Result<()> {
         stats.skipped,
         stats.requests
     );
-    if let Some(path) = &config.ros.save_on_exit {
+    if let Some(path) = &ros.save_on_exit {
         outln!("saved the map to {}", path.display());
     }
     if stats.integrated == 0 {
         bail!(
             "no frame was integrated in {:.1} s: check that {} carries {} and that poses come on {} (`ros2 topic list`, ROS_DOMAIN_ID, [ros] localhost_only)",
             started.elapsed().as_secs_f64(),
-            config.ros.sensor_topic,
+            ros.sensor_topic,
             match config.sensor.kind {
                 edtmap::config::SensorKind::Depth => "sensor_msgs/Image",
                 edtmap::config::SensorKind::Planar => "sensor_msgs/LaserScan",
                 _ => "sensor_msgs/PointCloud2",
             },
-            config.ros.pose_topic
+            ros.pose_topic
         );
     }
     Ok(())

@@ -41,9 +41,9 @@ const TF: &str = "/tf";
 /// config that replays them.
 pub(crate) fn record(args: &RecordArgs) -> Result<()> {
     let text = builtin_config(&args.scene).with_context(|| format!("unknown scene {:?}", args.scene))?;
-    let config = edtmap::config::Config::parse(text, &format!("built-in configs/{}.toml", args.scene))?;
+    let (config, sections) = crate::sections::parse(text, &format!("built-in configs/{}.toml", args.scene))?;
     let (sensor, _) = config.mapper_params()?;
-    let (scene, n) = build_scene(&args.scene, &config)?;
+    let (scene, n) = build_scene(&args.scene, sections.scene.as_ref())?;
     let frames = args.frames.unwrap_or(n);
     if frames == 0 {
         bail!("--frames must be at least 1");
@@ -99,14 +99,8 @@ fn frame_messages(scene: &Scene, sensor: &Sensor, i: usize) -> Result<Vec<(&'sta
     };
     let mut out = vec![(ODOM, Message::Odometry(pose.clone()), log_ns), (TF, Message::Tf(vec![pose]), log_ns)];
     if let Sensor::Depth(c) = sensor {
-        let info = CameraInfo {
-            header: header(stamp_ns, "sensor"),
-            height: c.height,
-            width: c.width,
-            distortion_model: "plumb_bob".into(),
-            d: vec![0.0; 5],
-            k: [c.fx, 0.0, c.cx, 0.0, c.fy, c.cy, 0.0, 0.0, 1.0],
-        };
+        let k = [c.fx, 0.0, c.cx, 0.0, c.fy, c.cy, 0.0, 0.0, 1.0];
+        let info = CameraInfo::pinhole(header(stamp_ns, "sensor"), c.width, c.height, k);
         out.push(("/camera/depth/camera_info", Message::CameraInfo(info), log_ns));
     }
     out.push((sensor_topic(sensor), sensor_message(sensor, &frame, stamp_ns)?, log_ns));

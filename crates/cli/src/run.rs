@@ -3,14 +3,16 @@
 
 use std::path::{Path, PathBuf};
 
+use crate::sections::{self, Sections};
 use anyhow::{bail, Context, Result};
 use clap::{Args, ValueEnum};
-use edtmap::config::{Config, ConstructionName, OnError};
+use edtmap::config::{Config, ConstructionName};
 use edtmap::cpu::CpuBackend;
 use edtmap::eval::{edt_errors, edt_extent, EdtErrors, OccupancyScores};
 use edtmap::region::Region;
 use edtmap::sensor::{Frame, Sensor};
 use edtmap::{Connectivity, FrameStats, IntegrationMode, Mapper, MapperParams};
+use edtmap_ros::config::OnError;
 use edtmap_sim::{Scene, SceneName};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::{json, Map};
@@ -115,15 +117,16 @@ pub(crate) enum ConstructionArg {
     Raycast,
 }
 
-/// Loads the configuration the arguments name, with its origin for messages.
-fn load_config(args: &RunArgs) -> Result<(Config, String)> {
-    let (mut config, origin) = match (&args.config, &args.scene) {
-        (Some(path), _) => (Config::load(path)?, path.display().to_string()),
+/// Loads the configuration the arguments name, with the CLI's sections
+/// and its origin for messages.
+fn load_config(args: &RunArgs) -> Result<(Config, Sections, String)> {
+    let ((mut config, sections), origin) = match (&args.config, &args.scene) {
+        (Some(path), _) => (sections::load(path)?, path.display().to_string()),
         (None, Some(scene)) => {
             let text = builtin_config(scene)
                 .with_context(|| format!("unknown scene {scene:?}: choose one of {}", scene_names()))?;
             (
-                Config::parse(text, &format!("built-in configs/{scene}.toml"))?,
+                sections::parse(text, &format!("built-in configs/{scene}.toml"))?,
                 format!("configs/{scene}.toml (built in)"),
             )
         }
@@ -154,7 +157,7 @@ fn load_config(args: &RunArgs) -> Result<(Config, String)> {
         config.global.planar = true;
         config.mapper_params().context("--planar")?;
     }
-    Ok((config, origin))
+    Ok((config, sections, origin))
 }
 
 fn scene_names() -> String {
@@ -211,7 +214,7 @@ pub(crate) fn execute(args: &RunArgs, progress: bool) -> Result<RunOutcome> {
     if let Some(warning) = setup.source.pose_warning() {
         tracing::warn!("{warning}");
     }
-    let slice = SliceHeight::choose(args.slice_height, setup.config.output.slice_height_m, &mapper);
+    let slice = SliceHeight::choose(args.slice_height, setup.sections.output.slice_height_m, &mapper);
     let header = report_header(args, &setup, &mapper, &slice, &replayed);
     let report_path = args.out.join(REPORT);
     write_json(&report_path, &report(header, &replayed.records))?;
@@ -221,7 +224,7 @@ pub(crate) fn execute(args: &RunArgs, progress: bool) -> Result<RunOutcome> {
         bail!("{}", nothing_integrated(&replayed.skipped, replayed.stopped.as_ref(), &report_path));
     }
     let pictures = write_outputs(args, &mapper, &slice, &replayed)?;
-    check_stopped(args, &setup.config, &replayed)?;
+    check_stopped(args, &setup.sections, &replayed)?;
     Ok(RunOutcome {
         frames: replayed.records,
         report_path,
@@ -234,6 +237,8 @@ pub(crate) fn execute(args: &RunArgs, progress: bool) -> Result<RunOutcome> {
 /// What a run maps and with what, settled before the mapper is built.
 struct Setup {
     config: Config,
+    /// The config's `[scene]`, `[output]`, `[dataset]`.
+    sections: Sections,
     /// Where the config came from, for messages and the report.
     origin: String,
     source: Source,
@@ -249,8 +254,8 @@ impl Setup {
     /// Loads the config, opens the scene or recording, and checks that the
     /// sensor fits the recording and the frame count fits both.
     fn new(args: &RunArgs) -> Result<Self> {
-        let (mut config, origin) = load_config(args)?;
-        let (source, name, default_frames) = open_source(args, &mut config, &origin)?;
+        let (mut config, sections, origin) = load_config(args)?;
+        let (source, name, default_frames) = open_source(args, &mut config, &sections, &origin)?;
         if args.eval && !matches!(source, Source::Scene(_)) {
             tracing::warn!("--eval: {name} is a recording: {RECORDING_EVAL}");
         }
@@ -262,24 +267,29 @@ impl Setup {
             check_kind(&source, &sensor, path, &origin)?;
         }
         let frames = frame_count(args, &name, default_frames)?;
-        Ok(Setup { config, origin, source, name, sensor, params, frames })
+        Ok(Setup { config, sections, origin, source, name, sensor, params, frames })
     }
 }
 
 /// The recording of `--dataset`, or else the scene of `--scene` or of the
 /// config's `[scene]`; with its name and its number of frames.
-fn open_source(args: &RunArgs, config: &mut Config, origin: &str) -> Result<(Source, String, usize)> {
+fn open_source(
+    args: &RunArgs,
+    config: &mut Config,
+    sections: &Sections,
+    origin: &str,
+) -> Result<(Source, String, usize)> {
     match &args.dataset {
         Some(path) => {
-            let source = Source::open_recording(path, config, origin)?;
+            let source = Source::open_recording(path, config, &sections.dataset, origin)?;
             let n = source.len().unwrap_or(0);
             Ok((source, path.display().to_string(), n))
         }
         None => {
-            let name = args.scene.clone().or_else(|| config.scene.as_ref().map(|s| s.name.clone()));
+            let name = args.scene.clone().or_else(|| sections.scene.as_ref().map(|s| s.name.clone()));
             let name =
                 name.with_context(|| format!("{origin} has no [scene] section: give --scene NAME or --dataset PATH"))?;
-            let (source, n) = Source::scene(&name, config)?;
+            let (source, n) = Source::scene(&name, sections.scene.as_ref())?;
             Ok((source, name, n))
         }
     }
@@ -422,7 +432,7 @@ fn stages(setup: &Setup, mapper: &CliMapper) -> serde_json::Value {
 /// Whether `failure` ends the run rather than skipping its frame.
 fn stops_the_run(failure: &Failure, setup: &Setup) -> bool {
     failure.kind != FailureKind::Frame
-        || setup.config.dataset.on_error == OnError::Stop
+        || setup.sections.dataset.on_error == OnError::Stop
         || matches!(setup.source, Source::Scene(_))
 }
 
@@ -528,12 +538,12 @@ fn write_outputs(args: &RunArgs, mapper: &CliMapper, slice: &SliceHeight, replay
 
 /// A run that stopped early fails, its outputs written; only damage that
 /// ends a recording under `on_error = "skip"` is a warning.
-fn check_stopped(args: &RunArgs, config: &Config, replayed: &Replayed) -> Result<()> {
+fn check_stopped(args: &RunArgs, sections: &Sections, replayed: &Replayed) -> Result<()> {
     let Some(failure) = &replayed.stopped else { return Ok(()) };
     let n = replayed.records.len();
     let plural = if n == 1 { "frame before it is" } else { "frames before it are" };
     let kept = format!("the {n} {plural} integrated and written to {}", args.out.display());
-    if failure.kind == FailureKind::Damage && config.dataset.on_error == OnError::Skip {
+    if failure.kind == FailureKind::Damage && sections.dataset.on_error == OnError::Skip {
         tracing::warn!("stopped early: {}; {kept}", failure.message);
         Ok(())
     } else {

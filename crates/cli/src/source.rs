@@ -7,8 +7,9 @@ use std::path::Path;
 use anyhow::{bail, Context, Result};
 use edtmap::config::Config;
 use edtmap::sensor::{Frame, Sensor};
+use edtmap_ros::config::DatasetSection;
 use edtmap_ros::recording::Recording;
-use edtmap_sim::{Scene, SceneName, SceneOptions};
+use edtmap_sim::{Scene, SceneName, SceneSection};
 
 /// A frame that did not come out, with where it was and why.
 #[derive(Debug, Clone)]
@@ -44,13 +45,18 @@ pub(crate) enum Source {
 
 impl Source {
     /// Opens the recording at `path` (see [`Recording::open`]).
-    pub(crate) fn open_recording(path: &Path, config: &mut Config, origin: &str) -> Result<Source> {
-        Ok(Source::Recording(Recording::open(path, config, origin)?))
+    pub(crate) fn open_recording(
+        path: &Path,
+        config: &mut Config,
+        dataset: &DatasetSection,
+        origin: &str,
+    ) -> Result<Source> {
+        Ok(Source::Recording(Recording::open(path, config, dataset, origin)?))
     }
 
     /// A scene by name, with the config's `[scene]` settings.
-    pub(crate) fn scene(name: &str, config: &Config) -> Result<(Source, usize)> {
-        let (scene, n) = build_scene(name, config)?;
+    pub(crate) fn scene(name: &str, section: Option<&SceneSection>) -> Result<(Source, usize)> {
+        let (scene, n) = build_scene(name, section)?;
         Ok((Source::Scene(Box::new(scene)), n))
     }
 
@@ -106,17 +112,10 @@ impl Source {
 
 /// A built-in scene by name, with the config's `[scene]` settings, and its
 /// number of frames.
-pub(crate) fn build_scene(name: &str, config: &Config) -> Result<(Scene, usize)> {
+pub(crate) fn build_scene(name: &str, section: Option<&SceneSection>) -> Result<(Scene, usize)> {
     let scene_name: SceneName = name.parse().map_err(|e| anyhow::anyhow!("{e}"))?;
-    let section = config.scene.clone().unwrap_or_else(|| edtmap::config::SceneSection {
-        name: name.into(),
-        frames: None,
-        seed: 7,
-        range_noise_m: 0.0,
-        dropout: 0.0,
-    });
-    let options = SceneOptions { seed: section.seed, range_noise_m: section.range_noise_m, dropout: section.dropout };
-    let scene = Scene::new(scene_name, &options).context("[scene]")?;
+    let section = section.cloned().unwrap_or_else(|| SceneSection::named(name));
+    let scene = Scene::new(scene_name, &section.options().context("[scene]")?).context("[scene]")?;
     let n = section.frames.unwrap_or_else(|| scene.default_frames());
     Ok((scene, n))
 }

@@ -8,8 +8,8 @@ mod common;
 
 use common::{bin, finish, run_in};
 use edtmap_node::types::{
-    CameraInfo, DiagnosticArray, GetDistancesRequest, GetDistancesResponse, GetEsdfBoxRequest, GetEsdfBoxResponse,
-    Image, LaserScan, Point, PointCloud2, TfMessage, TransformStamped,
+    CameraInfo, Dds, DiagnosticArray, GetDistancesRequest, GetDistancesResponse, GetEsdfBoxRequest, GetEsdfBoxResponse,
+    Image, LaserScanMsg, Point, PointCloud2, TfMessage, TransformStamped,
 };
 use edtmap_ros::msg::Message;
 use ros2_client::dds::rustdds::DomainParticipantBuilder;
@@ -140,19 +140,19 @@ fn drive(d: &Path, domain: u16, frames: u64, sensor_topic: &str) {
         None => ("/".to_string(), sensor_name.to_string()),
     };
     let t = topic(&mut node, &ns, &base, "sensor_msgs", "PointCloud2");
-    let clouds = node.create_publisher::<PointCloud2>(&t, Some(qos())).expect("publisher");
+    let clouds = node.create_publisher::<Dds<PointCloud2>>(&t, Some(qos())).expect("publisher");
     let t = topic(&mut node, &ns, &base, "sensor_msgs", "Image");
-    let images = node.create_publisher::<Image>(&t, Some(qos())).expect("publisher");
+    let images = node.create_publisher::<Dds<Image>>(&t, Some(qos())).expect("publisher");
     let t = topic(&mut node, &ns, "camera_info", "sensor_msgs", "CameraInfo");
-    let infos = node.create_publisher::<CameraInfo>(&t, Some(qos())).expect("publisher");
+    let infos = node.create_publisher::<Dds<CameraInfo>>(&t, Some(qos())).expect("publisher");
     let t = topic(&mut node, &ns, &base, "sensor_msgs", "LaserScan");
-    let scans = node.create_publisher::<LaserScan>(&t, Some(qos())).expect("publisher");
+    let scans = node.create_publisher::<Dds<LaserScanMsg>>(&t, Some(qos())).expect("publisher");
     let t = topic(&mut node, "/", "tf", "tf2_msgs", "TFMessage");
     let tf = node.create_publisher::<TfMessage>(&t, Some(qos())).expect("publisher");
     let t = topic(&mut node, "/edtmap", "frame_stats", "diagnostic_msgs", "DiagnosticArray");
     let stats = node.create_subscription::<DiagnosticArray>(&t, Some(qos())).expect("subscription");
     let t = topic(&mut node, "/edtmap", "esdf_pointcloud", "sensor_msgs", "PointCloud2");
-    let esdf = node.create_subscription::<PointCloud2>(&t, Some(qos())).expect("subscription");
+    let esdf = node.create_subscription::<Dds<PointCloud2>>(&t, Some(qos())).expect("subscription");
     let srv = |base: &str| Name::new("/edtmap", base).expect("name");
     let distances = node
         .create_client::<GetDistancesRequest, GetDistancesResponse>(
@@ -204,10 +204,10 @@ fn drive(d: &Path, domain: u16, frames: u64, sensor_topic: &str) {
         }
     }
     let publish = |m: &Message| match m.clone() {
-        Message::PointCloud2(c) => clouds.publish(c.into()).expect("cloud"),
-        Message::Image(i) => images.publish(i.into()).expect("image"),
-        Message::CameraInfo(i) => infos.publish(i.into()).expect("camera info"),
-        Message::LaserScan(s) => scans.publish(s.into()).expect("scan"),
+        Message::PointCloud2(c) => clouds.publish(Dds(c)).expect("cloud"),
+        Message::Image(i) => images.publish(Dds(i)).expect("image"),
+        Message::CameraInfo(i) => infos.publish(Dds(i)).expect("camera info"),
+        Message::LaserScan(s) => scans.publish(Dds(s)).expect("scan"),
         other => panic!("unexpected {}", other.type_name()),
     };
     assert_eq!(by_frame.len() as u64, frames);
@@ -254,8 +254,7 @@ fn drive(d: &Path, domain: u16, frames: u64, sensor_topic: &str) {
     // clouds come faster than it drains them. Wait a while for it; the
     // cloud checked is the last one that came, against the replay of the
     // frames up to the one it carries the stamp of.
-    let stamp_ns = |c: &PointCloud2| i64::from(c.header.stamp.sec) * 1_000_000_000 + i64::from(c.header.stamp.nanosec);
-    let frame_of = |c: &PointCloud2| stamps.iter().position(|&s| (s - stamp_ns(c)).abs() < 1000);
+    let frame_of = |c: &Dds<PointCloud2>| stamps.iter().position(|&s| (s - c.0.header.stamp_ns).abs() < 1000);
     let last = stamps.len() - 1;
     let until = std::time::Instant::now() + Duration::from_secs(5);
     while std::time::Instant::now() < until && last_esdf.as_ref().and_then(frame_of) != Some(last) {
@@ -295,7 +294,7 @@ fn drive(d: &Path, domain: u16, frames: u64, sensor_topic: &str) {
             &partial
         }
     };
-    let values: Vec<f32> = cloud.data.chunks(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
+    let values: Vec<f32> = cloud.0.data.chunks(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
     // Points near the mapped voxels (off their centres, so gradients
     // interpolate), and some far from anything.
     let mut query: Vec<Point> = values
@@ -370,8 +369,8 @@ fn drive(d: &Path, domain: u16, frames: u64, sensor_topic: &str) {
     assert_eq!(resp.gradients.len(), 3 * want.distance_m.len());
 
     // The ESDF cloud: every point's distance is the map's at that voxel.
-    assert_eq!(cloud.point_step, 16);
-    assert!(cloud.width > 100, "{} points", cloud.width);
+    assert_eq!(cloud.0.point_step, 16);
+    assert!(cloud.0.width > 100, "{} points", cloud.0.width);
     for p in values.chunks(4) {
         let at = [f64::from(p[0]), f64::from(p[1]), f64::from(p[2])];
         let v = edtmap::VoxelIndex::containing(at, map.voxel_size_m()).expect("finite");
@@ -502,7 +501,7 @@ fn flood(d: &Path, domain: u16) {
             &qos(),
         )
         .expect("topic");
-    let points = node.create_publisher::<PointCloud2>(&t, Some(qos())).expect("publisher");
+    let points = node.create_publisher::<Dds<PointCloud2>>(&t, Some(qos())).expect("publisher");
     let t = node
         .create_topic(&Name::new("/", "tf").expect("name"), MessageTypeName::new("tf2_msgs", "TFMessage"), &qos())
         .expect("topic");
@@ -530,9 +529,8 @@ fn flood(d: &Path, domain: u16) {
                 tf.publish(TfMessage { transforms: ts.iter().map(TransformStamped::from).collect() }).expect("tf")
             }
             Message::PointCloud2(c) => {
-                let c: PointCloud2 = c.into();
                 last_cloud = Some(c.clone());
-                points.publish(c).expect("cloud");
+                points.publish(Dds(c)).expect("cloud");
             }
             _ => {}
         }
@@ -548,7 +546,7 @@ fn flood(d: &Path, domain: u16) {
     let mut elsewhere = good;
     elsewhere.header.frame_id = "no_such_frame".into();
     for c in [bad_step, truncated, no_fields, elsewhere] {
-        points.publish(c).expect("cloud");
+        points.publish(Dds(c)).expect("cloud");
         std::thread::sleep(Duration::from_millis(50));
     }
 }

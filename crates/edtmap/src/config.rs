@@ -18,31 +18,29 @@
 //! ```
 //! The files under `configs/` document every field.
 
-mod dataset;
 mod limits;
 mod memory;
-mod ros;
 mod sensor;
 
-pub use dataset::{DatasetSection, IntrinsicsSource, OnError, RECORDING_MAX_POSE_GAP_S};
-
+pub use limits::{Limit, DEPTH_SCALE_M, OFFSET_M, POSE_GAP_S, WORLD_M};
 pub use memory::MemorySection;
-pub use ros::{Intrinsics, OccupiedScope, PoseType, RosSection, ServiceMapping};
 pub use sensor::{CameraFields, ConstructionName, LidarFields, SensorKind, SensorSection};
 
 use crate::{MapError, MapperParams};
 use edtmap_core::sensor::Sensor;
 use edtmap_core::{EdtParams, GlobalParams, OccupancyParams, VolumeParams};
+use serde::de::{DeserializeOwned, IgnoredAny};
 use serde::Deserialize;
 use std::path::Path;
 
-/// A whole configuration file.
+/// A whole configuration file, as the library reads it: the mapper's
+/// sections. The sections the applications read from the same file
+/// (`[scene]`: the built-in scenes, `[output]`: the CLI's pictures,
+/// `[dataset]`: recordings, `[ros]`: the live node) are accepted here and
+/// left to them; each parses its own with [`sections`].
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Config {
-    /// The built-in scene to replay, for `edtmap run --scene`.
-    #[serde(default)]
-    pub scene: Option<SceneSection>,
     /// The sensor.
     pub sensor: SensorSection,
     /// Voxels, local volume and log-odds fusion.
@@ -53,42 +51,17 @@ pub struct Config {
     /// Global EDT: cutoff, connectivity, integration mode, forbidden zones.
     #[serde(default)]
     pub global: GlobalParams,
-    /// Pictures and reports.
-    #[serde(default)]
-    pub output: OutputSection,
-    /// Recordings replayed with `edtmap run --dataset`.
-    #[serde(default)]
-    pub dataset: DatasetSection,
     /// The memory budget.
     #[serde(default)]
     pub memory: MemorySection,
-    /// The live ROS 2 node (`edtmap node`).
     #[serde(default)]
-    pub ros: RosSection,
-}
-
-/// `[scene]`: which built-in scene and how to simulate it.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct SceneSection {
-    /// Scene name (`uav_pillars`, `ugv_corridor`, `room`, `planar`).
-    pub name: String,
-    /// Frames to replay; the scene's own length when absent.
+    scene: IgnoredAny,
     #[serde(default)]
-    pub frames: Option<usize>,
-    /// Seed of the layout and the noise.
-    #[serde(default = "default_seed")]
-    pub seed: u64,
-    /// Standard deviation of Gaussian range noise, metres.
+    output: IgnoredAny,
     #[serde(default)]
-    pub range_noise_m: f64,
-    /// Probability that a return is dropped.
+    dataset: IgnoredAny,
     #[serde(default)]
-    pub dropout: f64,
-}
-
-fn default_seed() -> u64 {
-    7
+    ros: IgnoredAny,
 }
 
 /// `[occupancy]`: voxels, the local volume and log-odds fusion.
@@ -112,14 +85,17 @@ fn default_local_size() -> [f64; 3] {
     VolumeParams::default().size_m
 }
 
-/// `[output]`: pictures.
-#[derive(Debug, Clone, PartialEq, Default, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct OutputSection {
-    /// Height of the pictured horizontal slices, metres (default: the
-    /// layer of the last local volume with the most observed voxels).
-    #[serde(default)]
-    pub slice_height_m: Option<f64>,
+/// The text of the configuration file `path` (UTF-8, of a sane size).
+pub fn read(path: &Path) -> Result<String, MapError> {
+    Ok(edtmap_io::files::read_text(path)?)
+}
+
+/// The sections of a configuration's `text` that an application reads, as
+/// the struct `A` lists them (each with `deny_unknown_fields`; `A` itself
+/// without, as the file holds the mapper's and other applications'
+/// sections too). `origin` names the text in errors, which give the line.
+pub fn sections<A: DeserializeOwned>(text: &str, origin: &str) -> Result<A, MapError> {
+    toml::from_str(text).map_err(|e| MapError::ConfigFile { path: origin.to_string(), message: e.to_string() })
 }
 
 impl Config {
@@ -133,14 +109,19 @@ impl Config {
 
     /// Reads and parses a configuration file.
     pub fn load(path: &Path) -> Result<Config, MapError> {
-        let text = edtmap_io::files::read_text(path)?;
-        Config::parse(&text, &path.display().to_string())
+        Ok(Config::load_with::<IgnoredAny>(path)?.0)
+    }
+
+    /// Reads a configuration file and parses it twice: as the library's
+    /// [`Config`] and as the application's sections `A` (see [`sections`]).
+    pub fn load_with<A: DeserializeOwned>(path: &Path) -> Result<(Config, A), MapError> {
+        let (text, origin) = (read(path)?, path.display().to_string());
+        Ok((Config::parse(&text, &origin)?, sections(&text, &origin)?))
     }
 
     /// The sensor and mapper parameters, validated: every number in its
     /// range, then the stages' own checks ([`MapperParams::validate`]).
     pub fn mapper_params(&self) -> Result<(Sensor, MapperParams), MapError> {
-        self.check_limits()?;
         let occ = &self.occupancy;
         let (sensor, ogm) = self.sensor.checked().map_err(|source| MapError::Config { section: "sensor", source })?;
         let params = MapperParams {
@@ -154,26 +135,5 @@ impl Config {
         };
         params.validate()?;
         Ok((sensor, params))
-    }
-
-    /// How to open the folder recording `dir` (depth scale, the sensor's
-    /// range, the camera and whose intrinsics win, the trajectory relative
-    /// to `dir`, the pose gap), from `[dataset]` and `[sensor]`.
-    pub fn dataset_options(&self, dir: &Path) -> Result<edtmap_io::dataset::DatasetOptions, MapError> {
-        let (sensor, _) = self.mapper_params()?;
-        let range = match sensor {
-            Sensor::Depth(c) => c.range,
-            Sensor::Lidar(l) => l.range,
-            Sensor::Points(r) => r,
-            Sensor::Planar => edtmap_core::sensor::RangeLimits { min_m: 0.0, max_m: f32::MAX },
-        };
-        Ok(edtmap_io::dataset::DatasetOptions {
-            depth_scale_m: self.dataset.depth_scale_m,
-            range,
-            intrinsics: self.sensor.camera.intrinsics(),
-            folder_intrinsics: self.dataset.intrinsics == IntrinsicsSource::Recording,
-            trajectory: self.dataset.trajectory.as_ref().map(|t| dir.join(t)),
-            max_pose_gap_s: self.dataset.max_pose_gap_s,
-        })
     }
 }

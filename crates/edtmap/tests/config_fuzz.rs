@@ -77,10 +77,17 @@ fn mutate(text: &str, rng: &mut Lcg) -> String {
     lines.join("\n")
 }
 
+/// `[scene]`, which the CLI reads.
+#[derive(serde::Deserialize)]
+struct SceneFile {
+    scene: Option<edtmap_sim::SceneSection>,
+}
+
 /// A scene to simulate frames from: the config's own, else one whose
 /// sensor kind fits.
-fn scene_for(config: &Config) -> SceneName {
-    if let Some(s) = config.scene.as_ref().and_then(|s| s.name.parse().ok()) {
+fn scene_for(config: &Config, text: &str) -> SceneName {
+    let named = edtmap::config::sections::<SceneFile>(text, "fuzz.toml").ok().and_then(|f| f.scene);
+    if let Some(s) = named.and_then(|s| s.name.parse().ok()) {
         return s;
     }
     match config.sensor.kind {
@@ -96,7 +103,7 @@ fn run_case(text: &str, scenes: &mut std::collections::HashMap<SceneName, Scene>
     let (sensor, mut params) = config.mapper_params().map_err(|e| e.to_string())?;
     params.max_memory_bytes = Some(BUDGET_BYTES);
     let mut mapper = Mapper::new(sensor.clone(), params).map_err(|e| e.to_string())?;
-    let name = scene_for(&config);
+    let name = scene_for(&config, text);
     let scene = scenes.entry(name).or_insert_with(|| Scene::new(name, &SceneOptions::default()).expect("scene"));
     let mut done = 0;
     for i in 0..3 {

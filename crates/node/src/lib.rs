@@ -16,6 +16,7 @@
 //! time) is skipped and counted by kind, with a warning the first time of
 //! each kind; nothing mapped is lost.
 
+pub mod config;
 mod live;
 mod outputs;
 mod rpc;
@@ -24,7 +25,8 @@ pub mod types;
 
 pub use services::{QueryLimits, MAX_BOX_VOXELS, MAX_QUERY_POINTS};
 
-use edtmap::config::{Config, Intrinsics, OccupiedScope, PoseType, SensorKind, ServiceMapping};
+use config::{Intrinsics, OccupiedScope, PoseType, RosSection, ServiceMapping};
+use edtmap::config::{Config, SensorKind};
 use edtmap::cpu::CpuBackend;
 use edtmap::sensor::Frame;
 use edtmap::{GlobalMap, MapError, Mapper, SharedMapper};
@@ -42,7 +44,7 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
 use std::sync::{Arc, Condvar, Mutex, PoisonError};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
-use types::Time;
+use types::{Dds, Time};
 
 /// Why the node could not start or stopped with an error.
 #[derive(Debug, thiserror::Error)]
@@ -197,8 +199,7 @@ pub(crate) fn own_name(namespace: &str, base: &str) -> Result<Name, NodeError> {
 }
 
 /// The recording vocabulary of `[ros]`, for the pose logic both share.
-fn ros_options(config: &Config) -> Result<RosOptions, NodeError> {
-    let r = &config.ros;
+fn ros_options(r: &RosSection) -> Result<RosOptions, NodeError> {
     r.validate().map_err(|e| NodeError::Config(e.to_string()))?;
     Ok(RosOptions {
         sensor_topic: r.sensor_topic.clone(),
@@ -217,9 +218,9 @@ fn ros_options(config: &Config) -> Result<RosOptions, NodeError> {
 /// (one per node: the size of the variants does not matter).
 #[allow(clippy::large_enum_variant)]
 enum SensorSub {
-    Cloud(Subscription<types::PointCloud2>),
-    Image(Subscription<types::Image>, Option<Subscription<types::CameraInfo>>),
-    Scan(Subscription<types::LaserScan>),
+    Cloud(Subscription<Dds<types::PointCloud2>>),
+    Image(Subscription<Dds<types::Image>>, Option<Subscription<Dds<types::CameraInfo>>>),
+    Scan(Subscription<Dds<types::LaserScanMsg>>),
 }
 
 /// The pose subscription(s).
@@ -233,9 +234,9 @@ enum PoseSub {
 
 /// The output publishers.
 struct Outputs {
-    esdf: Publisher<types::PointCloud2>,
-    occupied: Publisher<types::PointCloud2>,
-    slice: Publisher<types::PointCloud2>,
+    esdf: Publisher<Dds<types::PointCloud2>>,
+    occupied: Publisher<Dds<types::PointCloud2>>,
+    slice: Publisher<Dds<types::PointCloud2>>,
     grid: Publisher<types::OccupancyGrid>,
     stats: Publisher<types::DiagnosticArray>,
 }
@@ -256,14 +257,14 @@ pub fn mapper(config: &Config, map: Option<GlobalMap>, max_memory_bytes: Option<
     })
 }
 
-/// Starts the node of `config`'s `[ros]` section, mapping with `mapper`
-/// (see [`mapper`]).
-pub fn start(config: &Config, mapper: Mapper) -> Result<NodeHandle, NodeError> {
-    let opts = ros_options(config)?;
-    if config.ros.map_clearing_radius_m > 0.0 && mapper.params().global.mode != edtmap::IntegrationMode::Exact {
+/// Starts the node `ros` describes, mapping with `mapper` (see
+/// [`mapper`]) made from `config`.
+pub fn start(config: &Config, ros: &RosSection, mapper: Mapper) -> Result<NodeHandle, NodeError> {
+    let opts = ros_options(ros)?;
+    if ros.map_clearing_radius_m > 0.0 && mapper.params().global.mode != edtmap::IntegrationMode::Exact {
         return Err(NodeError::Config("map_clearing_radius_m needs [global] mode = \"exact\" (the default)".into()));
     }
-    let r = &config.ros;
+    let r = ros;
     let domain: u16 = match std::env::var("ROS_DOMAIN_ID") {
         Ok(v) if !v.trim().is_empty() => v
             .trim()
@@ -408,7 +409,7 @@ pub fn start(config: &Config, mapper: Mapper) -> Result<NodeHandle, NodeError> {
             .map_err(|e| NodeError::Dds(format!("service thread: {e}")))?,
     );
     let s = shared.clone();
-    let rates = Rates::of(config);
+    let rates = Rates::of(ros);
     let camera = needs_camera_info.then(|| config.clone());
     let mapping = std::thread::Builder::new()
         .name("edtmap-mapping".into())
@@ -549,13 +550,13 @@ fn input_loop(
             }
         };
         match &sensor {
-            SensorSub::Cloud(s) => drain(s, shared, |m| sensor_msg(Message::PointCloud2(m.into()), &mut live)),
-            SensorSub::Scan(s) => drain(s, shared, |m| sensor_msg(Message::LaserScan(m.into()), &mut live)),
+            SensorSub::Cloud(s) => drain(s, shared, |m| sensor_msg(Message::PointCloud2(m.0), &mut live)),
+            SensorSub::Scan(s) => drain(s, shared, |m| sensor_msg(Message::LaserScan(m.0), &mut live)),
             SensorSub::Image(s, info) => {
                 if let Some(i) = info {
-                    drain(i, shared, |m| live.set_camera(m.into()));
+                    drain(i, shared, |m| live.set_camera(m.0));
                 }
-                drain(s, shared, |m| sensor_msg(Message::Image(m.into()), &mut live));
+                drain(s, shared, |m| sensor_msg(Message::Image(m.0), &mut live));
             }
         }
         for ready in live.ready(now) {
@@ -592,9 +593,8 @@ struct Rates {
 }
 
 impl Rates {
-    fn of(config: &Config) -> Self {
+    fn of(r: &RosSection) -> Self {
         let period = |hz: f64| (hz > 0.0).then(|| Duration::from_secs_f64(1.0 / hz));
-        let r = &config.ros;
         let clearing = (r.map_clearing_radius_m > 0.0)
             .then(|| (r.map_clearing_radius_m, Duration::from_secs_f64(r.map_clearing_period_s)));
         let clearing_save = r.map_clearing_save.clone();
@@ -734,26 +734,27 @@ fn mapping_loop(shared: &Shared, out: Outputs, rates: Rates, camera: Option<Conf
         }
         let snapshot = shared.mapper.publish(&mapper, stamp_ns, frames);
         let volume = snapshot.volume;
-        let header = types::Header { stamp: Time::from_ns(stamp_ns), frame_id: world.clone() };
+        let header = types::Header { stamp_ns, frame_id: world.clone() };
         let now = Instant::now();
         let publish_failed = |what: &str, e: String| tracing::debug!("publishing {what}: {e}");
         if let Some(volume) = &volume {
             if due(rates.esdf, &mut last_esdf, now) {
                 if let Err(e) =
-                    out.esdf.publish(outputs::esdf_cloud(&snapshot.map, volume, rates.esdf_z_m, header.clone()))
+                    out.esdf.publish(Dds(outputs::esdf_cloud(&snapshot.map, volume, rates.esdf_z_m, header.clone())))
                 {
                     publish_failed("esdf_pointcloud", format!("{e:?}"));
                 }
             }
             if due(rates.occupied, &mut last_occ, now) {
                 let scope = (rates.scope == OccupiedScope::Window).then_some(volume);
-                if let Err(e) = out.occupied.publish(outputs::occupied_cloud(&snapshot.map, scope, header.clone())) {
+                if let Err(e) = out.occupied.publish(Dds(outputs::occupied_cloud(&snapshot.map, scope, header.clone())))
+                {
                     publish_failed("occupied_pointcloud", format!("{e:?}"));
                 }
             }
             if due(rates.slice, &mut last_slice, now) {
                 let (cloud, grid) = outputs::slice(&snapshot.map, volume, rates.slice_height_m, header.clone());
-                if let Err(e) = out.slice.publish(cloud) {
+                if let Err(e) = out.slice.publish(Dds(cloud)) {
                     publish_failed("distance_slice", format!("{e:?}"));
                 }
                 if let Err(e) = out.grid.publish(grid) {
@@ -781,7 +782,9 @@ fn mapping_loop(shared: &Shared, out: Outputs, rates: Rates, camera: Option<Conf
         values.extend(st.skipped.iter().map(|(k, v)| ("skipped_kind", format!("{k}: {v}"))));
         let level = u8::from(st.dropped + skipped > 0);
         let message = format!("frame {frames} in {:.1} ms", stats.total_ms);
-        if let Err(e) = out.stats.publish(outputs::frame_stats(header.stamp, &world, level, message, values)) {
+        if let Err(e) =
+            out.stats.publish(outputs::frame_stats(Time::from_ns(header.stamp_ns), &world, level, message, values))
+        {
             publish_failed("frame_stats", format!("{e:?}"));
         }
     }

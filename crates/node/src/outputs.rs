@@ -144,8 +144,13 @@ pub(crate) fn slice(
         },
         ..Transform::default()
     };
-    let info =
-        MapMetaData { map_load_time: header.stamp, resolution: vs as f32, width: nx as u32, height: ny as u32, origin };
+    let info = MapMetaData {
+        map_load_time: Time::from_ns(header.stamp_ns),
+        resolution: vs as f32,
+        width: nx as u32,
+        height: ny as u32,
+        origin,
+    };
     (cloud(header.clone(), &["x", "y", "z", "distance"], &flat), OccupancyGrid { header, info, data: cells })
 }
 
@@ -159,7 +164,7 @@ pub(crate) fn frame_stats(
 ) -> DiagnosticArray {
     let values = values.into_iter().map(|(k, v)| KeyValue { key: k.into(), value: v }).collect();
     let status = DiagnosticStatus { level, name: "edtmap".into(), message, hardware_id: frame_id.into(), values };
-    DiagnosticArray { header: Header { stamp, frame_id: frame_id.into() }, status: vec![status] }
+    DiagnosticArray { header: Header { stamp_ns: stamp.ns(), frame_id: frame_id.into() }, status: vec![status] }
 }
 
 #[cfg(test)]

@@ -1,12 +1,16 @@
-//! ROS 2 message and service types as DDS carries them: one struct per
-//! IDL type, fields in IDL order (CDR is positional), serialized by
-//! `ros2-client`'s CDR serde. Sensor and pose messages convert into the
-//! recordings' [`edtmap_ros::msg`] types, so a live message meets the same decoding
-//! (`PointCloud2::xyz`, `Image::depth`, `LaserScanMsg::scan`) and the same
-//! errors as a recorded one.
+//! ROS 2 message and service types as DDS carries them, serialized by
+//! `ros2-client`'s CDR serde. The sensor messages are the recordings' own
+//! ([`edtmap_ros::msg`], wrapped in [`Dds`]), so a live message meets the
+//! same decoding (`PointCloud2::xyz`, `Image::depth`, `LaserScanMsg::scan`)
+//! and the same errors as a recorded one. The pose, map, diagnostic and
+//! service types are here: one struct per IDL type, fields in IDL order
+//! (CDR is positional); pose messages convert into the recordings'
+//! `StampedTransform`.
 
 use edtmap_ros::msg;
+pub use edtmap_ros::msg::{CameraInfo, Header, Image, LaserScanMsg, PointCloud2, PointField, Time};
 use nalgebra::Isometry3;
+use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 
 /// Marks a type `ros2-client` may publish, take and serve.
@@ -14,307 +18,14 @@ macro_rules! messages {
     ($($t:ty),*) => { $(impl ros2_client::Message for $t {})* };
 }
 
-/// `builtin_interfaces/Time`.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
-pub struct Time {
-    /// Seconds.
-    pub sec: i32,
-    /// Nanoseconds within the second.
-    pub nanosec: u32,
-}
-
-impl Time {
-    /// From nanoseconds since the epoch.
-    pub fn from_ns(ns: i64) -> Self {
-        Time { sec: ns.div_euclid(1_000_000_000) as i32, nanosec: ns.rem_euclid(1_000_000_000) as u32 }
-    }
-
-    /// Nanoseconds since the epoch.
-    pub fn ns(&self) -> i64 {
-        i64::from(self.sec) * 1_000_000_000 + i64::from(self.nanosec)
-    }
-}
-
-/// `std_msgs/Header`.
+/// A message type of the recordings ([`edtmap_ros::msg`]: the sensor
+/// messages, which derive serde in ROS 2 IDL order) as `ros2-client`
+/// publishes and takes it: the same bytes, the type marked as a message.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
-pub struct Header {
-    /// Stamp.
-    pub stamp: Time,
-    /// Frame.
-    pub frame_id: String,
-}
+#[serde(transparent)]
+pub struct Dds<T>(pub T);
 
-impl From<Header> for msg::Header {
-    fn from(h: Header) -> Self {
-        msg::Header { stamp_ns: h.stamp.ns(), frame_id: h.frame_id }
-    }
-}
-
-impl From<msg::Header> for Header {
-    fn from(h: msg::Header) -> Self {
-        Header { stamp: Time::from_ns(h.stamp_ns), frame_id: h.frame_id }
-    }
-}
-
-/// `sensor_msgs/PointField`.
-#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
-pub struct PointField {
-    /// Name.
-    pub name: String,
-    /// Byte offset in a point.
-    pub offset: u32,
-    /// Type code (7: float32).
-    pub datatype: u8,
-    /// Elements.
-    pub count: u32,
-}
-
-/// `sensor_msgs/PointCloud2`.
-#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
-pub struct PointCloud2 {
-    /// Stamp and frame.
-    pub header: Header,
-    /// Rows.
-    pub height: u32,
-    /// Points per row.
-    pub width: u32,
-    /// Fields of a point.
-    pub fields: Vec<PointField>,
-    /// Byte order of `data`.
-    pub is_bigendian: bool,
-    /// Bytes per point.
-    pub point_step: u32,
-    /// Bytes per row.
-    pub row_step: u32,
-    /// The points.
-    #[serde(with = "serde_bytes")]
-    pub data: Vec<u8>,
-    /// Whether every point is finite.
-    pub is_dense: bool,
-}
-
-impl From<PointCloud2> for msg::PointCloud2 {
-    fn from(m: PointCloud2) -> Self {
-        let fields = m
-            .fields
-            .into_iter()
-            .map(|f| msg::PointField { name: f.name, offset: f.offset, datatype: f.datatype, count: f.count })
-            .collect();
-        msg::PointCloud2 {
-            header: m.header.into(),
-            height: m.height,
-            width: m.width,
-            fields,
-            is_bigendian: m.is_bigendian,
-            point_step: m.point_step,
-            row_step: m.row_step,
-            data: m.data,
-            is_dense: m.is_dense,
-        }
-    }
-}
-
-impl From<msg::PointCloud2> for PointCloud2 {
-    fn from(m: msg::PointCloud2) -> Self {
-        let fields = m
-            .fields
-            .into_iter()
-            .map(|f| PointField { name: f.name, offset: f.offset, datatype: f.datatype, count: f.count })
-            .collect();
-        PointCloud2 {
-            header: m.header.into(),
-            height: m.height,
-            width: m.width,
-            fields,
-            is_bigendian: m.is_bigendian,
-            point_step: m.point_step,
-            row_step: m.row_step,
-            data: m.data,
-            is_dense: m.is_dense,
-        }
-    }
-}
-
-/// `sensor_msgs/Image`.
-#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
-pub struct Image {
-    /// Stamp and frame.
-    pub header: Header,
-    /// Rows.
-    pub height: u32,
-    /// Columns.
-    pub width: u32,
-    /// Pixel encoding (`16UC1`, `32FC1`, ...).
-    pub encoding: String,
-    /// Byte order of multi-byte pixels.
-    pub is_bigendian: u8,
-    /// Bytes per row.
-    pub step: u32,
-    /// Pixels.
-    #[serde(with = "serde_bytes")]
-    pub data: Vec<u8>,
-}
-
-impl From<Image> for msg::Image {
-    fn from(m: Image) -> Self {
-        msg::Image {
-            header: m.header.into(),
-            height: m.height,
-            width: m.width,
-            encoding: m.encoding,
-            is_bigendian: m.is_bigendian != 0,
-            step: m.step,
-            data: m.data,
-        }
-    }
-}
-
-impl From<msg::Image> for Image {
-    fn from(m: msg::Image) -> Self {
-        Image {
-            header: m.header.into(),
-            height: m.height,
-            width: m.width,
-            encoding: m.encoding,
-            is_bigendian: u8::from(m.is_bigendian),
-            step: m.step,
-            data: m.data,
-        }
-    }
-}
-
-/// `sensor_msgs/RegionOfInterest`.
-#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
-pub struct RegionOfInterest {
-    /// Left column.
-    pub x_offset: u32,
-    /// Top row.
-    pub y_offset: u32,
-    /// Rows.
-    pub height: u32,
-    /// Columns.
-    pub width: u32,
-    /// Whether to rectify.
-    pub do_rectify: bool,
-}
-
-/// `sensor_msgs/CameraInfo`.
-#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
-pub struct CameraInfo {
-    /// Stamp and frame.
-    pub header: Header,
-    /// Image rows.
-    pub height: u32,
-    /// Image columns.
-    pub width: u32,
-    /// Distortion model.
-    pub distortion_model: String,
-    /// Distortion coefficients.
-    pub d: Vec<f64>,
-    /// Intrinsics, row-major 3 × 3.
-    pub k: [f64; 9],
-    /// Rectification, row-major 3 × 3.
-    pub r: [f64; 9],
-    /// Projection, row-major 3 × 4.
-    pub p: [f64; 12],
-    /// Horizontal binning.
-    pub binning_x: u32,
-    /// Vertical binning.
-    pub binning_y: u32,
-    /// Region of interest.
-    pub roi: RegionOfInterest,
-}
-
-impl From<CameraInfo> for msg::CameraInfo {
-    fn from(m: CameraInfo) -> Self {
-        msg::CameraInfo {
-            header: m.header.into(),
-            height: m.height,
-            width: m.width,
-            distortion_model: m.distortion_model,
-            d: m.d,
-            k: m.k,
-        }
-    }
-}
-
-impl From<msg::CameraInfo> for CameraInfo {
-    fn from(m: msg::CameraInfo) -> Self {
-        let k = m.k;
-        CameraInfo {
-            header: m.header.into(),
-            height: m.height,
-            width: m.width,
-            distortion_model: m.distortion_model,
-            d: m.d,
-            k,
-            r: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
-            p: [k[0], k[1], k[2], 0.0, k[3], k[4], k[5], 0.0, k[6], k[7], k[8], 0.0],
-            binning_x: 0,
-            binning_y: 0,
-            roi: RegionOfInterest::default(),
-        }
-    }
-}
-
-/// `sensor_msgs/LaserScan`.
-#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
-pub struct LaserScan {
-    /// Stamp and frame.
-    pub header: Header,
-    /// First beam's angle, radians.
-    pub angle_min: f32,
-    /// Last beam's angle, radians.
-    pub angle_max: f32,
-    /// Between beams, radians.
-    pub angle_increment: f32,
-    /// Between beams, seconds.
-    pub time_increment: f32,
-    /// Between scans, seconds.
-    pub scan_time: f32,
-    /// Shortest valid range, metres.
-    pub range_min: f32,
-    /// Longest valid range, metres.
-    pub range_max: f32,
-    /// Ranges, metres.
-    pub ranges: Vec<f32>,
-    /// Intensities.
-    pub intensities: Vec<f32>,
-}
-
-impl From<LaserScan> for msg::LaserScanMsg {
-    fn from(m: LaserScan) -> Self {
-        msg::LaserScanMsg {
-            header: m.header.into(),
-            angle_min: m.angle_min,
-            angle_max: m.angle_max,
-            angle_increment: m.angle_increment,
-            time_increment: m.time_increment,
-            scan_time: m.scan_time,
-            range_min: m.range_min,
-            range_max: m.range_max,
-            ranges: m.ranges,
-            intensities: m.intensities,
-        }
-    }
-}
-
-impl From<msg::LaserScanMsg> for LaserScan {
-    fn from(m: msg::LaserScanMsg) -> Self {
-        LaserScan {
-            header: m.header.into(),
-            angle_min: m.angle_min,
-            angle_max: m.angle_max,
-            angle_increment: m.angle_increment,
-            time_increment: m.time_increment,
-            scan_time: m.scan_time,
-            range_min: m.range_min,
-            range_max: m.range_max,
-            ranges: m.ranges,
-            intensities: m.intensities,
-        }
-    }
-}
+impl<T: Serialize + DeserializeOwned> ros2_client::Message for Dds<T> {}
 
 /// `geometry_msgs/Vector3` (and `Point`: the same layout).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
@@ -393,7 +104,7 @@ pub struct TransformStamped {
 impl From<&msg::StampedTransform> for TransformStamped {
     fn from(t: &msg::StampedTransform) -> Self {
         TransformStamped {
-            header: t.header.clone().into(),
+            header: t.header.clone(),
             child_frame_id: t.child_frame.clone(),
             transform: Transform::from_isometry(&t.transform),
         }
@@ -403,7 +114,7 @@ impl From<&msg::StampedTransform> for TransformStamped {
 impl TransformStamped {
     fn stamped(self) -> Result<msg::StampedTransform, String> {
         let transform = self.transform.isometry()?;
-        Ok(msg::StampedTransform { header: self.header.into(), child_frame: self.child_frame_id, transform })
+        Ok(msg::StampedTransform { header: self.header, child_frame: self.child_frame_id, transform })
     }
 }
 
@@ -595,10 +306,6 @@ pub struct SaveMapResponse {
 }
 
 messages!(
-    PointCloud2,
-    Image,
-    CameraInfo,
-    LaserScan,
     TfMessage,
     PoseStamped,
     TransformStamped,
@@ -621,21 +328,13 @@ pub(crate) fn tf_message(m: TfMessage) -> Result<msg::Message, String> {
 /// `nav_msgs/Odometry` → the pose of its child frame.
 pub(crate) fn odometry(m: Odometry) -> Result<msg::Message, String> {
     let transform = m.pose.pose.isometry()?;
-    Ok(msg::Message::Odometry(msg::StampedTransform {
-        header: m.header.into(),
-        child_frame: m.child_frame_id,
-        transform,
-    }))
+    Ok(msg::Message::Odometry(msg::StampedTransform { header: m.header, child_frame: m.child_frame_id, transform }))
 }
 
 /// `geometry_msgs/PoseStamped` → its pose.
 pub(crate) fn pose_stamped(m: PoseStamped) -> Result<msg::Message, String> {
     let transform = m.pose.isometry()?;
-    Ok(msg::Message::PoseStamped(msg::StampedTransform {
-        header: m.header.into(),
-        child_frame: String::new(),
-        transform,
-    }))
+    Ok(msg::Message::PoseStamped(msg::StampedTransform { header: m.header, child_frame: String::new(), transform }))
 }
 
 /// `geometry_msgs/TransformStamped` → its transform.
@@ -645,7 +344,65 @@ pub(crate) fn transform_stamped(m: TransformStamped) -> Result<msg::Message, Str
 
 #[cfg(test)]
 mod tests {
+    use super::*;
+    use byteorder::LittleEndian;
+    use edtmap_ros::msg::{Message, RegionOfInterest};
+    use edtmap_ros::Encoding;
+    use ros2_client::dds::rustdds::cdr_encoding;
+    use std::fmt::Debug;
     use std::path::{Path, PathBuf};
+
+    /// The bytes RustDDS's CDR encoder makes of `value` are the bytes the
+    /// recordings' own CDR writer makes of `message` (after its 4-byte
+    /// encapsulation header), and each side decodes the other's.
+    fn codecs_agree<T: Serialize + DeserializeOwned + PartialEq + Debug>(value: &T, message: Message) {
+        let name = message.type_name();
+        let recorded = message.encode(Encoding::Cdr);
+        let body = &recorded[4..];
+        let dds = cdr_encoding::to_vec::<T, LittleEndian>(value).expect("serializes");
+        assert_eq!(body, &dds[..], "{name}: the two encoders differ");
+        let (back, _) = cdr_encoding::from_bytes::<T, LittleEndian>(body).expect("deserializes");
+        assert_eq!(&back, value, "{name}: DDS decoding of the recording's bytes");
+        assert_eq!(Message::decode(name, &recorded, Encoding::Cdr), Ok(message), "{name}: recording's decoding");
+    }
+
+    #[test]
+    fn live_and_recorded_sensor_messages_are_the_same_bytes() {
+        let header = |frame: &str| Header { stamp_ns: 1_700_000_000_123_456_789, frame_id: frame.into() };
+        let cloud = PointCloud2::from_points(header("lidar"), &[[1.0, 2.0, 3.0], [-1.0, 0.5, f32::NAN]]);
+        codecs_agree(&cloud, Message::PointCloud2(cloud.clone()));
+        let image = Image {
+            header: header("cam"),
+            height: 2,
+            width: 3,
+            encoding: "16UC1".into(),
+            is_bigendian: false,
+            step: 6,
+            data: vec![0xe8, 3, 0, 0, 0xd0, 7, 1, 0, 2, 0, 3, 0],
+        };
+        codecs_agree(&image, Message::Image(image.clone()));
+        let k = [525.0, 0.0, 319.5, 0.0, 525.0, 239.5, 0.0, 0.0, 1.0];
+        let info = CameraInfo {
+            d: vec![0.1, -0.2, 0.0, 0.0, 0.05],
+            binning_y: 2,
+            roi: RegionOfInterest { x_offset: 3, y_offset: 4, height: 100, width: 200, do_rectify: true },
+            ..CameraInfo::pinhole(header("cam"), 640, 480, k)
+        };
+        codecs_agree(&info, Message::CameraInfo(info.clone()));
+        let scan = LaserScanMsg {
+            header: header("laser"),
+            angle_min: -1.5,
+            angle_max: 1.5,
+            angle_increment: 1.5,
+            time_increment: 1e-4,
+            scan_time: 0.1,
+            range_min: 0.1,
+            range_max: 30.0,
+            ranges: vec![1.0, f32::INFINITY, 2.5],
+            intensities: vec![10.0, 0.0, 7.0],
+        };
+        codecs_agree(&scan, Message::LaserScan(scan.clone()));
+    }
 
     /// Keywords of C (C23), C++ (C++23, with alternative tokens) and Python
     /// (3.12, soft keywords included): a field named one of them breaks a

@@ -5,8 +5,9 @@ use std::path::PathBuf;
 use std::sync::mpsc::{sync_channel, Receiver};
 use std::sync::{Arc, Mutex};
 
-use edtmap::config::{Config, OnError};
+use edtmap::config::Config;
 use edtmap::sensor::{DepthData, Frame, Measurement, Sensor};
+use edtmap_ros::config::{DatasetSection, OnError};
 use edtmap_ros::recording::{Recording, RecordingFailure};
 use numpy::{PyArray1, PyArrayMethods};
 use pyo3::exceptions::{PyRuntimeError, PyUserWarning, PyValueError};
@@ -24,6 +25,8 @@ pub(crate) struct PyRecording {
     frames: Mutex<Receiver<Result<Frame, RecordingFailure>>>,
     /// The configuration, with the recording's calibration applied.
     config: Config,
+    /// What to do with a frame that cannot be used.
+    on_error: OnError,
     sensor: Sensor,
     len: usize,
     kind: &'static str,
@@ -42,9 +45,11 @@ impl PyRecording {
     #[new]
     #[pyo3(signature = (path, config_path, frames=None))]
     fn new(py: Python<'_>, path: PathBuf, config_path: PathBuf, frames: Option<usize>) -> PyResult<Self> {
-        let mut config = Config::load(&config_path).map_err(map_err)?;
+        let text = edtmap::config::read(&config_path).map_err(map_err)?;
         let origin = config_path.display().to_string();
-        let recording = py.detach(|| Recording::open(&path, &mut config, &origin)).map_err(map_err)?;
+        let mut config = Config::parse(&text, &origin).map_err(map_err)?;
+        let dataset = DatasetSection::parse(&text, &origin).map_err(map_err)?;
+        let recording = py.detach(|| Recording::open(&path, &mut config, &dataset, &origin)).map_err(map_err)?;
         let (sensor, _) = config.mapper_params().map_err(map_err)?;
         if recording.kind() != sensor.kind() {
             return Err(PyValueError::new_err(format!(
@@ -80,6 +85,7 @@ impl PyRecording {
         Ok(PyRecording {
             frames: Mutex::new(rx),
             config,
+            on_error: dataset.on_error,
             sensor,
             len,
             kind,
@@ -137,7 +143,7 @@ impl PyRecording {
                 }
                 Some(Ok(frame)) => return frame_dict(py, &frame, &self.sensor).map(Some),
                 Some(Err(failure)) => {
-                    if self.config.dataset.on_error == OnError::Stop {
+                    if self.on_error == OnError::Stop {
                         return Err(PyValueError::new_err(failure.message));
                     }
                     self.skipped.lock().map_err(|_| PyRuntimeError::new_err("poisoned"))?.push(failure.message);

@@ -1,5 +1,7 @@
 //! ROS recordings: ROS 1 bags ([`bag`]) and ROS 2 MCAP files ([`mcap`]),
-//! read as raw messages, and the message types edtmap maps from ([`msg`]).
+//! read as raw messages, and the message types edtmap maps from ([`msg`]);
+//! any recording, folders too, opened as `[dataset]` ([`config`]) says
+//! ([`recording`]).
 //!
 //! Both containers give [`RawMessage`]s in file order; a recording that is
 //! cut short or corrupt yields the messages before the damage and then one
@@ -7,6 +9,7 @@
 //! already integrated.
 
 pub mod bag;
+pub mod config;
 mod convert;
 pub mod mcap;
 pub mod msg;

@@ -8,13 +8,60 @@
 //! `geometry_msgs/TransformStamped` and `tf2_msgs/TFMessage` (ROS 1's
 //! `tf/tfMessage` too). Fields after the last one edtmap uses (an
 //! odometry's twist) are not read.
+//!
+//! The sensor messages are also what the live node sends and receives over
+//! DDS: they derive serde in ROS 2 IDL order (CDR is positional), with the
+//! header as `builtin_interfaces/Time` and frame, so one struct serves a
+//! recording and a live topic.
 
 use super::wire::{WireReader, WireResult, WireWriter};
 use super::Encoding;
 use nalgebra::{Isometry3, Quaternion, Translation3};
+use serde::{Deserialize, Serialize};
+
+/// `builtin_interfaces/Time`.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Time {
+    /// Seconds.
+    pub sec: i32,
+    /// Nanoseconds within the second.
+    pub nanosec: u32,
+}
+
+impl Time {
+    /// From nanoseconds since the epoch.
+    pub fn from_ns(ns: i64) -> Self {
+        Time { sec: ns.div_euclid(1_000_000_000) as i32, nanosec: ns.rem_euclid(1_000_000_000) as u32 }
+    }
+
+    /// Nanoseconds since the epoch.
+    pub fn ns(&self) -> i64 {
+        i64::from(self.sec) * 1_000_000_000 + i64::from(self.nanosec)
+    }
+}
+
+/// `std_msgs/Header` as ROS 2 IDL lays it out.
+#[derive(Serialize, Deserialize)]
+struct IdlHeader {
+    stamp: Time,
+    frame_id: String,
+}
+
+impl From<IdlHeader> for Header {
+    fn from(h: IdlHeader) -> Self {
+        Header { stamp_ns: h.stamp.ns(), frame_id: h.frame_id }
+    }
+}
+
+impl From<Header> for IdlHeader {
+    fn from(h: Header) -> Self {
+        IdlHeader { stamp: Time::from_ns(h.stamp_ns), frame_id: h.frame_id }
+    }
+}
 
 /// A message header: time stamp and coordinate frame.
-#[derive(Debug, Clone, PartialEq, Default)]
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(from = "IdlHeader", into = "IdlHeader")]
 pub struct Header {
     /// Stamp, nanoseconds since the epoch.
     pub stamp_ns: i64,
@@ -56,7 +103,7 @@ impl Header {
 }
 
 /// One field of a [`PointCloud2`].
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 pub struct PointField {
     /// Field name (`x`, `y`, `z`, `intensity`, ...).
     pub name: String,
@@ -70,7 +117,7 @@ pub struct PointField {
 }
 
 /// `sensor_msgs/PointCloud2`.
-#[derive(Debug, Clone, PartialEq, Default)]
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 pub struct PointCloud2 {
     /// Stamp and frame.
     pub header: Header,
@@ -87,13 +134,14 @@ pub struct PointCloud2 {
     /// Bytes per row.
     pub row_step: u32,
     /// The points.
+    #[serde(with = "serde_bytes")]
     pub data: Vec<u8>,
     /// Whether every point is finite.
     pub is_dense: bool,
 }
 
 /// `sensor_msgs/Image`.
-#[derive(Debug, Clone, PartialEq, Default)]
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 pub struct Image {
     /// Stamp and frame.
     pub header: Header,
@@ -103,16 +151,47 @@ pub struct Image {
     pub width: u32,
     /// Pixel encoding (`16UC1`, `32FC1`, `mono16`, ...).
     pub encoding: String,
-    /// Byte order of multi-byte pixels.
+    /// Byte order of multi-byte pixels (a `uint8` in the message).
+    #[serde(with = "flag")]
     pub is_bigendian: bool,
     /// Bytes per row.
     pub step: u32,
     /// The pixels.
+    #[serde(with = "serde_bytes")]
     pub data: Vec<u8>,
 }
 
-/// `sensor_msgs/CameraInfo`, the fields a depth camera needs.
-#[derive(Debug, Clone, PartialEq, Default)]
+/// A `uint8` field read as a flag (any value but 0 is true).
+mod flag {
+    use serde::{Deserialize, Deserializer, Serializer};
+
+    pub(super) fn serialize<S: Serializer>(v: &bool, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_u8(u8::from(*v))
+    }
+
+    pub(super) fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<bool, D::Error> {
+        Ok(u8::deserialize(d)? != 0)
+    }
+}
+
+/// `sensor_msgs/RegionOfInterest`.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct RegionOfInterest {
+    /// Left column.
+    pub x_offset: u32,
+    /// Top row.
+    pub y_offset: u32,
+    /// Rows.
+    pub height: u32,
+    /// Columns.
+    pub width: u32,
+    /// Whether to rectify.
+    pub do_rectify: bool,
+}
+
+/// `sensor_msgs/CameraInfo` (the depth camera model reads the size and
+/// `k`).
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 pub struct CameraInfo {
     /// Stamp and frame.
     pub header: Header,
@@ -126,10 +205,41 @@ pub struct CameraInfo {
     pub d: Vec<f64>,
     /// Row-major 3 × 3 intrinsic matrix.
     pub k: [f64; 9],
+    /// Row-major 3 × 3 rectification.
+    pub r: [f64; 9],
+    /// Row-major 3 × 4 projection.
+    pub p: [f64; 12],
+    /// Horizontal binning.
+    pub binning_x: u32,
+    /// Vertical binning.
+    pub binning_y: u32,
+    /// Region of interest.
+    pub roi: RegionOfInterest,
+}
+
+impl CameraInfo {
+    /// The camera info of an undistorted pinhole camera of intrinsics `k`
+    /// (row-major 3 × 3): `plumb_bob` with zero coefficients, no
+    /// rectification, the projection `[k | 0]`, no binning, the whole image.
+    pub fn pinhole(header: Header, width: u32, height: u32, k: [f64; 9]) -> CameraInfo {
+        CameraInfo {
+            header,
+            height,
+            width,
+            distortion_model: "plumb_bob".into(),
+            d: vec![0.0; 5],
+            k,
+            r: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+            p: [k[0], k[1], k[2], 0.0, k[3], k[4], k[5], 0.0, k[6], k[7], k[8], 0.0],
+            binning_x: 0,
+            binning_y: 0,
+            roi: RegionOfInterest::default(),
+        }
+    }
 }
 
 /// `sensor_msgs/LaserScan`.
-#[derive(Debug, Clone, PartialEq, Default)]
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 pub struct LaserScanMsg {
     /// Stamp and frame.
     pub header: Header,
@@ -166,6 +276,9 @@ pub struct StampedTransform {
 }
 
 /// A decoded message of a type edtmap reads.
+// A camera info's matrices make its variant some 300 bytes; messages are
+// decoded and used one at a time, so no box (an allocation per message).
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone, PartialEq)]
 pub enum Message {
     /// A point cloud.
@@ -320,8 +433,16 @@ fn read_camera_info(r: &mut WireReader<'_>) -> WireResult<CameraInfo> {
     let distortion_model = r.string("distortion_model")?;
     let d = r.f64s("d")?;
     let k = r.f64_array::<9>("k")?;
-    // R, P, binning and ROI follow; the depth camera model needs none.
-    Ok(CameraInfo { header, height, width, distortion_model, d, k })
+    let (r_, p) = (r.f64_array::<9>("r")?, r.f64_array::<12>("p")?);
+    let (binning_x, binning_y) = (r.u32("binning_x")?, r.u32("binning_y")?);
+    let roi = RegionOfInterest {
+        x_offset: r.u32("roi.x_offset")?,
+        y_offset: r.u32("roi.y_offset")?,
+        height: r.u32("roi.height")?,
+        width: r.u32("roi.width")?,
+        do_rectify: r.u8("roi.do_rectify")? != 0,
+    };
+    Ok(CameraInfo { header, height, width, distortion_model, d, k, r: r_, p, binning_x, binning_y, roi })
 }
 
 fn write_camera_info(w: &mut WireWriter, m: &CameraInfo) {
@@ -331,12 +452,13 @@ fn write_camera_info(w: &mut WireWriter, m: &CameraInfo) {
     w.string(&m.distortion_model);
     w.f64s(&m.d);
     w.f64_array(&m.k);
-    let identity = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0];
-    w.f64_array(&identity);
-    let k = &m.k;
-    w.f64_array(&[k[0], k[1], k[2], 0.0, k[3], k[4], k[5], 0.0, k[6], k[7], k[8], 0.0]);
-    (0..6).for_each(|_| w.u32(0)); // binning x, y; ROI offsets and size
-    w.u8(0); // roi.do_rectify
+    w.f64_array(&m.r);
+    w.f64_array(&m.p);
+    let roi = &m.roi;
+    for v in [m.binning_x, m.binning_y, roi.x_offset, roi.y_offset, roi.height, roi.width] {
+        w.u32(v);
+    }
+    w.u8(roi.do_rectify.into());
 }
 
 fn read_scan(r: &mut WireReader<'_>) -> WireResult<LaserScanMsg> {

@@ -4,11 +4,12 @@
 
 use std::path::Path;
 
-use edtmap::config::{Config, IntrinsicsSource, SensorKind};
+use edtmap::config::{Config, SensorKind};
 use edtmap::sensor::Frame;
 use edtmap::MapError;
 use edtmap_io::dataset::Dataset;
 
+use crate::config::{DatasetSection, IntrinsicsSource};
 use crate::{is_recording, RosOptions, RosReplay};
 
 /// The frames of a recording.
@@ -33,15 +34,20 @@ pub struct RecordingFailure {
 }
 
 impl Recording {
-    /// Opens the recording at `path` as `config`'s `[dataset]` says
-    /// (`origin` names the config in errors). For a depth camera, the
+    /// Opens the recording at `path` as `dataset` says, with `config`'s
+    /// sensor (`origin` names the config in errors). For a depth camera, the
     /// recording's calibration (a folder's `camera-intrinsics.txt` with its
     /// first image's size, a ROS camera info) replaces `[sensor]`'s, with a
     /// warning where they differ, unless `[dataset] intrinsics = "config"`.
-    pub fn open(path: &Path, config: &mut Config, origin: &str) -> Result<Recording, MapError> {
+    pub fn open(
+        path: &Path,
+        config: &mut Config,
+        dataset: &DatasetSection,
+        origin: &str,
+    ) -> Result<Recording, MapError> {
         let in_dataset = |e| MapError::Config { section: "dataset", source: e };
         if is_recording(path) {
-            let opts = ros_options(&config.dataset).map_err(|e| MapError::ConfigFile {
+            let opts = ros_options(dataset).map_err(|e| MapError::ConfigFile {
                 path: format!("{origin}: replaying {}", path.display()),
                 message: in_dataset(e).to_string(),
             })?;
@@ -54,6 +60,7 @@ impl Recording {
                 let from = format!("the camera info of {} says", path.display());
                 use_calibration(
                     config,
+                    dataset.intrinsics,
                     &Calibration { k: [k[0], k[4], k[2], k[5]], width: info.width, height: info.height, from },
                     origin,
                 );
@@ -67,8 +74,8 @@ impl Recording {
             );
             return Ok(Recording::Ros(Box::new(replay)));
         }
-        config.dataset.validate().map_err(in_dataset)?;
-        let opts = config.dataset_options(path)?;
+        dataset.validate().map_err(in_dataset)?;
+        let opts = dataset.folder_options(config, path)?;
         let set = Dataset::open_with(path, &opts)?;
         for w in set.warnings() {
             tracing::warn!("{w}");
@@ -79,6 +86,7 @@ impl Recording {
                 let from = format!("{} and the first image say", file.display());
                 use_calibration(
                     config,
+                    dataset.intrinsics,
                     &Calibration { k: [c.fx, c.fy, c.cx, c.cy], width: c.width, height: c.height, from },
                     origin,
                 );
@@ -184,8 +192,7 @@ fn describe(k: [Option<f64>; 4], width: Option<u32>, height: Option<u32>) -> Str
 /// intrinsics` says: the recording's wins (default) or `[sensor]`'s, its
 /// unset fields filled from the recording's. Where both give a value and
 /// they differ, a warning names both and the one used.
-fn use_calibration(config: &mut Config, cal: &Calibration, origin: &str) {
-    let policy = config.dataset.intrinsics;
+fn use_calibration(config: &mut Config, policy: IntrinsicsSource, cal: &Calibration, origin: &str) {
     let s = &mut config.sensor.camera;
     let theirs = describe(cal.k.map(Some), Some(cal.width), Some(cal.height));
     let ours = describe([s.fx, s.fy, s.cx, s.cy], s.width, s.height);
@@ -221,7 +228,7 @@ fn use_calibration(config: &mut Config, cal: &Calibration, origin: &str) {
 
 /// The options of a ROS replay from `[dataset]`; `sensor_topic` and
 /// `pose_topic` are needed.
-pub fn ros_options(d: &edtmap::config::DatasetSection) -> Result<RosOptions, edtmap::CoreError> {
+pub fn ros_options(d: &DatasetSection) -> Result<RosOptions, edtmap::CoreError> {
     d.validate()?;
     let missing = |field: &'static str| edtmap::CoreError::InvalidParam {
         field,

@@ -158,14 +158,7 @@ fn depth_images_with_camera_info_and_laser_scans() {
         step: 6,
         data: vec![0xe8, 3, 0, 0, 0xd0, 7, 1, 0, 2, 0, 3, 0],
     };
-    let info = |t: f64| CameraInfo {
-        header: header(t, "cam"),
-        height: 2,
-        width: 3,
-        distortion_model: "plumb_bob".into(),
-        d: vec![0.0; 5],
-        k: [500.0, 0.0, 1.5, 0.0, 510.0, 1.0, 0.0, 0.0, 1.0],
-    };
+    let info = |t: f64| CameraInfo::pinhole(header(t, "cam"), 3, 2, [500.0, 0.0, 1.5, 0.0, 510.0, 1.0, 0.0, 0.0, 1.0]);
     let scan = |t: f64| LaserScanMsg {
         header: header(t, "laser"),
         angle_min: -1.0,

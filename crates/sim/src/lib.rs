@@ -33,4 +33,6 @@ mod trajectory;
 pub use error::SimError;
 pub use geometry::Aabb;
 pub use grids::{pillar_field, random_grid, PillarField};
-pub use scene::{points_pattern, Scene, SceneName, SceneOptions, PLANAR_BEAMS, PLANAR_RANGE, WORLD_SHIFT_M};
+pub use scene::{
+    points_pattern, Scene, SceneName, SceneOptions, SceneSection, PLANAR_BEAMS, PLANAR_RANGE, WORLD_SHIFT_M,
+};

@@ -185,6 +185,17 @@ impl Sensor {
         !matches!(self, Sensor::Points(_))
     }
 
+    /// The range of the sensor's valid returns (a planar LiDAR's scans
+    /// carry their own: unbounded here).
+    pub fn range(&self) -> RangeLimits {
+        match self {
+            Sensor::Depth(c) => c.range,
+            Sensor::Lidar(l) => l.range,
+            Sensor::Points(r) => *r,
+            Sensor::Planar => RangeLimits { min_m: 0.0, max_m: f32::MAX },
+        }
+    }
+
     /// The longest ray this sensor casts, metres (for sizing searches).
     pub fn max_range_m(&self, m: &Measurement) -> f32 {
         match (self, m) {
@@ -203,15 +214,7 @@ impl Sensor {
         match (self, m) {
             (Sensor::Depth(c), Measurement::Depth(img)) => c.rays(img, clear_no_return, out),
             (Sensor::Lidar(l), Measurement::Lidar(scan)) => l.rays(scan, clear_no_return, out),
-            (s, Measurement::Points(pc)) => {
-                let limits = match s {
-                    Sensor::Depth(c) => c.range,
-                    Sensor::Lidar(l) => l.range,
-                    Sensor::Points(r) => *r,
-                    Sensor::Planar => RangeLimits { min_m: 0.0, max_m: f32::MAX },
-                };
-                points_rays(&pc.points, limits, clear_no_return, out)
-            }
+            (s, Measurement::Points(pc)) => points_rays(&pc.points, s.range(), clear_no_return, out),
             (_, Measurement::Scan(scan)) => scan.rays(clear_no_return, out),
             _ => {}
         }

@@ -118,11 +118,11 @@ fn setup(args: &ExportArgs) -> Result<Setup, Error> {
     if args.dataset.is_some() && (args.scene.is_some() || args.config.is_none()) {
         return Err("--dataset DIR goes with --config FILE, without --scene".into());
     }
-    let (mut config, config_origin) = match (&args.config, &args.scene) {
-        (Some(path), _) => (Config::load(path)?, path.display().to_string()),
+    let (text, config_origin) = match (&args.config, &args.scene) {
+        (Some(path), _) => (edtmap::config::read(path)?, path.display().to_string()),
         (None, Some(scene)) => {
             let text = builtin_config(scene).ok_or_else(|| format!("unknown scene {scene:?}: {}", scene_names()))?;
-            (Config::parse(text, &format!("configs/{scene}.toml"))?, format!("configs/{scene}.toml"))
+            (text.to_owned(), format!("configs/{scene}.toml"))
         }
         (None, None) => {
             return Err(
@@ -130,6 +130,8 @@ fn setup(args: &ExportArgs) -> Result<Setup, Error> {
             )
         }
     };
+    let mut config = Config::parse(&text, &config_origin)?;
+    let sections: source::Sections = edtmap::config::sections(&text, &config_origin)?;
     if let Some(v) = args.voxel_size_m {
         config.occupancy.voxel_size_m = v;
     }
@@ -140,7 +142,7 @@ fn setup(args: &ExportArgs) -> Result<Setup, Error> {
         config.global.mode = m;
     }
     if let Some(dir) = &args.dataset {
-        let set = source::open_recording(dir, &mut config)?;
+        let set = source::open_recording(dir, &mut config, &sections.dataset)?;
         let (sensor, params) = config.mapper_params()?;
         let read = source::recording(dir, &set, &sensor, args.frames)?;
         return Ok(Setup { name: read.name, config_origin, frames: read.frames, sensor, params });
@@ -149,9 +151,9 @@ fn setup(args: &ExportArgs) -> Result<Setup, Error> {
     let scene = args
         .scene
         .clone()
-        .or_else(|| config.scene.as_ref().map(|s| s.name.clone()))
+        .or_else(|| sections.scene.as_ref().map(|s| s.name.clone()))
         .ok_or_else(|| format!("{config_origin} has no [scene]: give --scene NAME or --dataset DIR"))?;
-    let made = source::scene(&scene, &config, &sensor, args.frames)?;
+    let made = source::scene(&scene, sections.scene.as_ref(), &sensor, args.frames)?;
     Ok(Setup { name: made.name, config_origin, frames: made.frames, sensor, params })
 }
 

@@ -3,11 +3,23 @@
 //! opened as `edtmap run --dataset` opens it.
 
 use crate::common::Error;
-use edtmap::config::{Config, IntrinsicsSource, SensorKind};
+use edtmap::config::{Config, SensorKind};
 use edtmap::sensor::{Frame, Sensor};
 use edtmap_io::dataset::Dataset;
-use edtmap_sim::{Scene, SceneName, SceneOptions};
+use edtmap_ros::config::{DatasetSection, IntrinsicsSource};
+use edtmap_sim::{Scene, SceneName, SceneOptions, SceneSection};
+use serde::Deserialize;
 use std::path::Path;
+
+/// The sections of the config the CLI reads and `export` follows.
+#[derive(Deserialize)]
+pub(crate) struct Sections {
+    /// The built-in scene.
+    pub(crate) scene: Option<SceneSection>,
+    /// How to read a folder recording.
+    #[serde(default)]
+    pub(crate) dataset: DatasetSection,
+}
 
 /// The frames of a run, all read before the first is integrated so that
 /// no repeat times the disk or the simulator.
@@ -21,14 +33,14 @@ pub(crate) struct Frames {
 /// The first `limit` frames of the scene `name` (default: the config's
 /// `[scene] frames`, else the scene's length), with `[scene]`'s seed and
 /// noise.
-pub(crate) fn scene(name: &str, config: &Config, sensor: &Sensor, limit: Option<usize>) -> Result<Frames, Error> {
+pub(crate) fn scene(
+    name: &str,
+    section: Option<&SceneSection>,
+    sensor: &Sensor,
+    limit: Option<usize>,
+) -> Result<Frames, Error> {
     let scene_name: SceneName = name.parse().map_err(|e| format!("{e}"))?;
-    let section = config.scene.as_ref();
-    let options = section.map_or_else(SceneOptions::default, |s| SceneOptions {
-        seed: s.seed,
-        range_noise_m: s.range_noise_m,
-        dropout: s.dropout,
-    });
+    let options = section.map_or_else(|| Ok(SceneOptions::default()), SceneSection::options)?;
     let scene = Scene::new(scene_name, &options)?;
     let n = limit.or(section.and_then(|s| s.frames)).unwrap_or_else(|| scene.default_frames());
     let frames = (0..n)
@@ -41,15 +53,15 @@ pub(crate) fn scene(name: &str, config: &Config, sensor: &Sensor, limit: Option<
 /// A depth folder's `camera-intrinsics.txt` and image size replace
 /// `[sensor]`'s camera unless `[dataset] intrinsics = "config"`, as in
 /// `edtmap run`; `config` is updated so that the mapper sees that camera.
-pub(crate) fn open_recording(dir: &Path, config: &mut Config) -> Result<Dataset, Error> {
-    config.dataset.validate().map_err(|e| format!("[dataset]: {e}"))?;
-    let opts = config.dataset_options(dir)?;
+pub(crate) fn open_recording(dir: &Path, config: &mut Config, dataset: &DatasetSection) -> Result<Dataset, Error> {
+    dataset.validate().map_err(|e| format!("[dataset]: {e}"))?;
+    let opts = dataset.folder_options(config, dir)?;
     let set = Dataset::open_with(dir, &opts)?;
     for w in set.warnings() {
         eprintln!("edt_changes: {}: {w}", dir.display());
     }
     if let (SensorKind::Depth, Dataset::Depth(folder), IntrinsicsSource::Recording) =
-        (config.sensor.kind, &set, config.dataset.intrinsics)
+        (config.sensor.kind, &set, dataset.intrinsics)
     {
         if folder.intrinsics_file.is_some() {
             let (c, s) = (&folder.camera, &mut config.sensor.camera);

@@ -3,26 +3,27 @@
 //! a focal length of 1e-30 px or a depth scale of 1e30 m per unit is a typo,
 //! not a setting, and would otherwise make every frame empty or every ray
 //! overflow. The ranges are generous; the stages check the relations
-//! between fields (min below max, cutoff at least one voxel).
+//! between fields (min below max, cutoff at least one voxel). The
+//! applications check their own sections with the same [`Limit`]s.
 
-use super::{CameraFields, Config, LidarFields, OutputSection, SceneSection, SensorSection};
+use super::{CameraFields, LidarFields, SensorSection};
 use crate::{MapError, MapperParams};
 use edtmap_core::{CoreError, GlobalParams, LocalVolume};
 
 /// A closed, half-open or open interval of accepted values.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct Limit {
+pub struct Limit {
     /// Lowest value.
-    pub(crate) lo: f64,
+    pub lo: f64,
     /// Whether `lo` itself is refused.
-    pub(crate) lo_open: bool,
+    pub lo_open: bool,
     /// Highest value.
-    pub(crate) hi: f64,
+    pub hi: f64,
     /// Whether `hi` itself is refused.
-    pub(crate) hi_open: bool,
+    pub hi_open: bool,
     /// What the error says the value must be: the interval and its unit,
     /// exactly as [`Limit::describe`] writes it (a unit test checks).
-    pub(crate) accepted: &'static str,
+    pub accepted: &'static str,
 }
 
 /// Focal lengths, pixels.
@@ -44,19 +45,13 @@ pub(crate) const VOXEL_M: Limit =
 pub(crate) const LOCAL_SIZE_M: Limit =
     Limit { lo: 0.0, lo_open: true, hi: 1000.0, hi_open: false, accepted: "must be finite, in (0, 1000] metres" };
 /// World coordinates (heights, forbidden zones), metres.
-pub(crate) const WORLD_M: Limit =
+pub const WORLD_M: Limit =
     Limit { lo: -1e6, lo_open: false, hi: 1e6, hi_open: false, accepted: "must be finite, in [-1e6, 1e6] metres" };
 /// Cutoff of the global EDT, metres.
 pub(crate) const MAX_DISTANCE_M: Limit =
     Limit { lo: 0.0, lo_open: true, hi: 1000.0, hi_open: false, accepted: "must be finite, in (0, 1000] metres" };
-/// Simulated range noise, metres.
-pub(crate) const NOISE_M: Limit =
-    Limit { lo: 0.0, lo_open: false, hi: 1.0, hi_open: false, accepted: "must be finite, in [0, 1] metres" };
-/// A probability that may be 0 or 1.
-pub(crate) const FRACTION: Limit =
-    Limit { lo: 0.0, lo_open: false, hi: 1.0, hi_open: false, accepted: "must be finite, in [0, 1]" };
 /// Scale of 16-bit depth images, metres per unit.
-pub(crate) const DEPTH_SCALE_M: Limit = Limit {
+pub const DEPTH_SCALE_M: Limit = Limit {
     lo: 1e-6,
     lo_open: false,
     hi: 1000.0,
@@ -64,10 +59,10 @@ pub(crate) const DEPTH_SCALE_M: Limit = Limit {
     accepted: "must be finite, in [1e-6, 1000] metres per unit",
 };
 /// Largest time between two poses, seconds.
-pub(crate) const POSE_GAP_S: Limit =
+pub const POSE_GAP_S: Limit =
     Limit { lo: 0.0, lo_open: true, hi: 3600.0, hi_open: false, accepted: "must be finite, in (0, 3600] seconds" };
 /// The sensor's offset on the robot, metres.
-pub(crate) const OFFSET_M: Limit = Limit {
+pub const OFFSET_M: Limit = Limit {
     lo: -1000.0,
     lo_open: false,
     hi: 1000.0,
@@ -94,7 +89,7 @@ const PRINCIPAL_Y: Limit = Limit {
 
 impl Limit {
     /// Whether `v` is finite and inside the interval.
-    pub(crate) fn accepts(&self, v: f64) -> bool {
+    pub fn accepts(&self, v: f64) -> bool {
         let above = if self.lo_open { v > self.lo } else { v >= self.lo };
         let below = if self.hi_open { v < self.hi } else { v <= self.hi };
         v.is_finite() && above && below
@@ -109,7 +104,7 @@ impl Limit {
     }
 
     /// Checks `value` of `field`; `shown` is the value as the error prints it.
-    pub(crate) fn check(&self, field: &'static str, value: f64, shown: String) -> Result<(), CoreError> {
+    pub fn check(&self, field: &'static str, value: f64, shown: String) -> Result<(), CoreError> {
         if self.accepts(value) {
             Ok(())
         } else {
@@ -118,22 +113,22 @@ impl Limit {
     }
 
     /// Checks an `f64` field.
-    pub(crate) fn f64(&self, field: &'static str, value: f64) -> Result<(), CoreError> {
+    pub fn f64(&self, field: &'static str, value: f64) -> Result<(), CoreError> {
         self.check(field, value, format!("{value:?}"))
     }
 
     /// Checks an `f32` field (printed as the `f32` it is).
-    pub(crate) fn f32(&self, field: &'static str, value: f32) -> Result<(), CoreError> {
+    pub fn f32(&self, field: &'static str, value: f32) -> Result<(), CoreError> {
         self.check(field, f64::from(value), format!("{value:?}"))
     }
 
     /// Checks an optional `f64` field, if given.
-    fn opt(&self, field: &'static str, value: Option<f64>) -> Result<(), CoreError> {
+    pub fn opt(&self, field: &'static str, value: Option<f64>) -> Result<(), CoreError> {
         value.map_or(Ok(()), |v| self.f64(field, v))
     }
 
     /// Checks every element of an array field; the error shows the array.
-    pub(crate) fn all(&self, field: &'static str, values: &[f64]) -> Result<(), CoreError> {
+    pub fn all(&self, field: &'static str, values: &[f64]) -> Result<(), CoreError> {
         match values.iter().all(|&v| self.accepts(v)) {
             true => Ok(()),
             false => Err(CoreError::InvalidParam { field, value: format!("{values:?}"), reason: self.accepted }),
@@ -149,21 +144,6 @@ fn short(v: f64) -> String {
         format!("{v}")
     } else {
         format!("{v:e}")
-    }
-}
-
-impl Config {
-    /// Checks that every number of the application's sections is finite and
-    /// in its range, naming the section and field of the first that is not
-    /// ([`SensorSection::checked`] and [`MapperParams::validate`] check the
-    /// rest).
-    pub(crate) fn check_limits(&self) -> Result<(), MapError> {
-        let in_section = |section| move |source| MapError::Config { section, source };
-        if let Some(scene) = &self.scene {
-            scene.check_limits().map_err(in_section("scene"))?;
-        }
-        self.output.check_limits().map_err(in_section("output"))?;
-        self.dataset.validate().map_err(in_section("dataset"))
     }
 }
 
@@ -190,13 +170,6 @@ impl MapperParams {
         check_global(&self.global).map_err(in_global)?;
         self.global.cutoff(self.voxel_size_m).map_err(in_global)?;
         self.global.check_forbidden().map_err(in_global)
-    }
-}
-
-impl SceneSection {
-    fn check_limits(&self) -> Result<(), CoreError> {
-        NOISE_M.f64("range_noise_m", self.range_noise_m)?;
-        FRACTION.f64("dropout", self.dropout)
     }
 }
 
@@ -247,12 +220,6 @@ fn principal_point(
     limit.check(field, images, format!("{v:?} (image {size_name} {n})"))
 }
 
-impl OutputSection {
-    fn check_limits(&self) -> Result<(), CoreError> {
-        WORLD_M.opt("slice_height_m", self.slice_height_m)
-    }
-}
-
 fn check_global(global: &GlobalParams) -> Result<(), CoreError> {
     MAX_DISTANCE_M.f64("max_distance_m", global.max_distance_m)?;
     for zone in &global.forbidden {
@@ -284,8 +251,6 @@ mod tests {
             (LOCAL_SIZE_M, "metres"),
             (WORLD_M, "metres"),
             (MAX_DISTANCE_M, "metres"),
-            (NOISE_M, "metres"),
-            (FRACTION, ""),
             (DEPTH_SCALE_M, "metres per unit"),
             (POSE_GAP_S, "seconds"),
             (OFFSET_M, "metres"),

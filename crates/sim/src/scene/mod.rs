@@ -7,7 +7,7 @@ mod render;
 mod seen;
 mod truth;
 
-pub use name::{SceneName, SceneOptions};
+pub use name::{SceneName, SceneOptions, SceneSection};
 pub use render::{points_pattern, PLANAR_BEAMS, PLANAR_RANGE};
 
 use crate::geometry::{Aabb, Primitive};

@@ -1,6 +1,7 @@
 //! Scene names and options.
 
 use crate::SimError;
+use serde::Deserialize;
 use std::fmt;
 use std::str::FromStr;
 
@@ -74,14 +75,14 @@ impl Default for SceneOptions {
 }
 
 impl SceneOptions {
-    /// Checks that the noise is finite and non-negative and the dropout a
+    /// Checks that the noise is between 0 and 1 m and the dropout a
     /// probability.
     pub fn validate(&self) -> Result<(), SimError> {
-        if !(self.range_noise_m.is_finite() && self.range_noise_m >= 0.0) {
+        if !(0.0..=1.0).contains(&self.range_noise_m) {
             return Err(SimError::InvalidOption {
                 field: "range_noise_m",
                 value: self.range_noise_m.to_string(),
-                reason: "must be finite and at least 0",
+                reason: "must be finite, in [0, 1] metres",
             });
         }
         if !(0.0..=1.0).contains(&self.dropout) {
@@ -92,6 +93,52 @@ impl SceneOptions {
             });
         }
         Ok(())
+    }
+}
+
+/// `[scene]` of a configuration file: which built-in scene to replay and
+/// how to simulate it (`edtmap run --scene`).
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SceneSection {
+    /// Scene name (`uav_pillars`, `ugv_corridor`, `room`, `planar`).
+    pub name: String,
+    /// Frames to replay; the scene's own length when absent.
+    #[serde(default)]
+    pub frames: Option<usize>,
+    /// Seed of the layout and the noise.
+    #[serde(default = "default_seed")]
+    pub seed: u64,
+    /// Standard deviation of Gaussian range noise, metres.
+    #[serde(default)]
+    pub range_noise_m: f64,
+    /// Probability that a return is dropped.
+    #[serde(default)]
+    pub dropout: f64,
+}
+
+fn default_seed() -> u64 {
+    SceneOptions::default().seed
+}
+
+impl SceneSection {
+    /// The scene `name` with the default options.
+    pub fn named(name: &str) -> SceneSection {
+        let o = SceneOptions::default();
+        SceneSection {
+            name: name.into(),
+            frames: None,
+            seed: o.seed,
+            range_noise_m: o.range_noise_m,
+            dropout: o.dropout,
+        }
+    }
+
+    /// The seed and noise, checked.
+    pub fn options(&self) -> Result<SceneOptions, SimError> {
+        let options = SceneOptions { seed: self.seed, range_noise_m: self.range_noise_m, dropout: self.dropout };
+        options.validate()?;
+        Ok(options)
     }
 }
 

@@ -1,10 +1,14 @@
-//! `[dataset]`: how a recording becomes frames (`edtmap run --dataset`).
+//! `[dataset]`: how a recording becomes frames (`edtmap run --dataset`,
+//! the Python package's `read_recording`). The section sits in the
+//! configuration file beside the mapper's; [`DatasetSection::parse`]
+//! reads it from the file's text.
 
-use super::limits::{DEPTH_SCALE_M, OFFSET_M, POSE_GAP_S};
-use edtmap_core::CoreError;
+use edtmap::config::{sections, Config, DEPTH_SCALE_M, OFFSET_M, POSE_GAP_S};
+use edtmap::{CoreError, MapError};
+use edtmap_io::dataset::DatasetOptions;
 use nalgebra::{Isometry3, Quaternion, Translation3};
 use serde::Deserialize;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// What a replay does with a frame it cannot use.
 ///
@@ -108,7 +112,37 @@ fn invalid(field: &'static str, value: String, reason: &'static str) -> CoreErro
     CoreError::InvalidParam { field, value, reason }
 }
 
+/// The file as `[dataset]` sees it.
+#[derive(Deserialize)]
+struct File {
+    #[serde(default)]
+    dataset: DatasetSection,
+}
+
 impl DatasetSection {
+    /// `[dataset]` of a configuration's text (defaults when absent),
+    /// checked; `origin` names the text in errors.
+    pub fn parse(text: &str, origin: &str) -> Result<DatasetSection, MapError> {
+        let dataset = sections::<File>(text, origin)?.dataset;
+        dataset.validate().map_err(|source| MapError::Config { section: "dataset", source })?;
+        Ok(dataset)
+    }
+
+    /// How to open the folder recording `dir` (depth scale, the sensor's
+    /// range, the camera and whose intrinsics win, the trajectory relative
+    /// to `dir`, the pose gap), from this section and `config`'s `[sensor]`.
+    pub fn folder_options(&self, config: &Config, dir: &Path) -> Result<DatasetOptions, MapError> {
+        let (sensor, _) = config.mapper_params()?;
+        Ok(DatasetOptions {
+            depth_scale_m: self.depth_scale_m,
+            range: sensor.range(),
+            intrinsics: config.sensor.camera.intrinsics(),
+            folder_intrinsics: self.intrinsics == IntrinsicsSource::Recording,
+            trajectory: self.trajectory.as_ref().map(|t| dir.join(t)),
+            max_pose_gap_s: self.max_pose_gap_s,
+        })
+    }
+
     /// Checks the values that need no recording.
     pub fn validate(&self) -> Result<(), CoreError> {
         DEPTH_SCALE_M.f32("depth_scale_m", self.depth_scale_m)?;
@@ -128,12 +162,12 @@ impl DatasetSection {
 
 /// `T_body_sensor` from `[x, y, z, qx, qy, qz, qw]` (identity when absent),
 /// the quaternion checked for unit length; `field` names it in errors.
-pub(super) fn sensor_in_body(field: &'static str, pose: Option<[f64; 7]>) -> Result<Isometry3<f64>, CoreError> {
+pub fn sensor_in_body(field: &'static str, pose: Option<[f64; 7]>) -> Result<Isometry3<f64>, CoreError> {
     let Some([x, y, z, qx, qy, qz, qw]) = pose else {
         return Ok(Isometry3::identity());
     };
     let finite = [x, y, z, qx, qy, qz, qw].iter().all(|v| v.is_finite());
-    let rotation = match edtmap_core::sensor::rotation_from_quaternion(Quaternion::new(qw, qx, qy, qz)) {
+    let rotation = match edtmap::sensor::rotation_from_quaternion(Quaternion::new(qw, qx, qy, qz)) {
         Ok((rotation, _)) if finite => rotation,
         _ => {
             return Err(invalid(

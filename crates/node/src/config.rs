@@ -1,8 +1,11 @@
 //! `[ros]`: what `edtmap node` subscribes to and publishes, in the
-//! vocabulary of `[dataset]` (the replay of a recording).
+//! vocabulary of `[dataset]` (the replay of a recording). The section sits
+//! in the configuration file beside the mapper's; [`RosSection::parse`]
+//! reads it from the file's text.
 
-use super::limits::{Limit, DEPTH_SCALE_M, OFFSET_M, POSE_GAP_S, WORLD_M};
-use edtmap_core::CoreError;
+use edtmap::config::{sections, Limit, DEPTH_SCALE_M, OFFSET_M, POSE_GAP_S, WORLD_M};
+use edtmap::{CoreError, MapError};
+use edtmap_ros::config::{sensor_in_body, RECORDING_MAX_POSE_GAP_S};
 use nalgebra::Isometry3;
 use serde::Deserialize;
 use std::path::PathBuf;
@@ -183,7 +186,7 @@ impl Default for RosSection {
             world_frame: None,
             body_frame: None,
             sensor_in_body: None,
-            max_pose_gap_s: super::RECORDING_MAX_POSE_GAP_S,
+            max_pose_gap_s: RECORDING_MAX_POSE_GAP_S,
             pose_wait_s: 0.5,
             startup_pose_wait_s: 2.0,
             tf_history_s: 10.0,
@@ -229,7 +232,22 @@ fn check_name(field: &'static str, name: &str, absolute: bool) -> Result<(), Cor
     }
 }
 
+/// The file as `[ros]` sees it.
+#[derive(Deserialize)]
+struct File {
+    #[serde(default)]
+    ros: RosSection,
+}
+
 impl RosSection {
+    /// `[ros]` of a configuration's text (defaults when absent), checked;
+    /// `origin` names the text in errors.
+    pub fn parse(text: &str, origin: &str) -> Result<RosSection, MapError> {
+        let ros = sections::<File>(text, origin)?.ros;
+        ros.validate().map_err(|source| MapError::Config { section: "ros", source })?;
+        Ok(ros)
+    }
+
     /// Checks every value.
     pub fn validate(&self) -> Result<(), CoreError> {
         check_name("namespace", &self.namespace, true)?;
@@ -283,7 +301,7 @@ impl RosSection {
 
     /// `T_body_sensor` from `sensor_in_body`.
     pub fn t_body_sensor(&self) -> Result<Isometry3<f64>, CoreError> {
-        super::dataset::sensor_in_body("sensor_in_body", self.sensor_in_body)
+        sensor_in_body("sensor_in_body", self.sensor_in_body)
     }
 }
 
