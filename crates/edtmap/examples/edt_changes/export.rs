@@ -142,9 +142,8 @@ fn setup(args: &ExportArgs) -> Result<Setup, Error> {
         config.global.mode = m;
     }
     if let Some(dir) = &args.dataset {
-        let set = source::open_recording(dir, &mut config, &sections.dataset)?;
+        let read = source::recording(dir, &mut config, &sections.dataset, &config_origin, args.frames)?;
         let (sensor, params) = config.mapper_params()?;
-        let read = source::recording(dir, &set, &sensor, args.frames)?;
         return Ok(Setup { name: read.name, config_origin, frames: read.frames, sensor, params });
     }
     let (sensor, params) = config.mapper_params()?;

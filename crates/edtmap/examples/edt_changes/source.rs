@@ -1,12 +1,13 @@
 //! Where `export` takes its frames from: a built-in scene, simulated, or a
-//! folder recording (3DMatch or TUM depth images, PCD/PLY/KITTI clouds),
-//! opened as `edtmap run --dataset` opens it.
+//! recording (a folder of 3DMatch or TUM depth images or PCD/PLY/KITTI
+//! clouds, a ROS bag or MCAP file), opened as `edtmap run --dataset` opens
+//! it.
 
 use crate::common::Error;
-use edtmap::config::{Config, SensorKind};
+use edtmap::config::Config;
 use edtmap::sensor::{Frame, Sensor};
-use edtmap_io::dataset::Dataset;
-use edtmap_ros::config::{DatasetSection, IntrinsicsSource};
+use edtmap_ros::config::DatasetSection;
+use edtmap_ros::recording::Recording;
 use edtmap_sim::{Scene, SceneName, SceneOptions, SceneSection};
 use serde::Deserialize;
 use std::path::Path;
@@ -49,46 +50,32 @@ pub(crate) fn scene(
     Ok(Frames { name: name.to_owned(), frames })
 }
 
-/// Opens the folder recording `dir` with `config`'s `[dataset]` options.
-/// A depth folder's `camera-intrinsics.txt` and image size replace
-/// `[sensor]`'s camera unless `[dataset] intrinsics = "config"`, as in
-/// `edtmap run`; `config` is updated so that the mapper sees that camera.
-pub(crate) fn open_recording(dir: &Path, config: &mut Config, dataset: &DatasetSection) -> Result<Dataset, Error> {
-    dataset.validate().map_err(|e| format!("[dataset]: {e}"))?;
-    let opts = dataset.folder_options(config, dir)?;
-    let set = Dataset::open_with(dir, &opts)?;
-    for w in set.warnings() {
-        eprintln!("edt_changes: {}: {w}", dir.display());
-    }
-    if let (SensorKind::Depth, Dataset::Depth(folder), IntrinsicsSource::Recording) =
-        (config.sensor.kind, &set, dataset.intrinsics)
-    {
-        if folder.intrinsics_file.is_some() {
-            let (c, s) = (&folder.camera, &mut config.sensor.camera);
-            (s.fx, s.fy, s.cx, s.cy, s.width, s.height) =
-                (Some(c.fx), Some(c.fy), Some(c.cx), Some(c.cy), Some(c.width), Some(c.height));
-        }
-    }
-    Ok(set)
-}
-
-/// The first `limit` frames of `set` (default: all), read from `dir`; a
-/// frame that cannot be read fails the run, as the comparison needs them
-/// all.
-pub(crate) fn recording(dir: &Path, set: &Dataset, sensor: &Sensor, limit: Option<usize>) -> Result<Frames, Error> {
-    if set.kind() != sensor.kind() {
+/// The first `limit` frames (default: all) of the recording at `path`,
+/// opened as `edtmap run --dataset` opens it ([`Recording::open`]: a
+/// depth camera's calibration in the recording replaces `[sensor]`'s
+/// unless `[dataset] intrinsics = "config"`, and `config` is updated so
+/// that the mapper sees that camera). A frame that cannot be read fails
+/// the run, as the comparison needs them all.
+pub(crate) fn recording(
+    path: &Path,
+    config: &mut Config,
+    dataset: &DatasetSection,
+    origin: &str,
+    limit: Option<usize>,
+) -> Result<Frames, Error> {
+    let recording = Recording::open(path, config, dataset, origin)?;
+    let (sensor, _) = config.mapper_params()?;
+    if recording.kind() != sensor.kind() {
         return Err(format!(
             "{} holds {} frames but the config's [sensor] is a {}",
-            dir.display(),
-            set.kind(),
+            path.display(),
+            recording.kind(),
             sensor.kind()
         )
         .into());
     }
-    let n = limit.unwrap_or(set.len()).min(set.len());
-    let frames = (0..n)
-        .map(|i| set.frame(i).map_err(|e| format!("frame {i} of {}: {e}", dir.display())))
-        .collect::<Result<Vec<_>, _>>()?;
-    let name = dir.file_name().map_or_else(|| dir.display().to_string(), |n| n.to_string_lossy().into_owned());
+    let n = limit.unwrap_or(recording.len()).min(recording.len());
+    let name = path.file_name().map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().into_owned());
+    let frames = recording.frames(n, &name).map(|r| r.map_err(|f| f.message)).collect::<Result<Vec<_>, _>>()?;
     Ok(Frames { name, frames })
 }
