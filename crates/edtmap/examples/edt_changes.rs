@@ -7,13 +7,14 @@
 //! cargo run --release -p edtmap --example edt_changes -- export --scene uav_pillars --out DIR
 //!     [--config FILE] [--frames N] [--voxel-size M] [--max-distance M]
 //!     [--integration wavefront|exact] [--repeat N]
-//! cargo run --release -p edtmap --example edt_changes -- export --dataset DIR --config FILE --out DIR
+//! cargo run --release -p edtmap --example edt_changes -- export --dataset PATH --config FILE --out DIR
 //!     [same options]
 //! cargo run --release -p edtmap --example edt_changes -- compare --dir DIR --dynamicedt PREFIX
 //! ```
 //!
-//! `export` replays a built-in scene, or a folder recording (as `edtmap run
-//! --dataset` opens it: 3DMatch or TUM depth images, PCD/PLY/KITTI clouds),
+//! `export` replays a built-in scene, or a recording (as `edtmap run
+//! --dataset` opens it: a folder of 3DMatch or TUM depth images or
+//! PCD/PLY/KITTI clouds, a ROS bag or MCAP file),
 //! through the [`edtmap::Mapper`] and,
 //! after each frame, finds the voxels that became obstacles and those that
 //! stopped being obstacles (only the occupancy blocks the frame changed are

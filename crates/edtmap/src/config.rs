@@ -107,16 +107,10 @@ impl Config {
         Ok(config)
     }
 
-    /// Reads and parses a configuration file.
+    /// Reads and parses a configuration file (an application reads its own
+    /// sections from the same [`read`] text with [`sections`]).
     pub fn load(path: &Path) -> Result<Config, MapError> {
-        Ok(Config::load_with::<IgnoredAny>(path)?.0)
-    }
-
-    /// Reads a configuration file and parses it twice: as the library's
-    /// [`Config`] and as the application's sections `A` (see [`sections`]).
-    pub fn load_with<A: DeserializeOwned>(path: &Path) -> Result<(Config, A), MapError> {
-        let (text, origin) = (read(path)?, path.display().to_string());
-        Ok((Config::parse(&text, &origin)?, sections(&text, &origin)?))
+        Config::parse(&read(path)?, &path.display().to_string())
     }
 
     /// The sensor and mapper parameters, validated: every number in its

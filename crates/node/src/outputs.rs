@@ -3,38 +3,11 @@
 //! 2D occupancy grid, and the frame statistics.
 
 use super::types::{
-    DiagnosticArray, DiagnosticStatus, Header, KeyValue, MapMetaData, OccupancyGrid, PointCloud2, PointField, Pose,
-    Time, Transform, Vector3,
+    DiagnosticArray, DiagnosticStatus, Header, KeyValue, MapMetaData, OccupancyGrid, PointCloud2, Pose, Time,
+    Transform, Vector3,
 };
 use edtmap::query::{voxel_distance, voxel_state};
 use edtmap::{BlockKey, GlobalMap, LocalVolume, PointState, VoxelIndex, BLOCK_VOXELS};
-
-/// PointField type code of float32.
-const FLOAT32: u8 = 7;
-
-/// A cloud of float32 fields (`x`, `y`, `z`, then `extra`), one point per
-/// entry of `points`.
-fn cloud(header: Header, names: &[&str], points: &[f32]) -> PointCloud2 {
-    let n = names.len() as u32;
-    let fields = names
-        .iter()
-        .enumerate()
-        .map(|(i, name)| PointField { name: (*name).into(), offset: 4 * i as u32, datatype: FLOAT32, count: 1 })
-        .collect();
-    let width = (points.len() / names.len()) as u32;
-    let data = points.iter().flat_map(|v| v.to_le_bytes()).collect();
-    PointCloud2 {
-        header,
-        height: 1,
-        width,
-        fields,
-        is_bigendian: false,
-        point_step: 4 * n,
-        row_step: 4 * n * width,
-        data,
-        is_dense: true,
-    }
-}
 
 /// The voxels of `volume` block by block: `f(voxel)` for each voxel of
 /// each allocated occupancy block the volume overlaps.
@@ -69,7 +42,7 @@ pub(crate) fn esdf_cloud(map: &GlobalMap, volume: &LocalVolume, z_m: [f64; 2], h
             }
         }
     });
-    cloud(header, &["x", "y", "z", "distance"], &points)
+    PointCloud2::from_f32_fields(header, &["x", "y", "z", "distance"], &points)
 }
 
 /// `/edtmap/occupied_pointcloud`: x, y, z of the occupied voxels of the
@@ -93,7 +66,7 @@ pub(crate) fn occupied_cloud(map: &GlobalMap, volume: Option<&LocalVolume>, head
             }
         }
     }
-    cloud(header, &["x", "y", "z"], &points)
+    PointCloud2::from_f32_fields(header, &["x", "y", "z"], &points)
 }
 
 /// The window's layer at `height_m` (clamped into the window): its z index.
@@ -151,7 +124,10 @@ pub(crate) fn slice(
         height: ny as u32,
         origin,
     };
-    (cloud(header.clone(), &["x", "y", "z", "distance"], &flat), OccupancyGrid { header, info, data: cells })
+    (
+        PointCloud2::from_f32_fields(header.clone(), &["x", "y", "z", "distance"], &flat),
+        OccupancyGrid { header, info, data: cells },
+    )
 }
 
 /// `/edtmap/frame_stats`: one status named `edtmap` with the given values.

@@ -39,24 +39,32 @@ impl PointCloud2 {
     /// An unordered cloud of `x y z` float32 points, as drivers publish
     /// them (non-finite points: no return).
     pub fn from_points(header: super::msg::Header, points: &[[f32; 3]]) -> Self {
-        let fields = ["x", "y", "z"]
+        PointCloud2::from_f32_fields(header, &["x", "y", "z"], points.as_flattened())
+    }
+
+    /// An unordered little-endian cloud of float32 fields named `names`,
+    /// one point per `names.len()` entries of `values` (a trailing partial
+    /// point is left out); dense when every value is finite.
+    pub fn from_f32_fields(header: super::msg::Header, names: &[&str], values: &[f32]) -> Self {
+        let n = names.len().max(1);
+        let fields = names
             .iter()
             .zip(0..)
             .map(|(name, i)| PointField { name: (*name).into(), offset: 4 * i, datatype: 7, count: 1 })
             .collect();
-        let width = u32::try_from(points.len()).unwrap_or(u32::MAX);
-        let data = points.iter().flatten().flat_map(|v| v.to_le_bytes()).collect();
-        let is_dense = points.iter().flatten().all(|v| v.is_finite());
+        let values = &values[..values.len() / n * n];
+        let width = u32::try_from(values.len() / n).unwrap_or(u32::MAX);
+        let point_step = u32::try_from(4 * n).unwrap_or(u32::MAX);
         PointCloud2 {
             header,
             height: 1,
             width,
             fields,
             is_bigendian: false,
-            point_step: 12,
-            row_step: width.saturating_mul(12),
-            data,
-            is_dense,
+            point_step,
+            row_step: width.saturating_mul(point_step),
+            data: values.iter().flat_map(|v| v.to_le_bytes()).collect(),
+            is_dense: values.iter().all(|v| v.is_finite()),
         }
     }
 
