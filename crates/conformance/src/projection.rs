@@ -39,8 +39,7 @@ impl ProjectionCase {
     /// The case as a backend receives it.
     pub fn job(&self) -> ProjectJob<'_> {
         ProjectJob {
-            sensor: &self.sensor,
-            measurement: &self.frame.measurement,
+            view: self.sensor.view(&self.frame.measurement).expect("a case's measurement is its sensor's own"),
             t_world_sensor: &self.frame.t_world_sensor,
             volume: self.volume,
             free_margin_m: self.free_margin_m,

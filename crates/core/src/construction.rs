@@ -57,17 +57,23 @@ impl OgmOptions {
     }
 }
 
-/// The projection of `frame` over `volume` as a backend receives it.
-pub fn project_job<'a>(sensor: &'a Sensor, frame: &'a Frame, volume: LocalVolume, opts: &OgmOptions) -> ProjectJob<'a> {
-    ProjectJob {
-        sensor,
-        measurement: &frame.measurement,
+/// The projection of `frame` over `volume` as a backend receives it;
+/// `None` when projection cannot interpret the measurement (a point
+/// cloud, or a measurement of another sensor).
+pub fn project_job<'a>(
+    sensor: &'a Sensor,
+    frame: &'a Frame,
+    volume: LocalVolume,
+    opts: &OgmOptions,
+) -> Option<ProjectJob<'a>> {
+    Some(ProjectJob {
+        view: sensor.view(&frame.measurement)?,
         t_world_sensor: &frame.t_world_sensor,
         volume,
         free_margin_m: opts.free_margin_at(volume.voxel_size_m),
         clear_no_return: opts.clear_no_return,
         planar_half_thickness_m: opts.planar_half_thickness_at(volume.voxel_size_m),
-    }
+    })
 }
 
 /// Marks the voxel of every return as a hit: volumetric projection's hits

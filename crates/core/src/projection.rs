@@ -21,7 +21,7 @@ mod depth;
 mod lidar;
 mod planar;
 
-use crate::sensor::{Measurement, Projection, RangeLimits, Sensor};
+use crate::sensor::{Projection, RangeLimits, View};
 use crate::{LocalVolume, Observations, OBS_MISS};
 use cull::{TileCull, TILE};
 use depth::DepthMiss;
@@ -44,10 +44,9 @@ pub const PROJ_UNCERTAIN: u8 = 2;
 /// receives it: everything the per-voxel decision depends on.
 #[derive(Debug, Clone, Copy)]
 pub struct ProjectJob<'a> {
-    /// The sensor model.
-    pub sensor: &'a Sensor,
-    /// Its measurement (checked against `sensor`).
-    pub measurement: &'a Measurement,
+    /// The measurement as projection sees it, with its sensor's
+    /// parameters ([`crate::sensor::SensorModel::view`]).
+    pub view: View<'a>,
     /// Pose of the sensor in the world, `T_world_sensor`.
     pub t_world_sensor: &'a Isometry3<f64>,
     /// The local volume whose voxels are decided.
@@ -134,11 +133,10 @@ impl ProjectJob<'_> {
     /// `p` ([`VoxelToSensor::point`]).
     #[inline]
     pub fn is_miss_at(&self, p: [f32; 3]) -> bool {
-        let in_plane = !matches!(self.sensor, Sensor::Planar) || p[2].abs() <= self.planar_half_thickness_m;
         let half_voxel = (self.volume.voxel_size_m / 2.0) as f32;
-        in_plane
-            && self.is_free(self.sensor.project(self.measurement, p))
-            && self.sensor.beam_passes_within(p, half_voxel)
+        self.view.in_plane(p, self.planar_half_thickness_m)
+            && self.is_free(self.view.project(p))
+            && self.view.beam_passes_within(p, half_voxel)
     }
 
     /// The range below which a point projecting to a beam or pixel that

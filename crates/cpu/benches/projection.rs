@@ -45,7 +45,7 @@ fn scenes(c: &mut Criterion) {
         let params = VolumeParams { size_m, fixed_height_m };
         let volume = LocalVolume::centred(&params, voxel_size_m, frame.t_world_sensor.translation.vector.into())
             .expect("volume");
-        let job = project_job(&sensor, &frame, volume, &OgmOptions::default());
+        let job = project_job(&sensor, &frame, volume, &OgmOptions::default()).expect("projectable");
         let mut obs = Observations::new(volume);
         let mut g = c.benchmark_group(format!("project_{name:?}_{voxel_size_m}m"));
         g.sample_size(20).warm_up_time(Duration::from_secs(1)).measurement_time(Duration::from_secs(3));

@@ -45,8 +45,7 @@ struct Case {
 impl Case {
     fn job(&self) -> ProjectJob<'_> {
         ProjectJob {
-            sensor: &self.sensor,
-            measurement: &self.measurement,
+            view: self.sensor.view(&self.measurement).expect("a case's measurement is its sensor's own"),
             t_world_sensor: &self.pose,
             volume: self.volume,
             free_margin_m: self.free_margin_m,

@@ -21,6 +21,14 @@ fn every_shipped_config_parses() {
         let (sensor, params) = config.mapper_params().expect("valid");
         assert!(params.voxel_size_m > 0.0);
         let stem = path.file_stem().and_then(|s| s.to_str()).expect("utf-8 name");
+        // The sensor names its kind as the file spells it (the Python
+        // package and the command line report that name).
+        let kind = std::fs::read_to_string(&path).expect("config").parse::<toml::Table>().expect("toml")["sensor"]
+            ["kind"]
+            .as_str()
+            .expect("[sensor] kind")
+            .to_string();
+        assert_eq!(sensor.name(), kind, "{stem}");
         n += 1;
         if stem == "room" || stem == "3dmatch" {
             assert!(matches!(sensor, Sensor::Depth(_)));

@@ -33,7 +33,7 @@ fn projection_on_the_scenes_is_the_cpus() {
             let centre = frame.t_world_sensor.translation.vector.into();
             let volume = LocalVolume::centred(&params.volume, params.voxel_size_m, centre).expect("volume");
             assert!(gpu
-                .project_bits(&project_job(&sensor, &frame, volume, &params.ogm), &mut bits)
+                .project_bits(&project_job(&sensor, &frame, volume, &params.ogm).expect("projectable"), &mut bits)
                 .expect("projection"));
             voxels += bits.len();
             uncertain += bits.iter().filter(|&&b| b == PROJ_UNCERTAIN).count();

@@ -14,7 +14,7 @@
 
 use crate::context::GpuContext;
 use crate::dispatch::{groups_1d, in_out_kernel, unpack_codes, Kernel};
-use edtmap_core::sensor::{Measurement, Sensor};
+use edtmap_core::sensor::View;
 use edtmap_core::{BackendError, ProjectJob};
 use std::f64::consts::TAU;
 
@@ -263,15 +263,15 @@ impl GpuProject {
         p.frac[3] = s as f32;
         p.err[0] = (HOST_REL_ERR * magnitude) as f32;
         self.free_below.clear();
-        match (job.sensor, job.measurement) {
-            (Sensor::Depth(cam), Measurement::Depth(img)) => {
+        match job.view {
+            View::Pinhole { camera: cam, image: img } => {
                 p.base[3] = KIND_DEPTH;
                 p.cam = [cam.fx as f32, cam.fy as f32, cam.cx as f32, cam.cy as f32];
                 p.img = [img.width, img.height, 0, 0];
                 let pixels = img.width as usize * img.height as usize;
                 self.free_below.extend((0..pixels).map(|i| job.free_below_m(img.depth_m(i), &cam.range)));
             }
-            (Sensor::Planar, Measurement::Scan(scan)) => {
+            View::Sweep { scan } => {
                 p.base[3] = KIND_PLANAR;
                 let inc = scan.angle_increment_rad;
                 // LaserScan::beam wraps the indices i >= floor(turn) with
@@ -291,7 +291,7 @@ impl GpuProject {
                 p.err[1] = (HOST_REL_ERR * (scan.angle_min_rad.abs() + 4.0 * TAU)) as f32;
                 self.free_below.extend(scan.ranges.iter().map(|&d| job.free_below_m(d, &scan.range)));
             }
-            (Sensor::Lidar(lidar), Measurement::Lidar(scan)) => {
+            View::Rings { lidar, scan } => {
                 p.base[3] = KIND_LIDAR;
                 let rings = &lidar.ring_elevations_rad;
                 let beams = scan.ranges.len();
@@ -310,7 +310,6 @@ impl GpuProject {
                 self.free_below.extend(rings.windows(2).map(|w| ((w[0] + w[1]) / 2.0) as f32));
                 self.free_below.push(hi as f32);
             }
-            _ => return None,
         }
         Some(p)
     }

@@ -11,9 +11,7 @@ use std::sync::{Arc, MutexGuard};
 use edtmap::config::Config;
 use edtmap::cpu::CpuBackend;
 use edtmap::query;
-use edtmap::sensor::{
-    DepthData, DepthImage, Frame, LaserScan, LidarScan, Measurement, PointCloud, RangeLimits, Sensor,
-};
+use edtmap::sensor::{DepthData, DepthImage, Frame, LaserScan, LidarScan, Measurement, PointCloud, RangeLimits};
 use edtmap::{Backend, BackendChoice, FrameStats, GlobalMap, MapError, Mapper, PointState, SharedMapper, Snapshot};
 use nalgebra::{Isometry3, Quaternion, Translation3};
 use numpy::{PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
@@ -157,16 +155,6 @@ fn stats_dict<'py>(py: Python<'py>, s: &FrameStats) -> PyResult<Bound<'py, PyDic
     d.set_item("map_blocks", s.map_blocks)?;
     d.set_item("map_bytes", s.map_bytes)?;
     Ok(d)
-}
-
-/// The short name of a sensor kind, as `[sensor] kind` spells it.
-pub(crate) fn sensor_name(sensor: &Sensor) -> &'static str {
-    match sensor {
-        Sensor::Depth(_) => "depth",
-        Sensor::Lidar(_) => "lidar",
-        Sensor::Points(_) => "points",
-        Sensor::Planar => "planar",
-    }
 }
 
 /// The code of a point's state: 0 outside the mapped blocks, 1 unknown,
@@ -424,7 +412,7 @@ impl PyMapper {
     /// The sensor kind: `depth`, `lidar`, `points` or `planar`.
     #[getter]
     fn sensor_kind(&self) -> PyResult<&'static str> {
-        Ok(sensor_name(self.lock()?.sensor()))
+        Ok(self.lock()?.sensor().name())
     }
 
     /// Blocks of the global map (occupancy, EDT, fixed obstacles).

@@ -60,7 +60,7 @@ impl PyRecording {
             )));
         }
         let len = recording.len();
-        let kind = crate::mapper::sensor_name(&sensor);
+        let kind = sensor.name();
         let n = frames.unwrap_or(len).min(len);
         let (tx, rx) = sync_channel(READ_AHEAD);
         let name = path.display().to_string();

@@ -25,7 +25,7 @@
 //! voxel by voxel as before.
 
 use super::{ProjectJob, VoxelToSensor};
-use crate::sensor::{Measurement, PinholeCamera, Sensor};
+use crate::sensor::{PinholeCamera, View};
 
 /// Edge of a tile, voxels: an observation cell.
 pub(super) const TILE: usize = 8;
@@ -89,11 +89,10 @@ impl<'a> TileCull<'a> {
         if free_below_m <= 0.0 {
             return None;
         }
-        let shape = match job.sensor {
-            Sensor::Depth(c) => Shape::Depth(frustum(c)),
-            Sensor::Lidar(l) => Shape::Lidar { fan_rad: l.fan_rad() },
-            Sensor::Planar => Shape::Planar { half_thickness_m: job.planar_half_thickness_m as f64 },
-            Sensor::Points(_) => return None,
+        let shape = match job.view {
+            View::Pinhole { camera, .. } => Shape::Depth(frustum(camera)),
+            View::Rings { lidar, .. } => Shape::Lidar { fan_rad: lidar.fan_rad() },
+            View::Sweep { .. } => Shape::Planar { half_thickness_m: job.planar_half_thickness_m as f64 },
         };
         Some(TileCull { geom: *geom, free_below_m, shape, bin_free_below_m })
     }
@@ -163,17 +162,9 @@ pub(super) fn tile_centre(geom: &VoxelToSensor, lo: [usize; 3], hi: [usize; 3]) 
 /// point free, over every beam or pixel of the measurement, metres;
 /// `f32::MIN` when none frees anything.
 fn free_below_sup(job: &ProjectJob<'_>) -> f32 {
-    let sup = |ranges: &mut dyn Iterator<Item = f32>, limits| {
-        ranges.map(|d| job.free_below_m(d, limits)).fold(f32::MIN, f32::max)
-    };
-    match (job.sensor, job.measurement) {
-        (Sensor::Depth(c), Measurement::Depth(img)) => {
-            sup(&mut (0..img.width as usize * img.height as usize).map(|i| img.depth_m(i)), &c.range)
-        }
-        (Sensor::Lidar(l), Measurement::Lidar(scan)) => sup(&mut scan.ranges.iter().copied(), &l.range),
-        (Sensor::Planar, Measurement::Scan(scan)) => sup(&mut scan.ranges.iter().copied(), &scan.range),
-        _ => f32::MIN,
-    }
+    let mut sup = f32::MIN;
+    job.view.for_each_measured(|d| sup = sup.max(job.free_below_m(d, job.view.range())));
+    sup
 }
 
 /// The camera's four image planes, widened by [`PIXEL_MARGIN`], with the

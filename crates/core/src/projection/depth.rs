@@ -20,7 +20,7 @@
 
 use super::cull::{norm, tile_centre};
 use super::{ProjectJob, VoxelToSensor};
-use crate::sensor::{raw_depth_m, DepthData, DepthImage, Measurement, PinholeCamera, Sensor};
+use crate::sensor::{raw_depth_m, DepthData, DepthImage, PinholeCamera, View};
 use rayon::prelude::*;
 
 /// Edge of the pyramid's finest cells, pixels.
@@ -76,7 +76,7 @@ pub(super) struct DepthMiss<'a> {
 impl<'a> DepthMiss<'a> {
     /// The decision for `job`, when it projects a depth image.
     pub(super) fn new(job: &ProjectJob<'a>) -> Option<Self> {
-        let (Sensor::Depth(camera), Measurement::Depth(image)) = (job.sensor, job.measurement) else {
+        let View::Pinhole { camera, image } = job.view else {
             return None;
         };
         let mut free_below_m = thresholds(job, camera, image);
@@ -271,11 +271,9 @@ mod tests {
             let camera = PinholeCamera { fx: 0.8 * w as f64, fy: 0.8 * w as f64, cx: w as f64 / 2.0, cy: h as f64 / 2.0, width: w, height: h, range: RangeLimits { min_m: 0.1, max_m: 4.0 } };
             let n = (w * h) as usize;
             let image = DepthImage { width: w, height: h, data: DepthData::Metres(depths[..n].to_vec()) };
-            let sensor = Sensor::Depth(camera.clone());
-            let measurement = Measurement::Depth(image);
             let pose = Isometry3::identity();
             let job = ProjectJob {
-                sensor: &sensor, measurement: &measurement, t_world_sensor: &pose,
+                view: View::Pinhole { camera: &camera, image: &image }, t_world_sensor: &pose,
                 volume: LocalVolume { origin: VoxelIndex([0; 3]), dims: [8; 3], voxel_size_m: 0.1 },
                 free_margin_m: 0.07, clear_no_return, planar_half_thickness_m: 0.05,
             };
@@ -288,7 +286,7 @@ mod tests {
             let (least, largest) = d.bounds((u0, u1), (v0, v1));
             for v in v0..=v1 {
                 for u in u0..=u1 {
-                    let t = job.free_below_m(measurement_depth(&measurement, u + w * v), &camera.range);
+                    let t = job.free_below_m(image.depth_m(u + w * v), &camera.range);
                     prop_assert!(least <= t && t <= largest, "pixel ({u}, {v}): {t} outside {least}..{largest}");
                 }
             }
@@ -296,10 +294,5 @@ mod tests {
                 prop_assert_eq!(d.is_miss_at(p), job.is_miss_at(p), "point {:?}", p);
             }
         }
-    }
-
-    fn measurement_depth(m: &Measurement, i: usize) -> f32 {
-        let Measurement::Depth(image) = m else { unreachable!() };
-        image.depth_m(i)
     }
 }

@@ -26,7 +26,7 @@
 //! multiplications instead of three inverse trigonometric functions.
 
 use super::ProjectJob;
-use crate::sensor::{norm, LidarScan, Measurement, Sensor, SpinningLidar};
+use crate::sensor::{norm, LidarScan, SpinningLidar, View};
 use std::f64::consts::{FRAC_PI_2, PI};
 
 /// Relative margin on the sign tests: a sign is trusted when the product
@@ -58,7 +58,7 @@ pub(super) struct LidarMiss<'a> {
 impl<'a> LidarMiss<'a> {
     /// The decision for `job`, when it projects a LiDAR range image.
     pub(super) fn new(job: &ProjectJob<'a>) -> Option<Self> {
-        let (Sensor::Lidar(lidar), Measurement::Lidar(scan)) = (job.sensor, job.measurement) else {
+        let View::Rings { lidar, scan } = job.view else {
             return None;
         };
         let mut bin_free_below_m = vec![f32::MIN; lidar.azimuth_bins];
@@ -349,13 +349,12 @@ mod tests {
             }
             lidar.validate().expect("valid LiDAR");
             let ranges = (0..rings * bins).map(|_| rng.uniform(0.0, 40.0) as f32).collect();
-            let (sensor, measurement) = (Sensor::Lidar(lidar.clone()), Measurement::Lidar(LidarScan { ranges }));
+            let scan = LidarScan { ranges };
             let voxel_size_m = [0.05, 0.2][case % 2];
             let pose = Isometry3::identity();
             let volume = LocalVolume { origin: VoxelIndex([0, 0, 0]), dims: [8, 8, 8], voxel_size_m };
             let job = ProjectJob {
-                sensor: &sensor,
-                measurement: &measurement,
+                view: View::Rings { lidar: &lidar, scan: &scan },
                 t_world_sensor: &pose,
                 volume,
                 free_margin_m: 0.0,

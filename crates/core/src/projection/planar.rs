@@ -13,7 +13,7 @@
 
 use super::lidar::{fast_atan2, ATAN};
 use super::ProjectJob;
-use crate::sensor::{LaserScan, Measurement, Sensor};
+use crate::sensor::{LaserScan, View};
 use std::f64::consts::TAU;
 
 /// Error of [`fast_atan2`]'s angle, radians, with room to spare (it
@@ -37,7 +37,7 @@ pub(super) struct PlanarMiss<'a> {
 impl<'a> PlanarMiss<'a> {
     /// The decision for `job`, when it projects a planar scan.
     pub(super) fn new(job: &ProjectJob<'a>) -> Option<Self> {
-        let (Sensor::Planar, Measurement::Scan(scan)) = (job.sensor, job.measurement) else {
+        let View::Sweep { scan } = job.view else {
             return None;
         };
         let free_below_m = scan.ranges.iter().map(|&d| job.free_below_m(d, &scan.range)).collect();

@@ -1,6 +1,6 @@
 //! Spinning 3D LiDAR with a table of rings, as a range image.
 
-use super::{check_range, RangeLimits, SensorRay};
+use super::{check_range, RangeLimits, SensorModel, SensorRay, View};
 use crate::CoreError;
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
@@ -156,13 +156,13 @@ impl SpinningLidar {
         ((rings[best] - el).abs() <= half).then_some(best)
     }
 
-    /// See [`super::Sensor::beam_passes_within`].
+    /// See [`View::beam_passes_within`].
     pub(super) fn ring_passes_within(&self, p: [f32; 3], radius_m: f32) -> bool {
         let (horiz, el) = Self::elevation(p);
         self.ring_passes_at(p, horiz, el, radius_m)
     }
 
-    /// [`super::Sensor::beam_passes_within`] of `p`, whose horizontal
+    /// [`View::beam_passes_within`] of `p`, whose horizontal
     /// distance and elevation [`Self::elevation`] gave.
     #[inline]
     pub fn ring_passes_at(&self, p: [f32; 3], horiz: f64, el: f64, radius_m: f32) -> bool {
@@ -175,8 +175,27 @@ impl SpinningLidar {
         let i = rings.partition_point(|&e| e < el);
         [i.checked_sub(1), (i < rings.len()).then_some(i)].into_iter().flatten().any(|k| (rings[k] - el).abs() <= reach)
     }
+}
 
-    pub(super) fn rays(&self, scan: &LidarScan, clear_no_return: bool, out: &mut Vec<SensorRay>) {
+impl SensorModel for SpinningLidar {
+    type Data = LidarScan;
+    const NAME: &'static str = "lidar";
+    const KIND: &'static str = "spinning LiDAR";
+    const PROJECTS: bool = true;
+
+    fn validate(&self) -> Result<(), CoreError> {
+        SpinningLidar::validate(self)
+    }
+
+    fn check(&self, scan: &LidarScan) -> Result<(), CoreError> {
+        SpinningLidar::check(self, scan)
+    }
+
+    fn range(&self) -> RangeLimits {
+        self.range
+    }
+
+    fn rays(&self, scan: &LidarScan, clear_no_return: bool, out: &mut Vec<SensorRay>) {
         for r in 0..self.ring_elevations_rad.len() {
             for b in 0..self.azimuth_bins {
                 let d = scan.ranges[r * self.azimuth_bins + b];
@@ -184,6 +203,10 @@ impl SpinningLidar {
                 out.extend(SensorRay::from_range(dir, d, &self.range, clear_no_return));
             }
         }
+    }
+
+    fn view<'a>(&'a self, scan: &'a LidarScan) -> Option<View<'a>> {
+        Some(View::Rings { lidar: self, scan })
     }
 }
 

@@ -6,13 +6,17 @@
 //! choice (`clear_no_return`), as real sensors differ.
 
 mod lidar;
+mod model;
 mod pinhole;
 mod planar;
+mod points;
 mod pose;
 
 pub use lidar::{LidarScan, SpinningLidar, MAX_RINGS};
+pub use model::{SensorModel, View};
 pub use pinhole::{raw_depth_m, DepthData, DepthImage, PinholeCamera, MAX_IMAGE_PIXELS};
-pub use planar::LaserScan;
+pub use planar::{LaserScan, PlanarLidar};
+pub use points::PointSensor;
 pub use pose::{
     check_pose, pose_from_matrix, pose_from_matrix_noted, rotation_from_matrix, rotation_from_quaternion,
     PoseAdjustments, ROTATION_NOTED, ROTATION_TOLERANCE,
@@ -51,7 +55,9 @@ fn check_range(r: &RangeLimits) -> Result<(), CoreError> {
     }
 }
 
-/// What produced a measurement and how to interpret it.
+/// What produced a measurement and how to interpret it: the sensor kinds,
+/// each a [`SensorModel`] (see [`model`]) whose calls the methods below
+/// hand on through [`with_model!`] and [`with_frame_model!`].
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub enum Sensor {
     /// A pinhole depth camera.
@@ -141,83 +147,109 @@ pub enum Projection {
     },
 }
 
+/// Runs `$body` with `$model` bound to `$sensor`'s [`SensorModel`]: the
+/// one place, beside [`with_frame_model!`], that lists the sensor kinds.
+macro_rules! with_model {
+    ($sensor:expr, |$model:ident| $body:expr) => {
+        match $sensor {
+            Sensor::Depth($model) => $body,
+            Sensor::Lidar($model) => $body,
+            Sensor::Points(range) => {
+                let $model = &PointSensor(*range);
+                $body
+            }
+            Sensor::Planar => {
+                let $model = &PlanarLidar;
+                $body
+            }
+        }
+    };
+}
+
+/// Runs `$body` with `$model` bound to the [`SensorModel`] that reads
+/// measurement `$m` of `$sensor`, and `$data` to the measurement: the
+/// sensor's own, or a point cloud, which every 3D sensor may deliver (read
+/// with the sensor's range limits); `$other` for any other pairing.
+macro_rules! with_frame_model {
+    ($sensor:expr, $m:expr, |$model:ident, $data:ident| $body:expr, $other:expr) => {
+        match ($sensor, $m) {
+            (Sensor::Depth($model), Measurement::Depth($data)) => $body,
+            (Sensor::Lidar($model), Measurement::Lidar($data)) => $body,
+            (Sensor::Planar, Measurement::Scan($data)) => {
+                let $model = &PlanarLidar;
+                $body
+            }
+            (s @ (Sensor::Depth(_) | Sensor::Lidar(_) | Sensor::Points(_)), Measurement::Points($data)) => {
+                let $model = &PointSensor(s.range());
+                $body
+            }
+            _ => $other,
+        }
+    };
+}
+
 impl Sensor {
     /// Checks the sensor's parameters.
     pub fn validate(&self) -> Result<(), CoreError> {
-        match self {
-            Sensor::Depth(c) => c.validate(),
-            Sensor::Lidar(l) => l.validate(),
-            Sensor::Points(r) => check_range(r),
-            Sensor::Planar => Ok(()),
-        }
+        with_model!(self, |model| model.validate())
     }
 
     /// Checks that `frame` is a valid measurement of this sensor taken from
     /// a valid pose, with at least one ray.
     pub fn check(&self, frame: &Frame) -> Result<(), CoreError> {
         check_pose(&frame.t_world_sensor)?;
-        match (self, &frame.measurement) {
-            (Sensor::Depth(c), Measurement::Depth(img)) => c.check(img),
-            (Sensor::Lidar(l), Measurement::Lidar(scan)) => l.check(scan),
-            (Sensor::Points(_) | Sensor::Lidar(_) | Sensor::Depth(_), Measurement::Points(pc)) => {
-                match pc.points.is_empty() {
-                    true => Err(CoreError::BadMeasurement("point cloud is empty".into())),
-                    false => Ok(()),
-                }
-            }
-            (Sensor::Planar, Measurement::Scan(scan)) => scan.validate(),
-            (s, m) => Err(CoreError::BadMeasurement(format!("a {} measurement from a {} sensor", m.kind(), s.kind()))),
-        }
+        let m = &frame.measurement;
+        with_frame_model!(
+            self,
+            m,
+            |model, data| model.check(data),
+            Err(CoreError::BadMeasurement(format!("a {} measurement from a {} sensor", m.kind(), self.kind())))
+        )
     }
 
-    /// Short name of the sensor kind.
+    /// The kind in words.
     pub fn kind(&self) -> &'static str {
-        match self {
-            Sensor::Depth(_) => "depth camera",
-            Sensor::Lidar(_) => "spinning LiDAR",
-            Sensor::Points(_) => "point cloud",
-            Sensor::Planar => "planar LiDAR",
+        fn kind<M: SensorModel>(_: &M) -> &'static str {
+            M::KIND
         }
+        with_model!(self, |model| kind(model))
     }
 
-    /// Whether volumetric projection can interpret this sensor's measurements.
+    /// The kind's name as `[sensor] kind` spells it: `depth`, `lidar`,
+    /// `points` or `planar`.
+    pub fn name(&self) -> &'static str {
+        fn name<M: SensorModel>(_: &M) -> &'static str {
+            M::NAME
+        }
+        with_model!(self, |model| name(model))
+    }
+
+    /// Whether volumetric projection can interpret this sensor's own
+    /// measurements.
     pub fn supports_projection(&self) -> bool {
-        !matches!(self, Sensor::Points(_))
+        fn projects<M: SensorModel>(_: &M) -> bool {
+            M::PROJECTS
+        }
+        with_model!(self, |model| projects(model))
     }
 
     /// The range of the sensor's valid returns (a planar LiDAR's scans
     /// carry their own: unbounded here).
     pub fn range(&self) -> RangeLimits {
-        match self {
-            Sensor::Depth(c) => c.range,
-            Sensor::Lidar(l) => l.range,
-            Sensor::Points(r) => *r,
-            Sensor::Planar => RangeLimits { min_m: 0.0, max_m: f32::MAX },
-        }
+        with_model!(self, |model| model.range())
     }
 
-    /// The longest ray this sensor casts, metres (for sizing searches).
+    /// The longest ray this sensor casts for measurement `m`, metres (for
+    /// sizing searches).
     pub fn max_range_m(&self, m: &Measurement) -> f32 {
-        match (self, m) {
-            (Sensor::Depth(c), _) => c.range.max_m,
-            (Sensor::Lidar(l), _) => l.range.max_m,
-            (Sensor::Points(r), _) => r.max_m,
-            (Sensor::Planar, Measurement::Scan(s)) => s.range.max_m,
-            (Sensor::Planar, _) => 0.0,
-        }
+        with_frame_model!(self, m, |model, data| model.range_of(data).max_m, 0.0)
     }
 
     /// Every ray of a checked measurement, in the sensor frame. Rays with no
     /// return are included, reaching the maximum range, when `clear_no_return`.
     pub fn rays(&self, m: &Measurement, clear_no_return: bool, out: &mut Vec<SensorRay>) {
         out.clear();
-        match (self, m) {
-            (Sensor::Depth(c), Measurement::Depth(img)) => c.rays(img, clear_no_return, out),
-            (Sensor::Lidar(l), Measurement::Lidar(scan)) => l.rays(scan, clear_no_return, out),
-            (s, Measurement::Points(pc)) => points_rays(&pc.points, s.range(), clear_no_return, out),
-            (_, Measurement::Scan(scan)) => scan.rays(clear_no_return, out),
-            _ => {}
-        }
+        with_frame_model!(self, m, |model, data| model.rays(data, clear_no_return, out), ())
     }
 
     /// Calls `f` with the point of every return of a checked measurement
@@ -225,48 +257,26 @@ impl Sensor {
     /// depth image's pixels row by row in parallel, other measurements
     /// through their [`Self::rays`] (kept in `rays`).
     pub fn par_returns(&self, m: &Measurement, rays: &mut Vec<SensorRay>, f: impl Fn([f64; 3]) + Sync) {
-        use rayon::prelude::*;
-        if let (Sensor::Depth(c), Measurement::Depth(img)) = (self, m) {
-            return c.par_returns(img, f);
+        with_frame_model!(self, m, |model, data| model.par_returns(data, rays, f), ())
+    }
+
+    /// The measurement as volumetric projection sees it; `None` for a
+    /// measurement projection cannot interpret (point clouds), or one of
+    /// another sensor.
+    #[inline]
+    pub fn view<'a>(&'a self, m: &'a Measurement) -> Option<View<'a>> {
+        match (self, m) {
+            (Sensor::Depth(model), Measurement::Depth(data)) => model.view(data),
+            (Sensor::Lidar(model), Measurement::Lidar(data)) => model.view(data),
+            (Sensor::Planar, Measurement::Scan(data)) => PlanarLidar.view(data),
+            _ => None,
         }
-        self.rays(m, false, rays);
-        rays.par_iter()
-            .with_min_len(1024)
-            .filter(|r| r.hit)
-            .for_each(|r| f(r.dir.map(|c| c as f64 * r.range_m as f64)));
     }
 
     /// Where point `p` (sensor frame) falls in measurement `m`.
     #[inline]
     pub fn project(&self, m: &Measurement, p: [f32; 3]) -> Projection {
-        match (self, m) {
-            (Sensor::Depth(c), Measurement::Depth(img)) => match c.project(p) {
-                None => Projection::Unseen,
-                Some(i) => classify(p[2], img.depth_m(i), &c.range),
-            },
-            (Sensor::Lidar(l), Measurement::Lidar(scan)) => match l.project(p) {
-                None => Projection::Unseen,
-                Some((r, b)) => classify(norm(p), scan.ranges[r * l.azimuth_bins + b], &l.range),
-            },
-            (Sensor::Planar, Measurement::Scan(scan)) => match scan.beam(p) {
-                None => Projection::Unseen,
-                Some(i) => classify((p[0] * p[0] + p[1] * p[1]).sqrt(), scan.ranges[i], &scan.range),
-            },
-            _ => Projection::Unseen,
-        }
-    }
-}
-
-impl Sensor {
-    /// Whether the beam nearest to the direction of `p` passes within
-    /// `radius_m` of `p`. A LiDAR's rings are sparse: a voxel between two
-    /// rings is crossed by no beam, and the nearest ring says nothing about
-    /// it. Pixels and planar beams are dense enough to be taken as passing.
-    pub fn beam_passes_within(&self, p: [f32; 3], radius_m: f32) -> bool {
-        match self {
-            Sensor::Lidar(l) => l.ring_passes_within(p, radius_m),
-            _ => true,
-        }
+        self.view(m).map_or(Projection::Unseen, |v| v.project(p))
     }
 }
 
@@ -303,26 +313,10 @@ pub(crate) fn norm(p: [f32; 3]) -> f32 {
 }
 
 #[inline]
-fn classify(point_m: f32, measured_m: f32, range: &RangeLimits) -> Projection {
+pub(crate) fn classify(point_m: f32, measured_m: f32, range: &RangeLimits) -> Projection {
     if range.accepts(measured_m) {
         Projection::Return { point_m, measured_m }
     } else {
         Projection::NoReturn { point_m, max_m: range.max_m }
-    }
-}
-
-fn points_rays(points: &[[f32; 3]], limits: RangeLimits, clear_no_return: bool, out: &mut Vec<SensorRay>) {
-    for p in points {
-        let d = norm(*p);
-        if !d.is_finite() || d == 0.0 {
-            continue;
-        }
-        let dir = p.map(|c| c / d);
-        if limits.accepts(d) {
-            out.push(SensorRay { dir, range_m: d, hit: true });
-        } else if clear_no_return && d > limits.max_m {
-            // A point past the maximum range still shows free space up to it.
-            out.push(SensorRay { dir, range_m: limits.max_m, hit: false });
-        }
     }
 }

@@ -1,6 +1,6 @@
 //! Pinhole depth camera: intrinsics and depth images.
 
-use super::{check_range, RangeLimits, SensorRay};
+use super::{check_range, RangeLimits, SensorModel, SensorRay, View};
 use crate::CoreError;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -159,12 +159,31 @@ impl PinholeCamera {
         }
         Some(u as usize + self.width as usize * v as usize)
     }
+}
+
+impl SensorModel for PinholeCamera {
+    type Data = DepthImage;
+    const NAME: &'static str = "depth";
+    const KIND: &'static str = "depth camera";
+    const PROJECTS: bool = true;
+
+    fn validate(&self) -> Result<(), CoreError> {
+        PinholeCamera::validate(self)
+    }
+
+    fn check(&self, image: &DepthImage) -> Result<(), CoreError> {
+        PinholeCamera::check(self, image)
+    }
+
+    fn range(&self) -> RangeLimits {
+        self.range
+    }
 
     /// Calls `f` with the point of every valid return of `image` (camera
     /// frame, metres): pixel `(u, v)` at depth `d` is
     /// `((u − cx) / fx · d, (v − cy) / fy · d, d)`. Rows run in parallel;
     /// the order of the calls is unspecified.
-    pub(super) fn par_returns(&self, image: &DepthImage, f: impl Fn([f64; 3]) + Sync) {
+    fn par_returns(&self, image: &DepthImage, _rays: &mut Vec<SensorRay>, f: impl Fn([f64; 3]) + Sync) {
         let xs: Vec<f64> = (0..self.width).map(|u| (u as f64 - self.cx) / self.fx).collect();
         (0..self.height).into_par_iter().with_min_len(8).for_each(|v| {
             let y = (v as f64 - self.cy) / self.fy;
@@ -179,8 +198,8 @@ impl PinholeCamera {
         });
     }
 
-    /// One ray per pixel (see [`super::Sensor::rays`]).
-    pub(super) fn rays(&self, image: &DepthImage, clear_no_return: bool, out: &mut Vec<SensorRay>) {
+    /// One ray per pixel.
+    fn rays(&self, image: &DepthImage, clear_no_return: bool, out: &mut Vec<SensorRay>) {
         for v in 0..self.height {
             for u in 0..self.width {
                 let d = image.depth_m((u + self.width * v) as usize);
@@ -195,5 +214,9 @@ impl PinholeCamera {
                 }
             }
         }
+    }
+
+    fn view<'a>(&'a self, image: &'a DepthImage) -> Option<View<'a>> {
+        Some(View::Pinhole { camera: self, image })
     }
 }

@@ -1,6 +1,6 @@
 //! Planar 2D LiDAR with ROS `sensor_msgs/LaserScan` semantics.
 
-use super::{RangeLimits, SensorRay};
+use super::{RangeLimits, SensorModel, SensorRay, View};
 use crate::CoreError;
 
 /// One planar scan in the sensor's x–y plane (x forward, y left): beam `i`
@@ -58,6 +58,43 @@ impl LaserScan {
             let dir = [a.cos() as f32, a.sin() as f32, 0.0];
             out.extend(SensorRay::from_range(dir, d, &self.range, clear_no_return));
         }
+    }
+}
+
+/// A planar LiDAR: each [`LaserScan`] carries its own geometry and range
+/// limits, so the model has no parameters.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct PlanarLidar;
+
+impl SensorModel for PlanarLidar {
+    type Data = LaserScan;
+    const NAME: &'static str = "planar";
+    const KIND: &'static str = "planar LiDAR";
+    const PROJECTS: bool = true;
+
+    fn validate(&self) -> Result<(), CoreError> {
+        Ok(())
+    }
+
+    fn check(&self, scan: &LaserScan) -> Result<(), CoreError> {
+        scan.validate()
+    }
+
+    /// Unbounded: each scan carries its own.
+    fn range(&self) -> RangeLimits {
+        RangeLimits { min_m: 0.0, max_m: f32::MAX }
+    }
+
+    fn range_of(&self, scan: &LaserScan) -> RangeLimits {
+        scan.range
+    }
+
+    fn rays(&self, scan: &LaserScan, clear_no_return: bool, out: &mut Vec<SensorRay>) {
+        scan.rays(clear_no_return, out)
+    }
+
+    fn view<'a>(&'a self, scan: &'a LaserScan) -> Option<View<'a>> {
+        Some(View::Sweep { scan })
     }
 }
 

@@ -8,7 +8,7 @@
 
 use edtmap_core::construction::{project_job, scatter_returns, Construction, OgmOptions};
 use edtmap_core::fixed_ray::{prepare_rays, FixedRay};
-use edtmap_core::sensor::{Frame, Measurement, Sensor, SensorRay};
+use edtmap_core::sensor::{Frame, Sensor, SensorRay};
 use edtmap_core::{Backend, BackendError, CoreError, FuseReport, GlobalMap, LocalVolume, Observations};
 
 /// The occupancy stage with its buffers, reused from frame to frame.
@@ -34,18 +34,20 @@ impl OccupancyStage {
             o.reset(volume);
         }
         let obs = self.obs.get_or_insert_with(|| Observations::new(volume));
-        let projectable = sensor.supports_projection() && !matches!(frame.measurement, Measurement::Points(_));
-        let project = match opts.construction {
-            Construction::Auto => projectable,
-            Construction::RayCasting => false,
-            Construction::Projection if projectable => true,
-            Construction::Projection => {
-                let what = format!("volumetric projection of a {} from a {}", frame.measurement.kind(), sensor.kind());
-                return Err(CoreError::Unsupported(what).into());
-            }
+        let job = match opts.construction {
+            Construction::RayCasting => None,
+            Construction::Auto => project_job(sensor, frame, volume, opts),
+            Construction::Projection => match project_job(sensor, frame, volume, opts) {
+                Some(job) => Some(job),
+                None => {
+                    let m = frame.measurement.kind();
+                    let what = format!("volumetric projection of a {m} from a {}", sensor.kind());
+                    return Err(CoreError::Unsupported(what).into());
+                }
+            },
         };
-        if project {
-            backend.project_volume(&project_job(sensor, frame, volume, opts), obs)?;
+        if let Some(job) = job {
+            backend.project_volume(&job, obs)?;
             scatter_returns(obs, sensor, frame, &mut self.rays);
         } else {
             sensor.rays(&frame.measurement, opts.clear_no_return, &mut self.rays);
