@@ -9,6 +9,7 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use edtmap::config::Config;
 use edtmap_node as node;
+use edtmap_ros::poses::SensorMessage;
 use node::config::RosSection;
 
 /// Arguments of `edtmap node`.
@@ -118,11 +119,7 @@ pub(crate) fn run(args: &NodeArgs) -> Result<()> {
             "no frame was integrated in {:.1} s: check that {} carries {} and that poses come on {} (`ros2 topic list`, ROS_DOMAIN_ID, [ros] localhost_only)",
             started.elapsed().as_secs_f64(),
             ros.sensor_topic,
-            match config.sensor.kind {
-                edtmap::config::SensorKind::Depth => "sensor_msgs/Image",
-                edtmap::config::SensorKind::Planar => "sensor_msgs/LaserScan",
-                _ => "sensor_msgs/PointCloud2",
-            },
+            SensorMessage::of(config.sensor.kind).unwrap_or(SensorMessage::PointCloud2).ros_type(),
             ros.pose_topic
         );
     }

@@ -31,6 +31,7 @@ use edtmap::cpu::CpuBackend;
 use edtmap::sensor::Frame;
 use edtmap::{GlobalMap, MapError, Mapper, SharedMapper};
 use edtmap_ros::msg::{CameraInfo, Message};
+use edtmap_ros::poses::SensorMessage;
 use edtmap_ros::RosOptions;
 use live::{LiveFrames, Skipped};
 use ros2_client::dds::rustdds::mio1::{Events, Interest, Poll, Token};
@@ -244,7 +245,7 @@ struct Outputs {
 /// The mapper of `config` (all but its `[ros]` section), going on from
 /// `map` when given; `max_memory_bytes` replaces `[memory]`'s budget.
 pub fn mapper(config: &Config, map: Option<GlobalMap>, max_memory_bytes: Option<u64>) -> Result<Mapper, NodeError> {
-    if config.sensor.kind == SensorKind::Lidar {
+    if SensorMessage::of(config.sensor.kind).is_none() {
         return Err(NodeError::Config("[sensor] kind = \"lidar\" takes range images; a live sensor_msgs/PointCloud2 needs kind = \"points\" (with construction = \"raycast\" or \"projection\")".into()));
     }
     let (sensor, mut params) = config.mapper_params()?;
@@ -310,9 +311,11 @@ pub fn start(config: &Config, ros: &RosSection, mapper: Mapper) -> Result<NodeHa
             $node.create_publisher(&topic, Some(qos)).map_err(|e| NodeError::Dds(format!("publishing: {e:?}")))?
         }};
     }
-    let sensor_sub = match config.sensor.kind {
-        SensorKind::Depth => {
-            let t = topic(&mut node, &r.sensor_topic, "sensor_msgs", "Image", &sensor_qos())?;
+    let message = SensorMessage::of(config.sensor.kind).unwrap_or(SensorMessage::PointCloud2);
+    let sensor_topic = topic(&mut node, &r.sensor_topic, "sensor_msgs", message.name(), &sensor_qos())?;
+    let sensor_sub = match message {
+        SensorMessage::Image => {
+            let t = sensor_topic;
             let info_topic = r.camera_info_topic.clone().unwrap_or_else(|| match r.sensor_topic.rsplit_once('/') {
                 Some((parent, _)) => format!("{parent}/camera_info"),
                 None => "camera_info".into(),
@@ -320,16 +323,8 @@ pub fn start(config: &Config, ros: &RosSection, mapper: Mapper) -> Result<NodeHa
             let it = topic(&mut node, &info_topic, "sensor_msgs", "CameraInfo", &sensor_qos())?;
             SensorSub::Image(sub!(node, t, sensor_qos()), Some(sub!(node, it, sensor_qos())))
         }
-        SensorKind::Planar => SensorSub::Scan(sub!(
-            node,
-            topic(&mut node, &r.sensor_topic, "sensor_msgs", "LaserScan", &sensor_qos())?,
-            sensor_qos()
-        )),
-        _ => SensorSub::Cloud(sub!(
-            node,
-            topic(&mut node, &r.sensor_topic, "sensor_msgs", "PointCloud2", &sensor_qos())?,
-            sensor_qos()
-        )),
+        SensorMessage::LaserScan => SensorSub::Scan(sub!(node, sensor_topic, sensor_qos())),
+        SensorMessage::PointCloud2 => SensorSub::Cloud(sub!(node, sensor_topic, sensor_qos())),
     };
     let pose_type = r.pose_type();
     let pose_sub = match pose_type {

@@ -6,6 +6,7 @@
 use super::msg::{Message, StampedTransform};
 use super::tf::TfBuffer;
 use super::RosOptions;
+use edtmap::config::SensorKind;
 use edtmap_core::sensor::Measurement;
 use edtmap_io::trajectory::Trajectory;
 use nalgebra::Isometry3;
@@ -125,5 +126,46 @@ pub fn measurement(msg: Message, depth_scale_m: f32) -> Result<(Measurement, i64
         Message::Image(m) => Ok((Measurement::Depth(m.depth(depth_scale_m)?), m.header.stamp_ns, m.header.frame_id)),
         Message::LaserScan(m) => Ok((Measurement::Scan(m.scan()?), m.header.stamp_ns, m.header.frame_id)),
         other => Err(format!("{} is not a sensor message", other.type_name())),
+    }
+}
+
+/// The ROS message that carries a sensor kind's measurements, live and
+/// recorded.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SensorMessage {
+    /// `sensor_msgs/PointCloud2`: point clouds (`kind = "points"`).
+    PointCloud2,
+    /// `sensor_msgs/Image`, with its `sensor_msgs/CameraInfo`: depth
+    /// images (`kind = "depth"`).
+    Image,
+    /// `sensor_msgs/LaserScan`: planar scans (`kind = "planar"`).
+    LaserScan,
+}
+
+impl SensorMessage {
+    /// The message carrying measurements of `kind`; `None` for a spinning
+    /// LiDAR's range images, which no ROS message carries (its drivers
+    /// publish point clouds: `kind = "points"`).
+    pub fn of(kind: SensorKind) -> Option<Self> {
+        match kind {
+            SensorKind::Points => Some(SensorMessage::PointCloud2),
+            SensorKind::Depth => Some(SensorMessage::Image),
+            SensorKind::Planar => Some(SensorMessage::LaserScan),
+            SensorKind::Lidar => None,
+        }
+    }
+
+    /// The type's name within `sensor_msgs` (`Image`).
+    pub fn name(self) -> &'static str {
+        match self {
+            SensorMessage::PointCloud2 => "PointCloud2",
+            SensorMessage::Image => "Image",
+            SensorMessage::LaserScan => "LaserScan",
+        }
+    }
+
+    /// The type as `package/Type` (`sensor_msgs/Image`).
+    pub fn ros_type(self) -> String {
+        format!("sensor_msgs/{}", self.name())
     }
 }
