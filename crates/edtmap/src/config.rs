@@ -22,6 +22,7 @@ mod limits;
 mod memory;
 mod sensor;
 
+pub(crate) use limits::check_ogm;
 pub use limits::{Limit, DEPTH_SCALE_M, OFFSET_M, POSE_GAP_S, WORLD_M};
 pub use memory::MemorySection;
 pub use sensor::{CameraFields, ConstructionName, LidarFields, SensorKind, SensorSection};

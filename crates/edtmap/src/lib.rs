@@ -68,5 +68,5 @@ pub use edtmap_core::*;
 pub use edtmap_cpu as cpu;
 pub use error::MapError;
 pub use mapfile::{load_map, save_map};
-pub use mapper::{Cleared, FrameStats, Mapper, MapperParams};
+pub use mapper::{Cleared, FrameStats, Mapper, MapperParams, MapperSensor};
 pub use shared::{SharedMapper, Snapshot};

@@ -1,6 +1,6 @@
 //! The mapping pipeline of paper Fig. 1, one frame at a time.
 
-use crate::stages::{fuse_on, local_field, OccupancyStage, OgmOptions};
+use crate::stages::{fuse_on, local_field, Construction, OccupancyStage, OgmOptions};
 use crate::update::{ms_since, GlobalUpdate};
 use crate::MapError;
 use edtmap_core::query::{self, Distance, PointState};
@@ -50,9 +50,50 @@ impl MapperParams {
     }
 }
 
+/// One of a mapper's sensors: its name, its model, and how its frames
+/// become occupancy.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MapperSensor {
+    /// The name frames and reports know it by: a config's `[[sensors]]
+    /// name`, or the kind's name (`depth`, `lidar`, ...) for a mapper made
+    /// with one sensor.
+    pub name: String,
+    /// The model its frames are checked against and read with.
+    pub sensor: Sensor,
+    /// How its frames become occupancy.
+    pub ogm: OgmOptions,
+}
+
+impl MapperSensor {
+    /// Checks the model, the occupancy options and that projection, if
+    /// asked for, can read this sensor's frames.
+    fn validate(&self) -> Result<(), MapError> {
+        let in_sensor = |source| MapError::Config { section: "sensor", source };
+        if self.name.is_empty() || self.name.len() > 64 || self.name.chars().any(|c| c.is_control()) {
+            return Err(in_sensor(edtmap_core::CoreError::InvalidParam {
+                field: "name",
+                value: format!("{:?}", self.name),
+                reason: "a sensor's name must be 1 to 64 printable characters",
+            }));
+        }
+        self.sensor.validate().map_err(in_sensor)?;
+        crate::config::check_ogm(&self.ogm).map_err(in_sensor)?;
+        if self.ogm.construction == Construction::Projection && !self.sensor.supports_projection() {
+            return Err(in_sensor(edtmap_core::CoreError::InvalidParam {
+                field: "construction",
+                value: "\"projection\"".into(),
+                reason: "a point cloud sensor has no model to project into; use \"raycast\"",
+            }));
+        }
+        Ok(())
+    }
+}
+
 /// What one call of [`Mapper::integrate_frame`] did and how long it took.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct FrameStats {
+    /// The sensor the frame came from: its index in [`Mapper::sensors`].
+    pub sensor: usize,
     /// Occupancy: construction, fusion and the local read-back, ms.
     pub ogm_ms: f64,
     /// Batch EDT of the local volume, ms (wavefront mode; the exact mode
@@ -125,7 +166,8 @@ pub struct Mapper<B: Backend = CpuBackend> {
     /// Finishes a frame the backend failed (made at the first failure).
     fallback: Option<CpuBackend>,
     params: MapperParams,
-    sensor: Sensor,
+    /// The sensors frames come from, the first made with the mapper.
+    sensors: Vec<MapperSensor>,
     map: GlobalMap,
     occupancy: OccupancyStage,
     /// The global EDT's update: exact, or the paper's wavefronts.
@@ -183,10 +225,11 @@ impl<B: Backend> Mapper<B> {
         // than at the first frame.
         crate::budget::check(&params)?;
         let global = GlobalUpdate::new(&params.global, params.voxel_size_m, params.edt.unknown_as_occupied)?;
+        let first = MapperSensor { name: sensor.name().into(), sensor, ogm: params.ogm.clone() };
         let mut mapper = Mapper {
             backend,
             fallback: None,
-            sensor,
+            sensors: vec![first],
             map,
             occupancy: OccupancyStage::default(),
             global,
@@ -207,18 +250,71 @@ impl<B: Backend> Mapper<B> {
         Ok(())
     }
 
-    /// Adds one frame. A frame that does not fit the sensor, or has a bad
-    /// pose, is an error and leaves the map as it was.
+    /// Adds a sensor whose frames [`Self::integrate_sensor_frame`] takes,
+    /// fused into the same map; returns its index. Its name must differ
+    /// from the others'.
+    pub fn add_sensor(&mut self, sensor: MapperSensor) -> Result<usize, MapError> {
+        sensor.validate()?;
+        if self.sensors.iter().any(|s| s.name == sensor.name) {
+            return Err(MapError::Config {
+                section: "sensor",
+                source: edtmap_core::CoreError::InvalidParam {
+                    field: "name",
+                    value: format!("{:?}", sensor.name),
+                    reason: "another sensor of this mapper has that name",
+                },
+            });
+        }
+        self.sensors.push(sensor);
+        Ok(self.sensors.len() - 1)
+    }
+
+    /// Renames sensor `index` (the first sensor is named after its kind
+    /// until renamed).
+    pub fn rename_sensor(&mut self, index: usize, name: &str) -> Result<(), MapError> {
+        let Some(s) = self.sensors.get(index) else { return Err(no_sensor(index, self.sensors.len())) };
+        let renamed = MapperSensor { name: name.into(), ..s.clone() };
+        renamed.validate()?;
+        if self.sensors.iter().enumerate().any(|(i, s)| i != index && s.name == name) {
+            return Err(MapError::Config {
+                section: "sensor",
+                source: edtmap_core::CoreError::InvalidParam {
+                    field: "name",
+                    value: format!("{name:?}"),
+                    reason: "another sensor of this mapper has that name",
+                },
+            });
+        }
+        self.sensors[index] = renamed;
+        Ok(())
+    }
+
+    /// The sensors, in the order they were added.
+    pub fn sensors(&self) -> &[MapperSensor] {
+        &self.sensors
+    }
+
+    /// Adds one frame of the first sensor ([`Self::integrate_sensor_frame`]).
     pub fn integrate_frame(&mut self, frame: &Frame) -> Result<FrameStats, MapError> {
+        self.integrate_sensor_frame(0, frame)
+    }
+
+    /// Adds one frame of sensor `index` (see [`Self::sensors`]): its
+    /// occupancy fused into the one map, then the global EDT brought up to
+    /// date, as for a mapper with that sensor alone. A frame that does not
+    /// fit the sensor, or has a bad pose, is an error and leaves the map as
+    /// it was.
+    pub fn integrate_sensor_frame(&mut self, index: usize, frame: &Frame) -> Result<FrameStats, MapError> {
         let start = Instant::now();
-        self.sensor.check(frame)?;
+        let Some(entry) = self.sensors.get(index) else { return Err(no_sensor(index, self.sensors.len())) };
+        entry.sensor.check(frame)?;
         let volume = LocalVolume::centred(
             &self.params.volume,
             self.params.voxel_size_m,
             frame.t_world_sensor.translation.vector.into(),
         )?;
         // §IV-A: occupancy of the local volume, fused into the global map.
-        let obs = self.occupancy.observe(&mut self.backend, &self.sensor, frame, volume, &self.params.ogm)?;
+        let obs = self.occupancy.observe(&mut self.backend, &entry.sensor, frame, volume, &entry.ogm)?;
         let fused = fuse_on(&mut self.backend, &mut self.map, obs)?;
         let ogm_ms = ms_since(start);
         self.local = OnceLock::new();
@@ -234,6 +330,7 @@ impl<B: Backend> Mapper<B> {
         self.volume = Some(volume);
         let mapped_voxels = (self.map.occupancy().len() * edtmap_core::BLOCK_VOXELS).max(1);
         Ok(FrameStats {
+            sensor: index,
             ogm_ms,
             batch_edt_ms,
             integrate_ms,
@@ -342,9 +439,10 @@ impl<B: Backend> Mapper<B> {
         &self.params
     }
 
-    /// The sensor frames are checked against.
+    /// The first sensor, which [`Self::integrate_frame`] checks frames
+    /// against.
     pub fn sensor(&self) -> &Sensor {
-        &self.sensor
+        &self.sensors[0].sensor
     }
 
     /// The global map: occupancy, EDT, fixed obstacles.
@@ -461,4 +559,12 @@ impl<B: Backend> Mapper<B> {
 /// Distance from block `k`'s centre (blocks of `side` metres) to `p`.
 fn block_distance(k: BlockKey, side: f64, p: [f64; 3]) -> f64 {
     (0..3).map(|a| ((f64::from(k.0[a]) + 0.5) * side - p[a]).powi(2)).sum::<f64>().sqrt()
+}
+
+/// The error for a sensor index a mapper does not have.
+fn no_sensor(index: usize, sensors: usize) -> MapError {
+    MapError::Core(edtmap_core::CoreError::BadMeasurement(format!(
+        "a frame of sensor {index}, and the mapper has {sensors} sensor(s) (indices 0 to {})",
+        sensors - 1
+    )))
 }

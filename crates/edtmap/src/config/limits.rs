@@ -8,6 +8,7 @@
 
 use super::{CameraFields, LidarFields, SensorSection};
 use crate::{MapError, MapperParams};
+use edtmap_core::construction::OgmOptions;
 use edtmap_core::{CoreError, GlobalParams, LocalVolume};
 
 /// A closed, half-open or open interval of accepted values.
@@ -161,16 +162,20 @@ impl MapperParams {
         WORLD_M.opt("fixed_height_m", self.volume.fixed_height_m).map_err(in_occupancy)?;
         self.occupancy.log_odds().map_err(in_occupancy)?;
         LocalVolume::centred(&self.volume, self.voxel_size_m, [0.0; 3]).map_err(in_occupancy)?;
-        let margins =
-            [("free_margin_m", self.ogm.free_margin_m), ("planar_half_thickness_m", self.ogm.planar_half_thickness_m)];
-        for (field, v) in margins {
-            v.map_or(Ok(()), |v| MARGIN_M.f32(field, v)).map_err(in_section("sensor"))?;
-        }
+        check_ogm(&self.ogm).map_err(in_section("sensor"))?;
         let in_global = in_section("global");
         check_global(&self.global).map_err(in_global)?;
         self.global.cutoff(self.voxel_size_m).map_err(in_global)?;
         self.global.check_forbidden().map_err(in_global)
     }
+}
+
+/// Checks a sensor's occupancy options: each length in its range.
+pub(crate) fn check_ogm(ogm: &OgmOptions) -> Result<(), CoreError> {
+    for (field, v) in [("free_margin_m", ogm.free_margin_m), ("planar_half_thickness_m", ogm.planar_half_thickness_m)] {
+        v.map_or(Ok(()), |v| MARGIN_M.f32(field, v))?;
+    }
+    Ok(())
 }
 
 impl SensorSection {

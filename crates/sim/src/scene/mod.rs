@@ -87,9 +87,17 @@ impl Scene {
     /// `T_world_sensor` at time `t_s`: the body pose, turned into the optical
     /// frame (x right, y down, z forward) for a depth camera.
     pub fn sensor_pose(&self, sensor: &Sensor, t_s: f64) -> Isometry3<f64> {
+        self.mounted_pose(sensor, &Isometry3::identity(), t_s)
+    }
+
+    /// `T_world_sensor` at time `t_s` of a sensor mounted at
+    /// `t_body_sensor` (its extrinsics, x forward, y left, z up in the
+    /// sensor's mount), turned into the optical frame for a depth camera.
+    pub fn mounted_pose(&self, sensor: &Sensor, t_body_sensor: &Isometry3<f64>, t_s: f64) -> Isometry3<f64> {
+        let mount = self.body_pose(t_s) * t_body_sensor;
         match sensor {
-            Sensor::Depth(_) => self.body_pose(t_s) * body_from_optical(),
-            _ => self.body_pose(t_s),
+            Sensor::Depth(_) => mount * body_from_optical(),
+            _ => mount,
         }
     }
 

@@ -38,10 +38,21 @@ impl Scene {
     /// with no surface are NaN (no point, for point clouds). Fails on an
     /// invalid sensor or one with more than 2²⁶ rays.
     pub fn frame(&self, sensor: &Sensor, index: usize) -> Result<Frame, SimError> {
+        self.mounted_frame(sensor, &Isometry3::identity(), index)
+    }
+
+    /// [`Self::frame`] of a sensor mounted at `t_body_sensor`, from
+    /// [`Scene::mounted_pose`].
+    pub fn mounted_frame(
+        &self,
+        sensor: &Sensor,
+        t_body_sensor: &Isometry3<f64>,
+        index: usize,
+    ) -> Result<Frame, SimError> {
         sensor.validate()?;
         check_ray_count(sensor)?;
         let t_s = index as f64 * self.frame_period_s;
-        let t_world_sensor = self.sensor_pose(sensor, t_s);
+        let t_world_sensor = self.mounted_pose(sensor, t_body_sensor, t_s);
         let o = &self.options;
         let noise = RayNoise::new(o.seed, index, o.range_noise_m, o.dropout);
         let caster = Caster::new(self.solids_at(t_s), &t_world_sensor, reach_m(sensor), noise);
