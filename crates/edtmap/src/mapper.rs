@@ -225,7 +225,7 @@ impl<B: Backend> Mapper<B> {
         // than at the first frame.
         crate::budget::check(&params)?;
         let global = GlobalUpdate::new(&params.global, params.voxel_size_m, params.edt.unknown_as_occupied)?;
-        let first = MapperSensor { name: sensor.name().into(), sensor, ogm: params.ogm.clone() };
+        let first = MapperSensor { name: sensor.name().into(), sensor, ogm: params.ogm };
         let mut mapper = Mapper {
             backend,
             fallback: None,

@@ -61,7 +61,7 @@ fn two_sensors_fuse_as_single_sensor_mappers_sharing_the_map() {
             .collect();
 
         let mut both = Mapper::new(lidar.clone(), params.clone()).expect("mapper");
-        let cam_entry = MapperSensor { name: "front_camera".into(), sensor: cam.clone(), ogm: params.ogm.clone() };
+        let cam_entry = MapperSensor { name: "front_camera".into(), sensor: cam.clone(), ogm: params.ogm };
         assert_eq!(both.add_sensor(cam_entry).expect("second sensor"), 1);
         both.rename_sensor(0, "lidar_top").expect("rename");
         for (s, f) in &frames {
@@ -107,7 +107,7 @@ fn the_combined_map_sees_what_neither_sensor_alone_sees() {
     let mut lidar_only = Mapper::new(lidar.clone(), params.clone()).expect("mapper");
     let mut camera_only = Mapper::new(cam.clone(), params.clone()).expect("mapper");
     let mut both = Mapper::new(lidar.clone(), params.clone()).expect("mapper");
-    both.add_sensor(MapperSensor { name: "camera".into(), sensor: cam.clone(), ogm: params.ogm.clone() })
+    both.add_sensor(MapperSensor { name: "camera".into(), sensor: cam.clone(), ogm: params.ogm })
         .expect("second sensor");
     for &i in &FRAMES {
         let l = scene.frame(&lidar, i).expect("LiDAR frame");
@@ -135,10 +135,10 @@ fn sensors_are_named_once_and_frames_name_a_sensor_the_mapper_has() {
     let (cam, _) = camera();
     let mut mapper = Mapper::new(lidar, params.clone()).expect("mapper");
     assert_eq!(mapper.sensors()[0].name, "lidar");
-    let entry = MapperSensor { name: "lidar".into(), sensor: cam.clone(), ogm: params.ogm.clone() };
+    let entry = MapperSensor { name: "lidar".into(), sensor: cam.clone(), ogm: params.ogm };
     let err = mapper.add_sensor(entry).expect_err("a second sensor named lidar").to_string();
     assert!(err.contains("name") && err.contains("\"lidar\""), "{err}");
-    let err = mapper.add_sensor(MapperSensor { name: String::new(), sensor: cam, ogm: params.ogm.clone() });
+    let err = mapper.add_sensor(MapperSensor { name: String::new(), sensor: cam, ogm: params.ogm });
     assert!(err.expect_err("an empty name").to_string().contains("1 to 64"));
     let frame = scene().frame(&mapper.sensor().clone(), 0).expect("frame");
     let err = mapper.integrate_sensor_frame(3, &frame).expect_err("no sensor 3").to_string();
