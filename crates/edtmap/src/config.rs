@@ -25,11 +25,12 @@ mod sensor;
 pub(crate) use limits::check_ogm;
 pub use limits::{Limit, DEPTH_SCALE_M, OFFSET_M, POSE_GAP_S, WORLD_M};
 pub use memory::MemorySection;
-pub use sensor::{CameraFields, ConstructionName, LidarFields, SensorKind, SensorSection};
+pub use sensor::{sensor_in_body, CameraFields, ConstructionName, LidarFields, SensorKind, SensorSection};
 
-use crate::{MapError, MapperParams};
+use crate::{MapError, MapperParams, MapperSensor};
 use edtmap_core::sensor::Sensor;
 use edtmap_core::{EdtParams, GlobalParams, OccupancyParams, VolumeParams};
+use nalgebra::Isometry3;
 use serde::de::{DeserializeOwned, IgnoredAny};
 use serde::Deserialize;
 use std::path::Path;
@@ -39,22 +40,44 @@ use std::path::Path;
 /// (`[scene]`: the built-in scenes, `[output]`: the CLI's pictures,
 /// `[dataset]`: recordings, `[ros]`: the live node) are accepted here and
 /// left to them; each parses its own with [`sections`].
+///
+/// A robot with several sensors lists them as `[[sensors]]` entries, each
+/// a `[sensor]` table with its `name`, `sensor_in_body` and `topic`; one
+/// sensor is a `[sensor]` section.
 #[derive(Debug, Clone, PartialEq, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(try_from = "ConfigFile")]
 pub struct Config {
-    /// The sensor.
+    /// The first sensor: `[sensor]`, or the first `[[sensors]]` entry.
     pub sensor: SensorSection,
+    /// Every sensor, in the file's order: the `[[sensors]]` entries, or the
+    /// one `[sensor]`.
+    pub sensors: Vec<SensorSection>,
     /// Voxels, local volume and log-odds fusion.
     pub occupancy: OccupancySection,
     /// Batch EDT.
-    #[serde(default)]
     pub edt: EdtParams,
     /// Global EDT: cutoff, connectivity, integration mode, forbidden zones.
-    #[serde(default)]
     pub global: GlobalParams,
     /// The memory budget.
-    #[serde(default)]
     pub memory: MemorySection,
+}
+
+/// [`Config`] as the file writes it (the applications' sections are
+/// accepted, not read).
+#[allow(dead_code)]
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ConfigFile {
+    sensor: Option<SensorSection>,
+    #[serde(default)]
+    sensors: Vec<SensorSection>,
+    occupancy: OccupancySection,
+    #[serde(default)]
+    edt: EdtParams,
+    #[serde(default)]
+    global: GlobalParams,
+    #[serde(default)]
+    memory: MemorySection,
     #[serde(default)]
     scene: IgnoredAny,
     #[serde(default)]
@@ -63,6 +86,43 @@ pub struct Config {
     dataset: IgnoredAny,
     #[serde(default)]
     ros: IgnoredAny,
+}
+
+impl TryFrom<ConfigFile> for Config {
+    type Error = String;
+
+    fn try_from(f: ConfigFile) -> Result<Config, String> {
+        let sensors = match (f.sensor, f.sensors) {
+            (Some(s), more) if more.is_empty() => {
+                if s.sensor_in_body.is_some() || s.topic.is_some() {
+                    return Err("[sensor] takes no sensor_in_body or topic: one sensor's are [dataset] (or [ros]) \
+                                sensor_in_body and sensor_topic; several sensors are [[sensors]] entries"
+                        .into());
+                }
+                vec![s]
+            }
+            (None, sensors) if !sensors.is_empty() => sensors,
+            (Some(_), _) => {
+                return Err("both [sensor] and [[sensors]]: one sensor is a [sensor] section, several are \
+                            [[sensors]] entries"
+                    .into())
+            }
+            (None, _) => return Err("missing [sensor] (one sensor) or [[sensors]] entries (several)".into()),
+        };
+        for (i, s) in sensors.iter().enumerate() {
+            if sensors[..i].iter().any(|t| t.name() == s.name()) {
+                return Err(format!("two sensors are named {:?}: give each [[sensors]] entry its own name", s.name()));
+            }
+        }
+        Ok(Config {
+            sensor: sensors[0].clone(),
+            sensors,
+            occupancy: f.occupancy,
+            edt: f.edt,
+            global: f.global,
+            memory: f.memory,
+        })
+    }
 }
 
 /// `[occupancy]`: voxels, the local volume and log-odds fusion.
@@ -105,6 +165,7 @@ impl Config {
         let config: Config = toml::from_str(text)
             .map_err(|e| MapError::ConfigFile { path: origin.to_string(), message: e.to_string() })?;
         config.mapper_params()?;
+        config.mapper_sensors()?;
         Ok(config)
     }
 
@@ -130,5 +191,26 @@ impl Config {
         };
         params.validate()?;
         Ok((sensor, params))
+    }
+
+    /// Every sensor, checked as [`Self::mapper_params`] checks the first,
+    /// with its mount on the robot (`T_body_sensor`); an error names the
+    /// sensor. The first's occupancy options are the parameters' `ogm`.
+    pub fn mapper_sensors(&self) -> Result<Vec<(MapperSensor, Isometry3<f64>)>, MapError> {
+        self.sensors
+            .iter()
+            .map(|s| {
+                let in_sensor = |source: edtmap_core::CoreError| match self.sensors.len() {
+                    1 => MapError::Config { section: "sensor", source },
+                    _ => MapError::ConfigFile {
+                        path: format!("[[sensors]] {:?}", s.name()),
+                        message: source.to_string(),
+                    },
+                };
+                let (sensor, ogm) = s.checked().map_err(in_sensor)?;
+                let mount = s.t_body_sensor().map_err(in_sensor)?;
+                Ok((MapperSensor { name: s.name().to_string(), sensor, ogm }, mount))
+            })
+            .collect()
     }
 }

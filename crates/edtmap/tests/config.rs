@@ -198,3 +198,69 @@ fn application_sections_are_left_to_the_applications() {
     let msg = error_of(&format!("{base}\n[sceen]\nname = \"room\"\n"));
     assert!(msg.contains("sceen") && msg.contains("test.toml"), "{msg}");
 }
+
+/// A robot's LiDAR and a camera as `[[sensors]]` entries.
+const TWO_SENSORS: &str = r#"
+[[sensors]]
+name = "lidar_top"
+kind = "lidar"
+min_range_m = 0.2
+max_range_m = 20.0
+rings = 16
+elevation_min_deg = -15.0
+elevation_max_deg = 15.0
+azimuth_bins = 900
+topic = "/points"
+
+[[sensors]]
+name = "front_camera"
+kind = "depth"
+min_range_m = 0.2
+max_range_m = 5.0
+fx = 100.0
+fy = 100.0
+cx = 79.5
+cy = 59.5
+width = 160
+height = 120
+sensor_in_body = [0.25, 0.0, -0.3, 0.0, 0.2164396, 0.0, 0.9762960]
+topic = "/camera/depth/image"
+
+[occupancy]
+voxel_size_m = 0.1
+"#;
+
+#[test]
+fn several_sensors_are_sensors_entries_each_named_and_mounted() {
+    let config = Config::parse(TWO_SENSORS, "two.toml").expect("two sensors");
+    assert_eq!(config.sensors.len(), 2);
+    assert_eq!(config.sensor.name(), "lidar_top", "the first entry is the first sensor");
+    let sensors = config.mapper_sensors().expect("valid sensors");
+    let names: Vec<&str> = sensors.iter().map(|(s, _)| s.name.as_str()).collect();
+    assert_eq!(names, ["lidar_top", "front_camera"]);
+    assert!(matches!(sensors[1].0.sensor, Sensor::Depth(_)));
+    assert_eq!(sensors[0].1, nalgebra::Isometry3::identity());
+    // 25° about y: the camera's x axis turns down.
+    let x = sensors[1].1 * nalgebra::Vector3::x();
+    assert!((x.z + 25f64.to_radians().sin()).abs() < 1e-6, "{x:?}");
+    assert!((sensors[1].1.translation.vector - nalgebra::Vector3::new(0.25, 0.0, -0.3)).norm() < 1e-12);
+    assert_eq!(config.sensors[1].topic.as_deref(), Some("/camera/depth/image"));
+}
+
+#[test]
+fn sensor_entries_are_refused_by_name() {
+    let both = format!("{}\n{}", shipped().split("[occupancy]").next().expect("text"), TWO_SENSORS);
+    assert!(error_of(&both).contains("both [sensor] and [[sensors]]"), "{}", error_of(&both));
+    let twice = TWO_SENSORS.replace("\"front_camera\"", "\"lidar_top\"");
+    assert!(error_of(&twice).contains("two sensors are named \"lidar_top\""), "{}", error_of(&twice));
+    let bad = TWO_SENSORS.replace("fx = 100.0\n", "");
+    let msg = error_of(&bad);
+    assert!(msg.contains("[[sensors]] \"front_camera\"") && msg.contains("fx = missing"), "{msg}");
+    let bad_mount = TWO_SENSORS.replace("0.2164396, 0.0, 0.9762960", "0.5, 0.0, 0.5");
+    let msg = error_of(&bad_mount);
+    assert!(msg.contains("front_camera") && msg.contains("unit quaternion"), "{msg}");
+    let topic_in_sensor = shipped().replace("kind = \"lidar\"", "kind = \"lidar\"\ntopic = \"/points\"");
+    assert!(error_of(&topic_in_sensor).contains("[sensor] takes no sensor_in_body or topic"));
+    let none = shipped().split("[occupancy]").nth(1).map(|rest| format!("[occupancy]{rest}")).expect("text");
+    assert!(error_of(&none).contains("missing [sensor]"), "{}", error_of(&none));
+}

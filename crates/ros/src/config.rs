@@ -3,6 +3,7 @@
 //! configuration file beside the mapper's; [`DatasetSection::parse`]
 //! reads it from the file's text.
 
+pub use edtmap::config::sensor_in_body;
 use edtmap::config::{sections, Config, DEPTH_SCALE_M, OFFSET_M, POSE_GAP_S};
 use edtmap::{CoreError, MapError};
 use edtmap_io::dataset::DatasetOptions;
@@ -158,24 +159,4 @@ impl DatasetSection {
     pub fn t_body_sensor(&self) -> Result<Isometry3<f64>, CoreError> {
         sensor_in_body("sensor_in_body", self.sensor_in_body)
     }
-}
-
-/// `T_body_sensor` from `[x, y, z, qx, qy, qz, qw]` (identity when absent),
-/// the quaternion checked for unit length; `field` names it in errors.
-pub fn sensor_in_body(field: &'static str, pose: Option<[f64; 7]>) -> Result<Isometry3<f64>, CoreError> {
-    let Some([x, y, z, qx, qy, qz, qw]) = pose else {
-        return Ok(Isometry3::identity());
-    };
-    let finite = [x, y, z, qx, qy, qz, qw].iter().all(|v| v.is_finite());
-    let rotation = match edtmap::sensor::rotation_from_quaternion(Quaternion::new(qw, qx, qy, qz)) {
-        Ok((rotation, _)) if finite => rotation,
-        _ => {
-            return Err(invalid(
-                field,
-                format!("{:?}", [x, y, z, qx, qy, qz, qw]),
-                "must be [x, y, z, qx, qy, qz, qw] with a unit quaternion (norm within 1e-2 of 1)",
-            ))
-        }
-    };
-    Ok(Isometry3::from_parts(Translation3::new(x, y, z), rotation))
 }

@@ -187,6 +187,10 @@ impl SensorSection {
         {
             v.map_or(Ok(()), |v| MARGIN_M.f32(field, v))?;
         }
+        if let Some(pose) = &self.sensor_in_body {
+            OFFSET_M.all("sensor_in_body", &pose[..3])?;
+        }
+        self.t_body_sensor()?;
         self.lidar.check_limits()?;
         self.camera.check_limits()
     }

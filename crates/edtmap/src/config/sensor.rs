@@ -18,12 +18,24 @@
 use edtmap_core::construction::{Construction, OgmOptions};
 use edtmap_core::sensor::{PinholeCamera, RangeLimits, Sensor, SpinningLidar};
 use edtmap_core::CoreError;
+use nalgebra::{Isometry3, Quaternion, Translation3};
 use serde::Deserialize;
 
 /// `[sensor]`: the sensor model, and how its frames become occupancy.
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(from = "SensorTable")]
 pub struct SensorSection {
+    /// `[[sensors]]`: the sensor's name in frames and reports (default:
+    /// its kind's name).
+    pub name: Option<String>,
+    /// `[[sensors]]`: where the sensor sits on the robot, `T_body_sensor`,
+    /// as `[x, y, z, qx, qy, qz, qw]` (metres, unit quaternion); identity
+    /// by default. A single `[sensor]`'s is `[dataset] sensor_in_body`.
+    pub sensor_in_body: Option<[f64; 7]>,
+    /// `[[sensors]]`, recordings and the live node: the topic its messages
+    /// come on. A single `[sensor]`'s is `[dataset]` or `[ros]
+    /// sensor_topic`.
+    pub topic: Option<String>,
     /// `depth`, `lidar`, `points` or `planar`.
     pub kind: SensorKind,
     /// `auto` (projection when the model allows), `projection` or `raycast`.
@@ -109,6 +121,9 @@ pub enum ConstructionName {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct SensorTable {
+    name: Option<String>,
+    sensor_in_body: Option<[f64; 7]>,
+    topic: Option<String>,
     kind: SensorKind,
     #[serde(default)]
     construction: ConstructionName,
@@ -134,6 +149,9 @@ struct SensorTable {
 impl From<SensorTable> for SensorSection {
     fn from(t: SensorTable) -> Self {
         SensorSection {
+            name: t.name,
+            sensor_in_body: t.sensor_in_body,
+            topic: t.topic,
             kind: t.kind,
             construction: t.construction,
             clear_no_return: t.clear_no_return,
@@ -158,6 +176,21 @@ fn need<T: Copy>(v: Option<T>, field: &'static str, kind: &'static str) -> Resul
 }
 
 impl SensorSection {
+    /// The sensor's name: `name`, else its kind's.
+    pub fn name(&self) -> &str {
+        self.name.as_deref().unwrap_or(match self.kind {
+            SensorKind::Depth => "depth",
+            SensorKind::Lidar => "lidar",
+            SensorKind::Points => "points",
+            SensorKind::Planar => "planar",
+        })
+    }
+
+    /// `T_body_sensor` from `sensor_in_body` (identity when absent).
+    pub fn t_body_sensor(&self) -> Result<Isometry3<f64>, CoreError> {
+        sensor_in_body("sensor_in_body", self.sensor_in_body)
+    }
+
     /// The sensor model and how its frames become occupancy, every field
     /// checked: each number in its range, then the model's own checks. An
     /// error names the field.
@@ -260,5 +293,22 @@ impl CameraFields {
     /// `[fx, fy, cx, cy]` when all four are given.
     pub fn intrinsics(&self) -> Option<[f64; 4]> {
         self.fx.zip(self.fy).zip(self.cx.zip(self.cy)).map(|((fx, fy), (cx, cy))| [fx, fy, cx, cy])
+    }
+}
+
+/// `T_body_sensor` from `[x, y, z, qx, qy, qz, qw]` (identity when absent),
+/// the quaternion checked for unit length; `field` names it in errors.
+pub fn sensor_in_body(field: &'static str, pose: Option<[f64; 7]>) -> Result<Isometry3<f64>, CoreError> {
+    let Some([x, y, z, qx, qy, qz, qw]) = pose else {
+        return Ok(Isometry3::identity());
+    };
+    let finite = [x, y, z, qx, qy, qz, qw].iter().all(|v| v.is_finite());
+    match edtmap_core::sensor::rotation_from_quaternion(Quaternion::new(qw, qx, qy, qz)) {
+        Ok((rotation, _)) if finite => Ok(Isometry3::from_parts(Translation3::new(x, y, z), rotation)),
+        _ => Err(CoreError::InvalidParam {
+            field,
+            value: format!("{:?}", [x, y, z, qx, qy, qz, qw]),
+            reason: "must be [x, y, z, qx, qy, qz, qw] with a unit quaternion (norm within 1e-2 of 1)",
+        }),
     }
 }
