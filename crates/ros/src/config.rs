@@ -7,7 +7,7 @@ pub use edtmap::config::sensor_in_body;
 use edtmap::config::{sections, Config, DEPTH_SCALE_M, OFFSET_M, POSE_GAP_S};
 use edtmap::{CoreError, MapError};
 use edtmap_io::dataset::DatasetOptions;
-use nalgebra::{Isometry3, Quaternion, Translation3};
+use nalgebra::Isometry3;
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 
@@ -107,10 +107,6 @@ impl Default for DatasetSection {
             sensor_in_body: None,
         }
     }
-}
-
-fn invalid(field: &'static str, value: String, reason: &'static str) -> CoreError {
-    CoreError::InvalidParam { field, value, reason }
 }
 
 /// The file as `[dataset]` sees it.
