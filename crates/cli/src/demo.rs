@@ -37,6 +37,7 @@ pub(crate) fn run(args: &DemoArgs) -> Result<()> {
         integration: None,
         connectivity: None,
         planar: false,
+        sensors: None,
         save: Some(args.out.join("map.edtmap")),
         prior: None,
         backend: args.backend,

@@ -6,6 +6,8 @@ use serde_json::{json, Map, Value};
 #[derive(Debug, Clone, Default)]
 pub(crate) struct FrameRecord {
     pub(crate) index: usize,
+    /// The name of the sensor the frame came from.
+    pub(crate) sensor: String,
     pub(crate) stamp_s: f64,
     pub(crate) ogm_ms: f64,
     /// The window's batch EDT, where it runs as a stage of its own
@@ -38,6 +40,7 @@ impl FrameRecord {
     fn to_json(&self) -> Value {
         let mut v = json!({
             "index": self.index,
+            "sensor": self.sensor,
             "stamp_s": self.stamp_s,
             "ogm_ms": self.ogm_ms,
             "integrate_ms": self.integrate_ms,

@@ -11,10 +11,14 @@ use edtmap::cpu::CpuBackend;
 use edtmap::eval::{edt_errors, edt_extent, EdtErrors, OccupancyScores};
 use edtmap::region::Region;
 use edtmap::sensor::{Frame, Sensor};
-use edtmap::{Connectivity, FrameStats, IntegrationMode, Mapper, MapperParams};
+use edtmap::stages::{Construction, OgmOptions};
+use edtmap::{
+    Connectivity, FrameStats, IntegrationMode, LocalVolume, Mapper, MapperParams, MapperSensor, VoxelIndex, VoxelState,
+};
 use edtmap_ros::config::OnError;
 use edtmap_sim::{Scene, SceneName};
 use indicatif::{ProgressBar, ProgressStyle};
+use nalgebra::Isometry3;
 use serde_json::{json, Map};
 
 use crate::backend::{self, BackendArg, CliMapper};
@@ -63,6 +67,10 @@ pub(crate) struct RunArgs {
     /// the CPU backend.
     #[arg(long)]
     pub(crate) planar: bool,
+    /// Map with these of the config's [[sensors]] only (their names, comma
+    /// separated); default: every sensor.
+    #[arg(long, value_delimiter = ',', value_name = "NAMES")]
+    pub(crate) sensors: Option<Vec<String>>,
     /// Save the final map (occupancy and global EDT) to this file.
     #[arg(long)]
     pub(crate) save: Option<PathBuf>,
@@ -133,12 +141,14 @@ fn load_config(args: &RunArgs) -> Result<(Config, Sections, String)> {
         (None, None) => bail!("give --scene NAME ({}) or --config FILE", scene_names()),
     };
     if let Some(c) = args.construction {
-        config.sensor.construction = match c {
+        let construction = match c {
             ConstructionArg::Auto => ConstructionName::Auto,
             ConstructionArg::Projection => ConstructionName::Projection,
             ConstructionArg::Raycast => ConstructionName::Raycast,
         };
-        config.mapper_params().context("--construction")?;
+        config.sensor.construction = construction;
+        config.other_sensors.iter_mut().for_each(|s| s.construction = construction);
+        config.mapper_sensors().context("--construction")?;
     }
     if let Some(v) = args.voxel_size {
         config.occupancy.voxel_size_m = v;
@@ -173,6 +183,50 @@ pub(crate) struct RunOutcome {
     pub(crate) backend: String,
     /// The signal that stopped the replay early, its outputs written.
     pub(crate) interrupted: Option<i32>,
+    /// `--eval` of a scene: the final map against the ground truth.
+    pub(crate) map_eval: Option<MapEval>,
+}
+
+/// The final map against a scene's ground truth at the last frame's time,
+/// over the box of the map's occupancy blocks.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct MapEval {
+    /// Voxels the map holds occupied where a solid is.
+    pub(crate) true_occupied: usize,
+    /// Voxels the map holds occupied where none is.
+    pub(crate) false_occupied: usize,
+    /// Voxels a solid meets that the map holds free or unknown.
+    pub(crate) missed: usize,
+}
+
+/// Most voxels [`map_eval`] rasterises the ground truth over.
+const MAP_EVAL_MAX_VOXELS: usize = 1 << 27;
+
+/// The final map against `scene`'s ground truth at `t_s` (`None` for a map
+/// with no blocks, or one whose box passes [`MAP_EVAL_MAX_VOXELS`]).
+fn map_eval(scene: &Scene, mapper: &CliMapper, t_s: f64) -> Option<MapEval> {
+    let (lo, hi) = mapper.map().occupancy().key_bounds()?;
+    let side = edtmap::BLOCK_SIDE as i32;
+    let dims = [0, 1, 2].map(|k| ((hi[k] - lo[k] + 1) * side) as usize);
+    if dims.iter().product::<usize>() > MAP_EVAL_MAX_VOXELS {
+        return None;
+    }
+    let volume =
+        LocalVolume { origin: VoxelIndex(lo.map(|k| k * side)), dims, voxel_size_m: mapper.params().voxel_size_m };
+    let mut truth = Vec::new();
+    scene.ground_truth(&volume, t_s, &mut truth);
+    let mut eval = MapEval { true_occupied: 0, false_occupied: 0, missed: 0 };
+    for (i, &solid) in truth.iter().enumerate() {
+        let c = [i % dims[0], (i / dims[0]) % dims[1], i / (dims[0] * dims[1])];
+        let v = VoxelIndex([0, 1, 2].map(|k| volume.origin.0[k] + c[k] as i32));
+        match (mapper.state(v) == VoxelState::Occupied, solid) {
+            (true, true) => eval.true_occupied += 1,
+            (true, false) => eval.false_occupied += 1,
+            (false, true) => eval.missed += 1,
+            (false, false) => {}
+        }
+    }
+    Some(eval)
 }
 
 /// Runs `edtmap run` and prints its summary.
@@ -215,7 +269,15 @@ pub(crate) fn execute(args: &RunArgs, progress: bool) -> Result<RunOutcome> {
         tracing::warn!("{warning}");
     }
     let slice = SliceHeight::choose(args.slice_height, setup.sections.output.slice_height_m, &mapper);
-    let header = report_header(args, &setup, &mapper, &slice, &replayed);
+    let map_eval = match (&setup.source, replayed.records.last()) {
+        (Source::Scene(scene), Some(last)) if args.eval => map_eval(scene, &mapper, last.stamp_s),
+        _ => None,
+    };
+    let mut header = report_header(args, &setup, &mapper, &slice, &replayed);
+    if let Some(e) = map_eval {
+        let value = json!({"true_occupied_voxels": e.true_occupied, "false_occupied_voxels": e.false_occupied, "missed_voxels": e.missed});
+        header.insert("map_eval".into(), value);
+    }
     let report_path = args.out.join(REPORT);
     write_json(&report_path, &report(header, &replayed.records))?;
     if replayed.records.is_empty() {
@@ -231,12 +293,12 @@ pub(crate) fn execute(args: &RunArgs, progress: bool) -> Result<RunOutcome> {
         pictures,
         backend: mapper.backend().name(),
         interrupted: replayed.interrupted,
+        map_eval,
     })
 }
 
 /// What a run maps and with what, settled before the mapper is built.
 struct Setup {
-    config: Config,
     /// The config's `[scene]`, `[output]`, `[dataset]`.
     sections: Sections,
     /// Where the config came from, for messages and the report.
@@ -244,7 +306,10 @@ struct Setup {
     source: Source,
     /// The scene's name or the recording's path.
     name: String,
+    /// The first sensor.
     sensor: Sensor,
+    /// Every sensor, with its mount on the robot.
+    sensors: Vec<(MapperSensor, Isometry3<f64>)>,
     params: MapperParams,
     /// Frames to replay.
     frames: usize,
@@ -259,16 +324,44 @@ impl Setup {
         if args.eval && !matches!(source, Source::Scene(_)) {
             tracing::warn!("--eval: {name} is a recording: {RECORDING_EVAL}");
         }
-        let (sensor, mut params) = config.mapper_params()?;
+        let (_, mut params) = config.mapper_params()?;
+        let sensors = chosen_sensors(config.mapper_sensors()?, args.sensors.as_deref(), &origin)?;
+        let sensor = sensors[0].0.sensor.clone();
+        params.ogm = sensors[0].0.ogm;
         if let Some(bytes) = crate::memory::max_bytes() {
             params.max_memory_bytes = Some(bytes);
         }
         if let Some(path) = &args.dataset {
+            if sensors.len() > 1 {
+                bail!(
+                    "{origin} lists {} [[sensors]]; a recording is replayed with one sensor: give it a config with one [sensor] section",
+                    sensors.len()
+                );
+            }
             check_kind(&source, &sensor, path, &origin)?;
         }
         let frames = frame_count(args, &name, default_frames)?;
-        Ok(Setup { config, sections, origin, source, name, sensor, params, frames })
+        Ok(Setup { sections, origin, source, name, sensor, sensors, params, frames })
     }
+}
+
+/// The sensors `--sensors` names, in the config's order; every sensor
+/// without it.
+fn chosen_sensors(
+    all: Vec<(MapperSensor, Isometry3<f64>)>,
+    names: Option<&[String]>,
+    origin: &str,
+) -> Result<Vec<(MapperSensor, Isometry3<f64>)>> {
+    let Some(names) = names else { return Ok(all) };
+    let known: Vec<&str> = all.iter().map(|(s, _)| s.name.as_str()).collect();
+    if let Some(unknown) = names.iter().find(|n| !known.contains(&n.as_str())) {
+        bail!("--sensors {unknown}: {origin} has no sensor of that name (its sensors: {})", known.join(", "));
+    }
+    let chosen: Vec<_> = all.into_iter().filter(|(s, _)| names.contains(&s.name)).collect();
+    if chosen.is_empty() {
+        bail!("--sensors names no sensor: give one or more of the config's sensor names");
+    }
+    Ok(chosen)
 }
 
 /// The recording of `--dataset`, or else the scene of `--scene` or of the
@@ -312,6 +405,12 @@ fn frame_count(args: &RunArgs, name: &str, default_frames: usize) -> Result<usiz
 fn open_mapper(args: &RunArgs, setup: &Setup) -> Result<CliMapper> {
     let backend = backend::open_for(args.backend, CpuBackend::default(), setup.params.global.planar)?;
     let mut mapper = Mapper::new_on(backend, setup.sensor.clone(), setup.params.clone())?;
+    for (i, (sensor, _)) in setup.sensors.iter().enumerate() {
+        match i {
+            0 => mapper.rename_sensor(0, &sensor.name)?,
+            _ => _ = mapper.add_sensor(sensor.clone())?,
+        }
+    }
     if let Some(path) = &args.prior {
         let prior = edtmap::load_map(path)?;
         mapper.add_prior(&prior).with_context(|| format!("prior map {}", path.display()))?;
@@ -329,7 +428,8 @@ fn prepare_out(args: &RunArgs) -> Result<()> {
 /// skipped, and the failure the run stopped at.
 struct Replayed {
     records: Vec<FrameRecord>,
-    skipped: Vec<Failure>,
+    /// The frames skipped, with their sensor's index.
+    skipped: Vec<(usize, Failure)>,
     stopped: Option<Failure>,
     /// The signal (SIGINT, SIGTERM) that ended the replay before its last
     /// frame; the frame being integrated when it came was finished.
@@ -339,21 +439,21 @@ struct Replayed {
 /// Integrates the frames one by one, skipping or stopping at a frame that
 /// fails as `[dataset] on_error` says (a scene's failure always stops).
 fn replay(args: &RunArgs, setup: &Setup, mapper: &mut CliMapper, progress: bool) -> Result<Replayed> {
-    let bar = progress_bar(setup.frames, progress);
+    let bar = progress_bar(setup.frames * setup.sensors.len(), progress);
     // Grows with the frames that come: --frames may be far more than a
     // recording or a soak run delivers.
     let mut out = Replayed { records: Vec::new(), skipped: Vec::new(), stopped: None, interrupted: None };
     let mut truth = (Vec::new(), Vec::new());
-    let mut frames = setup.source.frames(&setup.sensor, setup.frames, &setup.name).enumerate();
+    let mut frames = setup.source.frames(&setup.sensors, setup.frames, &setup.name).enumerate();
     let batch = batch_stage(setup, mapper);
     loop {
         if let Some(signal) = interrupt::requested() {
             out.interrupted = Some(signal);
             break;
         }
-        let Some((i, item)) = frames.next() else { break };
+        let Some((i, (s, item))) = frames.next() else { break };
         let counted = mapper.backend().device_counters();
-        let (frame, stats) = match item.and_then(|frame| integrate(mapper, frame, i, &setup.name)) {
+        let (frame, stats) = match item.and_then(|frame| integrate(mapper, s, frame, i, &setup.name)) {
             Ok(done) => done,
             Err(failure) => {
                 bar.inc(1);
@@ -362,17 +462,20 @@ fn replay(args: &RunArgs, setup: &Setup, mapper: &mut CliMapper, progress: bool)
                     break;
                 }
                 tracing::warn!("skipped: {}", failure.message);
-                out.skipped.push(failure);
+                out.skipped.push((s, failure));
                 continue;
             }
         };
         tracing::debug!("frame {i} at {:.3} s: {:.2} ms", frame.stamp_s, stats.total_ms);
-        let mut rec = frame_record(i, &frame, &stats, mapper.map().occupancy().len(), batch);
+        // A scene's time step gives a frame of each sensor; a recording's
+        // frames are one sensor's.
+        let mut rec = frame_record(i / setup.sensors.len(), &frame, &stats, mapper.map().occupancy().len(), batch);
+        rec.sensor = mapper.sensors()[s].name.clone();
         if let (Some(before), Some(now)) = (counted, mapper.backend().device_counters()) {
             rec.global.extend(device_fields(now.since(before)));
         }
         if args.eval {
-            evaluate(&mut rec, setup, &frame, mapper, &mut truth)?;
+            evaluate(&mut rec, setup, &setup.sensors[s].0.sensor, &frame, mapper, &mut truth)?;
         }
         out.records.push(rec);
         bar.inc(1);
@@ -385,11 +488,12 @@ fn replay(args: &RunArgs, setup: &Setup, mapper: &mut CliMapper, progress: bool)
 /// failed (fatal) or the frame was refused.
 fn integrate(
     mapper: &mut CliMapper,
+    sensor: usize,
     frame: Frame,
     i: usize,
     name: &str,
 ) -> std::result::Result<(Frame, FrameStats), Failure> {
-    match mapper.integrate_frame(&frame) {
+    match mapper.integrate_sensor_frame(sensor, &frame) {
         Ok(stats) => Ok((frame, stats)),
         Err(e) => {
             let kind = if e.is_backend_failure() { FailureKind::Fatal } else { FailureKind::Frame };
@@ -461,12 +565,13 @@ fn frame_record(index: usize, frame: &Frame, stats: &FrameStats, occupancy_block
 fn evaluate(
     rec: &mut FrameRecord,
     setup: &Setup,
+    sensor: &Sensor,
     frame: &Frame,
     mapper: &CliMapper,
     truth: &mut (Vec<bool>, Vec<bool>),
 ) -> Result<()> {
     if let Source::Scene(scene) = &setup.source {
-        let scores = score(scene, &setup.sensor, frame, mapper, truth);
+        let scores = score(scene, sensor, frame, mapper, truth);
         (rec.precision, rec.recall, rec.strict_recall) = (scores.precision(), scores.recall(), scores.strict_recall());
     }
     rec.edt_errors = edt_error_fields(mapper)?;
@@ -489,7 +594,7 @@ fn report_header(
     header.insert("backend".into(), json!(mapper.backend().name()));
     header.insert("threads".into(), json!(rayon::current_num_threads()));
     header.insert("sensor".into(), json!(sensor.kind()));
-    header.insert("construction".into(), json!(construction_name(sensor, &setup.config)));
+    header.insert("construction".into(), json!(construction_of(sensor, &setup.params.ogm)));
     header.insert("voxel_size_m".into(), json!(params.voxel_size_m));
     header.insert("local_dims".into(), json!(mapper.local_volume().map(|v| v.dims)));
     header.insert("map_blocks".into(), json!(mapper.map().occupancy().len()));
@@ -506,9 +611,25 @@ fn report_header(
     if args.eval {
         header.insert("eval".into(), eval_note(&setup.source));
     }
-    let failure = |f: &Failure| json!({"index": f.index, "reason": f.message});
+    let sensors: Vec<_> = mapper
+        .sensors()
+        .iter()
+        .enumerate()
+        .map(|(i, s)| {
+            json!({
+                "name": s.name,
+                "kind": s.sensor.kind(),
+                "construction": construction_of(&s.sensor, &s.ogm),
+                "frames_integrated": replayed.records.iter().filter(|r| r.sensor == s.name).count(),
+                "frames_skipped": replayed.skipped.iter().filter(|(k, _)| *k == i).count(),
+            })
+        })
+        .collect();
+    header.insert("sensors".into(), json!(sensors));
+    let failure = |(s, f): &(usize, Failure)| json!({"index": f.index, "sensor": mapper.sensors().get(*s).map(|m| m.name.as_str()), "reason": f.message});
     header.insert("skipped".into(), json!(replayed.skipped.iter().map(failure).collect::<Vec<_>>()));
-    header.insert("stopped".into(), json!(replayed.stopped.as_ref().map(failure)));
+    let stopped = |f: &Failure| json!({"index": f.index, "reason": f.message});
+    header.insert("stopped".into(), json!(replayed.stopped.as_ref().map(stopped)));
     let interrupted = |&s: &i32| json!({"signal": if s == libc::SIGTERM { "SIGTERM" } else { "SIGINT" }, "frames": replayed.records.len()});
     header.insert("interrupted".into(), json!(replayed.interrupted.as_ref().map(interrupted)));
     header
@@ -571,12 +692,12 @@ fn check_outputs(args: &RunArgs) -> Result<()> {
 }
 
 /// Why a run integrated no frame, from its skipped and stopping frames.
-fn nothing_integrated(skipped: &[Failure], stopped: Option<&Failure>, report: &Path) -> String {
+fn nothing_integrated(skipped: &[(usize, Failure)], stopped: Option<&Failure>, report: &Path) -> String {
     let mut text = String::from("no frame was integrated");
     if let Some(f) = stopped {
         text.push_str(&format!(": the run stopped at the first usable frame: {}", f.message));
     }
-    if let Some(first) = skipped.first() {
+    if let Some((_, first)) = skipped.first() {
         text.push_str(&format!("; {} frames were skipped, the first because {}", skipped.len(), first.message));
     }
     text.push_str(&format!(" (every reason is in {}; no map or picture was written)", report.display()));
@@ -594,12 +715,13 @@ fn eval_note(source: &Source) -> serde_json::Value {
     }
 }
 
-fn construction_name(sensor: &Sensor, config: &Config) -> &'static str {
-    match config.sensor.construction {
-        ConstructionName::Raycast => "raycast",
-        ConstructionName::Projection => "projection",
-        ConstructionName::Auto if sensor.supports_projection() => "projection",
-        ConstructionName::Auto => "raycast",
+/// How a sensor's frames become occupancy, as the report names it.
+fn construction_of(sensor: &Sensor, ogm: &OgmOptions) -> &'static str {
+    match ogm.construction {
+        Construction::RayCasting => "raycast",
+        Construction::Projection => "projection",
+        Construction::Auto if sensor.supports_projection() => "projection",
+        Construction::Auto => "raycast",
     }
 }
 
@@ -749,6 +871,14 @@ pub(crate) fn print_summary(outcome: &RunOutcome) {
         (field_mean("local_rms_m"), field_mean("global_rms_m"), field_mean("global_max_m"))
     {
         outln!("EDT vs exact EDT of the map (mean over frames): local RMS {l:.5} m, global RMS {g:.5} m, global max {gm:.4} m");
+    }
+    if let Some(e) = outcome.map_eval {
+        outln!(
+            "final map vs ground truth: {} voxels occupied where a solid is, {} where none is; {} voxels of solids not occupied",
+            e.true_occupied,
+            e.false_occupied,
+            e.missed
+        );
     }
     outln!("wrote {}", outcome.report_path.display());
     for p in &outcome.pictures {

@@ -7,9 +7,11 @@ use std::path::Path;
 use anyhow::{bail, Context, Result};
 use edtmap::config::Config;
 use edtmap::sensor::{Frame, Sensor};
+use edtmap::MapperSensor;
 use edtmap_ros::config::DatasetSection;
 use edtmap_ros::recording::Recording;
 use edtmap_sim::{Scene, SceneName, SceneSection};
+use nalgebra::Isometry3;
 
 /// A frame that did not come out, with where it was and why.
 #[derive(Debug, Clone)]
@@ -85,26 +87,33 @@ impl Source {
         }
     }
 
-    /// The first `n` frames, or failures in their place.
+    /// The first `n` frames, or failures in their place, each with the
+    /// index of its sensor in `sensors`: a scene's time steps each give one
+    /// frame of every sensor, in `sensors`' order, from its mount; a
+    /// recording's frames are the first sensor's.
     pub(crate) fn frames<'a>(
         &'a self,
-        sensor: &'a Sensor,
+        sensors: &'a [(MapperSensor, Isometry3<f64>)],
         n: usize,
         name: &'a str,
-    ) -> Box<dyn Iterator<Item = Result<Frame, Failure>> + 'a> {
+    ) -> Box<dyn Iterator<Item = (usize, Result<Frame, Failure>)> + 'a> {
         match self {
-            Source::Scene(scene) => Box::new((0..n).map(move |i| {
-                scene.frame(sensor, i).map_err(|e| Failure {
-                    index: i,
-                    message: format!("simulating frame {i}: {e}"),
-                    kind: FailureKind::Fatal,
+            Source::Scene(scene) => Box::new((0..n).flat_map(move |i| {
+                sensors.iter().enumerate().map(move |(s, (sensor, mount))| {
+                    let frame = scene.mounted_frame(&sensor.sensor, mount, i).map_err(|e| Failure {
+                        index: i,
+                        message: format!("simulating frame {i} of {}: {e}", sensor.name),
+                        kind: FailureKind::Fatal,
+                    });
+                    (s, frame)
                 })
             })),
             Source::Recording(r) => Box::new(r.frames(n, name).map(|r| {
-                r.map_err(|e| {
+                let frame = r.map_err(|e| {
                     let kind = if e.damage { FailureKind::Damage } else { FailureKind::Frame };
                     Failure { index: e.index, message: e.message, kind }
-                })
+                });
+                (0, frame)
             })),
         }
     }

@@ -49,9 +49,9 @@ use std::path::Path;
 pub struct Config {
     /// The first sensor: `[sensor]`, or the first `[[sensors]]` entry.
     pub sensor: SensorSection,
-    /// Every sensor, in the file's order: the `[[sensors]]` entries, or the
-    /// one `[sensor]`.
-    pub sensors: Vec<SensorSection>,
+    /// The other `[[sensors]]` entries, in the file's order (none with a
+    /// `[sensor]` section).
+    pub other_sensors: Vec<SensorSection>,
     /// Voxels, local volume and log-odds fusion.
     pub occupancy: OccupancySection,
     /// Batch EDT.
@@ -92,16 +92,16 @@ impl TryFrom<ConfigFile> for Config {
     type Error = String;
 
     fn try_from(f: ConfigFile) -> Result<Config, String> {
-        let sensors = match (f.sensor, f.sensors) {
+        let (sensor, other_sensors) = match (f.sensor, f.sensors) {
             (Some(s), more) if more.is_empty() => {
                 if s.sensor_in_body.is_some() || s.topic.is_some() {
                     return Err("[sensor] takes no sensor_in_body or topic: one sensor's are [dataset] (or [ros]) \
                                 sensor_in_body and sensor_topic; several sensors are [[sensors]] entries"
                         .into());
                 }
-                vec![s]
+                (s, Vec::new())
             }
-            (None, sensors) if !sensors.is_empty() => sensors,
+            (None, mut sensors) if !sensors.is_empty() => (sensors.remove(0), sensors),
             (Some(_), _) => {
                 return Err("both [sensor] and [[sensors]]: one sensor is a [sensor] section, several are \
                             [[sensors]] entries"
@@ -109,19 +109,13 @@ impl TryFrom<ConfigFile> for Config {
             }
             (None, _) => return Err("missing [sensor] (one sensor) or [[sensors]] entries (several)".into()),
         };
-        for (i, s) in sensors.iter().enumerate() {
-            if sensors[..i].iter().any(|t| t.name() == s.name()) {
-                return Err(format!("two sensors are named {:?}: give each [[sensors]] entry its own name", s.name()));
+        let names: Vec<&str> = std::iter::once(&sensor).chain(&other_sensors).map(|s| s.name()).collect();
+        for (i, name) in names.iter().enumerate() {
+            if names[..i].contains(name) {
+                return Err(format!("two sensors are named {name:?}: give each [[sensors]] entry its own name"));
             }
         }
-        Ok(Config {
-            sensor: sensors[0].clone(),
-            sensors,
-            occupancy: f.occupancy,
-            edt: f.edt,
-            global: f.global,
-            memory: f.memory,
-        })
+        Ok(Config { sensor, other_sensors, occupancy: f.occupancy, edt: f.edt, global: f.global, memory: f.memory })
     }
 }
 
@@ -193,15 +187,19 @@ impl Config {
         Ok((sensor, params))
     }
 
+    /// Every sensor: [`Self::sensor`], then [`Self::other_sensors`].
+    pub fn sensors(&self) -> impl Iterator<Item = &SensorSection> {
+        std::iter::once(&self.sensor).chain(&self.other_sensors)
+    }
+
     /// Every sensor, checked as [`Self::mapper_params`] checks the first,
     /// with its mount on the robot (`T_body_sensor`); an error names the
     /// sensor. The first's occupancy options are the parameters' `ogm`.
     pub fn mapper_sensors(&self) -> Result<Vec<(MapperSensor, Isometry3<f64>)>, MapError> {
-        self.sensors
-            .iter()
+        self.sensors()
             .map(|s| {
-                let in_sensor = |source: edtmap_core::CoreError| match self.sensors.len() {
-                    1 => MapError::Config { section: "sensor", source },
+                let in_sensor = |source: edtmap_core::CoreError| match self.other_sensors.len() {
+                    0 => MapError::Config { section: "sensor", source },
                     _ => MapError::ConfigFile {
                         path: format!("[[sensors]] {:?}", s.name()),
                         message: source.to_string(),

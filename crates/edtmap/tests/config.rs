@@ -23,18 +23,18 @@ fn every_shipped_config_parses() {
         let stem = path.file_stem().and_then(|s| s.to_str()).expect("utf-8 name");
         // The sensor names its kind as the file spells it (the Python
         // package and the command line report that name).
-        let kind = std::fs::read_to_string(&path).expect("config").parse::<toml::Table>().expect("toml")["sensor"]
-            ["kind"]
-            .as_str()
-            .expect("[sensor] kind")
-            .to_string();
-        assert_eq!(sensor.name(), kind, "{stem}");
+        let table = std::fs::read_to_string(&path).expect("config").parse::<toml::Table>().expect("toml");
+        let first = match table.get("sensors") {
+            Some(entries) => &entries[0],
+            None => &table["sensor"],
+        };
+        assert_eq!(sensor.name(), first["kind"].as_str().expect("kind"), "{stem}");
         n += 1;
         if stem == "room" || stem == "3dmatch" {
             assert!(matches!(sensor, Sensor::Depth(_)));
         }
     }
-    assert!(n >= 11, "expected the shipped configs, found {n}");
+    assert!(n >= 12, "expected the shipped configs, found {n}");
 }
 
 fn error_of(text: &str) -> String {
@@ -233,7 +233,7 @@ voxel_size_m = 0.1
 #[test]
 fn several_sensors_are_sensors_entries_each_named_and_mounted() {
     let config = Config::parse(TWO_SENSORS, "two.toml").expect("two sensors");
-    assert_eq!(config.sensors.len(), 2);
+    assert_eq!(config.other_sensors.len(), 1);
     assert_eq!(config.sensor.name(), "lidar_top", "the first entry is the first sensor");
     let sensors = config.mapper_sensors().expect("valid sensors");
     let names: Vec<&str> = sensors.iter().map(|(s, _)| s.name.as_str()).collect();
@@ -244,7 +244,7 @@ fn several_sensors_are_sensors_entries_each_named_and_mounted() {
     let x = sensors[1].1 * nalgebra::Vector3::x();
     assert!((x.z + 25f64.to_radians().sin()).abs() < 1e-6, "{x:?}");
     assert!((sensors[1].1.translation.vector - nalgebra::Vector3::new(0.25, 0.0, -0.3)).norm() < 1e-12);
-    assert_eq!(config.sensors[1].topic.as_deref(), Some("/camera/depth/image"));
+    assert_eq!(config.other_sensors[0].topic.as_deref(), Some("/camera/depth/image"));
 }
 
 #[test]
