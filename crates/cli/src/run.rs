@@ -206,7 +206,7 @@ const MAP_EVAL_MAX_VOXELS: usize = 1 << 27;
 /// with no blocks, or one whose box passes [`MAP_EVAL_MAX_VOXELS`]).
 fn map_eval(scene: &Scene, mapper: &CliMapper, t_s: f64) -> Option<MapEval> {
     let (lo, hi) = mapper.map().occupancy().key_bounds()?;
-    let side = edtmap::BLOCK_SIDE as i32;
+    let side = edtmap::BLOCK_SIDE;
     let dims = [0, 1, 2].map(|k| ((hi[k] - lo[k] + 1) * side) as usize);
     if dims.iter().product::<usize>() > MAP_EVAL_MAX_VOXELS {
         return None;
