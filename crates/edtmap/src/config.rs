@@ -42,7 +42,7 @@ use std::path::Path;
 /// left to them; each parses its own with [`sections`].
 ///
 /// A robot with several sensors lists them as `[[sensors]]` entries, each
-/// a `[sensor]` table with its `name`, `sensor_in_body` and `topic`; one
+/// a `[sensor]` table with its `name` and `sensor_in_body`; one
 /// sensor is a `[sensor]` section.
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(try_from = "ConfigFile")]
@@ -94,9 +94,9 @@ impl TryFrom<ConfigFile> for Config {
     fn try_from(f: ConfigFile) -> Result<Config, String> {
         let (sensor, other_sensors) = match (f.sensor, f.sensors) {
             (Some(s), more) if more.is_empty() => {
-                if s.sensor_in_body.is_some() || s.topic.is_some() {
-                    return Err("[sensor] takes no sensor_in_body or topic: one sensor's are [dataset] (or [ros]) \
-                                sensor_in_body and sensor_topic; several sensors are [[sensors]] entries"
+                if s.sensor_in_body.is_some() {
+                    return Err("[sensor] takes no sensor_in_body: one sensor's mount is [dataset] (or [ros]) \
+                                sensor_in_body; several sensors are [[sensors]] entries"
                         .into());
                 }
                 (s, Vec::new())

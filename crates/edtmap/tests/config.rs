@@ -210,7 +210,6 @@ rings = 16
 elevation_min_deg = -15.0
 elevation_max_deg = 15.0
 azimuth_bins = 900
-topic = "/points"
 
 [[sensors]]
 name = "front_camera"
@@ -224,7 +223,6 @@ cy = 59.5
 width = 160
 height = 120
 sensor_in_body = [0.25, 0.0, -0.3, 0.0, 0.2164396, 0.0, 0.9762960]
-topic = "/camera/depth/image"
 
 [occupancy]
 voxel_size_m = 0.1
@@ -244,7 +242,6 @@ fn several_sensors_are_sensors_entries_each_named_and_mounted() {
     let x = sensors[1].1 * nalgebra::Vector3::x();
     assert!((x.z + 25f64.to_radians().sin()).abs() < 1e-6, "{x:?}");
     assert!((sensors[1].1.translation.vector - nalgebra::Vector3::new(0.25, 0.0, -0.3)).norm() < 1e-12);
-    assert_eq!(config.other_sensors[0].topic.as_deref(), Some("/camera/depth/image"));
 }
 
 #[test]
@@ -259,8 +256,9 @@ fn sensor_entries_are_refused_by_name() {
     let bad_mount = TWO_SENSORS.replace("0.2164396, 0.0, 0.9762960", "0.5, 0.0, 0.5");
     let msg = error_of(&bad_mount);
     assert!(msg.contains("front_camera") && msg.contains("unit quaternion"), "{msg}");
-    let topic_in_sensor = shipped().replace("kind = \"lidar\"", "kind = \"lidar\"\ntopic = \"/points\"");
-    assert!(error_of(&topic_in_sensor).contains("[sensor] takes no sensor_in_body or topic"));
+    let mount_in_sensor =
+        shipped().replace("kind = \"lidar\"", "kind = \"lidar\"\nsensor_in_body = [0, 0, 0, 0, 0, 0, 1]");
+    assert!(error_of(&mount_in_sensor).contains("[sensor] takes no sensor_in_body"), "{}", error_of(&mount_in_sensor));
     let none = shipped().split("[occupancy]").nth(1).map(|rest| format!("[occupancy]{rest}")).expect("text");
     assert!(error_of(&none).contains("missing [sensor]"), "{}", error_of(&none));
 }

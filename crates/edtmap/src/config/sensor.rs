@@ -32,10 +32,6 @@ pub struct SensorSection {
     /// as `[x, y, z, qx, qy, qz, qw]` (metres, unit quaternion); identity
     /// by default. A single `[sensor]`'s is `[dataset] sensor_in_body`.
     pub sensor_in_body: Option<[f64; 7]>,
-    /// `[[sensors]]`, recordings and the live node: the topic its messages
-    /// come on. A single `[sensor]`'s is `[dataset]` or `[ros]
-    /// sensor_topic`.
-    pub topic: Option<String>,
     /// `depth`, `lidar`, `points` or `planar`.
     pub kind: SensorKind,
     /// `auto` (projection when the model allows), `projection` or `raycast`.
@@ -123,7 +119,6 @@ pub enum ConstructionName {
 struct SensorTable {
     name: Option<String>,
     sensor_in_body: Option<[f64; 7]>,
-    topic: Option<String>,
     kind: SensorKind,
     #[serde(default)]
     construction: ConstructionName,
@@ -151,7 +146,6 @@ impl From<SensorTable> for SensorSection {
         SensorSection {
             name: t.name,
             sensor_in_body: t.sensor_in_body,
-            topic: t.topic,
             kind: t.kind,
             construction: t.construction,
             clear_no_return: t.clear_no_return,
