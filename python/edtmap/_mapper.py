@@ -270,63 +270,106 @@ class Mapper:
         return self._core.sensor_kind
 
     @property
+    def sensors(self) -> list:
+        """The sensors frames may name, in the order they were added:
+        ``(name, kind)`` pairs. The first is the mapper's own sensor, named
+        after its kind (or its config's ``name``)."""
+        return list(self._core.sensors)
+
+    def add_sensor(self, name: str, sensor: _Sensor, **options: Any) -> int:
+        """Adds a sensor whose frames go into the same map: ``name`` (what
+        the ``sensor=`` keyword of the ``integrate_*`` methods takes), a
+        sensor model and its ``[sensor]`` options (``construction``,
+        ``clear_no_return``, ``free_margin_m``, ``planar_half_thickness_m``).
+        Returns its index. Frames of every sensor are fused in the order
+        they are integrated, each with its own pose."""
+        if not isinstance(name, str):
+            raise TypeError(f"name must be a string, not {type(name).__name__}")
+        if not isinstance(sensor, _Sensor):
+            raise TypeError("sensor must be edtmap.DepthCamera, SpinningLidar, PointSensor or PlanarLidar, "
+                            f"not {type(sensor).__name__}")
+        section = {k: _finite(v, f"{type(sensor).__name__} {k}") for k, v in sensor.section().items()}
+        for key, value in options.items():
+            if key not in _SECTIONS["sensor"]:
+                raise TypeError(f"add_sensor() got an unknown option {key!r}; known: {', '.join(_SECTIONS['sensor'])}")
+            section[key] = _finite(_typed(key, value), key)
+        return self._core.add_sensor(name, _json(section), f"edtmap.Mapper.add_sensor({name!r})")
+
+    def _sensor(self, sensor: Optional[str]) -> int:
+        """The index of the sensor named ``sensor`` (``None``: the first)."""
+        if sensor is None:
+            return 0
+        names = [name for name, _ in self._core.sensors]
+        if not isinstance(sensor, str):
+            raise TypeError(f"sensor must be a sensor's name (a string), not {type(sensor).__name__}")
+        if sensor not in names:
+            raise ValueError(f"sensor {sensor!r}: the mapper's sensors are {', '.join(names)}")
+        return names.index(sensor)
+
+    @property
     def map_blocks(self) -> int:
         """Blocks (8³ voxels) of the map's layers."""
         return self._core.map_blocks
 
     def integrate_depth(self, depth, t_world_sensor, stamp: float = 0.0,
-                        depth_scale: float = 0.001) -> Dict[str, Any]:
+                        depth_scale: float = 0.001, sensor: Optional[str] = None) -> Dict[str, Any]:
         """Adds a depth image: H x W float metres (NaN, inf or 0: no
         return), or uint16 raw values of ``depth_scale`` metres each (0: no
-        return). Returns the frame's statistics."""
+        return). Returns the frame's statistics. ``sensor``: the name of
+        the sensor it came from (default: the first; see
+        :meth:`add_sensor`), as for every ``integrate_*`` method."""
         arr = np.asarray(depth)
-        pose, stamp = _pose(t_world_sensor), _stamp(stamp)
+        pose, stamp, index = _pose(t_world_sensor), _stamp(stamp), self._sensor(sensor)
         if arr.dtype.kind == "u" and arr.dtype.itemsize == 2:
             # Byte-swapped raw depth (">u2", as some PNG readers give) is
             # converted to native order.
             arr = _float_array(arr, "depth", 2, np.uint16)
-            return self._core.integrate_depth_u16(arr, float(depth_scale), pose, stamp)
+            return self._core.integrate_depth_u16(arr, float(depth_scale), pose, stamp, index)
         if arr.dtype.kind != "f":
             raise TypeError(f"depth must be float (metres) or uint16 (raw, either byte order), not {arr.dtype}")
-        return self._core.integrate_depth_m(_float_array(arr, "depth", 2, np.float32), pose, stamp)
+        return self._core.integrate_depth_m(_float_array(arr, "depth", 2, np.float32), pose, stamp, index)
 
-    def integrate_points(self, points, t_world_sensor, stamp: float = 0.0) -> Dict[str, Any]:
+    def integrate_points(self, points, t_world_sensor, stamp: float = 0.0,
+                         sensor: Optional[str] = None) -> Dict[str, Any]:
         """Adds a point cloud: N x 3 points in the sensor frame, metres
         (float32 or float64; non-finite points are no return)."""
         arr = _float_array(points, "points", 2, np.float32)
         if arr.shape[1] != 3:
             raise ValueError(f"points must have shape (N, 3), not {arr.shape}")
-        return self._core.integrate_points(arr, _pose(t_world_sensor), _stamp(stamp))
+        return self._core.integrate_points(arr, _pose(t_world_sensor), _stamp(stamp), self._sensor(sensor))
 
     def integrate_scan(self, ranges, angle_min: float, angle_increment: float, t_world_sensor,
-                       stamp: float = 0.0, range_limits: Optional[Tuple[float, float]] = None) -> Dict[str, Any]:
+                       stamp: float = 0.0, range_limits: Optional[Tuple[float, float]] = None,
+                       sensor: Optional[str] = None) -> Dict[str, Any]:
         """Adds a planar scan: ``ranges`` in metres, beam ``i`` at angle
         ``angle_min + i * angle_increment`` (radians) in the sensor's x-y
         plane; ``range_limits`` (min, max) default to the sensor's."""
         arr = _float_array(ranges, "ranges", 1, np.float32)
         limits = None if range_limits is None else (float(range_limits[0]), float(range_limits[1]))
         return self._core.integrate_scan(arr, float(angle_min), float(angle_increment),
-                                         _pose(t_world_sensor), _stamp(stamp), limits)
+                                         _pose(t_world_sensor), _stamp(stamp), limits, self._sensor(sensor))
 
-    def integrate_range_image(self, ranges, t_world_sensor, stamp: float = 0.0) -> Dict[str, Any]:
+    def integrate_range_image(self, ranges, t_world_sensor, stamp: float = 0.0,
+                              sensor: Optional[str] = None) -> Dict[str, Any]:
         """Adds a spinning LiDAR's range image: rings x azimuth bins, metres
         (bin ``b`` centred on azimuth ``-pi + (b + 0.5) * 2 pi / bins``)."""
         arr = _float_array(ranges, "ranges", 2, np.float32)
-        return self._core.integrate_range_image(arr, _pose(t_world_sensor), _stamp(stamp))
+        return self._core.integrate_range_image(arr, _pose(t_world_sensor), _stamp(stamp), self._sensor(sensor))
 
     def integrate(self, frame: Dict[str, Any]) -> Dict[str, Any]:
         """Adds a frame of :func:`read_recording`, exactly as ``edtmap run``
-        would (its ``pose`` is used bit for bit)."""
-        kind, pose, stamp = frame["kind"], frame["pose"], frame["stamp"]
+        would (its ``pose`` is used bit for bit); a ``sensor`` entry names
+        the sensor it came from."""
+        kind, pose, stamp, sensor = frame["kind"], frame["pose"], frame["stamp"], frame.get("sensor")
         if kind == "depth":
-            return self.integrate_depth(frame["depth"], pose, stamp, frame.get("depth_scale", 0.001))
+            return self.integrate_depth(frame["depth"], pose, stamp, frame.get("depth_scale", 0.001), sensor)
         if kind == "points":
-            return self.integrate_points(frame["points"], pose, stamp)
+            return self.integrate_points(frame["points"], pose, stamp, sensor)
         if kind == "lidar":
-            return self.integrate_range_image(frame["ranges"], pose, stamp)
+            return self.integrate_range_image(frame["ranges"], pose, stamp, sensor)
         if kind == "planar":
             return self.integrate_scan(frame["ranges"], frame["angle_min"], frame["angle_increment"], pose,
-                                       stamp, frame.get("range_limits"))
+                                       stamp, frame.get("range_limits"), sensor)
         raise ValueError(f"frame kind {kind!r} is not depth, points, lidar or planar")
 
     def distance(self, points, signed: bool = False) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -54,8 +54,14 @@ impl<B: Backend> SharedMapper<B> {
     /// Integrates `frame` ([`Mapper::integrate_frame`]) and publishes the
     /// map it leaves for the queries.
     pub fn integrate(&self, frame: &Frame) -> Result<FrameStats, MapError> {
+        self.integrate_sensor(0, frame)
+    }
+
+    /// [`Self::integrate`] of a frame of the mapper's sensor `index`
+    /// ([`Mapper::integrate_sensor_frame`]).
+    pub fn integrate_sensor(&self, index: usize, frame: &Frame) -> Result<FrameStats, MapError> {
         let mut mapper = self.lock()?;
-        let stats = mapper.integrate_frame(frame)?;
+        let stats = mapper.integrate_sensor_frame(index, frame)?;
         let frames = self.snapshot().frames + 1;
         self.publish(&mapper, stamp_ns(frame.stamp_s), frames);
         Ok(stats)

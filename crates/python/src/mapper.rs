@@ -6,13 +6,15 @@
 //! of threads query while another integrates, each seeing a whole frame.
 
 use std::path::PathBuf;
-use std::sync::{Arc, MutexGuard};
+use std::sync::{Arc, Mutex, MutexGuard};
 
-use edtmap::config::Config;
+use edtmap::config::{Config, SensorSection};
 use edtmap::cpu::CpuBackend;
 use edtmap::query;
 use edtmap::sensor::{DepthData, DepthImage, Frame, LaserScan, LidarScan, Measurement, PointCloud, RangeLimits};
-use edtmap::{Backend, BackendChoice, FrameStats, GlobalMap, MapError, Mapper, PointState, SharedMapper, Snapshot};
+use edtmap::{
+    Backend, BackendChoice, FrameStats, GlobalMap, MapError, Mapper, MapperSensor, PointState, SharedMapper, Snapshot,
+};
 use nalgebra::{Isometry3, Quaternion, Translation3};
 use numpy::{PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyOSError, PyRuntimeError, PyValueError};
@@ -60,13 +62,14 @@ pub(crate) fn map_err(e: MapError) -> PyErr {
 #[pyclass(name = "Mapper", module = "edtmap._edtmap", frozen)]
 pub(crate) struct PyMapper {
     shared: SharedMapper<DynBackend>,
-    /// Range limits of a planar LiDAR's scans (`[sensor]` min/max range).
-    scan_range: RangeLimits,
+    /// Per sensor, the range limits of a planar LiDAR's scans (its section's
+    /// min/max range).
+    scan_ranges: Mutex<Vec<RangeLimits>>,
 }
 
 impl PyMapper {
     fn new(mapper: Mapper<DynBackend>, scan_range: RangeLimits) -> Self {
-        PyMapper { shared: SharedMapper::new(mapper), scan_range }
+        PyMapper { shared: SharedMapper::new(mapper), scan_ranges: Mutex::new(vec![scan_range]) }
     }
 
     fn lock(&self) -> PyResult<MutexGuard<'_, Mapper<DynBackend>>> {
@@ -77,9 +80,10 @@ impl PyMapper {
         Ok(self.shared.snapshot())
     }
 
-    /// Integrates one frame without the GIL and publishes the new snapshot.
-    fn integrate<'py>(&self, py: Python<'py>, frame: Frame) -> PyResult<Bound<'py, PyDict>> {
-        let stats = py.detach(|| self.shared.integrate(&frame).map_err(map_err))?;
+    /// Integrates one frame of sensor `sensor` without the GIL and
+    /// publishes the new snapshot.
+    fn integrate<'py>(&self, py: Python<'py>, sensor: usize, frame: Frame) -> PyResult<Bound<'py, PyDict>> {
+        let stats = py.detach(|| self.shared.integrate_sensor(sensor, &frame).map_err(map_err))?;
         stats_dict(py, &stats)
     }
 }
@@ -95,7 +99,16 @@ impl PyMapper {
             None => Mapper::new_on(backend, sensor, params),
         }
         .map_err(map_err)?;
-        Ok(PyMapper::new(mapper, scan_range))
+        let py_mapper = PyMapper::new(mapper, scan_range);
+        // A config's [[sensors]] after the first, and the first's name.
+        let sensors = config.mapper_sensors().map_err(map_err)?;
+        for ((sensor, _), section) in sensors.into_iter().zip(config.sensors()).skip(1) {
+            let range = RangeLimits { min_m: section.min_range_m, max_m: section.max_range_m };
+            py_mapper.lock()?.add_sensor(sensor).map_err(map_err)?;
+            py_mapper.scan_ranges.lock().map_err(|_| PyRuntimeError::new_err("sensor list poisoned"))?.push(range);
+        }
+        py_mapper.lock()?.rename_sensor(0, config.sensor.name()).map_err(map_err)?;
+        Ok(py_mapper)
     }
 }
 
@@ -219,19 +232,22 @@ impl PyMapper {
     }
 
     /// Integrates a depth image in metres (float32, H × W).
+    #[pyo3(signature = (depth, pose_values, stamp, sensor = 0))]
     fn integrate_depth_m<'py>(
         &self,
         py: Python<'py>,
         depth: PyReadonlyArray2<'py, f32>,
         pose_values: Vec<f64>,
         stamp: f64,
+        sensor: usize,
     ) -> PyResult<Bound<'py, PyDict>> {
         let (values, [h, w]) = image(&depth, "depth")?;
         let data = DepthData::Metres(values.to_vec());
-        self.depth_frame(py, data, [w, h], &pose_values, stamp)
+        self.depth_frame(py, data, [w, h], &pose_values, stamp, sensor)
     }
 
     /// Integrates a raw 16-bit depth image (H × W), `scale` metres per unit.
+    #[pyo3(signature = (depth, scale, pose_values, stamp, sensor = 0))]
     fn integrate_depth_u16<'py>(
         &self,
         py: Python<'py>,
@@ -239,22 +255,25 @@ impl PyMapper {
         scale: f32,
         pose_values: Vec<f64>,
         stamp: f64,
+        sensor: usize,
     ) -> PyResult<Bound<'py, PyDict>> {
         if !(scale.is_finite() && scale > 0.0) {
             return Err(PyValueError::new_err(format!("depth_scale must be finite and positive, got {scale}")));
         }
         let (values, [h, w]) = image(&depth, "depth")?;
         let data = DepthData::U16 { values: values.to_vec(), metres_per_unit: scale };
-        self.depth_frame(py, data, [w, h], &pose_values, stamp)
+        self.depth_frame(py, data, [w, h], &pose_values, stamp, sensor)
     }
 
     /// Integrates a point cloud (N × 3 float32, sensor frame).
+    #[pyo3(signature = (points, pose_values, stamp, sensor = 0))]
     fn integrate_points<'py>(
         &self,
         py: Python<'py>,
         points: PyReadonlyArray2<'py, f32>,
         pose_values: Vec<f64>,
         stamp: f64,
+        sensor: usize,
     ) -> PyResult<Bound<'py, PyDict>> {
         let shape = points.shape();
         if shape[1] != 3 || shape[0] == 0 {
@@ -262,12 +281,13 @@ impl PyMapper {
         }
         let flat = points.as_slice().map_err(|_| PyValueError::new_err("points must be C-contiguous"))?;
         let cloud = PointCloud { points: flat.as_chunks::<3>().0.to_vec() };
-        self.integrate(py, frame(&pose_values, stamp, Measurement::Points(cloud))?)
+        self.integrate(py, sensor, frame(&pose_values, stamp, Measurement::Points(cloud))?)
     }
 
     /// Integrates a planar scan (ranges in metres, float32); the range
     /// limits are `[sensor]`'s unless given.
     #[allow(clippy::too_many_arguments)]
+    #[pyo3(signature = (ranges, angle_min, angle_increment, pose_values, stamp, range_limits = None, sensor = 0))]
     fn integrate_scan<'py>(
         &self,
         py: Python<'py>,
@@ -277,24 +297,34 @@ impl PyMapper {
         pose_values: Vec<f64>,
         stamp: f64,
         range_limits: Option<(f32, f32)>,
+        sensor: usize,
     ) -> PyResult<Bound<'py, PyDict>> {
         let ranges = ranges.as_slice().map_err(|_| PyValueError::new_err("ranges must be contiguous"))?.to_vec();
-        let range = range_limits.map_or(self.scan_range, |(min_m, max_m)| RangeLimits { min_m, max_m });
+        let own = self.scan_ranges.lock().ok().and_then(|r| r.get(sensor).copied());
+        let range = match (range_limits, own) {
+            (Some((min_m, max_m)), _) => RangeLimits { min_m, max_m },
+            (None, Some(range)) => range,
+            (None, None) => {
+                return Err(PyValueError::new_err(format!("sensor {sensor}: the mapper has no such sensor")))
+            }
+        };
         let scan = LaserScan { angle_min_rad: angle_min, angle_increment_rad: angle_increment, ranges, range };
-        self.integrate(py, frame(&pose_values, stamp, Measurement::Scan(scan))?)
+        self.integrate(py, sensor, frame(&pose_values, stamp, Measurement::Scan(scan))?)
     }
 
     /// Integrates a spinning LiDAR's range image (rings × azimuth bins).
+    #[pyo3(signature = (ranges, pose_values, stamp, sensor = 0))]
     fn integrate_range_image<'py>(
         &self,
         py: Python<'py>,
         ranges: PyReadonlyArray2<'py, f32>,
         pose_values: Vec<f64>,
         stamp: f64,
+        sensor: usize,
     ) -> PyResult<Bound<'py, PyDict>> {
         let (values, _) = image(&ranges, "ranges")?;
         let scan = LidarScan { ranges: values.to_vec() };
-        self.integrate(py, frame(&pose_values, stamp, Measurement::Lidar(scan))?)
+        self.integrate(py, sensor, frame(&pose_values, stamp, Measurement::Lidar(scan))?)
     }
 
     /// Distances (metres), gradients and state codes of N points, in
@@ -415,6 +445,26 @@ impl PyMapper {
         Ok(self.lock()?.sensor().name())
     }
 
+    /// The sensors, in the order they were added: `(name, kind)` pairs.
+    #[getter]
+    fn sensors(&self) -> PyResult<Vec<(String, &'static str)>> {
+        Ok(self.lock()?.sensors().iter().map(|s| (s.name.clone(), s.sensor.name())).collect())
+    }
+
+    /// Adds a sensor, its `[sensor]` table given as JSON text, named
+    /// `name`; returns its index. `origin` names it in errors.
+    fn add_sensor(&self, name: &str, section_json: &str, origin: &str) -> PyResult<usize> {
+        let mut section: SensorSection =
+            serde_json::from_str(section_json).map_err(|e| PyValueError::new_err(format!("{origin}: {e}")))?;
+        section.name = Some(name.to_string());
+        let in_origin = |e: edtmap::CoreError| PyValueError::new_err(format!("{origin}: {e}"));
+        let (sensor, ogm) = section.checked().map_err(in_origin)?;
+        let mut ranges = self.scan_ranges.lock().map_err(|_| PyRuntimeError::new_err("sensor list poisoned"))?;
+        let index = self.lock()?.add_sensor(MapperSensor { name: name.to_string(), sensor, ogm }).map_err(map_err)?;
+        ranges.push(RangeLimits { min_m: section.min_range_m, max_m: section.max_range_m });
+        Ok(index)
+    }
+
     /// Blocks of the global map (occupancy, EDT, fixed obstacles).
     #[getter]
     fn map_blocks(&self) -> PyResult<usize> {
@@ -431,11 +481,12 @@ impl PyMapper {
         [width, height]: [usize; 2],
         pose_values: &[f64],
         stamp: f64,
+        sensor: usize,
     ) -> PyResult<Bound<'py, PyDict>> {
         let too_big = |n: usize| {
             u32::try_from(n).map_err(|_| PyValueError::new_err(format!("depth image side {n} is too large")))
         };
         let image = DepthImage { width: too_big(width)?, height: too_big(height)?, data };
-        self.integrate(py, frame(pose_values, stamp, Measurement::Depth(image))?)
+        self.integrate(py, sensor, frame(pose_values, stamp, Measurement::Depth(image))?)
     }
 }

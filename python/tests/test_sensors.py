@@ -1,0 +1,63 @@
+"""Several sensors into one map from Python: a depth camera and a planar
+LiDAR fused in one mapper equal, byte for byte, the map the same frames make
+through single-sensor mappers that hand the map on (save, load)."""
+
+import numpy as np
+import pytest
+
+import edtmap
+
+CAMERA = edtmap.DepthCamera(fx=40.0, fy=40.0, cx=31.5, cy=23.5, width=64, height=48, min_range_m=0.1,
+                            max_range_m=6.0)
+SCAN = edtmap.PlanarLidar(min_range_m=0.1, max_range_m=8.0)
+PARAMS = dict(max_distance_m=1.0, local_size_m=[6.0, 6.0, 3.0])
+
+
+def frames():
+    """A wall 3 m ahead seen by the camera (optical z forward) and a ring of
+    scan returns about 2.5 m away, the robot stepping along x: per frame its
+    sensor and a call integrating it, naming the sensor it is given."""
+    depth = np.full((48, 64), 3.0, np.float32)
+    depth[:, :8] = np.nan
+    ranges = (2.5 + 0.2 * np.sin(np.linspace(0, 6, 360))).astype(np.float32)
+    out = []
+    for k in range(4):
+        cam = np.array([[0, 0, 1, 0.1 * k], [-1, 0, 0, 0], [0, -1, 0, 1.0], [0, 0, 0, 1]], float)
+        scan_pose = np.eye(4)
+        scan_pose[:3, 3] = [0.1 * k, 0.0, 0.5]
+        out.append(("camera", lambda m, name, p=cam, s=k: m.integrate_depth(depth, p, stamp=s, sensor=name)))
+        out.append(("scan", lambda m, name, p=scan_pose, s=k: m.integrate_scan(
+            ranges, 0.0, 2 * np.pi / 360, p, stamp=s, sensor=name)))
+    return out
+
+
+def test_two_sensors_equal_single_sensor_mappers_handing_on_the_map(tmp_path):
+    both = edtmap.Mapper(CAMERA, 0.1, **PARAMS)
+    assert both.sensors == [("depth", "depth")], "the first sensor is named after its kind"
+    assert both.add_sensor("scan", SCAN) == 1
+    assert both.sensors == [("depth", "depth"), ("scan", "planar")]
+    for sensor, integrate in frames():
+        assert integrate(both, "depth" if sensor == "camera" else "scan")["voxels_updated"] > 0
+    both.save(tmp_path / "both.edtmap")
+
+    path = None
+    for sensor, integrate in frames():
+        model = CAMERA if sensor == "camera" else SCAN
+        one = edtmap.Mapper(model, 0.1, **PARAMS) if path is None else edtmap.Mapper.load(path, model, **PARAMS)
+        integrate(one, None)
+        path = tmp_path / "step.edtmap"
+        one.save(path)
+    assert (tmp_path / "both.edtmap").read_bytes() == path.read_bytes()
+
+
+def test_sensor_names_are_checked():
+    mapper = edtmap.Mapper(CAMERA, 0.1, **PARAMS)
+    with pytest.raises(ValueError, match="another sensor"):
+        mapper.add_sensor("depth", SCAN)
+    with pytest.raises(TypeError, match="unknown option 'colour'"):
+        mapper.add_sensor("scan", SCAN, colour="red")
+    with pytest.raises(ValueError, match="projection"):
+        mapper.add_sensor("cloud", edtmap.PointSensor(), construction="projection")
+    with pytest.raises(ValueError, match="the mapper's sensors are depth"):
+        mapper.integrate_points(np.ones((4, 3)), np.eye(4), sensor="lidar")
+    assert mapper.sensors == [("depth", "depth")] and mapper.map_blocks == 0
