@@ -367,8 +367,35 @@ enum edtmap_status edtmap_mapper_resume(const char *config_path,
                                         struct edtmap_mapper **out);
 
 /**
- * Frees a mapper (null is allowed and does nothing). No other call on it
- * may be running or start after this one; freeing it twice is undefined.
+ * Adds a sensor to `mapper`'s map: `params`' sensor fields (`sensor`, its
+ * intrinsics or rings, `min_range_m`, `max_range_m`, `construction`,
+ * `clear_no_return`; the map's fields are the mapper's and are ignored
+ * here), named `name` (1 to 64 characters, unlike the others' names; the
+ * first sensor is named after its kind). `*out` receives a handle whose
+ * frames come from that sensor, fused into the same map, and whose
+ * queries read the same map; each sensor's thread may integrate through
+ * its own handle. Free it with [`edtmap_mapper_free`]: the map lives
+ * while any of its handles does.
+ */
+enum edtmap_status edtmap_mapper_add_sensor(struct edtmap_mapper *mapper,
+                                            const struct edtmap_params *params,
+                                            const char *name,
+                                            struct edtmap_mapper **out);
+
+/**
+ * A handle of `mapper`'s sensor named `name` (a config's `[[sensors]]`
+ * entry, or one [`edtmap_mapper_add_sensor`] added) into `*out`, as that
+ * function gives; `EDTMAP_INVALID_ARGUMENT` naming the sensors when there
+ * is none of that name.
+ */
+enum edtmap_status edtmap_mapper_sensor(struct edtmap_mapper *mapper,
+                                        const char *name,
+                                        struct edtmap_mapper **out);
+
+/**
+ * Frees a mapper or a sensor's handle (null is allowed and does nothing).
+ * No other call on it may be running or start after this one; freeing it
+ * twice is undefined.
  */
 void edtmap_mapper_free(struct edtmap_mapper *mapper);
 

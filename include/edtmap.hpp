@@ -240,6 +240,23 @@ public:
     Mapper(Mapper&&) noexcept = default;
     Mapper& operator=(Mapper&&) noexcept = default;
 
+    /// Adds a sensor (`params`' sensor fields) named `name` to this map;
+    /// the handle returned integrates its frames into the same map and
+    /// queries the same map. The map lives while any handle does.
+    Mapper add_sensor(const Params& params, const std::string& name) {
+        edtmap_mapper* m = nullptr;
+        detail::check(edtmap_mapper_add_sensor(h_.get(), &params, name.c_str(), &m));
+        return Mapper(m);
+    }
+
+    /// A handle of this map's sensor `name` (a config's [[sensors]] entry,
+    /// or one add_sensor added).
+    Mapper sensor(const std::string& name) {
+        edtmap_mapper* m = nullptr;
+        detail::check(edtmap_mapper_sensor(h_.get(), name.c_str(), &m));
+        return Mapper(m);
+    }
+
     /// A point cloud: n points, xyz holding 3 n floats (sensor frame).
     FrameStats integrate_points(const float* xyz, std::size_t n, const Pose& t_world_sensor, double stamp_s) {
         FrameStats s{};

@@ -138,6 +138,20 @@ int main(int argc, char** argv) {
         CHECK(planar.query(none).distances.empty(), "empty query of an empty map");
     }
     CHECK(moved.distances(points) == rd, "the map changed after refused empty frames");
+    // A second sensor's handle maps into the same map the first queries;
+    // the map outlives the first handle.
+    {
+        edtmap::Mapper first(p);
+        edtmap::Mapper second = first.add_sensor(p, "second");
+        throws([&] { first.add_sensor(p, "second"); }, EDTMAP_CONFIG, "a second sensor of the same name");
+        throws([&] { first.sensor("third"); }, EDTMAP_INVALID_ARGUMENT, "no sensor of that name");
+        second.integrate_points(cloud, edtmap::identity_pose(), 0.0);
+        CHECK(std::fabs(first.distance({0.55, 0.05, 0.05}) - 1.5) < 1e-9, "the first handle sees the second's frame");
+        edtmap::Mapper again = first.sensor("points");
+        first = std::move(again);
+        CHECK(std::fabs(second.distance({0.55, 0.05, 0.05}) - 1.5) < 1e-9, "the map lives while a handle does");
+    }
+
     std::printf("C++ API: all checks passed\n");
     return 0;
 }

@@ -44,7 +44,7 @@ use std::cell::RefCell;
 use std::ffi::{c_char, CStr, CString};
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::Path;
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 
 use edtmap::config::{CameraFields, Config, ConstructionName, LidarFields, SensorKind, SensorSection};
 use edtmap::cpu::CpuBackend;
@@ -53,7 +53,7 @@ use edtmap::sensor::Sensor;
 use edtmap::sensor::{DepthData, DepthImage, Frame, LaserScan, LidarScan, Measurement, PointCloud, RangeLimits};
 use edtmap::{
     BackendChoice, DynBackend, FrameStats, GlobalMap, GlobalParams, IntegrationMode, MapError, Mapper, MapperParams,
-    PointState, SharedMapper, VolumeParams,
+    MapperSensor, PointState, SharedMapper, VolumeParams,
 };
 use rayon::prelude::*;
 
@@ -231,9 +231,29 @@ pub const EDTMAP_STATE_OCCUPIED: u8 = 3;
 
 /// A mapping pipeline: its mapper and the snapshot queries read.
 pub struct edtmap_mapper {
-    shared: SharedMapper<DynBackend>,
-    /// A planar LiDAR's range limits (`[sensor]` min and max range).
-    scan_range: RangeLimits,
+    /// The mapper, shared by the handles of its sensors.
+    shared: Arc<SharedMapper<DynBackend>>,
+    /// The sensor this handle's frames come from (its index).
+    sensor: usize,
+    /// Per sensor, a planar LiDAR's range limits (its section's min and
+    /// max range), shared by the handles.
+    scan_ranges: Arc<Mutex<Vec<RangeLimits>>>,
+}
+
+impl edtmap_mapper {
+    /// A handle for sensor `sensor` of the same mapper.
+    fn for_sensor(&self, sensor: usize) -> edtmap_mapper {
+        edtmap_mapper { shared: Arc::clone(&self.shared), sensor, scan_ranges: Arc::clone(&self.scan_ranges) }
+    }
+
+    /// This handle's sensor's scan range limits.
+    fn scan_range(&self) -> Result<RangeLimits> {
+        let ranges = self
+            .scan_ranges
+            .lock()
+            .or_else(|_| fail(edtmap_status::EDTMAP_PANIC, "a thread panicked while it held the sensor list"))?;
+        Ok(ranges.get(self.sensor).copied().unwrap_or(RangeLimits { min_m: 0.0, max_m: f32::MAX }))
+    }
 }
 
 /// A saved map, loaded for queries.
@@ -342,14 +362,19 @@ fn check_ptr<T>(ptr: *const T, len: usize, name: &str) -> Result<()> {
 
 /// A UTF-8 path from a C string.
 unsafe fn path<'a>(ptr: *const c_char, name: &str) -> Result<&'a Path> {
+    // SAFETY: as the caller of `path` passes it.
+    Ok(Path::new(unsafe { text(ptr, name) }?))
+}
+
+/// UTF-8 text from a C string.
+unsafe fn text<'a>(ptr: *const c_char, name: &str) -> Result<&'a str> {
     if ptr.is_null() {
         return fail(edtmap_status::EDTMAP_NULL_ARGUMENT, format!("{name} is null"));
     }
     // SAFETY: the caller passes a NUL-terminated string.
-    let text = unsafe { CStr::from_ptr(ptr) }
+    unsafe { CStr::from_ptr(ptr) }
         .to_str()
-        .or_else(|_| fail(edtmap_status::EDTMAP_INVALID_ARGUMENT, format!("{name} is not UTF-8")))?;
-    Ok(Path::new(text))
+        .or_else(|_| fail(edtmap_status::EDTMAP_INVALID_ARGUMENT, format!("{name} is not UTF-8")))
 }
 
 /// Writes `value` through `out`, checked for null.
@@ -417,8 +442,22 @@ fn open_backend(b: edtmap_backend, planar: bool) -> Result<DynBackend> {
 
 fn mapper_from(config: &Config, backend: edtmap_backend, map: Option<GlobalMap>) -> Result<Box<edtmap_mapper>> {
     let (sensor, params) = config.mapper_params()?;
-    let scan_range = RangeLimits { min_m: config.sensor.min_range_m, max_m: config.sensor.max_range_m };
-    mapper_on(sensor, params, scan_range, backend, map)
+    let range = |s: &edtmap::config::SensorSection| RangeLimits { min_m: s.min_range_m, max_m: s.max_range_m };
+    let m = mapper_on(sensor, params, range(&config.sensor), backend, map)?;
+    // A config's [[sensors]] after the first, and the first's name.
+    let sensors = config.mapper_sensors()?;
+    let mut ranges = m
+        .scan_ranges
+        .lock()
+        .or_else(|_| fail(edtmap_status::EDTMAP_PANIC, "a thread panicked while it held the sensor list"))?;
+    let mut mapper = m.shared.lock()?;
+    for ((sensor, _), section) in sensors.into_iter().zip(config.sensors()).skip(1) {
+        mapper.add_sensor(sensor)?;
+        ranges.push(range(section));
+    }
+    mapper.rename_sensor(0, config.sensor.name())?;
+    drop((mapper, ranges));
+    Ok(m)
 }
 
 fn mapper_on(
@@ -433,7 +472,8 @@ fn mapper_on(
         Some(map) => Mapper::with_map_on(backend, sensor, params, map),
         None => Mapper::new_on(backend, sensor, params),
     }?;
-    Ok(Box::new(edtmap_mapper { shared: SharedMapper::new(mapper), scan_range }))
+    let shared = Arc::new(SharedMapper::new(mapper));
+    Ok(Box::new(edtmap_mapper { shared, sensor: 0, scan_ranges: Arc::new(Mutex::new(vec![scan_range])) }))
 }
 
 /// A parameter of `edtmap_params` that is out of its range, named as the
@@ -617,8 +657,73 @@ pub unsafe extern "C" fn edtmap_mapper_resume(
     })
 }
 
-/// Frees a mapper (null is allowed and does nothing). No other call on it
-/// may be running or start after this one; freeing it twice is undefined.
+/// Adds a sensor to `mapper`'s map: `params`' sensor fields (`sensor`, its
+/// intrinsics or rings, `min_range_m`, `max_range_m`, `construction`,
+/// `clear_no_return`; the map's fields are the mapper's and are ignored
+/// here), named `name` (1 to 64 characters, unlike the others' names; the
+/// first sensor is named after its kind). `*out` receives a handle whose
+/// frames come from that sensor, fused into the same map, and whose
+/// queries read the same map; each sensor's thread may integrate through
+/// its own handle. Free it with [`edtmap_mapper_free`]: the map lives
+/// while any of its handles does.
+#[no_mangle]
+pub unsafe extern "C" fn edtmap_mapper_add_sensor(
+    mapper: *mut edtmap_mapper,
+    params: *const edtmap_params,
+    name: *const c_char,
+    out: *mut *mut edtmap_mapper,
+) -> edtmap_status {
+    guard("edtmap_mapper_add_sensor", || {
+        check_out(out)?;
+        // SAFETY: the caller passes a mapper from this library or null.
+        let m = unsafe { handle(mapper, "mapper") }?;
+        // SAFETY: the caller passes a valid `edtmap_params` or null.
+        let p = unsafe { handle(params, "params") }?;
+        // SAFETY: the caller passes a NUL-terminated string or null.
+        let name = unsafe { text(name, "name") }?.to_string();
+        let (sensor, params, scan_range) = params_of(p)?;
+        let sensor = MapperSensor { name, sensor, ogm: params.ogm };
+        let mut ranges = m
+            .scan_ranges
+            .lock()
+            .or_else(|_| fail(edtmap_status::EDTMAP_PANIC, "a thread panicked while it held the sensor list"))?;
+        let index = m.shared.lock()?.add_sensor(sensor)?;
+        ranges.push(scan_range);
+        drop(ranges);
+        // SAFETY: the caller passes a writable pointer or null.
+        unsafe { put(out, Box::into_raw(Box::new(m.for_sensor(index))), "out") }
+    })
+}
+
+/// A handle of `mapper`'s sensor named `name` (a config's `[[sensors]]`
+/// entry, or one [`edtmap_mapper_add_sensor`] added) into `*out`, as that
+/// function gives; `EDTMAP_INVALID_ARGUMENT` naming the sensors when there
+/// is none of that name.
+#[no_mangle]
+pub unsafe extern "C" fn edtmap_mapper_sensor(
+    mapper: *mut edtmap_mapper,
+    name: *const c_char,
+    out: *mut *mut edtmap_mapper,
+) -> edtmap_status {
+    guard("edtmap_mapper_sensor", || {
+        check_out(out)?;
+        // SAFETY: the caller passes a mapper from this library or null.
+        let m = unsafe { handle(mapper, "mapper") }?;
+        // SAFETY: the caller passes a NUL-terminated string or null.
+        let name = unsafe { text(name, "name") }?;
+        let names: Vec<String> = m.shared.lock()?.sensors().iter().map(|s| s.name.clone()).collect();
+        let Some(index) = names.iter().position(|n| n == name) else {
+            let known = names.join(", ");
+            return fail(edtmap_status::EDTMAP_INVALID_ARGUMENT, format!("name = {name:?}: the sensors are {known}"));
+        };
+        // SAFETY: the caller passes a writable pointer or null.
+        unsafe { put(out, Box::into_raw(Box::new(m.for_sensor(index))), "out") }
+    })
+}
+
+/// Frees a mapper or a sensor's handle (null is allowed and does nothing).
+/// No other call on it may be running or start after this one; freeing it
+/// twice is undefined.
 #[no_mangle]
 pub unsafe extern "C" fn edtmap_mapper_free(mapper: *mut edtmap_mapper) {
     if !mapper.is_null() {
@@ -659,7 +764,7 @@ unsafe fn integrate(
     // SAFETY: as in `pose`.
     let t_world_sensor = unsafe { pose(t_world_sensor) }?;
     let frame = Frame { stamp_s, t_world_sensor, measurement: measurement(m)? };
-    let s: FrameStats = m.shared.integrate(&frame)?;
+    let s: FrameStats = m.shared.integrate_sensor(m.sensor, &frame)?;
     if !stats.is_null() {
         let out = edtmap_frame_stats {
             ogm_ms: s.ogm_ms,
@@ -780,7 +885,8 @@ pub unsafe extern "C" fn edtmap_integrate_scan(
         // SAFETY: as in `edtmap_integrate_points`.
         unsafe {
             integrate(mapper, t_world_sensor, stamp_s, stats, |m| {
-                Ok(Measurement::Scan(LaserScan { angle_min_rad, angle_increment_rad, ranges, range: m.scan_range }))
+                let range = m.scan_range()?;
+                Ok(Measurement::Scan(LaserScan { angle_min_rad, angle_increment_rad, ranges, range }))
             })
         }
     })
@@ -1058,6 +1164,66 @@ pub unsafe extern "C" fn edtmap_map_max_distance(map: *const edtmap_map) -> f64 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Two sensors' handles of one mapper fuse into one map, the map the
+    /// same frames make through single-sensor mappers handing it on.
+    #[test]
+    fn sensor_handles_fuse_into_one_map() {
+        let mut defaults = std::mem::MaybeUninit::<edtmap_params>::uninit();
+        // SAFETY: a valid out-pointer to an `edtmap_params`.
+        assert_eq!(unsafe { edtmap_params_default(defaults.as_mut_ptr()) }, edtmap_status::EDTMAP_OK);
+        // SAFETY: `edtmap_params_default` filled it.
+        let points_params = unsafe { defaults.assume_init() };
+        let mut scan_params = points_params;
+        scan_params.sensor = edtmap_sensor::EDTMAP_SENSOR_PLANAR as u32;
+        let wall: Vec<f32> = (0..40).flat_map(|i| [2.05, -1.0 + 0.05 * i as f32, 0.05]).collect();
+        let ranges: Vec<f32> = (0..360).map(|i| 1.5 + 0.3 * ((i as f32) * 0.05).sin()).collect();
+        let pose: [f64; 16] = [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.5, 0.0, 0.0, 0.0, 1.0];
+        let inc = std::f64::consts::TAU / 360.0;
+        let (mut first, mut scan) = (std::ptr::null_mut(), std::ptr::null_mut());
+        let name = CString::new("scan").expect("name");
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = CString::new(dir.path().join("both.edtmap").to_str().expect("utf-8")).expect("path");
+        // SAFETY: valid pointers and lengths throughout; each handle freed once.
+        unsafe {
+            assert_eq!(edtmap_mapper_new(&points_params, &mut first), edtmap_status::EDTMAP_OK);
+            assert_eq!(
+                edtmap_mapper_add_sensor(first, &scan_params, name.as_ptr(), &mut scan),
+                edtmap_status::EDTMAP_OK
+            );
+            let again = CString::new("points").expect("name");
+            let mut same = std::ptr::null_mut();
+            assert_eq!(edtmap_mapper_sensor(first, again.as_ptr(), &mut same), edtmap_status::EDTMAP_OK);
+            let null = std::ptr::null_mut();
+            assert_eq!(
+                edtmap_integrate_points(same, wall.as_ptr(), 40, pose.as_ptr(), 0.0, null),
+                edtmap_status::EDTMAP_OK
+            );
+            assert_eq!(
+                edtmap_integrate_scan(scan, ranges.as_ptr(), 360, 0.0, inc, pose.as_ptr(), 0.1, null),
+                edtmap_status::EDTMAP_OK
+            );
+            edtmap_mapper_free(same);
+            edtmap_mapper_free(first);
+            // The map lives while a handle does.
+            assert_eq!(edtmap_mapper_save(scan, path.as_ptr()), edtmap_status::EDTMAP_OK);
+            edtmap_mapper_free(scan);
+        }
+        let params = |p: &edtmap_params| params_of(p).unwrap_or_else(|Failure(_, m)| panic!("{m}"));
+        let ((points, pp, _), (planar, sp, scan_range)) = (params(&points_params), params(&scan_params));
+        let t = nalgebra::Isometry3::translation(0.0, 0.0, 0.5);
+        let cloud = Measurement::Points(PointCloud { points: wall.as_chunks::<3>().0.to_vec() });
+        let mut one = Mapper::new(points, pp).expect("mapper");
+        one.integrate_frame(&Frame { stamp_s: 0.0, t_world_sensor: t, measurement: cloud }).expect("frame");
+        let mut two = Mapper::with_map(planar, sp, one.into_map()).expect("mapper");
+        let scan = LaserScan { angle_min_rad: 0.0, angle_increment_rad: inc, ranges, range: scan_range };
+        two.integrate_frame(&Frame { stamp_s: 0.1, t_world_sensor: t, measurement: Measurement::Scan(scan) })
+            .expect("frame");
+        let oracle = dir.path().join("oracle.edtmap");
+        edtmap::save_map(two.map(), &oracle).expect("save");
+        let both = std::fs::read(dir.path().join("both.edtmap")).expect("read");
+        assert!(both == std::fs::read(&oracle).expect("read"), "the two handles' map differs");
+    }
 
     /// `enum_value` finds a variant by its position: the tables must list
     /// the variants in the order of their numbers, from 0.
