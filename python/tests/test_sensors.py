@@ -61,3 +61,14 @@ def test_sensor_names_are_checked():
     with pytest.raises(ValueError, match="the mapper's sensors are depth"):
         mapper.integrate_points(np.ones((4, 3)), np.eye(4), sensor="lidar")
     assert mapper.sensors == [("depth", "depth")] and mapper.map_blocks == 0
+
+
+def test_a_config_with_several_sensors_gives_them_all():
+    config = __import__("pathlib").Path(__file__).resolve().parents[2] / "configs" / "ugv_corridor_camera.toml"
+    mapper = edtmap.Mapper.from_config(config)
+    assert mapper.sensors == [("lidar_top", "lidar"), ("front_camera", "depth")]
+    depth = np.full((120, 160), 2.0, np.float32)
+    optical = np.array([[0, 0, 1, 0], [-1, 0, 0, 0], [0, -1, 0, 0.3], [0, 0, 0, 1]], float)
+    assert mapper.integrate_depth(depth, optical, sensor="front_camera")["voxels_updated"] > 0
+    with pytest.raises(ValueError, match="a depth image measurement from a spinning LiDAR sensor"):
+        mapper.integrate_depth(np.full((120, 160), 2.0, np.float32), optical, sensor="lidar_top")

@@ -444,19 +444,13 @@ fn mapper_from(config: &Config, backend: edtmap_backend, map: Option<GlobalMap>)
     let (sensor, params) = config.mapper_params()?;
     let range = |s: &edtmap::config::SensorSection| RangeLimits { min_m: s.min_range_m, max_m: s.max_range_m };
     let m = mapper_on(sensor, params, range(&config.sensor), backend, map)?;
-    // A config's [[sensors]] after the first, and the first's name.
-    let sensors = config.mapper_sensors()?;
+    config.add_sensors_to(&mut *m.shared.lock()?)?;
     let mut ranges = m
         .scan_ranges
         .lock()
         .or_else(|_| fail(edtmap_status::EDTMAP_PANIC, "a thread panicked while it held the sensor list"))?;
-    let mut mapper = m.shared.lock()?;
-    for ((sensor, _), section) in sensors.into_iter().zip(config.sensors()).skip(1) {
-        mapper.add_sensor(sensor)?;
-        ranges.push(range(section));
-    }
-    mapper.rename_sensor(0, config.sensor.name())?;
-    drop((mapper, ranges));
+    ranges.extend(config.other_sensors.iter().map(range));
+    drop(ranges);
     Ok(m)
 }
 
@@ -1223,6 +1217,26 @@ mod tests {
         edtmap::save_map(two.map(), &oracle).expect("save");
         let both = std::fs::read(dir.path().join("both.edtmap")).expect("read");
         assert!(both == std::fs::read(&oracle).expect("read"), "the two handles' map differs");
+
+        // A config's [[sensors]] are the mapper's, each with its handle.
+        let config = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../configs/ugv_corridor_camera.toml");
+        let config = CString::new(config.to_str().expect("utf-8")).expect("path");
+        let (mut mapper, mut camera) = (std::ptr::null_mut(), std::ptr::null_mut());
+        let (known, unknown) = (CString::new("front_camera").expect("name"), CString::new("sonar").expect("name"));
+        // SAFETY: valid pointers; each handle freed once.
+        unsafe {
+            let cpu = edtmap_backend::EDTMAP_BACKEND_CPU as u32;
+            assert_eq!(edtmap_mapper_from_config(config.as_ptr(), cpu, &mut mapper), edtmap_status::EDTMAP_OK);
+            assert_eq!(edtmap_mapper_sensor(mapper, known.as_ptr(), &mut camera), edtmap_status::EDTMAP_OK);
+            let mut none = std::ptr::null_mut();
+            let status = edtmap_mapper_sensor(mapper, unknown.as_ptr(), &mut none);
+            assert_eq!(status, edtmap_status::EDTMAP_INVALID_ARGUMENT);
+            let message = CStr::from_ptr(edtmap_last_error()).to_string_lossy().into_owned();
+            assert!(message.contains("lidar_top, front_camera"), "{message}");
+            assert_eq!((*camera).sensor, 1);
+            edtmap_mapper_free(camera);
+            edtmap_mapper_free(mapper);
+        }
     }
 
     /// `enum_value` finds a variant by its position: the tables must list

@@ -27,8 +27,9 @@ pub use limits::{Limit, DEPTH_SCALE_M, OFFSET_M, POSE_GAP_S, WORLD_M};
 pub use memory::MemorySection;
 pub use sensor::{sensor_in_body, CameraFields, ConstructionName, LidarFields, SensorKind, SensorSection};
 
-use crate::{MapError, MapperParams, MapperSensor};
+use crate::{MapError, Mapper, MapperParams, MapperSensor};
 use edtmap_core::sensor::Sensor;
+use edtmap_core::Backend;
 use edtmap_core::{EdtParams, GlobalParams, OccupancyParams, VolumeParams};
 use nalgebra::Isometry3;
 use serde::de::{DeserializeOwned, IgnoredAny};
@@ -185,6 +186,16 @@ impl Config {
         };
         params.validate()?;
         Ok((sensor, params))
+    }
+
+    /// Names `mapper`'s first sensor (made with [`Self::mapper_params`]'s)
+    /// as the config does and adds the config's other sensors, in order.
+    pub fn add_sensors_to<B: Backend>(&self, mapper: &mut Mapper<B>) -> Result<(), MapError> {
+        mapper.rename_sensor(0, self.sensor.name())?;
+        for (sensor, _) in self.mapper_sensors()?.into_iter().skip(1) {
+            mapper.add_sensor(sensor)?;
+        }
+        Ok(())
     }
 
     /// Every sensor: [`Self::sensor`], then [`Self::other_sensors`].

@@ -100,14 +100,9 @@ impl PyMapper {
         }
         .map_err(map_err)?;
         let py_mapper = PyMapper::new(mapper, scan_range);
-        // A config's [[sensors]] after the first, and the first's name.
-        let sensors = config.mapper_sensors().map_err(map_err)?;
-        for ((sensor, _), section) in sensors.into_iter().zip(config.sensors()).skip(1) {
-            let range = RangeLimits { min_m: section.min_range_m, max_m: section.max_range_m };
-            py_mapper.lock()?.add_sensor(sensor).map_err(map_err)?;
-            py_mapper.scan_ranges.lock().map_err(|_| PyRuntimeError::new_err("sensor list poisoned"))?.push(range);
-        }
-        py_mapper.lock()?.rename_sensor(0, config.sensor.name()).map_err(map_err)?;
+        config.add_sensors_to(&mut *py_mapper.lock()?).map_err(map_err)?;
+        let ranges = config.other_sensors.iter().map(|s| RangeLimits { min_m: s.min_range_m, max_m: s.max_range_m });
+        py_mapper.scan_ranges.lock().map_err(|_| PyRuntimeError::new_err("sensor list poisoned"))?.extend(ranges);
         Ok(py_mapper)
     }
 }
