@@ -145,3 +145,29 @@ fn sensors_are_named_once_and_frames_name_a_sensor_the_mapper_has() {
     assert!(err.contains("sensor 3") && err.contains("1 sensor"), "{err}");
     assert_eq!(mapper.map().occupancy().len(), 0, "a refused frame leaves the map as it was");
 }
+
+#[test]
+fn a_bad_frame_of_one_sensor_is_refused_and_the_others_go_on() {
+    let scene = scene();
+    let (lidar, params) = lidar_and_params(IntegrationMode::Exact);
+    let (cam, mount) = camera();
+    let mut mapper = Mapper::new(lidar.clone(), params.clone()).expect("mapper");
+    mapper.add_sensor(MapperSensor { name: "camera".into(), sensor: cam.clone(), ogm: params.ogm }).expect("camera");
+    mapper.integrate_sensor_frame(0, &scene.frame(&lidar, 0).expect("frame")).expect("LiDAR frame");
+    let before = bytes(mapper.map());
+    // A camera frame cut short (a corrupt message), and a LiDAR scan sent
+    // as the camera's: both refused, naming the problem, the map as it was.
+    let mut short = scene.mounted_frame(&cam, &mount, 1).expect("frame");
+    if let edtmap::sensor::Measurement::Depth(image) = &mut short.measurement {
+        image.height -= 1;
+    }
+    let err = mapper.integrate_sensor_frame(1, &short).expect_err("short image").to_string();
+    assert!(err.contains("depth image is 160x119"), "{err}");
+    let lidar_frame = scene.frame(&lidar, 1).expect("frame");
+    let err = mapper.integrate_sensor_frame(1, &lidar_frame).expect_err("a LiDAR frame as the camera's").to_string();
+    assert!(err.contains("spinning LiDAR") || err.contains("LiDAR range image"), "{err}");
+    assert!(bytes(mapper.map()) == before, "a refused frame leaves the map as it was");
+    // Both sensors go on.
+    mapper.integrate_sensor_frame(0, &lidar_frame).expect("LiDAR frame");
+    mapper.integrate_sensor_frame(1, &scene.mounted_frame(&cam, &mount, 1).expect("frame")).expect("camera frame");
+}
