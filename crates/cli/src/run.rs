@@ -332,12 +332,6 @@ impl Setup {
             params.max_memory_bytes = Some(bytes);
         }
         if let Some(path) = &args.dataset {
-            if sensors.len() > 1 {
-                bail!(
-                    "{origin} lists {} [[sensors]]; a recording is replayed with one sensor: give it a config with one [sensor] section",
-                    sensors.len()
-                );
-            }
             check_kind(&source, &sensor, path, &origin)?;
         }
         let frames = frame_count(args, &name, default_frames)?;

@@ -69,3 +69,15 @@ fn sensors_names_the_sensors_a_config_has() {
     let (ok, _, stderr) = edtmap(&[&args[..], &[dir.path().to_str().expect("utf-8")]].concat());
     assert!(!ok && stderr.contains("--sensors sonar") && stderr.contains("lidar_top, front_camera"), "{stderr}");
 }
+
+#[test]
+fn recordings_and_the_node_take_one_sensor_and_say_so() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let config = config();
+    let config = config.to_str().expect("utf-8");
+    let out = dir.path().to_str().expect("utf-8");
+    let (ok, _, stderr) = edtmap(&["run", "--config", config, "--dataset", out, "--out", out]);
+    assert!(!ok && stderr.contains("lists 2 [[sensors]]") && stderr.contains("replayed with one sensor"), "{stderr}");
+    let (ok, _, stderr) = edtmap(&["node", "--config", config]);
+    assert!(!ok && stderr.contains("the live node maps one sensor"), "{stderr}");
+}

@@ -245,6 +245,12 @@ struct Outputs {
 /// The mapper of `config` (all but its `[ros]` section), going on from
 /// `map` when given; `max_memory_bytes` replaces `[memory]`'s budget.
 pub fn mapper(config: &Config, map: Option<GlobalMap>, max_memory_bytes: Option<u64>) -> Result<Mapper, NodeError> {
+    if !config.other_sensors.is_empty() {
+        return Err(NodeError::Config(format!(
+            "the config lists {} [[sensors]]; the live node maps one sensor: give it a config with one [sensor] section",
+            config.other_sensors.len() + 1
+        )));
+    }
     if SensorMessage::of(config.sensor.kind).is_none() {
         return Err(NodeError::Config("[sensor] kind = \"lidar\" takes range images; a live sensor_msgs/PointCloud2 needs kind = \"points\" (with construction = \"raycast\" or \"projection\")".into()));
     }

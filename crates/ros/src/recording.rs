@@ -46,6 +46,16 @@ impl Recording {
         origin: &str,
     ) -> Result<Recording, MapError> {
         let in_dataset = |e| MapError::Config { section: "dataset", source: e };
+        if !config.other_sensors.is_empty() {
+            return Err(MapError::ConfigFile {
+                path: origin.to_string(),
+                message: format!(
+                    "lists {} [[sensors]]; a recording ({}) is replayed with one sensor: give it a config with one [sensor] section",
+                    config.other_sensors.len() + 1,
+                    path.display()
+                ),
+            });
+        }
         if is_recording(path) {
             let opts = ros_options(dataset).map_err(|e| MapError::ConfigFile {
                 path: format!("{origin}: replaying {}", path.display()),
