@@ -64,30 +64,10 @@ pub(crate) fn load(path: &Path) -> Result<(Config, Sections)> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use edtmap_conformance::config_text::set;
 
     fn configs_dir() -> std::path::PathBuf {
         std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../configs")
-    }
-
-    /// `text` with `[section] field = value`, replacing the field's line or
-    /// adding one (and the section) where there is none.
-    fn set(text: &str, section: &str, field: &str, value: &str) -> String {
-        let mut lines: Vec<String> = text.lines().map(str::to_owned).collect();
-        let header = format!("[{section}]");
-        let start = match lines.iter().position(|l| l.trim() == header) {
-            Some(i) => i,
-            None => {
-                lines.push(header);
-                lines.len() - 1
-            }
-        };
-        let end = lines[start + 1..].iter().position(|l| l.starts_with('[')).map_or(lines.len(), |i| start + 1 + i);
-        let at = (start + 1..end).find(|&i| lines[i].split('=').next().is_some_and(|k| k.trim() == field));
-        match at {
-            Some(i) => lines[i] = format!("{field} = {value}"),
-            None => lines.insert(start + 1, format!("{field} = {value}")),
-        }
-        lines.join("\n") + "\n"
     }
 
     fn config_text(name: &str) -> String {

@@ -5,6 +5,7 @@
 //! integer results with an independent oracle, bit for bit, so backends
 //! that pass agree with each other exactly.
 
+pub mod config_text;
 mod projection;
 
 pub use projection::{check_projection, check_projection_bits, projection_cases, ProjectionCase, ProjectionTally};

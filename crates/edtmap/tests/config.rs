@@ -2,6 +2,7 @@
 
 use edtmap::config::Config;
 use edtmap::sensor::Sensor;
+use edtmap_conformance::config_text::set;
 use std::path::PathBuf;
 
 fn configs_dir() -> PathBuf {
@@ -77,24 +78,6 @@ fn projection_of_plain_points_is_refused() {
         .replace("kind = \"lidar\"", "kind = \"points\"")
         .replace("construction = \"auto\"", "construction = \"projection\"");
     assert!(error_of(&text).contains("construction"));
-}
-
-/// `text` with `key = value` set in `[section]`: the key's line replaced,
-/// or added under the section's header (the section appended if absent).
-fn set(text: &str, section: &str, key: &str, value: &str) -> String {
-    let mut lines: Vec<String> = text.lines().map(str::to_string).collect();
-    let header = format!("[{section}]");
-    let Some(start) = lines.iter().position(|l| l.trim() == header) else {
-        return format!("{text}\n{header}\n{key} = {value}\n");
-    };
-    let end =
-        lines[start + 1..].iter().position(|l| l.trim_start().starts_with('[')).map_or(lines.len(), |i| start + 1 + i);
-    let is_key = |l: &String| l.split('=').next().is_some_and(|k| k.trim() == key);
-    match lines[start + 1..end].iter().position(is_key) {
-        Some(i) => lines[start + 1 + i] = format!("{key} = {value}"),
-        None => lines.insert(start + 1, format!("{key} = {value}")),
-    }
-    lines.join("\n") + "\n"
 }
 
 /// The error and its sources joined as anyhow's `{:#}` prints them.
