@@ -64,15 +64,7 @@ pub(crate) fn load(path: &Path) -> Result<(Config, Sections)> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use edtmap_conformance::config_text::set;
-
-    fn configs_dir() -> std::path::PathBuf {
-        std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../configs")
-    }
-
-    fn config_text(name: &str) -> String {
-        std::fs::read_to_string(configs_dir().join(name)).expect("shipped config")
-    }
+    use edtmap_conformance::config_text::{assert_names_the_value, configs_dir, set, shipped as config_text};
 
     #[test]
     fn every_shipped_config_has_valid_sections() {
@@ -127,12 +119,7 @@ mod tests {
         for &(file, section, field, value, shown) in cases {
             let text = set(&config_text(file), section, field, value);
             let err = parse(&text, file).expect_err(&format!("{file}: [{section}] {field} = {value} accepted"));
-            let msg = format!("{err:#}");
-            let case = format!("[{section}] {field} = {value}: {msg}");
-            assert!(msg.contains(&format!("[{section}]")), "no section: {case}");
-            assert_eq!(msg.matches(field).count(), 1, "field not named exactly once: {case}");
-            assert!(msg.contains(shown), "value not shown: {case}");
-            assert!(msg.contains("must"), "no accepted range: {case}");
+            assert_names_the_value(&format!("{err:#}"), section, field, value, shown);
         }
     }
 

@@ -1,4 +1,28 @@
-//! Configuration texts for tests: a shipped file with one field changed.
+//! Configuration texts for tests: a shipped file with one field changed,
+//! and what the error for an out-of-range value must say.
+
+use std::path::PathBuf;
+
+/// The repository's `configs/` folder.
+pub fn configs_dir() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../configs")
+}
+
+/// The text of the shipped configuration `configs/NAME`.
+pub fn shipped(name: &str) -> String {
+    std::fs::read_to_string(configs_dir().join(name)).unwrap_or_else(|e| panic!("configs/{name}: {e}"))
+}
+
+/// Checks that `message`, the error for `[section] field = value`, names
+/// the section, the field exactly once, the value as `shown`, and the
+/// accepted range ("must ...").
+pub fn assert_names_the_value(message: &str, section: &str, field: &str, value: &str, shown: &str) {
+    let case = format!("[{section}] {field} = {value}: {message}");
+    assert!(message.contains(&format!("[{section}]")), "no section: {case}");
+    assert_eq!(message.matches(field).count(), 1, "field not named exactly once: {case}");
+    assert!(message.contains(shown), "value not shown: {case}");
+    assert!(message.contains("must"), "no accepted range: {case}");
+}
 
 /// `text` (a TOML configuration) with `key = value` in `[section]`: the
 /// key's line replaced where the section has it, else inserted under the
