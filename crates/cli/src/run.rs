@@ -306,9 +306,8 @@ struct Setup {
     source: Source,
     /// The scene's name or the recording's path.
     name: String,
-    /// The first sensor.
-    sensor: Sensor,
-    /// Every sensor, with its mount on the robot.
+    /// Every sensor, with its mount on the robot; the first is the
+    /// mapper's own (its options are `params.ogm`).
     sensors: Vec<(MapperSensor, Isometry3<f64>)>,
     params: MapperParams,
     /// Frames to replay.
@@ -326,16 +325,15 @@ impl Setup {
         }
         let (_, mut params) = config.mapper_params()?;
         let sensors = chosen_sensors(config.mapper_sensors()?, args.sensors.as_deref(), &origin)?;
-        let sensor = sensors[0].0.sensor.clone();
         params.ogm = sensors[0].0.ogm;
         if let Some(bytes) = crate::memory::max_bytes() {
             params.max_memory_bytes = Some(bytes);
         }
         if let Some(path) = &args.dataset {
-            check_kind(&source, &sensor, path, &origin)?;
+            check_kind(&source, &sensors[0].0.sensor, path, &origin)?;
         }
         let frames = frame_count(args, &name, default_frames)?;
-        Ok(Setup { sections, origin, source, name, sensor, sensors, params, frames })
+        Ok(Setup { sections, origin, source, name, sensors, params, frames })
     }
 }
 
@@ -398,12 +396,11 @@ fn frame_count(args: &RunArgs, name: &str, default_frames: usize) -> Result<usiz
 /// The mapper on the chosen backend, with the `--prior` map added.
 fn open_mapper(args: &RunArgs, setup: &Setup) -> Result<CliMapper> {
     let backend = backend::open_for(args.backend, CpuBackend::default(), setup.params.global.planar)?;
-    let mut mapper = Mapper::new_on(backend, setup.sensor.clone(), setup.params.clone())?;
-    for (i, (sensor, _)) in setup.sensors.iter().enumerate() {
-        match i {
-            0 => mapper.rename_sensor(0, &sensor.name)?,
-            _ => _ = mapper.add_sensor(sensor.clone())?,
-        }
+    let first = &setup.sensors[0].0;
+    let mut mapper = Mapper::new_on(backend, first.sensor.clone(), setup.params.clone())?;
+    mapper.rename_sensor(0, &first.name)?;
+    for (sensor, _) in &setup.sensors[1..] {
+        mapper.add_sensor(sensor.clone())?;
     }
     if let Some(path) = &args.prior {
         let prior = edtmap::load_map(path)?;
@@ -580,7 +577,7 @@ fn report_header(
     slice: &SliceHeight,
     replayed: &Replayed,
 ) -> Map<String, serde_json::Value> {
-    let (sensor, params) = (&setup.sensor, &setup.params);
+    let (sensor, params) = (&setup.sensors[0].0.sensor, &setup.params);
     let mut header = Map::new();
     header.insert("edtmap_version".into(), json!(env!("CARGO_PKG_VERSION")));
     header.insert("scene".into(), json!(setup.name));

@@ -25,6 +25,7 @@ mod sensor;
 pub(crate) use limits::check_ogm;
 pub use limits::{Limit, DEPTH_SCALE_M, OFFSET_M, POSE_GAP_S, WORLD_M};
 pub use memory::MemorySection;
+pub(crate) use sensor::check_construction;
 pub use sensor::{sensor_in_body, CameraFields, ConstructionName, LidarFields, SensorKind, SensorSection};
 
 use crate::{MapError, Mapper, MapperParams, MapperSensor};

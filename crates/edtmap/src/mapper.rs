@@ -1,6 +1,6 @@
 //! The mapping pipeline of paper Fig. 1, one frame at a time.
 
-use crate::stages::{fuse_on, local_field, Construction, OccupancyStage, OgmOptions};
+use crate::stages::{fuse_on, local_field, OccupancyStage, OgmOptions};
 use crate::update::{ms_since, GlobalUpdate};
 use crate::MapError;
 use edtmap_core::query::{self, Distance, PointState};
@@ -78,14 +78,7 @@ impl MapperSensor {
         }
         self.sensor.validate().map_err(in_sensor)?;
         crate::config::check_ogm(&self.ogm).map_err(in_sensor)?;
-        if self.ogm.construction == Construction::Projection && !self.sensor.supports_projection() {
-            return Err(in_sensor(edtmap_core::CoreError::InvalidParam {
-                field: "construction",
-                value: "\"projection\"".into(),
-                reason: "a point cloud sensor has no model to project into; use \"raycast\"",
-            }));
-        }
-        Ok(())
+        crate::config::check_construction(&self.sensor, self.ogm.construction).map_err(in_sensor)
     }
 }
 
@@ -254,8 +247,15 @@ impl<B: Backend> Mapper<B> {
     /// fused into the same map; returns its index. Its name must differ
     /// from the others'.
     pub fn add_sensor(&mut self, sensor: MapperSensor) -> Result<usize, MapError> {
+        self.check_new_sensor(&sensor, None)?;
+        self.sensors.push(sensor);
+        Ok(self.sensors.len() - 1)
+    }
+
+    /// Checks `sensor`, and that no sensor but `replacing` has its name.
+    fn check_new_sensor(&self, sensor: &MapperSensor, replacing: Option<usize>) -> Result<(), MapError> {
         sensor.validate()?;
-        if self.sensors.iter().any(|s| s.name == sensor.name) {
+        if self.sensors.iter().enumerate().any(|(i, s)| Some(i) != replacing && s.name == sensor.name) {
             return Err(MapError::Config {
                 section: "sensor",
                 source: edtmap_core::CoreError::InvalidParam {
@@ -265,8 +265,7 @@ impl<B: Backend> Mapper<B> {
                 },
             });
         }
-        self.sensors.push(sensor);
-        Ok(self.sensors.len() - 1)
+        Ok(())
     }
 
     /// Renames sensor `index` (the first sensor is named after its kind
@@ -274,17 +273,7 @@ impl<B: Backend> Mapper<B> {
     pub fn rename_sensor(&mut self, index: usize, name: &str) -> Result<(), MapError> {
         let Some(s) = self.sensors.get(index) else { return Err(no_sensor(index, self.sensors.len())) };
         let renamed = MapperSensor { name: name.into(), ..s.clone() };
-        renamed.validate()?;
-        if self.sensors.iter().enumerate().any(|(i, s)| i != index && s.name == name) {
-            return Err(MapError::Config {
-                section: "sensor",
-                source: edtmap_core::CoreError::InvalidParam {
-                    field: "name",
-                    value: format!("{name:?}"),
-                    reason: "another sensor of this mapper has that name",
-                },
-            });
-        }
+        self.check_new_sensor(&renamed, Some(index))?;
         self.sensors[index] = renamed;
         Ok(())
     }

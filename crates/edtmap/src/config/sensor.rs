@@ -222,15 +222,9 @@ impl SensorSection {
         let construction = match self.construction {
             ConstructionName::Auto => Construction::Auto,
             ConstructionName::Raycast => Construction::RayCasting,
-            ConstructionName::Projection if sensor.supports_projection() => Construction::Projection,
-            ConstructionName::Projection => {
-                return Err(CoreError::InvalidParam {
-                    field: "construction",
-                    value: "\"projection\"".into(),
-                    reason: "a point cloud sensor has no model to project into; use \"raycast\"",
-                })
-            }
+            ConstructionName::Projection => Construction::Projection,
         };
+        check_construction(sensor, construction)?;
         // Both lengths are in range: `Self::checked` checked them first.
         Ok(OgmOptions {
             construction,
@@ -305,4 +299,16 @@ pub fn sensor_in_body(field: &'static str, pose: Option<[f64; 7]>) -> Result<Iso
             reason: "must be [x, y, z, qx, qy, qz, qw] with a unit quaternion (norm within 1e-2 of 1)",
         }),
     }
+}
+
+/// Refuses volumetric projection for a sensor projection cannot read.
+pub(crate) fn check_construction(sensor: &Sensor, construction: Construction) -> Result<(), CoreError> {
+    if construction == Construction::Projection && !sensor.supports_projection() {
+        return Err(CoreError::InvalidParam {
+            field: "construction",
+            value: "\"projection\"".into(),
+            reason: "a point cloud sensor has no model to project into; use \"raycast\"",
+        });
+    }
+    Ok(())
 }

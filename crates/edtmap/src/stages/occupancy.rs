@@ -37,14 +37,10 @@ impl OccupancyStage {
         let job = match opts.construction {
             Construction::RayCasting => None,
             Construction::Auto => project_job(sensor, frame, volume, opts),
-            Construction::Projection => match project_job(sensor, frame, volume, opts) {
-                Some(job) => Some(job),
-                None => {
-                    let m = frame.measurement.kind();
-                    let what = format!("volumetric projection of a {m} from a {}", sensor.kind());
-                    return Err(CoreError::Unsupported(what).into());
-                }
-            },
+            Construction::Projection => Some(project_job(sensor, frame, volume, opts).ok_or_else(|| {
+                let what = format!("volumetric projection of a {} from a {}", frame.measurement.kind(), sensor.kind());
+                CoreError::Unsupported(what)
+            })?),
         };
         if let Some(job) = job {
             backend.project_volume(&job, obs)?;
