@@ -473,7 +473,9 @@ def read_recording(path: PathLike, config: PathLike, frames: Optional[int] = Non
     the data: ``depth`` (H x W float32 metres, or uint16 with
     ``depth_scale``), ``points`` (N x 3 float32), ``ranges`` (a LiDAR's rings
     x bins, or a planar scan's beams with ``angle_min``,
-    ``angle_increment`` and ``range_limits``). Bad frames are skipped
+    ``angle_increment`` and ``range_limits``), and ``sensor``, the name of
+    the config's sensor it came from (a ROS recording replays every
+    ``[[sensors]]`` entry from its ``topic``). Bad frames are skipped
     (listed in ``skipped``) or raise ``ValueError``, as ``[dataset]
     on_error`` says.
     """

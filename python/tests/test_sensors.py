@@ -2,10 +2,14 @@
 LiDAR fused in one mapper equal, byte for byte, the map the same frames make
 through single-sensor mappers that hand the map on (save, load)."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 import edtmap
+
+REPO = Path(__file__).resolve().parents[2]
 
 CAMERA = edtmap.DepthCamera(fx=40.0, fy=40.0, cx=31.5, cy=23.5, width=64, height=48, min_range_m=0.1,
                             max_range_m=6.0)
@@ -72,3 +76,24 @@ def test_a_config_with_several_sensors_gives_them_all():
     assert mapper.integrate_depth(depth, optical, sensor="front_camera")["voxels_updated"] > 0
     with pytest.raises(ValueError, match="a depth image measurement from a spinning LiDAR sensor"):
         mapper.integrate_depth(np.full((120, 160), 2.0, np.float32), optical, sensor="lidar_top")
+
+
+def test_a_two_sensor_recording_replays_as_edtmap_run_does(tmp_path):
+    from test_mapper import cli  # the command line, or a skip without it
+
+    recording = tmp_path / "two.mcap"
+    cli("record", "--config", REPO / "configs" / "ugv_corridor_camera.toml", "--frames", 4, recording, cwd=tmp_path)
+    config = tmp_path / "two.toml"
+    cli("run", "--config", config, "--dataset", recording, "--out", tmp_path / "out",
+        "--save", tmp_path / "cli.edtmap", cwd=tmp_path)
+    rec = edtmap.read_recording(recording, config)
+    mapper = rec.mapper()
+    assert mapper.sensors == [("lidar_top", "points"), ("front_camera", "depth")]
+    names = []
+    for frame in rec:
+        names.append(frame["sensor"])
+        mapper.integrate(frame)
+    assert rec.skipped == []
+    assert names == ["lidar_top", "front_camera"] * 4
+    mapper.save(tmp_path / "py.edtmap")
+    assert (tmp_path / "py.edtmap").read_bytes() == (tmp_path / "cli.edtmap").read_bytes()

@@ -516,6 +516,8 @@ fn params_of(p: &edtmap_params) -> Result<(Sensor, MapperParams, RangeLimits)> {
     let section = SensorSection {
         name: None,
         sensor_in_body: None,
+        topic: None,
+        camera_info_topic: None,
         kind,
         construction: ConstructionName::Auto,
         clear_no_return,

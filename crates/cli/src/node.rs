@@ -114,12 +114,32 @@ pub(crate) fn run(args: &NodeArgs) -> Result<()> {
     if let Some(path) = &ros.save_on_exit {
         outln!("saved the map to {}", path.display());
     }
+    if stats.sensors.len() > 1 {
+        for s in &stats.sensors {
+            outln!(
+                "  {} on {}: {} frames integrated of {} received, {} dropped",
+                s.name,
+                s.topic,
+                s.integrated,
+                s.received,
+                s.dropped
+            );
+        }
+    }
     if stats.integrated == 0 {
+        let wanted: Vec<String> = stats
+            .sensors
+            .iter()
+            .zip(config.sensors())
+            .map(|(s, section)| {
+                let message = SensorMessage::of(section.kind).unwrap_or(SensorMessage::PointCloud2);
+                format!("{} carries {}", s.topic, message.ros_type())
+            })
+            .collect();
         bail!(
-            "no frame was integrated in {:.1} s: check that {} carries {} and that poses come on {} (`ros2 topic list`, ROS_DOMAIN_ID, [ros] localhost_only)",
+            "no frame was integrated in {:.1} s: check that {} and that poses come on {} (`ros2 topic list`, ROS_DOMAIN_ID, [ros] localhost_only)",
             started.elapsed().as_secs_f64(),
-            ros.sensor_topic,
-            SensorMessage::of(config.sensor.kind).unwrap_or(SensorMessage::PointCloud2).ros_type(),
+            wanted.join(" and "),
             ros.pose_topic
         );
     }

@@ -319,41 +319,25 @@ impl Setup {
     /// sensor fits the recording and the frame count fits both.
     fn new(args: &RunArgs) -> Result<Self> {
         let (mut config, sections, origin) = load_config(args)?;
+        if let Some(names) = &args.sensors {
+            config.keep_sensors(names).map_err(|e| anyhow::anyhow!("--sensors {}: {origin}: {e}", names.join(",")))?;
+        }
         let (source, name, default_frames) = open_source(args, &mut config, &sections, &origin)?;
         if args.eval && !matches!(source, Source::Scene(_)) {
             tracing::warn!("--eval: {name} is a recording: {RECORDING_EVAL}");
         }
         let (_, mut params) = config.mapper_params()?;
-        let sensors = chosen_sensors(config.mapper_sensors()?, args.sensors.as_deref(), &origin)?;
+        let sensors = config.mapper_sensors()?;
         params.ogm = sensors[0].0.ogm;
         if let Some(bytes) = crate::memory::max_bytes() {
             params.max_memory_bytes = Some(bytes);
         }
-        if let Some(path) = &args.dataset {
+        if let (Some(path), 1) = (&args.dataset, sensors.len()) {
             check_kind(&source, &sensors[0].0.sensor, path, &origin)?;
         }
         let frames = frame_count(args, &name, default_frames)?;
         Ok(Setup { sections, origin, source, name, sensors, params, frames })
     }
-}
-
-/// The sensors `--sensors` names, in the config's order; every sensor
-/// without it.
-fn chosen_sensors(
-    all: Vec<(MapperSensor, Isometry3<f64>)>,
-    names: Option<&[String]>,
-    origin: &str,
-) -> Result<Vec<(MapperSensor, Isometry3<f64>)>> {
-    let Some(names) = names else { return Ok(all) };
-    let known: Vec<&str> = all.iter().map(|(s, _)| s.name.as_str()).collect();
-    if let Some(unknown) = names.iter().find(|n| !known.contains(&n.as_str())) {
-        bail!("--sensors {unknown}: {origin} has no sensor of that name (its sensors: {})", known.join(", "));
-    }
-    let chosen: Vec<_> = all.into_iter().filter(|(s, _)| names.contains(&s.name)).collect();
-    if chosen.is_empty() {
-        bail!("--sensors names no sensor: give one or more of the config's sensor names");
-    }
-    Ok(chosen)
 }
 
 /// The recording of `--dataset`, or else the scene of `--scene` or of the
@@ -430,19 +414,22 @@ struct Replayed {
 /// Integrates the frames one by one, skipping or stopping at a frame that
 /// fails as `[dataset] on_error` says (a scene's failure always stops).
 fn replay(args: &RunArgs, setup: &Setup, mapper: &mut CliMapper, progress: bool) -> Result<Replayed> {
-    let bar = progress_bar(setup.frames * setup.sensors.len(), progress);
+    // A scene's time step gives a frame of each sensor; a recording's
+    // frame count is its sensor messages'.
+    let per_step = if matches!(setup.source, Source::Scene(_)) { setup.sensors.len() } else { 1 };
+    let bar = progress_bar(setup.frames * per_step, progress);
     // Grows with the frames that come: --frames may be far more than a
     // recording or a soak run delivers.
     let mut out = Replayed { records: Vec::new(), skipped: Vec::new(), stopped: None, interrupted: None };
     let mut truth = (Vec::new(), Vec::new());
-    let mut frames = setup.source.frames(&setup.sensors, setup.frames, &setup.name).enumerate();
+    let mut frames = setup.source.frames(&setup.sensors, setup.frames, &setup.name);
     let batch = batch_stage(setup, mapper);
     loop {
         if let Some(signal) = interrupt::requested() {
             out.interrupted = Some(signal);
             break;
         }
-        let Some((i, (s, item))) = frames.next() else { break };
+        let Some((i, s, item)) = frames.next() else { break };
         let counted = mapper.backend().device_counters();
         let (frame, stats) = match item.and_then(|frame| integrate(mapper, s, frame, i, &setup.name)) {
             Ok(done) => done,
@@ -458,9 +445,7 @@ fn replay(args: &RunArgs, setup: &Setup, mapper: &mut CliMapper, progress: bool)
             }
         };
         tracing::debug!("frame {i} at {:.3} s: {:.2} ms", frame.stamp_s, stats.total_ms);
-        // A scene's time step gives a frame of each sensor; a recording's
-        // frames are one sensor's.
-        let mut rec = frame_record(i / setup.sensors.len(), &frame, &stats, mapper.map().occupancy().len(), batch);
+        let mut rec = frame_record(i, &frame, &stats, mapper.map().occupancy().len(), batch);
         rec.sensor = mapper.sensors()[s].name.clone();
         if let (Some(before), Some(now)) = (counted, mapper.backend().device_counters()) {
             rec.global.extend(device_fields(now.since(before)));
@@ -488,9 +473,13 @@ fn integrate(
         Ok(stats) => Ok((frame, stats)),
         Err(e) => {
             let kind = if e.is_backend_failure() { FailureKind::Fatal } else { FailureKind::Frame };
+            let of = match mapper.sensors() {
+                [_] => String::new(),
+                all => all.get(sensor).map_or_else(String::new, |s| format!(" of sensor {:?}", s.name)),
+            };
             Err(Failure {
                 index: i,
-                message: format!("frame {i} (stamp {:.6} s) of {name}: {e:#}", frame.stamp_s),
+                message: format!("frame {i}{of} (stamp {:.6} s) of {name}: {e:#}", frame.stamp_s),
                 kind,
             })
         }

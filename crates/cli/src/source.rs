@@ -87,16 +87,17 @@ impl Source {
         }
     }
 
-    /// The first `n` frames, or failures in their place, each with the
-    /// index of its sensor in `sensors`: a scene's time steps each give one
-    /// frame of every sensor, in `sensors`' order, from its mount; a
-    /// recording's frames are the first sensor's.
+    /// The first `n` frames, or failures in their place, each with its
+    /// index and its sensor's position in `sensors`: a scene's time steps
+    /// each give one frame of every sensor, in `sensors`' order, from its
+    /// mount, indexed by the time step; a recording's frames come in the
+    /// order it holds them, indexed among their sensor's frames.
     pub(crate) fn frames<'a>(
         &'a self,
         sensors: &'a [(MapperSensor, Isometry3<f64>)],
         n: usize,
         name: &'a str,
-    ) -> Box<dyn Iterator<Item = (usize, Result<Frame, Failure>)> + 'a> {
+    ) -> Box<dyn Iterator<Item = (usize, usize, Result<Frame, Failure>)> + 'a> {
         match self {
             Source::Scene(scene) => Box::new((0..n).flat_map(move |i| {
                 sensors.iter().enumerate().map(move |(s, (sensor, mount))| {
@@ -105,16 +106,23 @@ impl Source {
                         message: format!("simulating frame {i} of {}: {e}", sensor.name),
                         kind: FailureKind::Fatal,
                     });
-                    (s, frame)
+                    (i, s, frame)
                 })
             })),
-            Source::Recording(r) => Box::new(r.frames(n, name).map(|r| {
-                let frame = r.map_err(|e| {
-                    let kind = if e.damage { FailureKind::Damage } else { FailureKind::Frame };
-                    Failure { index: e.index, message: e.message, kind }
-                });
-                (0, frame)
-            })),
+            Source::Recording(r) => {
+                let mut counts = vec![0usize; sensors.len()];
+                Box::new(r.frames(n, name).map(move |(s, r)| {
+                    let index = counts.get(s).copied().unwrap_or(0);
+                    if let Some(c) = counts.get_mut(s) {
+                        *c += 1;
+                    }
+                    let frame = r.map_err(|e| {
+                        let kind = if e.damage { FailureKind::Damage } else { FailureKind::Frame };
+                        Failure { index: e.index, message: e.message, kind }
+                    });
+                    (index, s, frame)
+                }))
+            }
         }
     }
 }
@@ -129,7 +137,8 @@ pub(crate) fn build_scene(name: &str, section: Option<&SceneSection>) -> Result<
     Ok((scene, n))
 }
 
-/// Refuses a recording whose sensor is not the config's.
+/// Refuses a recording whose sensor is not the config's lone sensor's
+/// (several sensors' topics are checked as the recording opens).
 pub(crate) fn check_kind(source: &Source, sensor: &Sensor, path: &Path, origin: &str) -> Result<()> {
     match source.kind() {
         Some(kind) if kind != sensor.kind() => {

@@ -550,3 +550,129 @@ fn flood(d: &Path, domain: u16) {
         std::thread::sleep(Duration::from_millis(50));
     }
 }
+
+/// A two-sensor robot (`configs/ugv_corridor_camera.toml`'s LiDAR and depth
+/// camera) recorded, replayed with `edtmap run`, and published to a node
+/// message by message in the recording's order, each sensor frame once
+/// the one before it is mapped: the node subscribes to both sensors'
+/// topics and saves the replay's map, byte for byte.
+#[test]
+fn a_published_two_sensor_recording_maps_like_its_replay() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let d = dir.path();
+    let config = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../configs/ugv_corridor_camera.toml");
+    let config = config.to_str().expect("utf-8");
+    let frames = 3u64;
+    let rec = run_in(d, &["record", "--config", config, "--frames", &frames.to_string(), "rec.mcap"], MIN);
+    assert_eq!(rec.code(), Some(0), "{}", rec.stderr);
+    let replay = run_in(
+        d,
+        &["run", "--config", "rec.toml", "--dataset", "rec.mcap", "--out", "replay", "--save", "replay.edtmap"],
+        MIN,
+    );
+    assert_eq!(replay.code(), Some(0), "{}", replay.stderr);
+    // Poses from /tf (map → base_link), the mounts from the [[sensors]] entries.
+    let domain = 100 + (std::process::id() + 53) % 100;
+    let mut node_config = std::fs::read_to_string(d.join("rec.toml")).expect("config");
+    node_config.push_str("\n[ros]\npose_topic = \"/tf\"\nworld_frame = \"map\"\nbody_frame = \"base_link\"\nlocalhost_only = true\npose_wait_s = 5.0\n");
+    std::fs::write(d.join("node.toml"), node_config).expect("write config");
+    let mut cmd = bin();
+    cmd.args(["-v", "node", "--config", "node.toml", "--save", "node.edtmap"])
+        .current_dir(d)
+        .env("ROS_DOMAIN_ID", domain.to_string());
+    let child =
+        cmd.stdin(Stdio::null()).stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().expect("the node starts");
+    let pid = child.id();
+    let outcome = std::panic::catch_unwind(|| publish_each_frame(d, domain as u16, 2 * frames));
+    // SAFETY: kill on our own child's pid.
+    unsafe { libc::kill(pid as libc::pid_t, libc::SIGINT) };
+    let run = finish(child, MIN);
+    if let Err(e) = outcome {
+        panic!("{:?}\nnode stdout:\n{}\nnode stderr:\n{}", e.downcast_ref::<String>(), run.stdout, run.stderr);
+    }
+    assert_eq!(run.code(), Some(0), "{}\n{}", run.stdout, run.stderr);
+    assert!(run.stdout.contains(&format!("{} frames integrated", 2 * frames)), "{}", run.stdout);
+    for (name, topic) in [("lidar_top", "/lidar_top/points"), ("front_camera", "/front_camera/depth/image")] {
+        let line = format!("{name} on {topic}: {frames} frames integrated of {frames} received, 0 dropped");
+        assert!(run.stdout.contains(&line), "{line}\n{}", run.stdout);
+    }
+    let (live, replayed) = (
+        std::fs::read(d.join("node.edtmap")).expect("node map"),
+        std::fs::read(d.join("replay.edtmap")).expect("replay map"),
+    );
+    assert!(live == replayed, "the live map differs from the replay's ({} and {} bytes)", live.len(), replayed.len());
+}
+
+/// Publishes `rec.mcap`'s `/tf`, point clouds, depth images and camera
+/// infos in its order, each sensor message once the node has mapped the
+/// one before it (sent again if discovery lost it), until `frames` are mapped.
+fn publish_each_frame(d: &Path, domain: u16, frames: u64) {
+    let participant = DomainParticipantBuilder::new(domain)
+        .with_only_networks([IpAddr::V4(Ipv4Addr::LOCALHOST)])
+        .build()
+        .expect("participant");
+    let context = Context::from_domain_participant(participant).expect("context");
+    let mut node = context
+        .new_node(NodeName::new("/", "player").expect("name"), NodeOptions::new().enable_rosout(false))
+        .expect("node");
+    let topic = |node: &mut ros2_client::Node, ns: &str, base: &str, pkg: &str, ty: &str| {
+        node.create_topic(&Name::new(ns, base).expect("name"), MessageTypeName::new(pkg, ty), &qos()).expect("topic")
+    };
+    let t = topic(&mut node, "/lidar_top", "points", "sensor_msgs", "PointCloud2");
+    let clouds = node.create_publisher::<Dds<PointCloud2>>(&t, Some(qos())).expect("publisher");
+    let t = topic(&mut node, "/front_camera/depth", "image", "sensor_msgs", "Image");
+    let images = node.create_publisher::<Dds<Image>>(&t, Some(qos())).expect("publisher");
+    let t = topic(&mut node, "/front_camera/depth", "camera_info", "sensor_msgs", "CameraInfo");
+    let infos = node.create_publisher::<Dds<CameraInfo>>(&t, Some(qos())).expect("publisher");
+    let t = topic(&mut node, "/", "tf", "tf2_msgs", "TFMessage");
+    let tf = node.create_publisher::<TfMessage>(&t, Some(qos())).expect("publisher");
+    let t = topic(&mut node, "/edtmap", "frame_stats", "diagnostic_msgs", "DiagnosticArray");
+    let stats = node.create_subscription::<DiagnosticArray>(&t, Some(qos())).expect("subscription");
+
+    let reader = edtmap_ros::mcap::McapReader::open(&d.join("rec.mcap")).expect("recording");
+    let topics: Vec<String> =
+        ["/tf", "/lidar_top/points", "/front_camera/depth/camera_info", "/front_camera/depth/image"]
+            .map(String::from)
+            .to_vec();
+    // Each sensor message with the pose and camera info before it.
+    let mut steps: Vec<(TfMessage, Vec<Message>)> = Vec::new();
+    let (mut pose, mut before) = (None, Vec::new());
+    for raw in reader.messages(&topics) {
+        let raw = raw.expect("message");
+        match Message::decode(&raw.msg_type, &raw.data, raw.encoding).expect("decodes") {
+            Message::Tf(ts) => pose = Some(TfMessage { transforms: ts.iter().map(TransformStamped::from).collect() }),
+            m @ Message::CameraInfo(_) => before.push(m),
+            m => {
+                before.push(m);
+                steps.push((pose.clone().expect("a pose first"), std::mem::take(&mut before)));
+            }
+        }
+    }
+    assert_eq!(steps.len() as u64, frames);
+    std::thread::sleep(Duration::from_secs(2));
+    let mut mapped = 0;
+    for (i, (pose, messages)) in steps.into_iter().enumerate() {
+        let want = i as u64 + 1;
+        let mut tries = 0;
+        while mapped < want {
+            assert!(tries < 5, "frame {i} was not mapped");
+            tf.publish(pose.clone()).expect("tf");
+            for m in &messages {
+                match m.clone() {
+                    Message::PointCloud2(c) => clouds.publish(Dds(c)).expect("cloud"),
+                    Message::Image(im) => images.publish(Dds(im)).expect("image"),
+                    Message::CameraInfo(c) => infos.publish(Dds(c)).expect("camera info"),
+                    other => panic!("unexpected {}", other.type_name()),
+                }
+            }
+            tries += 1;
+            if let Some(n) = wait(Duration::from_secs(10), || match stats.take() {
+                Ok(s) => s.map(|(s, _)| frames_in(&s)).filter(|&n| n >= want),
+                Err(e) => panic!("frame_stats: {e:?}"),
+            }) {
+                mapped = n;
+            }
+        }
+    }
+    assert_eq!(mapped, frames);
+}

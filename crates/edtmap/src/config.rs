@@ -96,10 +96,17 @@ impl TryFrom<ConfigFile> for Config {
     fn try_from(f: ConfigFile) -> Result<Config, String> {
         let (sensor, other_sensors) = match (f.sensor, f.sensors) {
             (Some(s), more) if more.is_empty() => {
-                if s.sensor_in_body.is_some() {
-                    return Err("[sensor] takes no sensor_in_body: one sensor's mount is [dataset] (or [ros]) \
-                                sensor_in_body; several sensors are [[sensors]] entries"
-                        .into());
+                let per_entry = [
+                    ("sensor_in_body", s.sensor_in_body.is_some()),
+                    ("topic", s.topic.is_some()),
+                    ("camera_info_topic", s.camera_info_topic.is_some()),
+                ];
+                if let Some((field, _)) = per_entry.iter().find(|(_, set)| *set) {
+                    let dataset = if *field == "topic" { "sensor_topic" } else { field };
+                    return Err(format!(
+                        "[sensor] takes no {field}: one sensor's is [dataset] (or [ros]) {dataset}; several \
+                         sensors are [[sensors]] entries, each with its own {field}"
+                    ));
                 }
                 (s, Vec::new())
             }
@@ -202,6 +209,30 @@ impl Config {
     /// Every sensor: [`Self::sensor`], then [`Self::other_sensors`].
     pub fn sensors(&self) -> impl Iterator<Item = &SensorSection> {
         std::iter::once(&self.sensor).chain(&self.other_sensors)
+    }
+
+    /// Every sensor, to change (a recording's calibration).
+    pub fn sensors_mut(&mut self) -> impl Iterator<Item = &mut SensorSection> {
+        std::iter::once(&mut self.sensor).chain(&mut self.other_sensors)
+    }
+
+    /// Keeps the sensors named in `names` (in the config's order) and drops
+    /// the others; the error names an unknown sensor and lists the
+    /// config's, or says that none is left.
+    pub fn keep_sensors(&mut self, names: &[String]) -> Result<(), String> {
+        let known: Vec<&str> = self.sensors().map(|s| s.name()).collect();
+        if let Some(unknown) = names.iter().find(|n| !known.contains(&n.as_str())) {
+            return Err(format!("no sensor is named {unknown:?} (the sensors: {})", known.join(", ")));
+        }
+        let mut kept = self.sensors().filter(|s| names.iter().any(|n| n == s.name())).cloned();
+        let Some(first) = kept.next() else { return Err("no sensor is named: name one or more".into()) };
+        let rest: Vec<SensorSection> = kept.collect();
+        // A lone sensor keeps its entry's name, so its frames say which it is.
+        let mut first = first;
+        first.name = Some(first.name().to_string());
+        self.sensor = first;
+        self.other_sensors = rest;
+        Ok(())
     }
 
     /// Every sensor, checked as [`Self::mapper_params`] checks the first,

@@ -278,6 +278,17 @@ impl<B: Backend> Mapper<B> {
         Ok(())
     }
 
+    /// Replaces sensor `index`'s model and options (a camera's intrinsics
+    /// learnt from its camera info), keeping its name; the map is kept, and
+    /// frames integrated so far stay as they were mapped.
+    pub fn replace_sensor(&mut self, index: usize, sensor: MapperSensor) -> Result<(), MapError> {
+        let Some(s) = self.sensors.get(index) else { return Err(no_sensor(index, self.sensors.len())) };
+        let replaced = MapperSensor { name: s.name.clone(), ..sensor };
+        self.check_new_sensor(&replaced, Some(index))?;
+        self.sensors[index] = replaced;
+        Ok(())
+    }
+
     /// The sensors, in the order they were added.
     pub fn sensors(&self) -> &[MapperSensor] {
         &self.sensors

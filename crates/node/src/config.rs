@@ -100,12 +100,13 @@ pub struct RosSection {
     /// Node namespace (`/` or `/robot1`); outputs go to
     /// `NAMESPACE/edtmap/...`.
     pub namespace: String,
-    /// The sensor topic: `PointCloud2` for `[sensor] kind = "points"` or
-    /// `"lidar"`, `Image` (`16UC1` or `32FC1`) for `"depth"`, `LaserScan`
-    /// for `"planar"`.
-    pub sensor_topic: String,
-    /// Depth cameras: the intrinsics (default: the image topic's sibling
-    /// `camera_info`).
+    /// A lone `[sensor]`'s topic (default `/points`): `PointCloud2` for
+    /// `kind = "points"`, `Image` (`16UC1` or `32FC1`) for `"depth"`,
+    /// `LaserScan` for `"planar"`. Several sensors are `[[sensors]]`
+    /// entries, each with its own `topic`.
+    pub sensor_topic: Option<String>,
+    /// A lone depth camera's intrinsics (default: the image topic's
+    /// sibling `camera_info`); `[[sensors]]` entries give their own.
     pub camera_info_topic: Option<String>,
     /// Where poses come from: `/tf` (the default), or a topic of
     /// `pose_type`.
@@ -120,8 +121,9 @@ pub struct RosSection {
     /// With `/tf`: the robot frame the extrinsics are from (default: the
     /// sensor message's own frame, so the tree supplies the extrinsics).
     pub body_frame: Option<String>,
-    /// The sensor's pose on the robot, `T_body_sensor`, as `[x, y, z, qx,
-    /// qy, qz, qw]`; identity by default.
+    /// A lone sensor's pose on the robot, `T_body_sensor`, as `[x, y, z,
+    /// qx, qy, qz, qw]`; identity by default. `[[sensors]]` entries give
+    /// their own.
     pub sensor_in_body: Option<[f64; 7]>,
     /// Largest time between two poses a frame is interpolated across, seconds.
     pub max_pose_gap_s: f64,
@@ -178,7 +180,7 @@ impl Default for RosSection {
     fn default() -> Self {
         RosSection {
             namespace: "/".into(),
-            sensor_topic: "/points".into(),
+            sensor_topic: None,
             camera_info_topic: None,
             pose_topic: "/tf".into(),
             pose_type: None,
@@ -251,7 +253,9 @@ impl RosSection {
     /// Checks every value.
     pub fn validate(&self) -> Result<(), CoreError> {
         check_name("namespace", &self.namespace, true)?;
-        check_name("sensor_topic", &self.sensor_topic, false)?;
+        if let Some(t) = &self.sensor_topic {
+            check_name("sensor_topic", t, false)?;
+        }
         check_name("pose_topic", &self.pose_topic, false)?;
         check_name("static_tf_topic", &self.static_tf_topic, false)?;
         if let Some(t) = &self.camera_info_topic {
@@ -317,7 +321,7 @@ mod tests {
         for bad in ["robot", "/a//b", "/a/", "/1a", "/a-b"] {
             assert!(ns(bad).expect_err(bad).to_string().contains("namespace"), "{bad}");
         }
-        let topic = RosSection { sensor_topic: "/points 2".into(), ..Default::default() }.validate();
+        let topic = RosSection { sensor_topic: Some("/points 2".into()), ..Default::default() }.validate();
         assert!(topic.expect_err("space").to_string().contains("sensor_topic"));
         let wait = RosSection { pose_wait_s: -1.0, ..Default::default() }.validate();
         assert!(wait.expect_err("negative").to_string().contains("pose_wait_s"));

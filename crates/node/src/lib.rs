@@ -3,10 +3,12 @@
 //!
 //! Three threads share the work:
 //! - **input** takes the sensor, pose and camera-info messages as they
-//!   arrive, waits for each sensor message's pose ([`live`]), and leaves
-//!   the frame in a one-place slot: when frames come faster than they are
+//!   arrive (one subscription per sensor of the config), waits for each
+//!   sensor message's pose ([`live`]), and leaves the frame in its sensor's
+//!   one-place slot: when a sensor's frames come faster than they are
 //!   mapped, the newest wins and the one it replaces is counted as dropped;
-//! - **mapping** integrates the slot's frame, then hands the queries a new
+//! - **mapping** integrates the slots' frames, the oldest stamp first (a
+//!   tie in the config's order of the sensors), then hands the queries a new
 //!   snapshot of the map (a copy-on-write clone: one pointer per block) and
 //!   publishes the outputs due at their rates;
 //! - **services** answer `get_distances`, `get_esdf_box` and `save_map`
@@ -30,6 +32,7 @@ use edtmap::config::{Config, SensorKind};
 use edtmap::cpu::CpuBackend;
 use edtmap::sensor::Frame;
 use edtmap::{GlobalMap, MapError, Mapper, SharedMapper};
+use edtmap_ros::config::{sensor_topics, LoneSensor};
 use edtmap_ros::msg::{CameraInfo, Message};
 use edtmap_ros::poses::SensorMessage;
 use edtmap_ros::RosOptions;
@@ -78,17 +81,46 @@ pub struct NodeStats {
     pub skipped: BTreeMap<String, u64>,
     /// Service requests answered.
     pub requests: u64,
+    /// Each sensor's counts, in the config's order.
+    pub sensors: Vec<SensorStats>,
+}
+
+/// Counters of one of a running node's sensors.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct SensorStats {
+    /// The sensor's name (its `[[sensors]]` entry's, or its kind's).
+    pub name: String,
+    /// Its topic.
+    pub topic: String,
+    /// Messages received on its topic.
+    pub received: u64,
+    /// Its frames integrated.
+    pub integrated: u64,
+    /// Its frames replaced in its slot by a newer one before they were mapped.
+    pub dropped: u64,
 }
 
 /// The frame outputs are labelled with before any pose said otherwise.
 const DEFAULT_WORLD_FRAME: &str = "map";
 
+/// A frame waiting to be mapped: the frame, its camera's latest info (a
+/// depth camera) and the fixed frame its pose is in.
+type Slot = (Frame, Option<CameraInfo>, String);
+
+/// One sensor's counters.
+struct SensorCounters {
+    name: String,
+    topic: String,
+    received: AtomicU64,
+    integrated: AtomicU64,
+    dropped: AtomicU64,
+}
+
 /// What the threads share.
 struct Shared {
     stop: AtomicBool,
-    /// The newest frame not yet mapped, with the depth camera's latest info
-    /// and the fixed frame its pose is in.
-    slot: Mutex<Option<(Frame, Option<CameraInfo>, String)>>,
+    /// Each sensor's newest frame not yet mapped.
+    slots: Mutex<Vec<Option<Slot>>>,
     wake: Condvar,
     /// The mapper (locked by the mapping thread) and the snapshot the
     /// services read.
@@ -98,6 +130,8 @@ struct Shared {
     dropped: AtomicU64,
     requests: AtomicU64,
     skipped: Mutex<BTreeMap<String, u64>>,
+    /// Per sensor, in the config's order.
+    sensors: Vec<SensorCounters>,
 }
 
 impl Shared {
@@ -127,6 +161,17 @@ impl Shared {
             dropped: self.dropped.load(Relaxed),
             skipped: self.skipped.lock().unwrap_or_else(PoisonError::into_inner).clone(),
             requests: self.requests.load(Relaxed),
+            sensors: self
+                .sensors
+                .iter()
+                .map(|c| SensorStats {
+                    name: c.name.clone(),
+                    topic: c.topic.clone(),
+                    received: c.received.load(Relaxed),
+                    integrated: c.integrated.load(Relaxed),
+                    dropped: c.dropped.load(Relaxed),
+                })
+                .collect(),
         }
     }
 }
@@ -199,24 +244,36 @@ pub(crate) fn own_name(namespace: &str, base: &str) -> Result<Name, NodeError> {
     name(namespace, &format!("edtmap/{base}"))
 }
 
-/// The recording vocabulary of `[ros]`, for the pose logic both share.
-fn ros_options(r: &RosSection) -> Result<RosOptions, NodeError> {
+/// The recording vocabulary of `[ros]` and the config's sensors, for the
+/// pose logic both share: each sensor's topic, camera info topic and mount
+/// from its `[[sensors]]` entry, or for a lone sensor from `[ros]`
+/// (`sensor_topic`, by default `/points`).
+fn ros_options(r: &RosSection, config: &Config) -> Result<RosOptions, NodeError> {
     r.validate().map_err(|e| NodeError::Config(e.to_string()))?;
+    let default_topic = (config.other_sensors.is_empty() && config.sensor.topic.is_none() && r.sensor_topic.is_none())
+        .then_some("/points");
+    let lone = LoneSensor {
+        section: "[ros]",
+        topic: r.sensor_topic.as_deref().or(default_topic),
+        camera_info_topic: r.camera_info_topic.as_deref(),
+        sensor_in_body: r.sensor_in_body,
+        needed: "for the live node",
+    };
+    let sensors =
+        sensor_topics(config, &lone).map_err(|e| NodeError::Config(e.trim_start_matches("[ros] ").to_string()))?;
     Ok(RosOptions {
-        sensor_topic: r.sensor_topic.clone(),
-        camera_info_topic: r.camera_info_topic.clone(),
+        sensors,
         pose_topic: r.pose_topic.clone(),
         static_tf_topic: r.static_tf_topic.clone(),
         world_frame: r.world_frame.clone(),
         body_frame: r.body_frame.clone(),
-        t_body_sensor: r.t_body_sensor().map_err(|e| NodeError::Config(e.to_string()))?,
         max_pose_gap_s: r.max_pose_gap_s,
         depth_scale_m: r.depth_scale_m,
     })
 }
 
-/// The sensor subscription, by the message type `[sensor] kind` takes
-/// (one per node: the size of the variants does not matter).
+/// A sensor's subscription, by the message type its kind takes (one per
+/// sensor: the size of the variants does not matter).
 #[allow(clippy::large_enum_variant)]
 enum SensorSub {
     Cloud(Subscription<Dds<types::PointCloud2>>),
@@ -245,29 +302,29 @@ struct Outputs {
 /// The mapper of `config` (all but its `[ros]` section), going on from
 /// `map` when given; `max_memory_bytes` replaces `[memory]`'s budget.
 pub fn mapper(config: &Config, map: Option<GlobalMap>, max_memory_bytes: Option<u64>) -> Result<Mapper, NodeError> {
-    if !config.other_sensors.is_empty() {
-        return Err(NodeError::Config(format!(
-            "the config lists {} [[sensors]]; the live node maps one sensor: give it a config with one [sensor] section",
-            config.other_sensors.len() + 1
-        )));
-    }
-    if SensorMessage::of(config.sensor.kind).is_none() {
-        return Err(NodeError::Config("[sensor] kind = \"lidar\" takes range images; a live sensor_msgs/PointCloud2 needs kind = \"points\" (with construction = \"raycast\" or \"projection\")".into()));
+    for s in config.sensors() {
+        if SensorMessage::of(s.kind).is_none() {
+            let which =
+                if config.other_sensors.is_empty() { "[sensor]".into() } else { format!("[[sensors]] {:?}", s.name()) };
+            return Err(NodeError::Config(format!("{which} kind = \"lidar\" takes range images; a live sensor_msgs/PointCloud2 needs kind = \"points\" (with construction = \"raycast\" or \"projection\")")));
+        }
     }
     let (sensor, mut params) = config.mapper_params()?;
     if max_memory_bytes.is_some() {
         params.max_memory_bytes = max_memory_bytes;
     }
-    Ok(match map {
+    let mut mapper = match map {
         Some(map) => Mapper::with_map(sensor, params, map)?,
         None => Mapper::new(sensor, params)?,
-    })
+    };
+    config.add_sensors_to(&mut mapper)?;
+    Ok(mapper)
 }
 
 /// Starts the node `ros` describes, mapping with `mapper` (see
 /// [`mapper`]) made from `config`.
 pub fn start(config: &Config, ros: &RosSection, mapper: Mapper) -> Result<NodeHandle, NodeError> {
-    let opts = ros_options(ros)?;
+    let opts = ros_options(ros, config)?;
     if ros.map_clearing_radius_m > 0.0 && mapper.params().global.mode != edtmap::IntegrationMode::Exact {
         return Err(NodeError::Config("map_clearing_radius_m needs [global] mode = \"exact\" (the default)".into()));
     }
@@ -317,21 +374,19 @@ pub fn start(config: &Config, ros: &RosSection, mapper: Mapper) -> Result<NodeHa
             $node.create_publisher(&topic, Some(qos)).map_err(|e| NodeError::Dds(format!("publishing: {e:?}")))?
         }};
     }
-    let message = SensorMessage::of(config.sensor.kind).unwrap_or(SensorMessage::PointCloud2);
-    let sensor_topic = topic(&mut node, &r.sensor_topic, "sensor_msgs", message.name(), &sensor_qos())?;
-    let sensor_sub = match message {
-        SensorMessage::Image => {
-            let t = sensor_topic;
-            let info_topic = r.camera_info_topic.clone().unwrap_or_else(|| match r.sensor_topic.rsplit_once('/') {
-                Some((parent, _)) => format!("{parent}/camera_info"),
-                None => "camera_info".into(),
-            });
-            let it = topic(&mut node, &info_topic, "sensor_msgs", "CameraInfo", &sensor_qos())?;
-            SensorSub::Image(sub!(node, t, sensor_qos()), Some(sub!(node, it, sensor_qos())))
-        }
-        SensorMessage::LaserScan => SensorSub::Scan(sub!(node, sensor_topic, sensor_qos())),
-        SensorMessage::PointCloud2 => SensorSub::Cloud(sub!(node, sensor_topic, sensor_qos())),
-    };
+    let mut sensor_subs = Vec::new();
+    for (section, st) in config.sensors().zip(&opts.sensors) {
+        let message = SensorMessage::of(section.kind).unwrap_or(SensorMessage::PointCloud2);
+        let sensor_topic = topic(&mut node, &st.topic, "sensor_msgs", message.name(), &sensor_qos())?;
+        sensor_subs.push(match message {
+            SensorMessage::Image => {
+                let it = topic(&mut node, &st.camera_info(), "sensor_msgs", "CameraInfo", &sensor_qos())?;
+                SensorSub::Image(sub!(node, sensor_topic, sensor_qos()), Some(sub!(node, it, sensor_qos())))
+            }
+            SensorMessage::LaserScan => SensorSub::Scan(sub!(node, sensor_topic, sensor_qos())),
+            SensorMessage::PointCloud2 => SensorSub::Cloud(sub!(node, sensor_topic, sensor_qos())),
+        });
+    }
     let pose_type = r.pose_type();
     let pose_sub = match pose_type {
         PoseType::Tf => {
@@ -380,9 +435,10 @@ pub fn start(config: &Config, ros: &RosSection, mapper: Mapper) -> Result<NodeHa
         services::QueryLimits::of_budget(budget.limit_bytes()),
     )?;
 
+    let names: Vec<String> = mapper.sensors().iter().map(|s| s.name.clone()).collect();
     let shared = Arc::new(Shared {
         stop: AtomicBool::new(false),
-        slot: Mutex::new(None),
+        slots: Mutex::new(vec![None; names.len()]),
         wake: Condvar::new(),
         mapper: SharedMapper::new(mapper),
         received: AtomicU64::new(0),
@@ -390,8 +446,22 @@ pub fn start(config: &Config, ros: &RosSection, mapper: Mapper) -> Result<NodeHa
         dropped: AtomicU64::new(0),
         requests: AtomicU64::new(0),
         skipped: Mutex::new(BTreeMap::new()),
+        sensors: names
+            .into_iter()
+            .zip(&opts.sensors)
+            .map(|(name, st)| SensorCounters {
+                name,
+                topic: st.topic.clone(),
+                received: AtomicU64::new(0),
+                integrated: AtomicU64::new(0),
+                dropped: AtomicU64::new(0),
+            })
+            .collect(),
     });
-    let needs_camera_info = config.sensor.kind == SensorKind::Depth && r.intrinsics == Intrinsics::CameraInfo;
+    let needs_camera_info: Vec<bool> =
+        config.sensors().map(|s| s.kind == SensorKind::Depth && r.intrinsics == Intrinsics::CameraInfo).collect();
+    let any_camera_info = needs_camera_info.iter().any(|&n| n);
+    let topics = opts.sensors.iter().map(|s| s.topic.clone()).collect::<Vec<_>>().join(", ");
     let live = LiveFrames::new(opts, pose_type == PoseType::Tf, r.pose_wait_s, r.tf_history_s)
         .with_startup(Instant::now(), r.startup_pose_wait_s);
     let mut threads = Vec::new();
@@ -399,7 +469,7 @@ pub fn start(config: &Config, ros: &RosSection, mapper: Mapper) -> Result<NodeHa
     threads.push(
         std::thread::Builder::new()
             .name("edtmap-input".into())
-            .spawn(move || input_loop(&s, sensor_sub, pose_sub, live, needs_camera_info))
+            .spawn(move || input_loop(&s, sensor_subs, pose_sub, live, &needs_camera_info))
             .map_err(|e| NodeError::Dds(format!("input thread: {e}")))?,
     );
     let s = shared.clone();
@@ -411,7 +481,7 @@ pub fn start(config: &Config, ros: &RosSection, mapper: Mapper) -> Result<NodeHa
     );
     let s = shared.clone();
     let rates = Rates::of(ros);
-    let camera = needs_camera_info.then(|| config.clone());
+    let camera = any_camera_info.then(|| config.clone());
     let mapping = std::thread::Builder::new()
         .name("edtmap-mapping".into())
         .spawn(move || mapping_loop(&s, outputs, rates, camera))
@@ -419,8 +489,8 @@ pub fn start(config: &Config, ros: &RosSection, mapper: Mapper) -> Result<NodeHa
     tracing::info!(
         "node {}edtmap on ROS 2 domain {domain}: {} on {}, poses from {}",
         if r.namespace == "/" { "/".to_string() } else { format!("{}/", r.namespace) },
-        format!("{:?}", config.sensor.kind).to_lowercase(),
-        r.sensor_topic,
+        config.sensors().map(|s| format!("{:?}", s.kind).to_lowercase()).collect::<Vec<_>>().join(", "),
+        topics,
         r.pose_topic
     );
     Ok(NodeHandle {
@@ -482,12 +552,18 @@ fn drain<M: 'static + serde::de::DeserializeOwned>(sub: &Subscription<M>, shared
     }
 }
 
+/// Tokens of the poll: poses first, then two per sensor (its messages,
+/// its camera info).
+const POSE_TOKEN: usize = 0;
+const STATIC_TF_TOKEN: usize = 1;
+const SENSOR_TOKENS: usize = 2;
+
 fn input_loop(
     shared: &Shared,
-    mut sensor: SensorSub,
+    mut sensors: Vec<SensorSub>,
     mut pose: PoseSub,
     mut live: LiveFrames,
-    needs_camera_info: bool,
+    needs_camera_info: &[bool],
 ) {
     let Ok(mut poll) = Poll::new() else {
         tracing::error!("input thread: cannot create a poll");
@@ -498,29 +574,32 @@ fn input_loop(
     let mut register = |s: &mut dyn ros2_client::dds::rustdds::mio1::event::Source, t: usize| {
         ok &= reg.register(s, Token(t), Interest::READABLE).is_ok()
     };
-    match &mut sensor {
-        SensorSub::Cloud(s) => register(s, 0),
-        SensorSub::Scan(s) => register(s, 0),
-        SensorSub::Image(s, info) => {
-            register(s, 0);
-            if let Some(i) = info {
-                register(i, 1);
+    for (k, sensor) in sensors.iter_mut().enumerate() {
+        let token = SENSOR_TOKENS + 2 * k;
+        match sensor {
+            SensorSub::Cloud(s) => register(s, token),
+            SensorSub::Scan(s) => register(s, token),
+            SensorSub::Image(s, info) => {
+                register(s, token);
+                if let Some(i) = info {
+                    register(i, token + 1);
+                }
             }
         }
     }
     match &mut pose {
         PoseSub::Tf(t, st) => {
-            register(t, 2);
-            register(st, 3);
+            register(t, POSE_TOKEN);
+            register(st, STATIC_TF_TOKEN);
         }
-        PoseSub::Odometry(s) => register(s, 2),
-        PoseSub::PoseStamped(s) => register(s, 2),
-        PoseSub::TransformStamped(s) => register(s, 2),
+        PoseSub::Odometry(s) => register(s, POSE_TOKEN),
+        PoseSub::PoseStamped(s) => register(s, POSE_TOKEN),
+        PoseSub::TransformStamped(s) => register(s, POSE_TOKEN),
     }
     if !ok {
         tracing::warn!("input thread: could not register a subscription with the poll; polling every 5 ms instead");
     }
-    let mut events = Events::with_capacity(16);
+    let mut events = Events::with_capacity(16 + 2 * sensors.len());
     while !shared.stop.load(Relaxed) {
         let _ = poll.poll(&mut events, Some(Duration::from_millis(if ok { 20 } else { 5 })));
         let now = Instant::now();
@@ -544,34 +623,38 @@ fn input_loop(
                 drain(s, shared, |m| pose_msg(types::transform_stamped(m), false, &mut live))
             }
         }
-        let sensor_msg = |m: Message, live: &mut LiveFrames| {
+        let sensor_msg = |k: usize, m: Message, live: &mut LiveFrames| {
             shared.received.fetch_add(1, Relaxed);
-            if let Err(s) = live.add_sensor(m, now) {
+            shared.sensors[k].received.fetch_add(1, Relaxed);
+            if let Err(s) = live.add_sensor(k, m, now) {
                 shared.skip(&s);
             }
         };
-        match &sensor {
-            SensorSub::Cloud(s) => drain(s, shared, |m| sensor_msg(Message::PointCloud2(m.0), &mut live)),
-            SensorSub::Scan(s) => drain(s, shared, |m| sensor_msg(Message::LaserScan(m.0), &mut live)),
-            SensorSub::Image(s, info) => {
-                if let Some(i) = info {
-                    drain(i, shared, |m| live.set_camera(m.0));
+        for (k, sensor) in sensors.iter().enumerate() {
+            match sensor {
+                SensorSub::Cloud(s) => drain(s, shared, |m| sensor_msg(k, Message::PointCloud2(m.0), &mut live)),
+                SensorSub::Scan(s) => drain(s, shared, |m| sensor_msg(k, Message::LaserScan(m.0), &mut live)),
+                SensorSub::Image(s, info) => {
+                    if let Some(i) = info {
+                        drain(i, shared, |m| live.set_camera(k, m.0));
+                    }
+                    drain(s, shared, |m| sensor_msg(k, Message::Image(m.0), &mut live));
                 }
-                drain(s, shared, |m| sensor_msg(Message::Image(m.0), &mut live));
             }
         }
-        for ready in live.ready(now) {
+        for (k, ready) in live.ready(now) {
             match ready {
-                Ok(_) if needs_camera_info && live.camera().is_none() => shared.skip(&Skipped {
+                Ok(_) if needs_camera_info[k] && live.camera(k).is_none() => shared.skip(&Skipped {
                     kind: "no camera info yet",
-                    reason: "a depth image came before any camera info; [ros] intrinsics = \"camera_info\" maps only with the camera's own intrinsics (\"config\" uses [sensor]'s)".into(),
+                    reason: format!("a depth image of {:?} came before any camera info; [ros] intrinsics = \"camera_info\" maps only with the camera's own intrinsics (\"config\" uses the config's)", shared.sensors[k].name),
                 }),
                 Ok(frame) => {
-                    let info = live.camera().cloned();
+                    let info = live.camera(k).cloned();
                     let world = live.world_frame().unwrap_or(DEFAULT_WORLD_FRAME).to_string();
-                    let mut slot = shared.slot.lock().unwrap_or_else(PoisonError::into_inner);
-                    if slot.replace((frame, info, world)).is_some() {
+                    let mut slots = shared.slots.lock().unwrap_or_else(PoisonError::into_inner);
+                    if slots[k].replace((frame, info, world)).is_some() {
                         shared.dropped.fetch_add(1, Relaxed);
+                        shared.sensors[k].dropped.fetch_add(1, Relaxed);
                     }
                     shared.wake.notify_one();
                 }
@@ -623,86 +706,101 @@ fn due(period: Option<Duration>, last: &mut Option<Instant>, now: Instant) -> bo
     }
 }
 
-/// A depth camera's mapper with the intrinsics of its camera info: the
-/// same mapper when they are `[sensor]`'s, a new one on the same map
-/// before the first frame, and the same one (with a warning) after it.
+/// Depth camera `k` of the mapper with the intrinsics of its camera info:
+/// kept when they are the config's, replaced (the map kept) before the
+/// camera's first frame, and kept with a warning after it.
 fn with_camera(
     mapper: &mut Mapper,
     config: &Config,
+    k: usize,
     info: &CameraInfo,
     frames: u64,
     warned: &mut bool,
 ) -> Result<(), String> {
-    let edtmap::sensor::Sensor::Depth(c) = mapper.sensor() else { return Ok(()) };
-    let k = [info.k[0], info.k[4], info.k[2], info.k[5]];
+    let Some(edtmap::sensor::Sensor::Depth(c)) = mapper.sensors().get(k).map(|s| &s.sensor) else { return Ok(()) };
+    let k_info = [info.k[0], info.k[4], info.k[2], info.k[5]];
     let close = |a: f64, b: f64| (a - b).abs() <= 1e-6 * b.abs().max(1.0);
-    if (0..4).all(|i| close([c.fx, c.fy, c.cx, c.cy][i], k[i])) && (c.width, c.height) == (info.width, info.height) {
+    if (0..4).all(|i| close([c.fx, c.fy, c.cx, c.cy][i], k_info[i])) && (c.width, c.height) == (info.width, info.height)
+    {
         return Ok(());
     }
+    let name = &mapper.sensors()[k].name;
     let ours = format!("fx fy cx cy {:?} at {}x{}", [c.fx, c.fy, c.cx, c.cy], c.width, c.height);
-    let theirs = format!("{k:?} at {}x{}", info.width, info.height);
+    let theirs = format!("{k_info:?} at {}x{}", info.width, info.height);
     if frames > 0 {
         if !*warned {
             *warned = true;
-            tracing::warn!("depth camera: the camera info changed to {theirs} after the first frame, mapped with {ours}: keeping {ours}");
+            tracing::warn!("depth camera {name:?}: the camera info changed to {theirs} after the first frame, mapped with {ours}: keeping {ours}");
         }
         return Ok(());
     }
-    let mut config = config.clone();
-    let s = &mut config.sensor.camera;
+    let Some(mut section) = config.sensors().nth(k).cloned() else { return Ok(()) };
+    let s = &mut section.camera;
     (s.fx, s.fy, s.cx, s.cy, s.width, s.height) =
-        (Some(k[0]), Some(k[1]), Some(k[2]), Some(k[3]), Some(info.width), Some(info.height));
-    let max_memory = mapper.params().max_memory_bytes;
-    let map = mapper.map().clone();
-    let with_info = self::mapper(&config, Some(map), max_memory)
-        .map_err(|e| format!("the camera info's intrinsics {theirs} are refused: {e}"))?;
-    tracing::info!("depth camera: mapping with the camera info's {theirs} (the config said {ours})");
-    *mapper = with_info;
+        (Some(k_info[0]), Some(k_info[1]), Some(k_info[2]), Some(k_info[3]), Some(info.width), Some(info.height));
+    let refused = |e: String| format!("the camera info's intrinsics {theirs} are refused: {e}");
+    let (sensor, ogm) = section.checked().map_err(|e| refused(e.to_string()))?;
+    mapper
+        .replace_sensor(k, edtmap::MapperSensor { name: name.clone(), sensor, ogm })
+        .map_err(|e| refused(e.to_string()))?;
+    tracing::info!(
+        "depth camera {:?}: mapping with the camera info's {theirs} (the config said {ours})",
+        mapper.sensors()[k].name
+    );
     Ok(())
 }
 
 fn mapping_loop(shared: &Shared, out: Outputs, rates: Rates, camera: Option<Config>) -> Result<(), NodeError> {
     let (mut last_esdf, mut last_occ, mut last_slice, mut last_clear) = (None, None, None, None);
     let mut cleared_blocks = 0usize;
-    let mut warned = false;
+    let mut warned = vec![false; shared.sensors.len()];
     loop {
-        let frame = {
-            let mut slot = shared.slot.lock().unwrap_or_else(PoisonError::into_inner);
+        let (k, frame) = {
+            let mut slots = shared.slots.lock().unwrap_or_else(PoisonError::into_inner);
             loop {
                 if shared.stop.load(Relaxed) {
                     return Ok(());
                 }
-                if let Some(f) = slot.take() {
+                // The oldest stamp first; on a tie, the first sensor.
+                let oldest = slots
+                    .iter()
+                    .enumerate()
+                    .filter_map(|(k, s)| s.as_ref().map(|(f, _, _)| (k, f.stamp_s)))
+                    .min_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)));
+                if let Some(f) = oldest.and_then(|(k, _)| slots[k].take().map(|f| (k, f))) {
                     break f;
                 }
-                slot = shared
+                slots = shared
                     .wake
-                    .wait_timeout(slot, Duration::from_millis(100))
+                    .wait_timeout(slots, Duration::from_millis(100))
                     .unwrap_or_else(PoisonError::into_inner)
                     .0;
             }
         };
         let (frame, info, world) = frame;
+        let counters = &shared.sensors[k];
         let mut mapper = shared.mapper.lock()?;
         if let (Some(config), Some(info)) = (&camera, &info) {
-            if let Err(reason) = with_camera(&mut mapper, config, info, shared.integrated.load(Relaxed), &mut warned) {
+            let mapped = counters.integrated.load(Relaxed);
+            if let Err(reason) = with_camera(&mut mapper, config, k, info, mapped, &mut warned[k]) {
                 shared.skip(&Skipped { kind: "bad camera info", reason });
                 continue;
             }
         }
         let stamp_ns = (frame.stamp_s * 1e9).round() as i64;
-        let stats = match mapper.integrate_frame(&frame) {
+        let stats = match mapper.integrate_sensor_frame(k, &frame) {
             Ok(stats) => stats,
             Err(e) if e.is_backend_failure() => return Err(e.into()),
             Err(e) => {
                 shared.skip(&Skipped {
                     kind: "mapper refused",
-                    reason: format!("frame at stamp {:.6} s: {e}", frame.stamp_s),
+                    reason: format!("frame of {:?} at stamp {:.6} s: {e}", counters.name, frame.stamp_s),
                 });
                 continue;
             }
         };
         let frames = shared.integrated.fetch_add(1, Relaxed) + 1;
+        counters.integrated.fetch_add(1, Relaxed);
         if let Some((radius, period)) = rates.clearing {
             if due(Some(period), &mut last_clear, Instant::now()) {
                 let at = frame.t_world_sensor.translation.vector;
@@ -767,6 +865,7 @@ fn mapping_loop(shared: &Shared, out: Outputs, rates: Rates, camera: Option<Conf
         let skipped: u64 = st.skipped.values().sum();
         let mut values = vec![
             ("frames", frames.to_string()),
+            ("sensor", counters.name.clone()),
             ("received", st.received.to_string()),
             ("dropped", st.dropped.to_string()),
             ("skipped", skipped.to_string()),
@@ -781,6 +880,14 @@ fn mapping_loop(shared: &Shared, out: Outputs, rates: Rates, camera: Option<Conf
             ("cleared_blocks", cleared_blocks.to_string()),
         ];
         values.extend(st.skipped.iter().map(|(k, v)| ("skipped_kind", format!("{k}: {v}"))));
+        if st.sensors.len() > 1 {
+            values.extend(st.sensors.iter().map(|s| {
+                (
+                    "sensor_counts",
+                    format!("{}: {} received, {} integrated, {} dropped", s.name, s.received, s.integrated, s.dropped),
+                )
+            }));
+        }
         let level = u8::from(st.dropped + skipped > 0);
         let message = format!("frame {frames} in {:.1} ms", stats.total_ms);
         if let Err(e) =

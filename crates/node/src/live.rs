@@ -59,6 +59,8 @@ pub(crate) fn malformation(reason: &str) -> &'static str {
 }
 
 struct Pending {
+    /// The sensor's position in the options' sensors.
+    sensor: usize,
     measurement: Measurement,
     stamp_s: f64,
     frame_id: String,
@@ -75,7 +77,8 @@ pub(crate) struct LiveFrames {
     startup_until: Instant,
     history_s: f64,
     newest_pose_s: f64,
-    camera: Option<CameraInfo>,
+    /// Each sensor's latest camera info.
+    cameras: Vec<Option<CameraInfo>>,
     /// The frame of the latest pose topic message.
     pose_frame: Option<String>,
     /// The fixed frame of the latest frame placed.
@@ -87,6 +90,7 @@ impl LiveFrames {
     /// startup window until [`Self::with_startup`].
     pub(crate) fn new(opts: RosOptions, is_tf: bool, wait_s: f64, history_s: f64) -> Self {
         let poses = Poses::new(is_tf, &opts);
+        let sensors = opts.sensors.len();
         let wait = Duration::try_from_secs_f64(wait_s).unwrap_or(Duration::ZERO);
         LiveFrames {
             opts,
@@ -96,7 +100,7 @@ impl LiveFrames {
             startup_until: Instant::now(),
             history_s,
             newest_pose_s: f64::NEG_INFINITY,
-            camera: None,
+            cameras: vec![None; sensors],
             pose_frame: None,
             world_frame: None,
         }
@@ -127,14 +131,16 @@ impl LiveFrames {
         Ok(())
     }
 
-    /// Keeps a camera's intrinsics (the latest).
-    pub(crate) fn set_camera(&mut self, info: CameraInfo) {
-        self.camera = Some(info);
+    /// Keeps sensor `k`'s camera intrinsics (the latest).
+    pub(crate) fn set_camera(&mut self, k: usize, info: CameraInfo) {
+        if let Some(slot) = self.cameras.get_mut(k) {
+            *slot = Some(info);
+        }
     }
 
-    /// The latest camera info.
-    pub(crate) fn camera(&self) -> Option<&CameraInfo> {
-        self.camera.as_ref()
+    /// Sensor `k`'s latest camera info.
+    pub(crate) fn camera(&self, k: usize) -> Option<&CameraInfo> {
+        self.cameras.get(k).and_then(Option::as_ref)
     }
 
     /// The fixed frame the latest frame's pose is in: `world_frame` when
@@ -157,11 +163,11 @@ impl LiveFrames {
     /// Queues a sensor message until its pose is known; a message that
     /// does not decode is skipped at once. The stamp is taken as it is
     /// (0 included: simulated time starts there), in the poses' clock.
-    pub(crate) fn add_sensor(&mut self, msg: Message, now: Instant) -> Result<(), Skipped> {
+    pub(crate) fn add_sensor(&mut self, sensor: usize, msg: Message, now: Instant) -> Result<(), Skipped> {
         let (measurement, stamp_ns, frame_id) = measurement(msg, self.opts.depth_scale_m)
             .map_err(|reason| Skipped { kind: malformation(&reason), reason })?;
         let stamp_s = stamp_ns as f64 * 1e-9;
-        self.pending.push_back(Pending { measurement, stamp_s, frame_id, arrived: now });
+        self.pending.push_back(Pending { sensor, measurement, stamp_s, frame_id, arrived: now });
         if self.pending.len() > MAX_PENDING {
             if let Some(old) = self.pending.pop_front() {
                 return Err(Skipped {
@@ -186,7 +192,8 @@ impl LiveFrames {
     /// given up on: those that waited past `pose_wait_s`, and those whose
     /// pose cannot be had although the poses have passed their stamp (a
     /// gap, an unknown frame).
-    pub(crate) fn ready(&mut self, now: Instant) -> Vec<Result<Frame, Skipped>> {
+    /// Each comes with its sensor's position.
+    pub(crate) fn ready(&mut self, now: Instant) -> Vec<(usize, Result<Frame, Skipped>)> {
         let mut out = Vec::new();
         let starting = now < self.startup_until;
         while let Some(p) = self.pending.front() {
@@ -207,7 +214,8 @@ impl LiveFrames {
             }
             let Some(p) = self.pending.pop_front() else { break };
             let waited = now.saturating_duration_since(p.arrived).as_secs_f64();
-            out.push(match self.poses.sensor_pose(p.stamp_s, &p.frame_id, &self.opts) {
+            let mount = self.opts.sensors.get(p.sensor).map_or_else(nalgebra::Isometry3::identity, |s| s.t_body_sensor);
+            let placed = match self.poses.sensor_pose(p.stamp_s, &p.frame_id, &mount, &self.opts) {
                 Ok(t_world_sensor) => {
                     self.world_frame = self.fixed_frame(&p.frame_id).or(self.world_frame.take());
                     Ok(Frame { stamp_s: p.stamp_s, t_world_sensor, measurement: p.measurement })
@@ -219,7 +227,8 @@ impl LiveFrames {
                         p.stamp_s, p.frame_id
                     ),
                 }),
-            });
+            };
+            out.push((p.sensor, placed));
         }
         out
     }
@@ -229,17 +238,16 @@ impl LiveFrames {
 mod tests {
     use super::*;
     use edtmap_ros::msg::{Header, PointCloud2, StampedTransform};
+    use edtmap_ros::SensorTopic;
     use nalgebra::{Isometry3, Vector3};
 
     fn opts() -> RosOptions {
         RosOptions {
-            sensor_topic: "/points".into(),
-            camera_info_topic: None,
+            sensors: vec![edtmap_ros::SensorTopic::new("/points")],
             pose_topic: "/tf".into(),
             static_tf_topic: "/tf_static".into(),
             world_frame: Some("map".into()),
             body_frame: None,
-            t_body_sensor: Isometry3::identity(),
             max_pose_gap_s: 1.0,
             depth_scale_m: 0.001,
         }
@@ -267,15 +275,46 @@ mod tests {
         let t0 = Instant::now();
         live.add_pose(&tf("base_link", "lidar", 0.0, 0.25), true).expect("static");
         live.add_pose(&tf("map", "base_link", 1.0, 1.0), false).expect("pose");
-        live.add_sensor(cloud(1.5), t0).expect("decodes");
+        live.add_sensor(0, cloud(1.5), t0).expect("decodes");
         // The tree ends at 1.0 s: the message at 1.5 s waits.
         assert!(live.ready(t0).is_empty());
         live.add_pose(&tf("map", "base_link", 2.0, 3.0), false).expect("pose");
         let frames = live.ready(t0);
-        let frame = frames[0].as_ref().expect("pose found");
+        let frame = frames[0].1.as_ref().expect("pose found");
         // Halfway from x 1 to x 3, plus the static 0.25 m of the sensor.
         assert!((frame.t_world_sensor.translation.vector - Vector3::new(2.25, 0.0, 0.0)).norm() < 1e-12);
         assert_eq!(live.pending(), 0);
+    }
+
+    #[test]
+    fn each_sensor_takes_its_own_mount_and_a_bad_message_skips_alone() {
+        // Two sensors on the body, extrinsics from the config: 0.25 m and
+        // 0.5 m ahead.
+        let mount =
+            |x: f64| SensorTopic { t_body_sensor: Isometry3::translation(x, 0.0, 0.0), ..SensorTopic::new("/a") };
+        let opts = RosOptions {
+            sensors: vec![mount(0.25), SensorTopic { topic: "/b".into(), ..mount(0.5) }],
+            body_frame: Some("base_link".into()),
+            ..opts()
+        };
+        let mut live = LiveFrames::new(opts, true, 0.5, 10.0);
+        let t0 = Instant::now();
+        live.add_pose(&tf("map", "base_link", 1.0, 1.0), false).expect("pose");
+        live.add_pose(&tf("map", "base_link", 2.0, 3.0), false).expect("pose");
+        live.add_sensor(1, cloud(1.5), t0).expect("decodes");
+        let mut bad =
+            PointCloud2::from_points(Header { stamp_ns: 1_500_000_000, frame_id: "b".into() }, &[[1.0, 0.0, 0.0]]);
+        bad.data.truncate(3);
+        let skipped = live.add_sensor(1, Message::PointCloud2(bad), t0).expect_err("cut short");
+        assert!(skipped.kind.starts_with("bad message: PointCloud2"), "{}", skipped.kind);
+        live.add_sensor(0, cloud(1.5), t0).expect("decodes");
+        let frames = live.ready(t0);
+        let placed: Vec<(usize, f64)> =
+            frames.iter().map(|(k, f)| (*k, f.as_ref().expect("placed").t_world_sensor.translation.x)).collect();
+        // In arrival order, each at the body's 2.0 m plus its own mount.
+        assert_eq!(placed.len(), 2);
+        assert!(placed[0].0 == 1 && (placed[0].1 - 2.5).abs() < 1e-12, "{placed:?}");
+        assert!(placed[1].0 == 0 && (placed[1].1 - 2.25).abs() < 1e-12, "{placed:?}");
     }
 
     #[test]
@@ -283,10 +322,10 @@ mod tests {
         let mut live = LiveFrames::new(opts(), true, 0.5, 10.0);
         let t0 = Instant::now();
         live.add_pose(&tf("map", "base_link", 1.0, 1.0), false).expect("pose");
-        live.add_sensor(cloud(3.0), t0).expect("decodes");
+        live.add_sensor(0, cloud(3.0), t0).expect("decodes");
         assert!(live.ready(t0 + Duration::from_millis(100)).is_empty());
         let out = live.ready(t0 + Duration::from_millis(600));
-        let skipped = out[0].as_ref().expect_err("no pose");
+        let skipped = out[0].1.as_ref().expect_err("no pose");
         assert_eq!(skipped.kind, "missing transform");
         assert!(skipped.reason.contains("lidar"), "{}", skipped.reason);
     }
@@ -296,7 +335,7 @@ mod tests {
         let t0 = Instant::now();
         let mut live = LiveFrames::new(opts(), true, 0.5, 10.0).with_startup(t0, 2.0);
         // Discovery: the cloud comes 1.5 s before the first transforms.
-        live.add_sensor(cloud(1.0), t0).expect("decodes");
+        live.add_sensor(0, cloud(1.0), t0).expect("decodes");
         assert!(
             live.ready(t0 + Duration::from_millis(1500)).is_empty(),
             "kept past pose_wait_s during the startup window"
@@ -306,21 +345,21 @@ mod tests {
         live.add_pose(&tf("map", "base_link", 1.5, 1.0), false).expect("pose");
         let frames = live.ready(t0 + Duration::from_millis(1600));
         assert_eq!(frames.len(), 1);
-        let frame = frames[0].as_ref().expect("placed once its transform came");
+        let frame = frames[0].1.as_ref().expect("placed once its transform came");
         assert!((frame.t_world_sensor.translation.vector - Vector3::new(1.25, 0.0, 0.0)).norm() < 1e-12);
 
         // Ten messages with no transform: the newest few wait, the older are given up.
         let mut live = LiveFrames::new(opts(), true, 0.5, 10.0).with_startup(t0, 2.0);
         for i in 0..10 {
-            live.add_sensor(cloud(f64::from(i)), t0).expect("decodes");
+            live.add_sensor(0, cloud(f64::from(i)), t0).expect("decodes");
         }
         let out = live.ready(t0 + Duration::from_millis(600));
         assert_eq!(out.len(), 10 - MAX_STARTUP_WAITING);
-        assert!(out.iter().all(|r| r.as_ref().is_err_and(|s| s.kind == "missing transform")));
+        assert!(out.iter().all(|(_, r)| r.as_ref().is_err_and(|s| s.kind == "missing transform")));
         assert_eq!(live.pending(), MAX_STARTUP_WAITING);
         // After the window, the per-message wait alone applies.
         assert_eq!(live.ready(t0 + Duration::from_millis(2000)).len(), MAX_STARTUP_WAITING);
-        live.add_sensor(cloud(20.0), t0 + Duration::from_millis(2000)).expect("decodes");
+        live.add_sensor(0, cloud(20.0), t0 + Duration::from_millis(2000)).expect("decodes");
         assert!(live.ready(t0 + Duration::from_millis(2400)).is_empty());
         assert_eq!(live.ready(t0 + Duration::from_millis(2500)).len(), 1);
     }
@@ -332,13 +371,13 @@ mod tests {
         let mut bad = PointCloud2::from_points(Header::default(), &[[1.0, 0.0, 0.0]]);
         bad.point_step = 7;
         assert_eq!(
-            live.add_sensor(Message::PointCloud2(bad), t0).expect_err("bad step").kind,
+            live.add_sensor(0, Message::PointCloud2(bad), t0).expect_err("bad step").kind,
             "bad message: PointCloud2 point_step < its fields"
         );
         for i in 0..MAX_PENDING {
-            live.add_sensor(cloud(i as f64), t0).expect("queued");
+            live.add_sensor(0, cloud(i as f64), t0).expect("queued");
         }
-        assert_eq!(live.add_sensor(cloud(99.0), t0).expect_err("full").kind, "pose queue full");
+        assert_eq!(live.add_sensor(0, cloud(99.0), t0).expect_err("full").kind, "pose queue full");
         assert_eq!(live.pending(), MAX_PENDING);
     }
 
@@ -391,7 +430,7 @@ mod tests {
         ];
         let mut live = LiveFrames::new(opts(), true, 0.5, 10.0);
         let kinds: Vec<&str> =
-            bad.into_iter().map(|m| live.add_sensor(m, Instant::now()).expect_err("malformed").kind).collect();
+            bad.into_iter().map(|m| live.add_sensor(0, m, Instant::now()).expect_err("malformed").kind).collect();
         let distinct: std::collections::BTreeSet<&str> = kinds.iter().copied().collect();
         assert_eq!(distinct.len(), kinds.len(), "{kinds:?}");
         assert!(
@@ -417,16 +456,16 @@ mod tests {
         assert_eq!(topic.world_frame(), None);
         topic.add_pose(&odom(0.0), false).expect("pose");
         topic.add_pose(&odom(1.0), false).expect("pose");
-        topic.add_sensor(cloud(0.5), t0).expect("decodes");
-        assert!(topic.ready(t0)[0].is_ok());
+        topic.add_sensor(0, cloud(0.5), t0).expect("decodes");
+        assert!(topic.ready(t0)[0].1.is_ok());
         assert_eq!(topic.world_frame(), Some("odom"));
 
         let mut tree = LiveFrames::new(RosOptions { world_frame: None, ..opts() }, true, 0.5, 10.0);
         tree.add_pose(&tf("base_link", "lidar", 0.0, 0.25), true).expect("static");
         tree.add_pose(&tf("odom", "base_link", 0.0, 0.0), false).expect("pose");
         tree.add_pose(&tf("odom", "base_link", 1.0, 0.0), false).expect("pose");
-        tree.add_sensor(cloud(0.5), t0).expect("decodes");
-        assert!(tree.ready(t0)[0].is_ok());
+        tree.add_sensor(0, cloud(0.5), t0).expect("decodes");
+        assert!(tree.ready(t0)[0].1.is_ok());
         assert_eq!(tree.world_frame(), Some("odom"));
 
         let mut configured = LiveFrames::new(
@@ -444,8 +483,8 @@ mod tests {
         };
         configured.add_pose(&map(0.0), false).expect("pose");
         configured.add_pose(&map(1.0), false).expect("pose");
-        configured.add_sensor(cloud(0.5), t0).expect("decodes");
-        assert!(configured.ready(t0)[0].is_ok());
+        configured.add_sensor(0, cloud(0.5), t0).expect("decodes");
+        assert!(configured.ready(t0)[0].1.is_ok());
         assert_eq!(configured.world_frame(), Some("map"));
     }
 

@@ -22,12 +22,13 @@ const READ_AHEAD: usize = 2;
 /// An open recording being read.
 #[pyclass(name = "Recording", module = "edtmap._edtmap", frozen)]
 pub(crate) struct PyRecording {
-    frames: Mutex<Receiver<Result<Frame, RecordingFailure>>>,
+    frames: Mutex<Receiver<(usize, Result<Frame, RecordingFailure>)>>,
     /// The configuration, with the recording's calibration applied.
     config: Config,
     /// What to do with a frame that cannot be used.
     on_error: OnError,
-    sensor: Sensor,
+    /// The sensors, by name, in the config's order.
+    sensors: Vec<(String, Sensor)>,
     len: usize,
     kind: &'static str,
     skipped: Mutex<Vec<String>>,
@@ -51,7 +52,9 @@ impl PyRecording {
         let dataset = DatasetSection::parse(&text, &origin).map_err(map_err)?;
         let recording = py.detach(|| Recording::open(&path, &mut config, &dataset, &origin)).map_err(map_err)?;
         let (sensor, _) = config.mapper_params().map_err(map_err)?;
-        if recording.kind() != sensor.kind() {
+        let sensors: Vec<(String, Sensor)> =
+            config.mapper_sensors().map_err(map_err)?.into_iter().map(|(s, _)| (s.name, s.sensor)).collect();
+        if sensors.len() == 1 && recording.kind() != sensor.kind() {
             return Err(PyValueError::new_err(format!(
                 "{} holds {} frames but {origin}'s [sensor] is a {}",
                 path.display(),
@@ -86,7 +89,7 @@ impl PyRecording {
             frames: Mutex::new(rx),
             config,
             on_error: dataset.on_error,
-            sensor,
+            sensors,
             len,
             kind,
             skipped: Mutex::new(Vec::new()),
@@ -141,8 +144,13 @@ impl PyRecording {
                     }
                     return Ok(None);
                 }
-                Some(Ok(frame)) => return frame_dict(py, &frame, &self.sensor).map(Some),
-                Some(Err(failure)) => {
+                Some((s, Ok(frame))) => {
+                    let (name, sensor) = &self.sensors[s.min(self.sensors.len() - 1)];
+                    let d = frame_dict(py, &frame, sensor)?;
+                    d.set_item("sensor", name)?;
+                    return Ok(Some(d));
+                }
+                Some((_, Err(failure))) => {
                     if self.on_error == OnError::Stop {
                         return Err(PyValueError::new_err(failure.message));
                     }

@@ -3,6 +3,7 @@
 //! configuration file beside the mapper's; [`DatasetSection::parse`]
 //! reads it from the file's text.
 
+use crate::SensorTopic;
 pub use edtmap::config::sensor_in_body;
 use edtmap::config::{sections, Config, DEPTH_SCALE_M, OFFSET_M, POSE_GAP_S};
 use edtmap::{CoreError, MapError};
@@ -155,4 +156,70 @@ impl DatasetSection {
     pub fn t_body_sensor(&self) -> Result<Isometry3<f64>, CoreError> {
         sensor_in_body("sensor_in_body", self.sensor_in_body)
     }
+}
+
+/// What a section (`[dataset]`, `[ros]`) says of a config's lone sensor:
+/// its topic, camera info topic and mount.
+#[derive(Debug, Clone, Copy)]
+pub struct LoneSensor<'a> {
+    /// The section's name in messages (`[dataset]`).
+    pub section: &'static str,
+    /// Its `sensor_topic`.
+    pub topic: Option<&'a str>,
+    /// Its `camera_info_topic`.
+    pub camera_info_topic: Option<&'a str>,
+    /// Its `sensor_in_body`.
+    pub sensor_in_body: Option<[f64; 7]>,
+    /// What the topic is needed for, in messages (`to replay a ROS bag`).
+    pub needed: &'static str,
+}
+
+/// Each of `config`'s sensors with its topic, camera info topic and mount,
+/// for a recording's replay and the live node alike. A `[[sensors]]` entry
+/// gives its own (`topic`, `camera_info_topic`, `sensor_in_body`); a lone
+/// sensor may take them from `lone`'s section instead, not from both.
+/// With several sensors, the section's are refused: they would be
+/// ambiguous. The error says what to set.
+pub fn sensor_topics(config: &Config, lone: &LoneSensor<'_>) -> Result<Vec<SensorTopic>, String> {
+    let section = lone.section;
+    let alone = config.other_sensors.is_empty();
+    if !alone {
+        let set = [
+            ("sensor_topic", lone.topic.is_some()),
+            ("camera_info_topic", lone.camera_info_topic.is_some()),
+            ("sensor_in_body", lone.sensor_in_body.is_some()),
+        ];
+        if let Some((field, _)) = set.iter().find(|(_, set)| *set) {
+            return Err(format!(
+                "{section} {field} is for a lone [sensor]: with [[sensors]], each entry gives its own (topic, \
+                 camera_info_topic, sensor_in_body)"
+            ));
+        }
+    }
+    let mut out = Vec::new();
+    for s in config.sensors() {
+        let which = format!("[[sensors]] {:?}", s.name());
+        let both = |field: &str| format!("{field} is set in both {which} and {section}: set it in one place");
+        let topic = match (&s.topic, lone.topic) {
+            (Some(_), Some(_)) => return Err(both("the sensor topic")),
+            (Some(t), None) => t.clone(),
+            (None, Some(t)) => t.to_string(),
+            (None, None) if alone => {
+                return Err(format!("invalid {section} sensor_topic = missing: required {}", lone.needed))
+            }
+            (None, None) => return Err(format!("{which} has no topic: each sensor needs one {}", lone.needed)),
+        };
+        let camera_info_topic = match (&s.camera_info_topic, lone.camera_info_topic) {
+            (Some(_), Some(_)) => return Err(both("camera_info_topic")),
+            (Some(t), _) => Some(t.clone()),
+            (None, t) => t.map(str::to_string),
+        };
+        let t_body_sensor = match (s.sensor_in_body, lone.sensor_in_body) {
+            (Some(_), Some(_)) => return Err(both("sensor_in_body")),
+            (Some(_), None) => s.t_body_sensor().map_err(|e| format!("{which} {e}"))?,
+            (None, pose) => sensor_in_body("sensor_in_body", pose).map_err(|e| format!("{section} {e}"))?,
+        };
+        out.push(SensorTopic { topic, camera_info_topic, t_body_sensor });
+    }
+    Ok(out)
 }

@@ -103,8 +103,15 @@ impl Poses {
         }
     }
 
-    /// `T_world_sensor` at `stamp_s` for a message in `frame_id`.
-    pub fn sensor_pose(&self, stamp_s: f64, frame_id: &str, opts: &RosOptions) -> Result<Isometry3<f64>, String> {
+    /// `T_world_sensor` at `stamp_s` for a message in `frame_id` of a
+    /// sensor mounted at `t_body_sensor`.
+    pub fn sensor_pose(
+        &self,
+        stamp_s: f64,
+        frame_id: &str,
+        t_body_sensor: &Isometry3<f64>,
+        opts: &RosOptions,
+    ) -> Result<Isometry3<f64>, String> {
         let gap = opts.max_pose_gap_s;
         let t_world_body = match self {
             Poses::Topic(traj) => {
@@ -115,7 +122,7 @@ impl Poses {
                 tf.lookup(&world, &body, stamp_s, gap)?
             }
         };
-        Ok(t_world_body * opts.t_body_sensor)
+        Ok(t_world_body * t_body_sensor)
     }
 }
 

@@ -4,12 +4,14 @@
 
 use std::path::Path;
 
-use edtmap::config::{Config, SensorKind};
+use edtmap::config::{CameraFields, Config, SensorKind};
 use edtmap::sensor::Frame;
 use edtmap::MapError;
 use edtmap_io::dataset::Dataset;
 
+use crate::config::{sensor_topics, LoneSensor};
 use crate::config::{DatasetSection, IntrinsicsSource};
+use crate::poses::SensorMessage;
 use crate::{is_recording, RosOptions, RosReplay};
 
 /// The frames of a recording.
@@ -24,8 +26,10 @@ pub enum Recording {
 /// A frame of a recording that did not come out.
 #[derive(Debug, Clone)]
 pub struct RecordingFailure {
-    /// The frame's position in the recording.
+    /// The frame's position in the recording: among its sensor's frames.
     pub index: usize,
+    /// Its sensor's position in the config's sensors.
+    pub sensor: usize,
     /// File, topic, stamp and reason.
     pub message: String,
     /// Whether the recording is damaged here, so nothing after it can be
@@ -46,43 +50,66 @@ impl Recording {
         origin: &str,
     ) -> Result<Recording, MapError> {
         let in_dataset = |e| MapError::Config { section: "dataset", source: e };
-        if !config.other_sensors.is_empty() {
-            return Err(MapError::ConfigFile {
-                path: origin.to_string(),
-                message: format!(
-                    "lists {} [[sensors]]; a recording ({}) is replayed with one sensor: give it a config with one [sensor] section",
-                    config.other_sensors.len() + 1,
-                    path.display()
-                ),
-            });
-        }
         if is_recording(path) {
-            let opts = ros_options(dataset).map_err(|e| MapError::ConfigFile {
+            let opts = ros_options(dataset, config).map_err(|message| MapError::ConfigFile {
                 path: format!("{origin}: replaying {}", path.display()),
-                message: in_dataset(e).to_string(),
+                message,
             })?;
             let replay = RosReplay::open(path, &opts)?;
             for w in replay.warnings() {
                 tracing::warn!("{w}");
             }
-            if let (SensorKind::Depth, Some(info)) = (config.sensor.kind, replay.camera_info()) {
-                let k = info.k;
-                let from = format!("the camera info of {} says", path.display());
-                use_calibration(
-                    config,
-                    dataset.intrinsics,
-                    &Calibration { k: [k[0], k[4], k[2], k[5]], width: info.width, height: info.height, from },
-                    origin,
+            let several = !config.other_sensors.is_empty();
+            for (i, section) in config.sensors_mut().enumerate() {
+                if let (SensorKind::Depth, Some(info)) = (section.kind, replay.camera_info_of(i)) {
+                    let k = info.k;
+                    let from = format!("the camera info of {} says", path.display());
+                    let which = if several { format!("[[sensors]] {:?}", section.name()) } else { "[sensor]".into() };
+                    use_calibration(
+                        &mut section.camera,
+                        &which,
+                        dataset.intrinsics,
+                        &Calibration { k: [k[0], k[4], k[2], k[5]], width: info.width, height: info.height, from },
+                        origin,
+                    );
+                }
+                if let (true, Some(got)) = (several, replay.sensor_type_of(i)) {
+                    let wanted = SensorMessage::of(section.kind).unwrap_or(SensorMessage::PointCloud2).ros_type();
+                    if got != wanted {
+                        return Err(MapError::ConfigFile {
+                            path: origin.to_string(),
+                            message: format!(
+                                "[[sensors]] {:?}: topic {} of {} carries {got}, but kind = {:?} takes {wanted}",
+                                section.name(),
+                                opts.sensors[i].topic,
+                                path.display(),
+                                format!("{:?}", section.kind).to_lowercase()
+                            ),
+                        });
+                    }
+                }
+            }
+            for (i, s) in opts.sensors.iter().enumerate() {
+                tracing::info!(
+                    "{}: {} messages of {} on {}",
+                    path.display(),
+                    replay.len_of(i),
+                    replay.sensor_type_of(i).unwrap_or("nothing"),
+                    s.topic
                 );
             }
-            tracing::info!(
-                "{}: {} messages of {} on {}",
-                path.display(),
-                replay.len(),
-                replay.sensor_type(),
-                opts.sensor_topic
-            );
             return Ok(Recording::Ros(Box::new(replay)));
+        }
+        if !config.other_sensors.is_empty() {
+            return Err(MapError::ConfigFile {
+                path: origin.to_string(),
+                message: format!(
+                    "lists {} [[sensors]], but {} is a folder, which holds one sensor's frames: several sensors \
+                     replay from a ROS bag or MCAP file, each [[sensors]] entry naming its topic",
+                    config.other_sensors.len() + 1,
+                    path.display()
+                ),
+            });
         }
         dataset.validate().map_err(in_dataset)?;
         let opts = dataset.folder_options(config, path)?;
@@ -95,7 +122,8 @@ impl Recording {
                 let c = &folder.camera;
                 let from = format!("{} and the first image say", file.display());
                 use_calibration(
-                    config,
+                    &mut config.sensor.camera,
+                    "[sensor]",
                     dataset.intrinsics,
                     &Calibration { k: [c.fx, c.fy, c.cx, c.cy], width: c.width, height: c.height, from },
                     origin,
@@ -138,19 +166,24 @@ impl Recording {
     }
 
     /// The first `n` frames, or failures in their place; `name` names the
-    /// recording in a folder's messages.
+    /// recording in a folder's messages. Each comes with its sensor's
+    /// position in the config's sensors: a ROS recording with several
+    /// sensor topics gives them in the order it holds them, and its `n`
+    /// counts the messages of every sensor topic together.
     pub fn frames<'a>(
         &'a self,
         n: usize,
         name: &'a str,
-    ) -> Box<dyn Iterator<Item = Result<Frame, RecordingFailure>> + 'a> {
+    ) -> Box<dyn Iterator<Item = (usize, Result<Frame, RecordingFailure>)> + 'a> {
         match self {
             Recording::Folder(set) => Box::new((0..n).map(move |i| {
-                set.frame(i).map_err(|e| RecordingFailure {
+                let frame = set.frame(i).map_err(|e| RecordingFailure {
                     index: i,
+                    sensor: 0,
                     message: format!("frame {i} of {name}: {e}"),
                     damage: false,
-                })
+                });
+                (0, frame)
             })),
             // The index counts only what precedes damage: when every indexed
             // frame is asked for, still report the damage that ends the file.
@@ -158,11 +191,17 @@ impl Recording {
                 let all = n >= replay.len();
                 Box::new(
                     replay
-                        .frames()
+                        .sensor_frames()
                         .enumerate()
-                        .take_while(move |(i, r)| *i < n || (all && r.as_ref().is_err_and(|e| e.fatal)))
-                        .map(|(i, r)| {
-                            r.map_err(|e| RecordingFailure { index: i, message: e.to_string(), damage: e.fatal })
+                        .take_while(move |(i, (_, r))| *i < n || (all && r.as_ref().is_err_and(|e| e.fatal)))
+                        .map(|(_, (s, r))| {
+                            let frame = r.map_err(|e| RecordingFailure {
+                                index: e.index,
+                                sensor: e.sensor,
+                                message: e.to_string(),
+                                damage: e.fatal,
+                            });
+                            (s, frame)
                         }),
                 )
             }
@@ -202,8 +241,7 @@ fn describe(k: [Option<f64>; 4], width: Option<u32>, height: Option<u32>) -> Str
 /// intrinsics` says: the recording's wins (default) or `[sensor]`'s, its
 /// unset fields filled from the recording's. Where both give a value and
 /// they differ, a warning names both and the one used.
-fn use_calibration(config: &mut Config, policy: IntrinsicsSource, cal: &Calibration, origin: &str) {
-    let s = &mut config.sensor.camera;
+fn use_calibration(s: &mut CameraFields, which: &str, policy: IntrinsicsSource, cal: &Calibration, origin: &str) {
     let theirs = describe(cal.k.map(Some), Some(cal.width), Some(cal.height));
     let ours = describe([s.fx, s.fy, s.cx, s.cy], s.width, s.height);
     let close = |a: f64, b: f64| (a - b).abs() <= 1e-6 * b.abs().max(1.0);
@@ -223,36 +261,39 @@ fn use_calibration(config: &mut Config, policy: IntrinsicsSource, cal: &Calibrat
     if differ {
         match policy {
             IntrinsicsSource::Recording => tracing::warn!(
-                "depth camera: {origin} [sensor] says {ours} but {} {theirs}: using the recording's; set [dataset] intrinsics = \"config\" to use [sensor]'s",
+                "depth camera: {origin} {which} says {ours} but {} {theirs}: using the recording's; set [dataset] intrinsics = \"config\" to use {which}'s",
                 cal.from
             ),
             IntrinsicsSource::Config => tracing::warn!(
-                "depth camera: {origin} [sensor] says {ours} but {} {theirs}: using [sensor]'s, as [dataset] intrinsics = \"config\" asks",
+                "depth camera: {origin} {which} says {ours} but {} {theirs}: using {which}'s, as [dataset] intrinsics = \"config\" asks",
                 cal.from
             ),
         }
     }
     let used = describe([s.fx, s.fy, s.cx, s.cy], s.width, s.height);
-    tracing::info!("depth camera: {used} ({} {theirs})", cal.from);
+    tracing::info!("depth camera {which}: {used} ({} {theirs})", cal.from);
 }
 
-/// The options of a ROS replay from `[dataset]`; `sensor_topic` and
-/// `pose_topic` are needed.
-pub fn ros_options(d: &DatasetSection) -> Result<RosOptions, edtmap::CoreError> {
-    d.validate()?;
-    let missing = |field: &'static str| edtmap::CoreError::InvalidParam {
-        field,
-        value: "missing".into(),
-        reason: "required to replay a ROS bag or MCAP file",
+/// The options of a ROS replay from `[dataset]` and the config's
+/// sensors (see [`sensor_topics`]); `pose_topic` and every sensor's topic
+/// are needed. The error says what to set.
+pub fn ros_options(d: &DatasetSection, config: &Config) -> Result<RosOptions, String> {
+    d.validate().map_err(|e| format!("[dataset] {e}"))?;
+    let lone = LoneSensor {
+        section: "[dataset]",
+        topic: d.sensor_topic.as_deref(),
+        camera_info_topic: d.camera_info_topic.as_deref(),
+        sensor_in_body: d.sensor_in_body,
+        needed: "to replay a ROS bag or MCAP file",
     };
     Ok(RosOptions {
-        sensor_topic: d.sensor_topic.clone().ok_or_else(|| missing("sensor_topic"))?,
-        camera_info_topic: d.camera_info_topic.clone(),
-        pose_topic: d.pose_topic.clone().ok_or_else(|| missing("pose_topic"))?,
+        sensors: sensor_topics(config, &lone)?,
+        pose_topic: d.pose_topic.clone().ok_or_else(|| {
+            "invalid [dataset] pose_topic = missing: required to replay a ROS bag or MCAP file".to_string()
+        })?,
         static_tf_topic: d.static_tf_topic.clone(),
         world_frame: d.world_frame.clone(),
         body_frame: d.body_frame.clone(),
-        t_body_sensor: d.t_body_sensor()?,
         max_pose_gap_s: d.max_pose_gap_s,
         depth_scale_m: d.depth_scale_m,
     })

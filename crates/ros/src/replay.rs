@@ -20,14 +20,40 @@ use nalgebra::Isometry3;
 use std::io::Read;
 use std::path::{Path, PathBuf};
 
-/// How to turn a recording into frames: topics, frames and extrinsics.
+/// One sensor of a recording or a live node: its topic and its mount.
 #[derive(Debug, Clone, PartialEq)]
-pub struct RosOptions {
+pub struct SensorTopic {
     /// The sensor's topic: `PointCloud2`, `Image` (depth) or `LaserScan`.
-    pub sensor_topic: String,
+    pub topic: String,
     /// Camera intrinsics for depth images; by default the image topic's
     /// sibling `camera_info`, when the recording has it.
     pub camera_info_topic: Option<String>,
+    /// `T_body_sensor`: the sensor's pose on the robot.
+    pub t_body_sensor: Isometry3<f64>,
+}
+
+impl SensorTopic {
+    /// A sensor on `topic` with its camera info beside it (when a depth
+    /// camera) and mounted at the body frame's origin.
+    pub fn new(topic: &str) -> Self {
+        SensorTopic { topic: topic.into(), camera_info_topic: None, t_body_sensor: Isometry3::identity() }
+    }
+
+    /// The camera info topic: the configured one, else the image topic's
+    /// sibling `camera_info` (`/camera/depth/image` → `/camera/depth/camera_info`).
+    pub fn camera_info(&self) -> String {
+        self.camera_info_topic.clone().unwrap_or_else(|| match self.topic.rsplit_once('/') {
+            Some((parent, _)) => format!("{parent}/camera_info"),
+            None => "camera_info".into(),
+        })
+    }
+}
+
+/// How to turn a recording into frames: topics, frames and extrinsics.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RosOptions {
+    /// The sensors, in the mapper's order: one or more.
+    pub sensors: Vec<SensorTopic>,
     /// Where poses come from: `Odometry`, `PoseStamped`,
     /// `TransformStamped` or `TFMessage` (`/tf`).
     pub pose_topic: String,
@@ -38,8 +64,6 @@ pub struct RosOptions {
     /// With `/tf`: the frame the extrinsics are given in (default: the
     /// sensor message's own frame, so the tree supplies the extrinsics).
     pub body_frame: Option<String>,
-    /// `T_body_sensor`: the sensor's pose on the robot.
-    pub t_body_sensor: Isometry3<f64>,
     /// Largest time between two poses that a frame is interpolated across.
     pub max_pose_gap_s: f64,
     /// Metres per unit of 16-bit depth images.
@@ -52,6 +76,8 @@ pub struct RosOptions {
 pub struct FrameError {
     /// The recording.
     pub file: PathBuf,
+    /// The sensor's position in [`RosOptions::sensors`].
+    pub sensor: usize,
     /// The sensor topic.
     pub topic: String,
     /// The message's position on the topic, from 0.
@@ -128,25 +154,35 @@ const POSE_TYPES: [&str; 5] = [
     "tf/tfMessage",
 ];
 
+/// One sensor topic of a recording as it was found.
+#[derive(Debug, Clone)]
+struct Found {
+    /// Its message type (`sensor_msgs/PointCloud2`, ...); `None` when the
+    /// recording lacks the topic.
+    msg_type: Option<String>,
+    /// Messages on it, per the recording's index.
+    messages: u64,
+    /// Its camera info topic, when it has one.
+    info_topic: Option<String>,
+    /// The first camera info there.
+    camera: Option<CameraInfo>,
+}
+
 /// A ROS recording opened for replay.
 pub struct RosReplay {
     path: PathBuf,
     container: Container,
     opts: RosOptions,
-    sensor_type: String,
-    sensor_messages: u64,
+    sensors: Vec<Found>,
+    /// The sensor topics the recording has.
+    present: Vec<String>,
     poses: Poses,
-    camera: Option<CameraInfo>,
     warnings: Vec<String>,
 }
 
 impl std::fmt::Debug for RosReplay {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("RosReplay")
-            .field("path", &self.path)
-            .field("sensor_type", &self.sensor_type)
-            .field("sensor_messages", &self.sensor_messages)
-            .finish_non_exhaustive()
+        f.debug_struct("RosReplay").field("path", &self.path).field("sensors", &self.sensors).finish_non_exhaustive()
     }
 }
 
@@ -175,39 +211,80 @@ fn find<'a>(
 impl RosReplay {
     /// Opens `path` (a `.bag` or `.mcap`), checks the topics, and reads the
     /// poses and the camera intrinsics.
+    ///
+    /// With one sensor, its topic must be in the recording. With several, a
+    /// sensor whose topic the recording lacks gives no frames and a warning
+    /// (see [`Self::warnings`]), and the others are replayed; at least one
+    /// must be there. A topic of the wrong message type is an error.
     pub fn open(path: &Path, opts: &RosOptions) -> Result<Self, IoError> {
+        if opts.sensors.is_empty() {
+            return Err(bad(path, "no sensor topic to replay".into()));
+        }
+        for (k, s) in opts.sensors.iter().enumerate() {
+            if opts.sensors[..k].iter().any(|o| o.topic == s.topic) {
+                return Err(bad(path, format!("two sensors on topic {}: each sensor needs its own topic", s.topic)));
+            }
+        }
         let container = Container::open(path)?;
         let topics = container.topics()?;
-        let sensor = find(path, &topics, &opts.sensor_topic, "sensor", &SENSOR_TYPES)?;
         let pose = find(path, &topics, &opts.pose_topic, "pose", &POSE_TYPES)?;
         let is_tf = pose.msg_type.ends_with("TFMessage") || pose.msg_type.ends_with("tfMessage");
-        let info_topic = match &opts.camera_info_topic {
-            Some(t) => Some(find(path, &topics, t, "camera info", &["sensor_msgs/CameraInfo"])?.topic.clone()),
-            None if sensor.msg_type == "sensor_msgs/Image" => {
-                let sibling = match opts.sensor_topic.rsplit_once('/') {
-                    Some((parent, _)) => format!("{parent}/camera_info"),
-                    None => "camera_info".into(),
-                };
-                topics
-                    .iter()
-                    .find(|t| t.topic == sibling && t.msg_type == "sensor_msgs/CameraInfo")
-                    .map(|t| t.topic.clone())
-            }
-            None => None,
-        };
+        let mut warnings = Vec::new();
+        let mut sensors = Vec::new();
+        for s in &opts.sensors {
+            let sensor = match find(path, &topics, &s.topic, "sensor", &SENSOR_TYPES) {
+                Ok(t) => t,
+                Err(e) if opts.sensors.len() > 1 && !topics.iter().any(|t| t.topic == s.topic) => {
+                    warnings.push(format!("{e}: that sensor gives no frames"));
+                    sensors.push(Found { msg_type: None, messages: 0, info_topic: None, camera: None });
+                    continue;
+                }
+                Err(e) => return Err(e),
+            };
+            let info_topic = match &s.camera_info_topic {
+                Some(t) => Some(find(path, &topics, t, "camera info", &["sensor_msgs/CameraInfo"])?.topic.clone()),
+                None if sensor.msg_type == "sensor_msgs/Image" => {
+                    let sibling = s.camera_info();
+                    topics
+                        .iter()
+                        .find(|t| t.topic == sibling && t.msg_type == "sensor_msgs/CameraInfo")
+                        .map(|t| t.topic.clone())
+                }
+                None => None,
+            };
+            sensors.push(Found {
+                msg_type: Some(sensor.msg_type.clone()),
+                messages: sensor.messages,
+                info_topic,
+                camera: None,
+            });
+        }
+        if sensors.iter().all(|s| s.msg_type.is_none()) {
+            let listing = topics.iter().map(|t| format!("{} ({})", t.topic, t.msg_type)).collect::<Vec<_>>().join(", ");
+            let wanted = opts.sensors.iter().map(|s| s.topic.as_str()).collect::<Vec<_>>().join(", ");
+            return Err(bad(
+                path,
+                format!("none of the sensor topics {wanted} is in the recording; it holds {listing}"),
+            ));
+        }
         let mut read = vec![pose.topic.clone()];
         if is_tf && topics.iter().any(|t| t.topic == opts.static_tf_topic) {
             read.push(opts.static_tf_topic.clone());
         }
-        read.extend(info_topic.iter().cloned());
+        for info in sensors.iter().filter_map(|s| s.info_topic.clone()) {
+            if !read.contains(&info) {
+                read.push(info);
+            }
+        }
+        let present = opts.sensors.iter().zip(&sensors).filter(|(_, f)| f.msg_type.is_some());
+        let present = present.map(|(s, _)| s.topic.clone()).collect();
         let mut replay = RosReplay {
             path: path.to_path_buf(),
-            sensor_type: sensor.msg_type.clone(),
-            sensor_messages: sensor.messages,
+            sensors,
+            present,
             opts: opts.clone(),
             poses: Poses::new(is_tf, opts),
-            camera: None,
-            warnings: Vec::new(),
+            warnings,
             container,
         };
         replay.read_poses(&read, is_tf)?;
@@ -229,7 +306,9 @@ impl RosReplay {
             };
             match Message::decode(&raw.msg_type, &raw.data, raw.encoding).map(|m| with_log_time(m, raw.log_time_ns)) {
                 Ok(Message::CameraInfo(info)) => {
-                    self.camera.get_or_insert(info);
+                    for s in self.sensors.iter_mut().filter(|s| s.info_topic.as_ref() == Some(&raw.topic)) {
+                        s.camera.get_or_insert_with(|| info.clone());
+                    }
                 }
                 Ok(
                     msg @ (Message::Tf(_)
@@ -261,43 +340,66 @@ impl RosReplay {
         Ok(())
     }
 
-    /// The sensor topic's message type (`sensor_msgs/PointCloud2`, ...).
+    /// The first sensor topic's message type (`sensor_msgs/PointCloud2`, ...).
     pub fn sensor_type(&self) -> &str {
-        &self.sensor_type
+        self.sensor_type_of(0).unwrap_or("")
     }
 
-    /// The sensor kind the frames are, as `Sensor::kind` names it.
+    /// Sensor `i`'s message type; `None` when the recording lacks its topic.
+    pub fn sensor_type_of(&self, i: usize) -> Option<&str> {
+        self.sensors.get(i).and_then(|s| s.msg_type.as_deref())
+    }
+
+    /// The sensor kind the first sensor's frames are, as `Sensor::kind` names it.
     pub fn kind(&self) -> &'static str {
-        match self.sensor_type.as_str() {
+        self.kind_of(0).unwrap_or("point cloud")
+    }
+
+    /// The sensor kind sensor `i`'s frames are; `None` when the recording
+    /// lacks its topic.
+    pub fn kind_of(&self, i: usize) -> Option<&'static str> {
+        self.sensor_type_of(i).map(|t| match t {
             "sensor_msgs/Image" => "depth camera",
             "sensor_msgs/LaserScan" => "planar LiDAR",
             _ => "point cloud",
-        }
+        })
     }
 
-    /// Messages on the sensor topic, per the recording's index.
+    /// Messages on the sensor topics together, per the recording's index.
     pub fn len(&self) -> usize {
-        self.sensor_messages as usize
+        self.sensors.iter().map(|s| s.messages as usize).sum()
     }
 
-    /// Whether the sensor topic is empty.
+    /// Messages on sensor `i`'s topic, per the recording's index.
+    pub fn len_of(&self, i: usize) -> usize {
+        self.sensors.get(i).map_or(0, |s| s.messages as usize)
+    }
+
+    /// Whether the sensor topics are empty.
     pub fn is_empty(&self) -> bool {
-        self.sensor_messages == 0
+        self.len() == 0
     }
 
-    /// The first camera info, for depth images.
+    /// The first sensor's first camera info, for depth images.
     pub fn camera_info(&self) -> Option<&CameraInfo> {
-        self.camera.as_ref()
+        self.camera_info_of(0)
     }
 
-    /// What was noticed while opening (undecodable pose messages, damage).
+    /// Sensor `i`'s first camera info, for depth images.
+    pub fn camera_info_of(&self, i: usize) -> Option<&CameraInfo> {
+        self.sensors.get(i).and_then(|s| s.camera.as_ref())
+    }
+
+    /// What was noticed while opening (undecodable pose messages, damage,
+    /// a sensor's missing topic).
     pub fn warnings(&self) -> &[String] {
         &self.warnings
     }
 
-    fn frame(&self, raw: &RawMessage, index: usize) -> Result<Frame, FrameError> {
+    fn frame(&self, raw: &RawMessage, sensor: usize, index: usize) -> Result<Frame, FrameError> {
         let fail = |stamp_s: Option<f64>, reason: String| FrameError {
             file: self.path.clone(),
+            sensor,
             topic: raw.topic.clone(),
             index,
             stamp_s,
@@ -308,31 +410,50 @@ impl RosReplay {
         let (measurement, stamp_ns, frame_id) = measurement(msg, self.opts.depth_scale_m).map_err(|e| fail(None, e))?;
         // Recorders that leave stamps empty: the time the message was logged.
         let stamp_s = if stamp_ns == 0 { raw.log_time_ns as f64 * 1e-9 } else { stamp_ns as f64 * 1e-9 };
+        let mount = &self.opts.sensors[sensor].t_body_sensor;
         let t_world_sensor =
-            self.poses.sensor_pose(stamp_s, &frame_id, &self.opts).map_err(|e| fail(Some(stamp_s), e))?;
+            self.poses.sensor_pose(stamp_s, &frame_id, mount, &self.opts).map_err(|e| fail(Some(stamp_s), e))?;
         Ok(Frame { stamp_s, t_world_sensor, measurement })
     }
 
-    /// The sensor frames in file order; damage ends them with a fatal error.
+    /// The first sensor's frames in file order; damage ends them with a
+    /// fatal error. With several sensors, see [`Self::sensor_frames`].
     pub fn frames(&self) -> impl Iterator<Item = Result<Frame, FrameError>> + '_ {
-        let topics = std::slice::from_ref(&self.opts.sensor_topic);
+        self.sensor_frames().filter(|(s, _)| *s == 0).map(|(_, r)| r)
+    }
+
+    /// Every sensor's frames in the order the recording holds them (the
+    /// order they were recorded in), each with its sensor's position in
+    /// [`RosOptions::sensors`]; a frame's [`FrameError::index`] counts the
+    /// messages of its own topic. Damage ends them with a fatal error
+    /// (given as the first sensor's).
+    pub fn sensor_frames(&self) -> impl Iterator<Item = (usize, Result<Frame, FrameError>)> + '_ {
+        let topics = &self.present;
+        let mut counts = vec![0usize; self.opts.sensors.len()];
         let mut done = false;
-        self.container.messages(topics).enumerate().map_while(move |(index, item)| {
+        self.container.messages(topics).map_while(move |item| {
             if done {
                 return None;
             }
             Some(match item {
-                Ok(raw) => self.frame(&raw, index),
+                Ok(raw) => {
+                    let sensor = self.opts.sensors.iter().position(|s| s.topic == raw.topic).unwrap_or(0);
+                    let index = counts[sensor];
+                    counts[sensor] += 1;
+                    (sensor, self.frame(&raw, sensor, index))
+                }
                 Err(e) => {
                     done = true;
-                    Err(FrameError {
+                    let error = FrameError {
                         file: self.path.clone(),
-                        topic: self.opts.sensor_topic.clone(),
-                        index,
+                        sensor: 0,
+                        topic: topics.join(", "),
+                        index: counts[0],
                         stamp_s: None,
                         reason: format!("the recording is damaged here, the rest is unreadable: {e}"),
                         fatal: true,
-                    })
+                    };
+                    (0, Err(error))
                 }
             })
         })

@@ -28,13 +28,11 @@ fn refusal(what: &str, read: impl FnOnce() -> Result<(), IoError> + Send + 'stat
 /// Replay options for a LiDAR posed by odometry.
 fn ros_options() -> RosOptions {
     RosOptions {
-        sensor_topic: "/points".into(),
-        camera_info_topic: None,
+        sensors: vec![edtmap_ros::SensorTopic::new("/points")],
         pose_topic: "/odom".into(),
         static_tf_topic: "/tf_static".into(),
         world_frame: None,
         body_frame: None,
-        t_body_sensor: nalgebra::Isometry3::identity(),
         max_pose_gap_s: 0.1,
         depth_scale_m: 0.001,
     }

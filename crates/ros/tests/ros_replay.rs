@@ -10,7 +10,7 @@ const CONTAINERS: [Container; 2] = [Container::Bag, Container::Mcap];
 use common::{write_recording, Container, Msg};
 use edtmap_core::sensor::Measurement;
 use edtmap_ros::msg::{CameraInfo, Header, Image, LaserScanMsg, Message, PointCloud2, StampedTransform};
-use edtmap_ros::{RosOptions, RosReplay};
+use edtmap_ros::{RosOptions, RosReplay, SensorTopic};
 use nalgebra::{Isometry3, Point3, Vector3};
 
 /// The robot's pose in the world at `t`: x 0.1 t, y 0.5 t, yaw 0.2 t.
@@ -47,13 +47,11 @@ fn stamped(t: f64, parent: &str, child: &str, pose: Isometry3<f64>) -> StampedTr
 
 fn options(sensor: &str, pose: &str) -> RosOptions {
     RosOptions {
-        sensor_topic: sensor.into(),
-        camera_info_topic: None,
+        sensors: vec![SensorTopic { t_body_sensor: body_sensor(), ..SensorTopic::new(sensor) }],
         pose_topic: pose.into(),
         static_tf_topic: "/tf_static".into(),
         world_frame: None,
         body_frame: None,
-        t_body_sensor: body_sensor(),
         max_pose_gap_s: 0.2,
         depth_scale_m: 0.001,
     }
@@ -126,7 +124,7 @@ fn clouds_placed_by_the_tf_tree() {
     for container in CONTAINERS {
         let path = dir.path().join(format!("tf.{}", container.ext()));
         write_recording(&path, container, &msgs, true);
-        let opts = RosOptions { t_body_sensor: Isometry3::identity(), ..options("/points", "/tf") };
+        let opts = RosOptions { sensors: vec![SensorTopic::new("/points")], ..options("/points", "/tf") };
         let replay = RosReplay::open(&path, &opts).expect("opens");
         assert_frames_on_the_wall(&replay, 9);
         // The same with the body frame named and the extrinsics from the config.
@@ -139,7 +137,7 @@ fn clouds_placed_by_the_tf_tree() {
         // Without /tf_static the cloud's frame is in no tree: every frame says so.
         let no_static = dir.path().join(format!("no_static.{}", container.ext()));
         write_recording(&no_static, container, &msgs[1..], true);
-        let opts = RosOptions { t_body_sensor: Isometry3::identity(), ..options("/points", "/tf") };
+        let opts = RosOptions { sensors: vec![SensorTopic::new("/points")], ..options("/points", "/tf") };
         for r in RosReplay::open(&no_static, &opts).expect("opens").frames() {
             let e = r.expect_err("no pose");
             assert!(!e.fatal && e.reason.contains("\"lidar\" is not in the transform tree"), "{e}");
@@ -289,5 +287,91 @@ fn truncated_recordings_keep_the_frames_before_the_cut() {
             seen_partial |= good > 0 && good < 9;
         }
         assert!(seen_partial, "{container:?}: no cut kept some frames and lost others");
+    }
+}
+
+/// A second LiDAR on the robot, 0.1 m behind and 0.5 m up, turned half a turn.
+fn rear_sensor() -> Isometry3<f64> {
+    Isometry3::new(Vector3::new(-0.1, 0.0, 0.5), Vector3::new(0.0, 0.0, std::f64::consts::PI))
+}
+
+/// The wall seen from a sensor mounted at `mount` at `t`.
+fn cloud_from(mount: Isometry3<f64>, t: f64, frame: &str) -> PointCloud2 {
+    let t_sensor_world = (body_at(t) * mount).inverse();
+    let pts: Vec<[f32; 3]> =
+        wall_world().iter().map(|p| (t_sensor_world * p).coords.map(|v| v as f32).into()).collect();
+    PointCloud2::from_points(header(t, frame), &pts)
+}
+
+#[test]
+fn two_sensor_topics_replay_in_recorded_order_each_with_its_mount() {
+    // The front LiDAR at 5 Hz from 0.13 s (its third cloud cut in half),
+    // the rear one at 4 Hz from 0.2 s, odometry at 20 Hz.
+    let mut msgs = lidar_and(|t| Message::Odometry(stamped(t, "odom", "base", body_at(t))), "/odom");
+    msgs.iter_mut().filter(|m| m.topic == "/points").nth(2).expect("cloud 2").truncate_payload = true;
+    for k in 0..7 {
+        let t = 0.2 + 0.25 * k as f64;
+        msgs.push(Msg::new("/rear/points", Message::PointCloud2(cloud_from(rear_sensor(), t, "rear")), t + 0.01));
+    }
+    msgs.sort_by(|a, b| a.log_time_s.total_cmp(&b.log_time_s));
+    let front = SensorTopic { t_body_sensor: body_sensor(), ..SensorTopic::new("/points") };
+    let rear = SensorTopic { t_body_sensor: rear_sensor(), ..SensorTopic::new("/rear/points") };
+    let dir = tempfile::tempdir().expect("tempdir");
+    for container in CONTAINERS {
+        let path = dir.path().join(format!("two.{}", container.ext()));
+        write_recording(&path, container, &msgs, true);
+        let opts = RosOptions { sensors: vec![front.clone(), rear.clone()], ..options("/points", "/odom") };
+        let replay = RosReplay::open(&path, &opts).expect("opens");
+        assert_eq!((replay.len(), replay.len_of(0), replay.len_of(1)), (16, 9, 7));
+        let got: Vec<_> = replay.sensor_frames().collect();
+        assert_eq!(got.len(), 16);
+        // In the recording's order: by log time.
+        let want: Vec<_> = msgs
+            .iter()
+            .filter(|m| m.topic.ends_with("points"))
+            .map(|m| usize::from(m.topic == "/rear/points"))
+            .collect();
+        assert_eq!(got.iter().map(|(s, _)| *s).collect::<Vec<_>>(), want);
+        let mut per_sensor = [0usize; 2];
+        for (s, r) in &got {
+            let index = per_sensor[*s];
+            per_sensor[*s] += 1;
+            match r {
+                // The cut cloud fails alone, named by its sensor's topic and index.
+                Err(e) => {
+                    assert!((*s, index) == (0, 2) && e.sensor == 0 && e.index == 2 && !e.fatal, "{e}");
+                    assert!(e.to_string().contains("topic /points, message 2"), "{e}");
+                }
+                Ok(frame) => {
+                    let Measurement::Points(cloud) = &frame.measurement else { panic!("points") };
+                    for (p, want) in cloud.points.iter().zip(wall_world()) {
+                        let world = frame.t_world_sensor * Point3::new(p[0] as f64, p[1] as f64, p[2] as f64);
+                        assert!((world - want).norm() < 1e-5, "sensor {s} frame {index}: {world} vs {want}");
+                    }
+                }
+            }
+        }
+        assert_eq!(per_sensor, [9, 7]);
+        // `frames` is the first sensor's alone.
+        assert_eq!(replay.frames().count(), 9);
+
+        // One sensor's topic missing: the others replay, with a warning.
+        let gone = SensorTopic::new("/side/points");
+        let opts = RosOptions { sensors: vec![gone.clone(), rear.clone()], ..options("/points", "/odom") };
+        let replay = RosReplay::open(&path, &opts).expect("opens without the side LiDAR");
+        assert!(
+            replay.warnings().iter().any(|w| w.contains("/side/points") && w.contains("no frames")),
+            "{:?}",
+            replay.warnings()
+        );
+        assert_eq!((replay.len_of(0), replay.len_of(1), replay.sensor_type_of(0)), (0, 7, None));
+        assert!(replay.sensor_frames().all(|(s, r)| s == 1 && r.is_ok()));
+        // All of them missing, or two sensors on one topic, is refused.
+        let opts = RosOptions { sensors: vec![gone.clone(), gone.clone()], ..options("/points", "/odom") };
+        let err = RosReplay::open(&path, &opts).expect_err("one topic twice").to_string();
+        assert!(err.contains("two sensors on topic /side/points"), "{err}");
+        let opts = RosOptions { sensors: vec![gone, SensorTopic::new("/nothing")], ..options("/points", "/odom") };
+        let err = RosReplay::open(&path, &opts).expect_err("none there").to_string();
+        assert!(err.contains("none of the sensor topics") && err.contains("/rear/points"), "{err}");
     }
 }

@@ -32,6 +32,14 @@ pub struct SensorSection {
     /// as `[x, y, z, qx, qy, qz, qw]` (metres, unit quaternion); identity
     /// by default. A single `[sensor]`'s is `[dataset] sensor_in_body`.
     pub sensor_in_body: Option<[f64; 7]>,
+    /// `[[sensors]]`, for ROS recordings and the live node: the topic the
+    /// sensor's messages come on (`PointCloud2`, `Image` or `LaserScan`).
+    /// A single `[sensor]`'s is `[dataset]` (or `[ros]`) `sensor_topic`.
+    pub topic: Option<String>,
+    /// `[[sensors]]`, depth cameras: the camera info topic (default: the
+    /// image topic's sibling `camera_info`). A single `[sensor]`'s is
+    /// `[dataset]` (or `[ros]`) `camera_info_topic`.
+    pub camera_info_topic: Option<String>,
     /// `depth`, `lidar`, `points` or `planar`.
     pub kind: SensorKind,
     /// `auto` (projection when the model allows), `projection` or `raycast`.
@@ -119,6 +127,8 @@ pub enum ConstructionName {
 struct SensorTable {
     name: Option<String>,
     sensor_in_body: Option<[f64; 7]>,
+    topic: Option<String>,
+    camera_info_topic: Option<String>,
     kind: SensorKind,
     #[serde(default)]
     construction: ConstructionName,
@@ -146,6 +156,8 @@ impl From<SensorTable> for SensorSection {
         SensorSection {
             name: t.name,
             sensor_in_body: t.sensor_in_body,
+            topic: t.topic,
+            camera_info_topic: t.camera_info_topic,
             kind: t.kind,
             construction: t.construction,
             clear_no_return: t.clear_no_return,
