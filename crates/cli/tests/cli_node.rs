@@ -53,12 +53,10 @@ fn frames_in(stats: &DiagnosticArray) -> u64 {
         .unwrap_or(0)
 }
 
-/// Records `scene`, replays it with `edtmap run`, publishes it to a node
-/// frame by frame, and checks the node against the replay.
-fn live_equals_replay(scene: &str, frames: u64, sensor_topic: &str, edit: fn(String) -> String) {
-    let dir = tempfile::tempdir().expect("temp dir");
-    let d = dir.path();
-    let rec = run_in(d, &["record", "--scene", scene, "--frames", &frames.to_string(), "rec.mcap"], MIN);
+/// Records with `record_args` (writing `rec.mcap` and `rec.toml`) and
+/// replays the recording with `edtmap run` in `d`.
+fn record_and_replay(d: &Path, record_args: &[&str]) {
+    let rec = run_in(d, &[&["record"], record_args, &["rec.mcap"]].concat(), MIN);
     assert_eq!(rec.code(), Some(0), "{}", rec.stderr);
     let replay = run_in(
         d,
@@ -66,11 +64,24 @@ fn live_equals_replay(scene: &str, frames: u64, sensor_topic: &str, edit: fn(Str
         MIN,
     );
     assert_eq!(replay.code(), Some(0), "{}", replay.stderr);
+}
 
-    // The node's config: the recording's, with [ros] for the live topics.
-    let domain = 100 + (std::process::id() + scene.len() as u32 * 7) % 100;
-    let mut config = edit(std::fs::read_to_string(d.join("rec.toml")).expect("config"));
-    config.push_str(&format!("\n[ros]\nsensor_topic = \"{sensor_topic}\"\npose_topic = \"/tf\"\nworld_frame = \"map\"\nlocalhost_only = true\nesdf_pointcloud_hz = 100.0\npose_wait_s = 5.0\n"));
+/// Runs a node in `d` on `config` (the recording's, perhaps edited) with
+/// `ros` as its `[ros]` section, on a DDS domain of its own (`salt`
+/// apart from the other tests'), while `publish` feeds it, stops it with SIGINT (it saves its map and
+/// exits), and checks that it mapped `frames` frames into the replay's
+/// map, byte for byte. Returns the node's run.
+fn live_map_equals_replay(
+    d: &Path,
+    what: &str,
+    salt: u32,
+    config: &str,
+    ros: &str,
+    frames: u64,
+    publish: impl FnOnce(u16),
+) -> common::Run {
+    let domain = 100 + (std::process::id() + salt) % 100;
+    let config = format!("{config}\n[ros]\n{ros}localhost_only = true\npose_wait_s = 5.0\n");
     std::fs::write(d.join("node.toml"), config).expect("write config");
     let mut cmd = bin();
     cmd.args(["-v", "node", "--config", "node.toml", "--save", "node.edtmap"])
@@ -79,13 +90,13 @@ fn live_equals_replay(scene: &str, frames: u64, sensor_topic: &str, edit: fn(Str
     let child =
         cmd.stdin(Stdio::null()).stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().expect("the node starts");
     let pid = child.id();
-    let outcome = std::panic::catch_unwind(|| drive(d, domain as u16, frames, sensor_topic));
+    let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| publish(domain as u16)));
     // SIGINT: the node saves its map and exits.
     // SAFETY: kill on our own child's pid.
     unsafe { libc::kill(pid as libc::pid_t, libc::SIGINT) };
     let run = finish(child, MIN);
     if let Err(e) = outcome {
-        panic!("{scene}: {:?}\nnode stdout:\n{}\nnode stderr:\n{}", e.downcast_ref::<String>(), run.stdout, run.stderr);
+        panic!("{what}: {:?}\nnode stdout:\n{}\nnode stderr:\n{}", e.downcast_ref::<String>(), run.stdout, run.stderr);
     }
     assert_eq!(run.code(), Some(0), "{}\n{}", run.stdout, run.stderr);
     assert!(run.stdout.contains(&format!("{frames} frames integrated")), "{}", run.stdout);
@@ -95,10 +106,27 @@ fn live_equals_replay(scene: &str, frames: u64, sensor_topic: &str, edit: fn(Str
     );
     assert!(
         live == replayed,
-        "{scene}: the live map differs from the replay's ({} and {} bytes)",
+        "{what}: the live map differs from the replay's ({} and {} bytes)",
         live.len(),
         replayed.len()
     );
+    run
+}
+
+/// Records `scene`, replays it with `edtmap run`, publishes it to a node
+/// frame by frame, and checks the node against the replay.
+fn live_equals_replay(scene: &str, frames: u64, sensor_topic: &str, edit: fn(String) -> String) {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let d = dir.path();
+    record_and_replay(d, &["--scene", scene, "--frames", &frames.to_string()]);
+    // The node's config: the recording's, with [ros] for the live topics.
+    let config = edit(std::fs::read_to_string(d.join("rec.toml")).expect("config"));
+    let ros = format!(
+        "sensor_topic = \"{sensor_topic}\"\npose_topic = \"/tf\"\nworld_frame = \"map\"\nesdf_pointcloud_hz = 100.0\n"
+    );
+    live_map_equals_replay(d, scene, scene.len() as u32 * 7, &config, &ros, frames, |domain| {
+        drive(d, domain, frames, sensor_topic)
+    });
 }
 
 #[test]
@@ -121,36 +149,53 @@ fn a_published_laser_scan_recording_maps_like_its_replay() {
     live_equals_replay("planar", 6, "/scan", |c| c);
 }
 
-/// Publishes the recording to the node and checks what it answers.
-fn drive(d: &Path, domain: u16, frames: u64, sensor_topic: &str) {
+/// A ROS 2 node named `name` of its own participant in `domain`, on loopback.
+fn test_node(domain: u16, name: &str) -> ros2_client::Node {
     let participant = DomainParticipantBuilder::new(domain)
         .with_only_networks([IpAddr::V4(Ipv4Addr::LOCALHOST)])
         .build()
         .expect("participant");
     let context = Context::from_domain_participant(participant).expect("context");
-    let mut node = context
-        .new_node(NodeName::new("/", "player").expect("name"), NodeOptions::new().enable_rosout(false))
-        .expect("node");
-    let topic = |node: &mut ros2_client::Node, ns: &str, base: &str, pkg: &str, ty: &str| {
-        node.create_topic(&Name::new(ns, base).expect("name"), MessageTypeName::new(pkg, ty), &qos()).expect("topic")
-    };
+    context.new_node(NodeName::new("/", name).expect("name"), NodeOptions::new().enable_rosout(false)).expect("node")
+}
+
+/// The topic `ns/base` of type `pkg/ty`, with [`qos`].
+fn topic(node: &mut ros2_client::Node, ns: &str, base: &str, pkg: &str, ty: &str) -> ros2_client::dds::rustdds::Topic {
+    node.create_topic(&Name::new(ns, base).expect("name"), MessageTypeName::new(pkg, ty), &qos()).expect("topic")
+}
+
+/// A publisher on [`topic`].
+fn publisher<M: serde::Serialize>(
+    node: &mut ros2_client::Node,
+    ns: &str,
+    base: &str,
+    pkg: &str,
+    ty: &str,
+) -> ros2_client::Publisher<M> {
+    let t = topic(node, ns, base, pkg, ty);
+    node.create_publisher::<M>(&t, Some(qos())).expect("publisher")
+}
+
+/// The node's `frame_stats`.
+fn frame_stats(node: &mut ros2_client::Node) -> ros2_client::Subscription<DiagnosticArray> {
+    let t = topic(node, "/edtmap", "frame_stats", "diagnostic_msgs", "DiagnosticArray");
+    node.create_subscription::<DiagnosticArray>(&t, Some(qos())).expect("subscription")
+}
+
+/// Publishes the recording to the node and checks what it answers.
+fn drive(d: &Path, domain: u16, frames: u64, sensor_topic: &str) {
+    let mut node = test_node(domain, "player");
     let sensor_name = sensor_topic.trim_start_matches('/');
     let (ns, base) = match sensor_name.rsplit_once('/') {
         Some((ns, base)) => (format!("/{ns}"), base.to_string()),
         None => ("/".to_string(), sensor_name.to_string()),
     };
-    let t = topic(&mut node, &ns, &base, "sensor_msgs", "PointCloud2");
-    let clouds = node.create_publisher::<Dds<PointCloud2>>(&t, Some(qos())).expect("publisher");
-    let t = topic(&mut node, &ns, &base, "sensor_msgs", "Image");
-    let images = node.create_publisher::<Dds<Image>>(&t, Some(qos())).expect("publisher");
-    let t = topic(&mut node, &ns, "camera_info", "sensor_msgs", "CameraInfo");
-    let infos = node.create_publisher::<Dds<CameraInfo>>(&t, Some(qos())).expect("publisher");
-    let t = topic(&mut node, &ns, &base, "sensor_msgs", "LaserScan");
-    let scans = node.create_publisher::<Dds<LaserScanMsg>>(&t, Some(qos())).expect("publisher");
-    let t = topic(&mut node, "/", "tf", "tf2_msgs", "TFMessage");
-    let tf = node.create_publisher::<TfMessage>(&t, Some(qos())).expect("publisher");
-    let t = topic(&mut node, "/edtmap", "frame_stats", "diagnostic_msgs", "DiagnosticArray");
-    let stats = node.create_subscription::<DiagnosticArray>(&t, Some(qos())).expect("subscription");
+    let clouds = publisher::<Dds<PointCloud2>>(&mut node, &ns, &base, "sensor_msgs", "PointCloud2");
+    let images = publisher::<Dds<Image>>(&mut node, &ns, &base, "sensor_msgs", "Image");
+    let infos = publisher::<Dds<CameraInfo>>(&mut node, &ns, "camera_info", "sensor_msgs", "CameraInfo");
+    let scans = publisher::<Dds<LaserScanMsg>>(&mut node, &ns, &base, "sensor_msgs", "LaserScan");
+    let tf = publisher::<TfMessage>(&mut node, "/", "tf", "tf2_msgs", "TFMessage");
+    let stats = frame_stats(&mut node);
     let t = topic(&mut node, "/edtmap", "esdf_pointcloud", "sensor_msgs", "PointCloud2");
     let esdf = node.create_subscription::<Dds<PointCloud2>>(&t, Some(qos())).expect("subscription");
     let srv = |base: &str| Name::new("/edtmap", base).expect("name");
@@ -486,34 +531,10 @@ fn subdir(dir: &Path, name: &str) -> std::path::PathBuf {
 
 /// Publishes the whole recording at once, then bad messages.
 fn flood(d: &Path, domain: u16) {
-    let participant = DomainParticipantBuilder::new(domain)
-        .with_only_networks([IpAddr::V4(Ipv4Addr::LOCALHOST)])
-        .build()
-        .expect("participant");
-    let context = Context::from_domain_participant(participant).expect("context");
-    let mut node = context
-        .new_node(NodeName::new("/", "flood").expect("name"), NodeOptions::new().enable_rosout(false))
-        .expect("node");
-    let t = node
-        .create_topic(
-            &Name::new("/", "points").expect("name"),
-            MessageTypeName::new("sensor_msgs", "PointCloud2"),
-            &qos(),
-        )
-        .expect("topic");
-    let points = node.create_publisher::<Dds<PointCloud2>>(&t, Some(qos())).expect("publisher");
-    let t = node
-        .create_topic(&Name::new("/", "tf").expect("name"), MessageTypeName::new("tf2_msgs", "TFMessage"), &qos())
-        .expect("topic");
-    let tf = node.create_publisher::<TfMessage>(&t, Some(qos())).expect("publisher");
-    let t = node
-        .create_topic(
-            &Name::new("/edtmap", "frame_stats").expect("name"),
-            MessageTypeName::new("diagnostic_msgs", "DiagnosticArray"),
-            &qos(),
-        )
-        .expect("topic");
-    let stats = node.create_subscription::<DiagnosticArray>(&t, Some(qos())).expect("subscription");
+    let mut node = test_node(domain, "flood");
+    let points = publisher::<Dds<PointCloud2>>(&mut node, "/", "points", "sensor_msgs", "PointCloud2");
+    let tf = publisher::<TfMessage>(&mut node, "/", "tf", "tf2_msgs", "TFMessage");
+    let stats = frame_stats(&mut node);
     let reader = edtmap_ros::mcap::McapReader::open(&d.join("rec.mcap")).expect("recording");
     let topics = ["/tf".to_string(), "/points".to_string()];
     let mut messages = Vec::new();
@@ -560,74 +581,32 @@ fn flood(d: &Path, domain: u16) {
 fn a_published_two_sensor_recording_maps_like_its_replay() {
     let dir = tempfile::tempdir().expect("temp dir");
     let d = dir.path();
-    let config = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../configs/ugv_corridor_camera.toml");
-    let config = config.to_str().expect("utf-8");
+    let two = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../configs/ugv_corridor_camera.toml");
     let frames = 3u64;
-    let rec = run_in(d, &["record", "--config", config, "--frames", &frames.to_string(), "rec.mcap"], MIN);
-    assert_eq!(rec.code(), Some(0), "{}", rec.stderr);
-    let replay = run_in(
-        d,
-        &["run", "--config", "rec.toml", "--dataset", "rec.mcap", "--out", "replay", "--save", "replay.edtmap"],
-        MIN,
-    );
-    assert_eq!(replay.code(), Some(0), "{}", replay.stderr);
+    record_and_replay(d, &["--config", two.to_str().expect("utf-8"), "--frames", &frames.to_string()]);
     // Poses from /tf (map → base_link), the mounts from the [[sensors]] entries.
-    let domain = 100 + (std::process::id() + 53) % 100;
-    let mut node_config = std::fs::read_to_string(d.join("rec.toml")).expect("config");
-    node_config.push_str("\n[ros]\npose_topic = \"/tf\"\nworld_frame = \"map\"\nbody_frame = \"base_link\"\nlocalhost_only = true\npose_wait_s = 5.0\n");
-    std::fs::write(d.join("node.toml"), node_config).expect("write config");
-    let mut cmd = bin();
-    cmd.args(["-v", "node", "--config", "node.toml", "--save", "node.edtmap"])
-        .current_dir(d)
-        .env("ROS_DOMAIN_ID", domain.to_string());
-    let child =
-        cmd.stdin(Stdio::null()).stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().expect("the node starts");
-    let pid = child.id();
-    let outcome = std::panic::catch_unwind(|| publish_each_frame(d, domain as u16, 2 * frames));
-    // SAFETY: kill on our own child's pid.
-    unsafe { libc::kill(pid as libc::pid_t, libc::SIGINT) };
-    let run = finish(child, MIN);
-    if let Err(e) = outcome {
-        panic!("{:?}\nnode stdout:\n{}\nnode stderr:\n{}", e.downcast_ref::<String>(), run.stdout, run.stderr);
-    }
-    assert_eq!(run.code(), Some(0), "{}\n{}", run.stdout, run.stderr);
-    assert!(run.stdout.contains(&format!("{} frames integrated", 2 * frames)), "{}", run.stdout);
+    let ros = "pose_topic = \"/tf\"\nworld_frame = \"map\"\nbody_frame = \"base_link\"\n";
+    let config = std::fs::read_to_string(d.join("rec.toml")).expect("config");
+    let run = live_map_equals_replay(d, "two sensors", 97, &config, ros, 2 * frames, |domain| {
+        publish_each_frame(d, domain, 2 * frames)
+    });
     for (name, topic) in [("lidar_top", "/lidar_top/points"), ("front_camera", "/front_camera/depth/image")] {
         let line = format!("{name} on {topic}: {frames} frames integrated of {frames} received, 0 dropped");
         assert!(run.stdout.contains(&line), "{line}\n{}", run.stdout);
     }
-    let (live, replayed) = (
-        std::fs::read(d.join("node.edtmap")).expect("node map"),
-        std::fs::read(d.join("replay.edtmap")).expect("replay map"),
-    );
-    assert!(live == replayed, "the live map differs from the replay's ({} and {} bytes)", live.len(), replayed.len());
 }
 
 /// Publishes `rec.mcap`'s `/tf`, point clouds, depth images and camera
 /// infos in its order, each sensor message once the node has mapped the
 /// one before it (sent again if discovery lost it), until `frames` are mapped.
 fn publish_each_frame(d: &Path, domain: u16, frames: u64) {
-    let participant = DomainParticipantBuilder::new(domain)
-        .with_only_networks([IpAddr::V4(Ipv4Addr::LOCALHOST)])
-        .build()
-        .expect("participant");
-    let context = Context::from_domain_participant(participant).expect("context");
-    let mut node = context
-        .new_node(NodeName::new("/", "player").expect("name"), NodeOptions::new().enable_rosout(false))
-        .expect("node");
-    let topic = |node: &mut ros2_client::Node, ns: &str, base: &str, pkg: &str, ty: &str| {
-        node.create_topic(&Name::new(ns, base).expect("name"), MessageTypeName::new(pkg, ty), &qos()).expect("topic")
-    };
-    let t = topic(&mut node, "/lidar_top", "points", "sensor_msgs", "PointCloud2");
-    let clouds = node.create_publisher::<Dds<PointCloud2>>(&t, Some(qos())).expect("publisher");
-    let t = topic(&mut node, "/front_camera/depth", "image", "sensor_msgs", "Image");
-    let images = node.create_publisher::<Dds<Image>>(&t, Some(qos())).expect("publisher");
-    let t = topic(&mut node, "/front_camera/depth", "camera_info", "sensor_msgs", "CameraInfo");
-    let infos = node.create_publisher::<Dds<CameraInfo>>(&t, Some(qos())).expect("publisher");
-    let t = topic(&mut node, "/", "tf", "tf2_msgs", "TFMessage");
-    let tf = node.create_publisher::<TfMessage>(&t, Some(qos())).expect("publisher");
-    let t = topic(&mut node, "/edtmap", "frame_stats", "diagnostic_msgs", "DiagnosticArray");
-    let stats = node.create_subscription::<DiagnosticArray>(&t, Some(qos())).expect("subscription");
+    let mut node = test_node(domain, "player");
+    let clouds = publisher::<Dds<PointCloud2>>(&mut node, "/lidar_top", "points", "sensor_msgs", "PointCloud2");
+    let camera = "/front_camera/depth";
+    let images = publisher::<Dds<Image>>(&mut node, camera, "image", "sensor_msgs", "Image");
+    let infos = publisher::<Dds<CameraInfo>>(&mut node, camera, "camera_info", "sensor_msgs", "CameraInfo");
+    let tf = publisher::<TfMessage>(&mut node, "/", "tf", "tf2_msgs", "TFMessage");
+    let stats = frame_stats(&mut node);
 
     let reader = edtmap_ros::mcap::McapReader::open(&d.join("rec.mcap")).expect("recording");
     let topics: Vec<String> =
