@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Checks that a refactor left the maps byte-identical: builds revision BASE
-# (default: the commit before issue 14's backend refactor) and the working
+# (default: the build before the backends became a trait) and the working
 # tree, saves the map of `edtmap demo`, of every built-in scene (both
 # integration modes) and of the two shared recordings with each, and
 # compares the files byte for byte.

@@ -1,4 +1,4 @@
-//! A 3DMatch-layout folder from another camera (issue 13, class 8): its
+//! A 3DMatch-layout folder from another camera: its
 //! `camera-intrinsics.txt` and its images' size give the camera, over the
 //! shipped config's 640 × 480 `[sensor]`, with a warning naming both;
 //! `[dataset] intrinsics = "config"` makes `[sensor]` win. The mapped wall

@@ -1,4 +1,4 @@
-//! One skip rule for every kind of folder recording (issue 13, class 7):
+//! One skip rule for every kind of folder recording:
 //! a frame's own problem (its image or cloud corrupt, its pose missing) is
 //! skipped under `on_error = "skip"` and stops the run under `"stop"`,
 //! keeping and writing the frames before it, whether it is the first frame

@@ -1,4 +1,4 @@
-//! `edtmap query`'s points file is read strictly (issue 13): a line that is
+//! `edtmap query`'s points file is read strictly: a line that is
 //! not three finite numbers is an error naming the file, the line, the
 //! field and the value, never a silently dropped "header" or a zero; and
 //! `edtmap export` writes a JSON sidecar locating the array in the world.

@@ -3,7 +3,7 @@
 //! `cargo bench -p edtmap-cpu --bench projection`: one frame of each
 //! built-in scene with the window its config gives, projected with
 //! `mark_misses` (tiles culled, a LiDAR's tests reordered) and with the
-//! definition on every voxel, as projection ran before issue 15.
+//! definition on every voxel, as projection ran before the per-geometry fast paths.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use edtmap_core::construction::{project_job, OgmOptions};

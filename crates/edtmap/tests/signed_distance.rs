@@ -1,6 +1,6 @@
-//! Signed distance against analytic scenes (issue 13: on the room data an
-//! occupied voxel centre had gradient (0, 0, 2), free points had gradient
-//! lengths up to 2.6 and some read negative).
+//! Signed distance against analytic scenes: gradients of about unit length where
+//! the field is smooth (not (0, 0, 2) at an occupied voxel's centre, nor
+//! 2.6 long in free space), and free points never negative.
 //!
 //! The signed distance is that to the surface of the obstacle voxels, so a
 //! scene whose obstacles are voxel-aligned half-spaces or boxes has an exact

@@ -1,4 +1,4 @@
-//! Decompression bombs and lying headers (issue 13, class 2): a small
+//! Decompression bombs and lying headers: a small
 //! file whose header claims a huge image or cloud must be refused from the
 //! header, at once, naming the file, the header's value and the expected
 //! one or the limit, without allocating what the header claims.

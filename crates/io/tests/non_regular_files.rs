@@ -1,4 +1,4 @@
-//! Inputs that are not regular files (issue 13, class 5): a FIFO named
+//! Inputs that are not regular files: a FIFO named
 //! like a frame, a cloud, a pose file or a recording, and devices such as
 //! `/dev/zero`, are refused by every reader with an error saying what they
 //! are, instead of blocking on the FIFO or reading the device forever.
