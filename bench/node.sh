@@ -16,12 +16,14 @@
 # middleware; bench/node_fastdds.py): every output after every frame at
 # 10 Hz for --fastdds-seconds, with each output's delivery ratio and
 # latency and the node's memory every 10 s.
-# Appends the tables to docs/results.md.
+# Prints the tables and writes them (with the date, commit and machine) to
+# target/bench/node.md; the page docs/benchmarks/node.md is updated from it
+# by hand.
 #
 #   bash bench/node.sh [--frames N] [--no-append] [--ros-python PY [--fastdds-seconds S]]
 #
 #   --frames N           frames recorded per scene (default 120)
-#   --no-append          print only
+#   --no-append          accepted for older command lines; nothing is appended
 #   --ros-python PY      a Python with tests/interop/requirements-ros.txt
 #                        installed (python3 -m venv V && V/bin/pip install -r ...)
 #   --fastdds-seconds S  how long the Fast DDS run lasts (default 600)
@@ -30,13 +32,12 @@ set -euo pipefail
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 root="$(cd "$here/.." && pwd)"
 frames=120
-append=1
 ros_python=""
 fastdds_seconds=600
 while [ $# -gt 0 ]; do
     case "$1" in
         --frames) frames="$2"; shift 2 ;;
-        --no-append) append=0; shift ;;
+        --no-append) shift ;;
         --ros-python) ros_python="$2"; shift 2 ;;
         --fastdds-seconds) fastdds_seconds="$2"; shift 2 ;;
         -h|--help) sed -n '2,30p' "$0"; exit 0 ;;
@@ -124,19 +125,19 @@ echo "$table"
 echo
 echo "$long"
 [ -n "$fastdds" ] && { echo; echo "$fastdds"; }
-if [ "$append" = 1 ]; then
-    {
+saved="$root/target/bench/node.md"
+mkdir -p "$(dirname "$saved")"
+{
+    echo "### edtmap node over DDS on loopback ($(date -u +%Y-%m-%d), commit $(git rev-parse --short HEAD), $(nproc) cores)"
+    echo
+    echo "\`bash bench/node.sh --frames $frames\`: each scene published one frame as soon as the previous was mapped, get_distances asked continuously from a second participant meanwhile."
+    echo
+    echo "$table"
+    echo
+    echo "$long"
+    if [ -n "$fastdds" ]; then
         echo
-        echo "### edtmap node over DDS on loopback ($(date -u +%Y-%m-%d), commit $(git rev-parse --short HEAD), $(nproc) cores)"
-        echo
-        echo "\`bash bench/node.sh --frames $frames\`: each scene published one frame as soon as the previous was mapped, get_distances asked continuously from a second participant meanwhile."
-        echo
-        echo "$table"
-        echo
-        echo "$long"
-        if [ -n "$fastdds" ]; then
-            echo
-            echo "$fastdds"
-        fi
-    } >>docs/results.md
-fi
+        echo "$fastdds"
+    fi
+} >"$saved"
+echo "node.sh: wrote ${saved#"$root"/} (copy it into docs/benchmarks/node.md by hand)" >&2

@@ -2,27 +2,27 @@
 # Per-frame cost of the whole pipeline on every built-in scene and on the
 # two shared recordings: median and p95 of occupancy, EDT (batch EDT plus
 # global integration) and total, and the global map's bytes per mapped
-# voxel, from each run's report.json. Prints a Markdown table and appends
-# it (with the date, commit and machine) to docs/results.md.
+# voxel, from each run's report.json. Prints a Markdown table and writes
+# it (with the date, commit and machine) to target/bench/pipeline.md; the
+# page docs/benchmarks/pipeline.md is updated from it by hand.
 #
 #   bash bench/pipeline.sh [--frames N] [--backend cpu|gpu] [--no-append]
 #
 #   --frames N    replay N frames of each scene (default: the scene's own
 #                 length); recordings always replay all their frames
-#   --no-append   print only
+#   --no-append   accepted for older command lines; nothing is appended
 #   EDTMAP=PATH   use a built binary instead of `cargo build --release`
 set -euo pipefail
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 root="$(cd "$here/.." && pwd)"
 frames=""
 backend=cpu
-append=1
 while [ $# -gt 0 ]; do
     case "$1" in
         --frames) frames="$2"; shift 2 ;;
         --backend) backend="$2"; shift 2 ;;
-        --no-append) append=0; shift ;;
-        -h|--help) sed -n '2,13p' "$0"; exit 0 ;;
+        --no-append) shift ;;
+        -h|--help) sed -n '2,14p' "$0"; exit 0 ;;
         *) echo "pipeline.sh: unknown argument $1 (see --help)" >&2; exit 2 ;;
     esac
 done
@@ -71,17 +71,13 @@ for name in names:
 EOF
 )
 echo "$table"
-if [ "$append" = 1 ]; then
-    results="$root/docs/results.md"
-    grep -q '^## Pipeline per frame (bench/pipeline.sh)' "$results" ||
-        printf '\n## Pipeline per frame (bench/pipeline.sh)\n\nEvery built-in scene and both shared recordings, each table from one run.\n' >> "$results"
-    {
-        echo
-        echo "### Pipeline per frame, $(date -u +%Y-%m-%d), commit $(git -C "$root" rev-parse --short HEAD), $(nproc) cores, backend $backend"
-        echo
-        echo "\`bash bench/pipeline.sh${frames:+ --frames $frames}${backend:+ --backend $backend}\` (occupancy: construction and fusion; EDT: batch EDT plus global integration; bytes per mapped voxel: the global map's blocks, all layers, over the occupancy blocks' voxels)"
-        echo
-        echo "$table"
-    } >> "$results"
-    echo "pipeline.sh: appended to docs/results.md" >&2
-fi
+saved="$root/target/bench/pipeline.md"
+mkdir -p "$(dirname "$saved")"
+{
+    echo "### Pipeline per frame, $(date -u +%Y-%m-%d), commit $(git -C "$root" rev-parse --short HEAD), $(nproc) cores, backend $backend"
+    echo
+    echo "\`bash bench/pipeline.sh${frames:+ --frames $frames}${backend:+ --backend $backend}\` (occupancy: construction and fusion; EDT: batch EDT plus global integration; bytes per mapped voxel: the global map's blocks, all layers, over the occupancy blocks' voxels)"
+    echo
+    echo "$table"
+} > "$saved"
+echo "pipeline.sh: wrote ${saved#"$root"/} (copy it into docs/benchmarks/pipeline.md by hand)" >&2

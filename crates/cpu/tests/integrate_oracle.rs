@@ -64,7 +64,7 @@ proptest! {
 #[ignore = "a measurement (20 s): cargo test -p edtmap-cpu --test integrate_oracle -- --ignored --nocapture"]
 fn wavefront_error_report() {
     // Not an assertion of the bound (the property test does that): prints the
-    // worst excess per connectivity over many sequences, for the README.
+    // worst excess per connectivity over many sequences, for docs/how-it-works.md.
     for c in [Connectivity::Six, Connectivity::Eighteen, Connectivity::TwentySix] {
         let mut worst: f64 = 0.0;
         for seed in 0..30 {

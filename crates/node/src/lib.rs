@@ -411,7 +411,7 @@ pub fn start(config: &Config, ros: &RosSection, mapper: Mapper) -> Result<NodeHa
         )),
     };
     // Each writer holds its last `depth` samples, delivered or not (the DDS
-    // memory budget, see the README): few of the large clouds, more of the
+    // memory budget, see docs/ros2.md): few of the large clouds, more of the
     // small messages.
     let outputs = Outputs {
         esdf: publ!(node, "esdf_pointcloud", "sensor_msgs", "PointCloud2", reliable_qos(4)),

@@ -24,7 +24,8 @@ const MAX_VALUE: u32 = 1 << 30;
 
 /// Window positions per voxel (before the early exit) above which the
 /// envelope is used instead; measured on random, structured and nearly
-/// empty 256³ grids (docs/results.md).
+/// empty 256³ grids (docs/benchmarks/batch-edt.md, "Choices these
+/// measurements made").
 const MAX_WINDOW_PER_VOXEL: usize = 256;
 
 /// Window offsets between two checks for an early end of the window.
