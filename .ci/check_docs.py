@@ -2,7 +2,7 @@
 """Checks the README and the book under docs/: every relative link points
 at a file that exists, every #anchor at a heading of its page (anchors as
 mdBook and GitHub make them), every page of docs/ is in SUMMARY.md, and
-every Rust and Python example is a tested one: its block follows a
+every Rust, Python and C++ example is a tested one: its block follows a
 `<!-- example: FILE:NAME -->` line and equals, line for line, the code
 between `ANCHOR: NAME` and `ANCHOR_END: NAME` in FILE (a test, run by
 CI), dedented. Exits 1 naming each problem."""
@@ -58,7 +58,7 @@ def tested_region(path: Path, name: str):
 
 
 def examples(page: Path, errors: list):
-    """Checks that each Rust or Python block of `page` is a tested example."""
+    """Checks that each Rust, Python or C++ block of `page` is a tested example."""
     lines = page.read_text(encoding="utf-8").splitlines()
     i = 0
     while i < len(lines):
@@ -67,7 +67,7 @@ def examples(page: Path, errors: list):
             i += 1
             continue
         end = next((j for j in range(i + 1, len(lines)) if lines[j].startswith("```")), len(lines))
-        if fence.group(1) in ("rust", "python"):
+        if fence.group(1) in ("rust", "python", "cpp"):
             where = f"{page.relative_to(ROOT)}:{i + 1}"
             marker = re.match(r"^<!-- example: (\S+):(\w+) -->$", lines[i - 1]) if i > 0 else None
             if not marker:
