@@ -185,6 +185,14 @@ fn several_sensors_replayed_from_a_recording_need_their_topics() {
             ),
             "carries sensor_msgs/Image, but kind = \"points\" takes sensor_msgs/PointCloud2",
         ),
+        (
+            text.replacen(
+                "kind = \"points\"",
+                "kind = \"lidar\"\nrings = 16\nelevation_min_deg = -15.0\nelevation_max_deg = 15.0\nazimuth_bins = 900",
+                1,
+            ),
+            "[[sensors]] \"lidar_top\": kind = \"lidar\" takes range images, which no ROS message carries",
+        ),
     ];
     for (i, (text, want)) in cases.iter().enumerate() {
         let path = d.join(format!("bad{i}.toml"));

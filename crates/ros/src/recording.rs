@@ -73,6 +73,16 @@ impl Recording {
                         origin,
                     );
                 }
+                if let (true, None) = (several, SensorMessage::of(section.kind)) {
+                    return Err(MapError::ConfigFile {
+                        path: origin.to_string(),
+                        message: format!(
+                            "[[sensors]] {:?}: kind = \"lidar\" takes range images, which no ROS message carries; \
+                             a recording's sensor_msgs/PointCloud2 needs kind = \"points\"",
+                            section.name()
+                        ),
+                    });
+                }
                 if let (true, Some(got)) = (several, replay.sensor_type_of(i)) {
                     let wanted = SensorMessage::of(section.kind).unwrap_or(SensorMessage::PointCloud2).ros_type();
                     if got != wanted {
