@@ -132,6 +132,9 @@ impl Source {
 pub(crate) fn build_scene(name: &str, section: Option<&SceneSection>) -> Result<(Scene, usize)> {
     let scene_name: SceneName = name.parse().map_err(|e| anyhow::anyhow!("{e}"))?;
     let section = section.cloned().unwrap_or_else(|| SceneSection::named(name));
+    if section.frames == Some(0) {
+        bail!("[scene] frames = 0: a scene needs at least 1 frame (leave frames out for the scene's own length)");
+    }
     let scene = Scene::new(scene_name, &section.options().context("[scene]")?).context("[scene]")?;
     let n = section.frames.unwrap_or_else(|| scene.default_frames());
     Ok((scene, n))

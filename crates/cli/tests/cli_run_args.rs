@@ -183,3 +183,14 @@ fn planar_maps_keep_the_layers_distances_and_nothing_else() {
     let (ok, _, stderr) = edtmap(&["run", "--scene", "planar", "--frames", "1", "--planar", "--backend", "gpu"]);
     assert!(!ok && stderr.contains("--backend gpu") && stderr.contains("planar") && stderr.contains("CPU"), "{stderr}");
 }
+
+#[test]
+fn a_scene_of_no_frames_names_the_config_key() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let config = dir.path().join("zero.toml");
+    let shipped = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("../../configs/planar.toml"))
+        .expect("planar.toml");
+    std::fs::write(&config, shipped.replace("[scene]\n", "[scene]\nframes = 0\n")).expect("write");
+    let (ok, _, stderr) = edtmap(&["run", "--config", path(&config), "--out", path(dir.path())]);
+    assert!(!ok && stderr.contains("[scene] frames = 0") && !stderr.contains("--frames"), "{stderr}");
+}
