@@ -130,19 +130,53 @@ impl TryFrom<ConfigFile> for Config {
 
 /// `[occupancy]`: voxels, the local volume and log-odds fusion.
 #[derive(Debug, Clone, PartialEq, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(from = "OccupancyTable")]
 pub struct OccupancySection {
     /// Voxel edge length, metres.
     pub voxel_size_m: f64,
     /// Local volume edge lengths, metres.
-    #[serde(default = "default_local_size")]
     pub local_size_m: [f64; 3],
     /// Height of the local volume's centre for ground robots, metres.
-    #[serde(default)]
     pub fixed_height_m: Option<f64>,
     /// Log-odds probabilities (OctoMap's defaults).
-    #[serde(flatten)]
     pub probabilities: OccupancyParams,
+}
+
+/// `[occupancy]` as the file writes it: one flat table. Read field by
+/// field rather than with the probabilities flattened in, so that an
+/// unknown key is refused at its line with the list of the section's keys
+/// (serde reads a flattened struct through a buffer, which loses both).
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct OccupancyTable {
+    voxel_size_m: f64,
+    #[serde(default = "default_local_size")]
+    local_size_m: [f64; 3],
+    #[serde(default)]
+    fixed_height_m: Option<f64>,
+    prob_hit: Option<f64>,
+    prob_miss: Option<f64>,
+    clamp_min: Option<f64>,
+    clamp_max: Option<f64>,
+    occupied_threshold: Option<f64>,
+}
+
+impl From<OccupancyTable> for OccupancySection {
+    fn from(t: OccupancyTable) -> Self {
+        let d = OccupancyParams::default();
+        OccupancySection {
+            voxel_size_m: t.voxel_size_m,
+            local_size_m: t.local_size_m,
+            fixed_height_m: t.fixed_height_m,
+            probabilities: OccupancyParams {
+                prob_hit: t.prob_hit.unwrap_or(d.prob_hit),
+                prob_miss: t.prob_miss.unwrap_or(d.prob_miss),
+                clamp_min: t.clamp_min.unwrap_or(d.clamp_min),
+                clamp_max: t.clamp_max.unwrap_or(d.clamp_max),
+                occupied_threshold: t.occupied_threshold.unwrap_or(d.occupied_threshold),
+            },
+        }
+    }
 }
 
 fn default_local_size() -> [f64; 3] {
