@@ -109,20 +109,13 @@ impl Source {
                     (i, s, frame)
                 })
             })),
-            Source::Recording(r) => {
-                let mut counts = vec![0usize; sensors.len()];
-                Box::new(r.frames(n, name).map(move |(s, r)| {
-                    let index = counts.get(s).copied().unwrap_or(0);
-                    if let Some(c) = counts.get_mut(s) {
-                        *c += 1;
-                    }
-                    let frame = r.map_err(|e| {
-                        let kind = if e.damage { FailureKind::Damage } else { FailureKind::Frame };
-                        Failure { index: e.index, message: e.message, kind }
-                    });
-                    (index, s, frame)
-                }))
-            }
+            Source::Recording(r) => Box::new(r.frames(n, name).map(|(index, s, r)| {
+                let frame = r.map_err(|e| {
+                    let kind = if e.damage { FailureKind::Damage } else { FailureKind::Frame };
+                    Failure { index: e.index, message: e.message, kind }
+                });
+                (index, s, frame)
+            })),
         }
     }
 }

@@ -125,12 +125,9 @@ struct Shared {
     /// The mapper (locked by the mapping thread) and the snapshot the
     /// services read.
     mapper: SharedMapper<CpuBackend>,
-    received: AtomicU64,
-    integrated: AtomicU64,
-    dropped: AtomicU64,
     requests: AtomicU64,
     skipped: Mutex<BTreeMap<String, u64>>,
-    /// Per sensor, in the config's order.
+    /// Per sensor, in the config's order; the node's totals are their sums.
     sensors: Vec<SensorCounters>,
 }
 
@@ -154,24 +151,30 @@ impl Shared {
         self.mapper.snapshot()
     }
 
+    /// Frames integrated, of every sensor.
+    fn integrated(&self) -> u64 {
+        self.sensors.iter().map(|c| c.integrated.load(Relaxed)).sum()
+    }
+
     fn stats(&self) -> NodeStats {
+        let sensors: Vec<SensorStats> = self
+            .sensors
+            .iter()
+            .map(|c| SensorStats {
+                name: c.name.clone(),
+                topic: c.topic.clone(),
+                received: c.received.load(Relaxed),
+                integrated: c.integrated.load(Relaxed),
+                dropped: c.dropped.load(Relaxed),
+            })
+            .collect();
         NodeStats {
-            received: self.received.load(Relaxed),
-            integrated: self.integrated.load(Relaxed),
-            dropped: self.dropped.load(Relaxed),
+            received: sensors.iter().map(|s| s.received).sum(),
+            integrated: sensors.iter().map(|s| s.integrated).sum(),
+            dropped: sensors.iter().map(|s| s.dropped).sum(),
             skipped: self.skipped.lock().unwrap_or_else(PoisonError::into_inner).clone(),
             requests: self.requests.load(Relaxed),
-            sensors: self
-                .sensors
-                .iter()
-                .map(|c| SensorStats {
-                    name: c.name.clone(),
-                    topic: c.topic.clone(),
-                    received: c.received.load(Relaxed),
-                    integrated: c.integrated.load(Relaxed),
-                    dropped: c.dropped.load(Relaxed),
-                })
-                .collect(),
+            sensors,
         }
     }
 }
@@ -441,9 +444,6 @@ pub fn start(config: &Config, ros: &RosSection, mapper: Mapper) -> Result<NodeHa
         slots: Mutex::new(vec![None; names.len()]),
         wake: Condvar::new(),
         mapper: SharedMapper::new(mapper),
-        received: AtomicU64::new(0),
-        integrated: AtomicU64::new(0),
-        dropped: AtomicU64::new(0),
         requests: AtomicU64::new(0),
         skipped: Mutex::new(BTreeMap::new()),
         sensors: names
@@ -624,7 +624,6 @@ fn input_loop(
             }
         }
         let sensor_msg = |k: usize, m: Message, live: &mut LiveFrames| {
-            shared.received.fetch_add(1, Relaxed);
             shared.sensors[k].received.fetch_add(1, Relaxed);
             if let Err(s) = live.add_sensor(k, m, now) {
                 shared.skip(&s);
@@ -653,7 +652,6 @@ fn input_loop(
                     let world = live.world_frame().unwrap_or(DEFAULT_WORLD_FRAME).to_string();
                     let mut slots = shared.slots.lock().unwrap_or_else(PoisonError::into_inner);
                     if slots[k].replace((frame, info, world)).is_some() {
-                        shared.dropped.fetch_add(1, Relaxed);
                         shared.sensors[k].dropped.fetch_add(1, Relaxed);
                     }
                     shared.wake.notify_one();
@@ -799,8 +797,9 @@ fn mapping_loop(shared: &Shared, out: Outputs, rates: Rates, camera: Option<Conf
                 continue;
             }
         };
-        let frames = shared.integrated.fetch_add(1, Relaxed) + 1;
         counters.integrated.fetch_add(1, Relaxed);
+        // Only this thread integrates: the sum is this frame's number.
+        let frames = shared.integrated();
         if let Some((radius, period)) = rates.clearing {
             if due(Some(period), &mut last_clear, Instant::now()) {
                 let at = frame.t_world_sensor.translation.vector;

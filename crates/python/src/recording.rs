@@ -72,9 +72,9 @@ impl PyRecording {
         std::thread::Builder::new()
             .name("edtmap-recording".into())
             .spawn(move || {
-                for frame in recording.frames(n, &name) {
+                for (_, sensor, frame) in recording.frames(n, &name) {
                     // The receiver is gone when Python dropped the recording.
-                    if tx.send(frame).is_err() {
+                    if tx.send((sensor, frame)).is_err() {
                         return;
                     }
                 }

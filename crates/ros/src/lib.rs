@@ -22,7 +22,7 @@ pub mod tf;
 mod wire;
 pub mod writer;
 
-pub use replay::{FrameError, RosOptions, RosReplay, SensorTopic};
+pub use replay::{FrameError, RosOptions, RosReplay, SensorFrame, SensorTopic};
 pub use writer::RecordingWriter;
 
 use std::path::Path;

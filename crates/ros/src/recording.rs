@@ -28,8 +28,6 @@ pub enum Recording {
 pub struct RecordingFailure {
     /// The frame's position in the recording: among its sensor's frames.
     pub index: usize,
-    /// Its sensor's position in the config's sensors.
-    pub sensor: usize,
     /// File, topic, stamp and reason.
     pub message: String,
     /// Whether the recording is damaged here, so nothing after it can be
@@ -73,7 +71,10 @@ impl Recording {
                         origin,
                     );
                 }
-                if let (true, None) = (several, SensorMessage::of(section.kind)) {
+                if !several {
+                    continue;
+                }
+                let Some(message) = SensorMessage::of(section.kind) else {
                     return Err(MapError::ConfigFile {
                         path: origin.to_string(),
                         message: format!(
@@ -82,9 +83,9 @@ impl Recording {
                             section.name()
                         ),
                     });
-                }
-                if let (true, Some(got)) = (several, replay.sensor_type_of(i)) {
-                    let wanted = SensorMessage::of(section.kind).unwrap_or(SensorMessage::PointCloud2).ros_type();
+                };
+                if let Some(got) = replay.sensor_type_of(i) {
+                    let wanted = message.ros_type();
                     if got != wanted {
                         return Err(MapError::ConfigFile {
                             path: origin.to_string(),
@@ -176,24 +177,24 @@ impl Recording {
     }
 
     /// The first `n` frames, or failures in their place; `name` names the
-    /// recording in a folder's messages. Each comes with its sensor's
-    /// position in the config's sensors: a ROS recording with several
-    /// sensor topics gives them in the order it holds them, and its `n`
-    /// counts the messages of every sensor topic together.
+    /// recording in a folder's messages. Each comes with its position among
+    /// its sensor's frames and its sensor's position in the config's
+    /// sensors: a ROS recording with several sensor topics gives them in the
+    /// order it holds them, and its `n` counts the messages of every sensor
+    /// topic together.
     pub fn frames<'a>(
         &'a self,
         n: usize,
         name: &'a str,
-    ) -> Box<dyn Iterator<Item = (usize, Result<Frame, RecordingFailure>)> + 'a> {
+    ) -> Box<dyn Iterator<Item = (usize, usize, Result<Frame, RecordingFailure>)> + 'a> {
         match self {
             Recording::Folder(set) => Box::new((0..n).map(move |i| {
                 let frame = set.frame(i).map_err(|e| RecordingFailure {
                     index: i,
-                    sensor: 0,
                     message: format!("frame {i} of {name}: {e}"),
                     damage: false,
                 });
-                (0, frame)
+                (i, 0, frame)
             })),
             // The index counts only what precedes damage: when every indexed
             // frame is asked for, still report the damage that ends the file.
@@ -203,15 +204,14 @@ impl Recording {
                     replay
                         .sensor_frames()
                         .enumerate()
-                        .take_while(move |(i, (_, r))| *i < n || (all && r.as_ref().is_err_and(|e| e.fatal)))
-                        .map(|(_, (s, r))| {
-                            let frame = r.map_err(|e| RecordingFailure {
+                        .take_while(move |(i, f)| *i < n || (all && f.frame.as_ref().is_err_and(|e| e.fatal)))
+                        .map(|(_, f)| {
+                            let frame = f.frame.map_err(|e| RecordingFailure {
                                 index: e.index,
-                                sensor: e.sensor,
                                 message: e.to_string(),
                                 damage: e.fatal,
                             });
-                            (s, frame)
+                            (f.index, f.sensor, frame)
                         }),
                 )
             }

@@ -419,16 +419,21 @@ impl RosReplay {
     /// The first sensor's frames in file order; damage ends them with a
     /// fatal error. With several sensors, see [`Self::sensor_frames`].
     pub fn frames(&self) -> impl Iterator<Item = Result<Frame, FrameError>> + '_ {
-        self.sensor_frames().filter(|(s, _)| *s == 0).map(|(_, r)| r)
+        // The first sensor's topic leads `present` when the recording has it.
+        let first = usize::from(self.sensors[0].msg_type.is_some());
+        self.stream(&self.present[..first]).map(|f| f.frame)
     }
 
     /// Every sensor's frames in the order the recording holds them (the
-    /// order they were recorded in), each with its sensor's position in
-    /// [`RosOptions::sensors`]; a frame's [`FrameError::index`] counts the
-    /// messages of its own topic. Damage ends them with a fatal error
+    /// order they were recorded in), each with its sensor and its position
+    /// among that sensor's messages. Damage ends them with a fatal error
     /// (given as the first sensor's).
-    pub fn sensor_frames(&self) -> impl Iterator<Item = (usize, Result<Frame, FrameError>)> + '_ {
-        let topics = &self.present;
+    pub fn sensor_frames(&self) -> impl Iterator<Item = SensorFrame> + '_ {
+        self.stream(&self.present)
+    }
+
+    /// The frames of the sensor topics `topics`, in file order.
+    fn stream<'a>(&'a self, topics: &'a [String]) -> impl Iterator<Item = SensorFrame> + 'a {
         let mut counts = vec![0usize; self.opts.sensors.len()];
         let mut done = false;
         self.container.messages(topics).map_while(move |item| {
@@ -440,7 +445,7 @@ impl RosReplay {
                     let sensor = self.opts.sensors.iter().position(|s| s.topic == raw.topic).unwrap_or(0);
                     let index = counts[sensor];
                     counts[sensor] += 1;
-                    (sensor, self.frame(&raw, sensor, index))
+                    SensorFrame { sensor, index, frame: self.frame(&raw, sensor, index) }
                 }
                 Err(e) => {
                     done = true;
@@ -453,9 +458,20 @@ impl RosReplay {
                         reason: format!("the recording is damaged here, the rest is unreadable: {e}"),
                         fatal: true,
                     };
-                    (0, Err(error))
+                    SensorFrame { sensor: 0, index: counts[0], frame: Err(error) }
                 }
             })
         })
     }
+}
+
+/// A sensor message of a recording as a frame, or why it is not one.
+#[derive(Debug)]
+pub struct SensorFrame {
+    /// Its sensor's position in [`RosOptions::sensors`].
+    pub sensor: usize,
+    /// Its position among its sensor's messages, from 0.
+    pub index: usize,
+    /// The frame, or the error that took its place.
+    pub frame: Result<Frame, FrameError>,
 }

@@ -331,12 +331,13 @@ fn two_sensor_topics_replay_in_recorded_order_each_with_its_mount() {
             .filter(|m| m.topic.ends_with("points"))
             .map(|m| usize::from(m.topic == "/rear/points"))
             .collect();
-        assert_eq!(got.iter().map(|(s, _)| *s).collect::<Vec<_>>(), want);
+        assert_eq!(got.iter().map(|f| f.sensor).collect::<Vec<_>>(), want);
         let mut per_sensor = [0usize; 2];
-        for (s, r) in &got {
-            let index = per_sensor[*s];
+        for f in &got {
+            let (s, index) = (&f.sensor, per_sensor[f.sensor]);
             per_sensor[*s] += 1;
-            match r {
+            assert_eq!(f.index, index, "sensor {s}: each frame's position among its sensor's");
+            match &f.frame {
                 // The cut cloud fails alone, named by its sensor's topic and index.
                 Err(e) => {
                     assert!((*s, index) == (0, 2) && e.sensor == 0 && e.index == 2 && !e.fatal, "{e}");
@@ -365,7 +366,7 @@ fn two_sensor_topics_replay_in_recorded_order_each_with_its_mount() {
             replay.warnings()
         );
         assert_eq!((replay.len_of(0), replay.len_of(1), replay.sensor_type_of(0)), (0, 7, None));
-        assert!(replay.sensor_frames().all(|(s, r)| s == 1 && r.is_ok()));
+        assert!(replay.sensor_frames().all(|f| f.sensor == 1 && f.frame.is_ok()));
         // All of them missing, or two sensors on one topic, is refused.
         let opts = RosOptions { sensors: vec![gone.clone(), gone.clone()], ..options("/points", "/odom") };
         let err = RosReplay::open(&path, &opts).expect_err("one topic twice").to_string();

@@ -76,6 +76,6 @@ pub(crate) fn recording(
     }
     let n = limit.unwrap_or(recording.len()).min(recording.len());
     let name = path.file_name().map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().into_owned());
-    let frames = recording.frames(n, &name).map(|(_, r)| r.map_err(|f| f.message)).collect::<Result<Vec<_>, _>>()?;
+    let frames = recording.frames(n, &name).map(|(_, _, r)| r.map_err(|f| f.message)).collect::<Result<Vec<_>, _>>()?;
     Ok(Frames { name, frames })
 }
