@@ -84,11 +84,29 @@ impl Observations {
         let v = &self.voxels[i];
         if v.load(Relaxed) & obs == 0 {
             v.fetch_or(obs, Relaxed);
-            let [cx, cy, _] = self.cell_dims;
-            let t = &self.touched[c[0] / CELL + cx * (c[1] / CELL + cy * (c[2] / CELL))];
-            if !t.load(Relaxed) {
-                t.store(true, Relaxed);
-            }
+            self.touch(c);
+        }
+    }
+
+    /// [`Self::mark`] for a caller that alone marks voxel `i` while it
+    /// runs (a tile of the projection, which no other thread touches): a
+    /// plain load and store where [`Self::mark`] needs an atomic OR.
+    #[inline]
+    pub fn mark_alone(&self, c: [usize; 3], i: usize, obs: u8) {
+        let v = &self.voxels[i];
+        let bits = v.load(Relaxed);
+        if bits & obs == 0 {
+            v.store(bits | obs, Relaxed);
+            self.touch(c);
+        }
+    }
+
+    #[inline]
+    fn touch(&self, c: [usize; 3]) {
+        let [cx, cy, _] = self.cell_dims;
+        let t = &self.touched[c[0] / CELL + cx * (c[1] / CELL + cy * (c[2] / CELL))];
+        if !t.load(Relaxed) {
+            t.store(true, Relaxed);
         }
     }
 

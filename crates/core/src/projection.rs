@@ -27,7 +27,7 @@ use cull::{TileCull, TILE};
 use depth::DepthMiss;
 use lidar::LidarMiss;
 use nalgebra::Isometry3;
-use planar::PlanarMiss;
+use planar::{PlanarMiss, Span};
 use rayon::prelude::*;
 
 /// [`crate::Backend::project_volume`]'s byte for a voxel that is not a miss.
@@ -173,7 +173,12 @@ impl ProjectJob<'_> {
 /// cheaper order, [`lidar`]; a camera's against per-pixel thresholds,
 /// [`depth`], which also decides whole tiles from the depths their pixels
 /// measured; a planar scan's against per-beam thresholds, its beam found
-/// without `atan2`, [`planar`]). The misses are exactly the definition's.
+/// without `atan2`, which also decides whole tiles from the thresholds of
+/// the beams they span, [`planar`]). The misses are exactly the
+/// definition's.
+///
+/// Each tile is marked by one thread with [`Observations::mark_alone`]:
+/// nothing else may mark `obs` while this runs.
 pub fn mark_misses(obs: &Observations, job: &ProjectJob<'_>) {
     let geom = job.voxel_to_sensor();
     let lidar = LidarMiss::new(job);
@@ -183,13 +188,13 @@ pub fn mark_misses(obs: &Observations, job: &ProjectJob<'_>) {
     let decide = match (&lidar, &depth, &planar) {
         (Some(l), _, _) => Decide::Lidar(l),
         (None, Some(d), _) => Decide::Depth(d),
-        (None, None, Some(p)) => Decide::Planar(p),
+        (None, None, Some(p)) => Decide::Planar(p, Span::ANY),
         (None, None, None) => Decide::Definition(job),
     };
     let sup = match &decide {
         Decide::Lidar(l) => Some(l.free_below_sup()),
         Decide::Depth(d) => Some(d.free_below_sup()),
-        Decide::Planar(p) => Some(p.free_below_sup()),
+        Decide::Planar(p, _) => Some(p.free_below_sup()),
         Decide::Definition(_) => None,
     };
     let Some(cull) = TileCull::new(job, &geom, bin_free_below_m, sup) else {
@@ -205,6 +210,7 @@ pub fn mark_misses(obs: &Observations, job: &ProjectJob<'_>) {
         }
         match &decide {
             Decide::Depth(d) => mark_depth_tile(obs, &geom, d, lo, hi, TILE),
+            Decide::Planar(p, _) => mark_planar_tile(obs, &geom, p, lo, hi, TILE),
             _ => mark_tile(obs, &geom, &decide, lo, hi),
         }
     });
@@ -251,8 +257,8 @@ enum Decide<'a, 'j> {
     Lidar(&'a LidarMiss<'j>),
     /// A camera's per-pixel thresholds.
     Depth(&'a DepthMiss<'j>),
-    /// A planar scan's per-beam thresholds.
-    Planar(&'a PlanarMiss<'j>),
+    /// A planar scan's per-beam thresholds, and what a tile's beams bound.
+    Planar(&'a PlanarMiss<'j>, Span),
     /// [`ProjectJob::is_miss_at`] itself.
     Definition(&'a ProjectJob<'j>),
 }
@@ -263,7 +269,57 @@ fn mark_all(obs: &Observations, lo: [usize; 3], hi: [usize; 3]) {
     for z in lo[2]..hi[2] {
         for y in lo[1]..hi[1] {
             for x in lo[0]..hi[0] {
-                obs.mark([x, y, z], x + nx * (y + ny * z), OBS_MISS);
+                obs.mark_alone([x, y, z], x + nx * (y + ny * z), OBS_MISS);
+            }
+        }
+    }
+}
+
+/// A planar scan's tile `lo..hi` (edge `edge` across the scan): decided
+/// whole where its beams' thresholds allow, else in quarters across the
+/// scan down to [`SUBTILE`], else voxel by voxel.
+fn mark_planar_tile(
+    obs: &Observations,
+    geom: &VoxelToSensor,
+    p: &PlanarMiss<'_>,
+    lo: [usize; 3],
+    hi: [usize; 3],
+    edge: usize,
+) {
+    let (tile, span) = p.tile(geom, lo, hi);
+    match tile {
+        depth::Tile::None => {}
+        depth::Tile::All => mark_slab(obs, geom, p, lo, hi),
+        depth::Tile::Each if edge > SUBTILE => {
+            let half = edge / 2;
+            for part in 0..4 {
+                let sub_lo = [lo[0] + (part & 1) * half, lo[1] + (part >> 1) * half, lo[2]];
+                let sub_hi = [(sub_lo[0] + half).min(hi[0]), (sub_lo[1] + half).min(hi[1]), hi[2]];
+                if sub_lo[0] < sub_hi[0] && sub_lo[1] < sub_hi[1] {
+                    mark_planar_tile(obs, geom, p, sub_lo, sub_hi, half);
+                }
+            }
+        }
+        depth::Tile::Each => mark_tile(obs, geom, &Decide::Planar(p, span), lo, hi),
+    }
+}
+
+/// Marks the voxels `lo..hi` that lie in a planar scan's slab: a tile
+/// whose every voxel there is a miss.
+fn mark_slab(obs: &Observations, geom: &VoxelToSensor, p: &PlanarMiss<'_>, lo: [usize; 3], hi: [usize; 3]) {
+    let [nx, ny, _] = obs.volume().dims;
+    for z in lo[2]..hi[2] {
+        for y in lo[1]..hi[1] {
+            let shared = geom.row(y, z);
+            let all = match p.row_in_slab(geom, &shared, lo[0], hi[0]) {
+                Some(false) => continue,
+                Some(true) => true,
+                None => false,
+            };
+            for x in lo[0]..hi[0] {
+                if all || p.in_slab(geom.point_in_row(&shared, x)) {
+                    obs.mark_alone([x, y, z], x + nx * (y + ny * z), OBS_MISS);
+                }
             }
         }
     }
@@ -275,6 +331,11 @@ fn mark_tile(obs: &Observations, geom: &VoxelToSensor, decide: &Decide<'_, '_>, 
     for z in lo[2]..hi[2] {
         for y in lo[1]..hi[1] {
             let shared = geom.row(y, z);
+            if let Decide::Planar(p, _) = decide {
+                if p.row_in_slab(geom, &shared, lo[0], hi[0]) == Some(false) {
+                    continue;
+                }
+            }
             let mut ring_hint = 0;
             // A row's decisions first, its marks after: a camera's
             // decisions have no branch, so their loads overlap.
@@ -284,7 +345,7 @@ fn mark_tile(obs: &Observations, geom: &VoxelToSensor, decide: &Decide<'_, '_>, 
                 let miss = match decide {
                     Decide::Lidar(l) => l.is_miss_at(p, &mut ring_hint),
                     Decide::Depth(d) => d.is_miss_at(p),
-                    Decide::Planar(s) => s.is_miss_at(p),
+                    Decide::Planar(s, span) => s.is_miss_in(p, *span),
                     Decide::Definition(job) => job.is_miss_at(p),
                 };
                 misses |= u32::from(miss) << (x - lo[0]);
@@ -292,7 +353,7 @@ fn mark_tile(obs: &Observations, geom: &VoxelToSensor, decide: &Decide<'_, '_>, 
             while misses != 0 {
                 let x = lo[0] + misses.trailing_zeros() as usize;
                 misses &= misses - 1;
-                obs.mark([x, y, z], x + nx * (y + ny * z), OBS_MISS);
+                obs.mark_alone([x, y, z], x + nx * (y + ny * z), OBS_MISS);
             }
         }
     }

@@ -31,7 +31,7 @@ use crate::sensor::{PinholeCamera, View};
 pub(super) const TILE: usize = 8;
 /// Relative slack on lengths for `f32` rounding (of a voxel centre, of a
 /// norm): some ten times the few units in the last place they err by.
-const REL_SLACK: f64 = 1e-6;
+pub(super) const REL_SLACK: f64 = 1e-6;
 /// How far outside the image a pixel coordinate must be for a tile to be
 /// skipped, pixels (its `f32` rounding errs by far less).
 const PIXEL_MARGIN: f64 = 1.0;
