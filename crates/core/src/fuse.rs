@@ -2,7 +2,10 @@
 //! read-back of the local volume's states for the batch EDT.
 
 use crate::Observations;
-use crate::{BlockKey, CoreError, Grid3, LocalVolume, LogOdds, OccupancyMap, VoxelState, BLOCK_SIDE, OBS_NONE};
+use crate::{
+    BlockKey, CoreError, Grid3, LocalVolume, LogOdds, OccupancyBlock, OccupancyMap, SharedBlock, VoxelState,
+    BLOCK_SIDE, OBS_NONE,
+};
 use rayon::prelude::*;
 
 /// What one fusion changed.
@@ -21,49 +24,56 @@ pub struct FuseReport {
     pub rewritten_blocks: usize,
 }
 
-/// Adds `obs` to `map` with log-odds `lo`. Blocks with observations are
-/// taken out of the map, updated in parallel (one task per block, so no
-/// locks) and put back.
+/// Adds `obs` to `map` with log-odds `lo`. Blocks that may hold
+/// observations are taken out of the map, updated in parallel (one task per
+/// block, so no locks; a block is made only where a voxel of it was
+/// observed) and put back.
 pub fn fuse(map: &mut OccupancyMap, obs: &Observations, lo: &LogOdds) -> FuseReport {
     let vol = *obs.volume();
-    let keys: Vec<BlockKey> =
-        vol.blocks().into_par_iter().filter(|&k| obs.block_touched(k) && block_observed(obs, &vol, k)).collect();
-    let before = map.len();
-    let mut blocks = map.take(&keys);
-    let blocks_allocated = keys.len() - (before - map.len());
-    let per_block: Vec<(usize, usize, bool)> = blocks
-        .par_iter_mut()
-        .map(|(key, block)| {
-            let (mut updated, mut changed, mut rewritten) = (0, 0, false);
-            for_each_voxel(&vol, *key, |i, offset| {
+    let keys: Vec<BlockKey> = vol.blocks().into_par_iter().filter(|&k| obs.block_touched(k)).collect();
+    let stored = map.take_shared(&keys);
+    let per_block: Vec<(Option<Box<OccupancyBlock>>, Fused)> = keys
+        .par_iter()
+        .zip(stored)
+        .map(|(&key, stored)| {
+            let had = stored.is_some();
+            let mut block = stored.map(|b| SharedBlock::into_owned(Some(b)));
+            let mut fused = Fused::default();
+            for_each_voxel(&vol, key, |i, offset| {
                 let o = obs.get(i);
                 if o != OBS_NONE {
+                    let block = block.get_or_insert_with(Box::default);
                     let old = block.log_odds[offset];
                     let new = lo.update(old, o);
                     block.log_odds[offset] = new;
-                    updated += 1;
-                    changed += usize::from(lo.state(old) != lo.state(new));
-                    rewritten |= new.to_bits() != old.to_bits();
+                    fused.updated += 1;
+                    fused.changed += usize::from(lo.state(old) != lo.state(new));
+                    fused.rewritten |= new.to_bits() != old.to_bits();
                 }
             });
-            (updated, changed, rewritten)
+            fused.allocated = !had && block.is_some();
+            (block, fused)
         })
         .collect();
-    let changed_blocks = keys.iter().zip(&per_block).filter(|(_, c)| c.1 > 0).map(|(k, _)| *k).collect();
-    map.restore(blocks);
-    FuseReport {
-        voxels_updated: per_block.iter().map(|c| c.0).sum(),
-        voxels_changed: per_block.iter().map(|c| c.1).sum(),
+    let changed_blocks = keys.iter().zip(&per_block).filter(|(_, (_, f))| f.changed > 0).map(|(k, _)| *k).collect();
+    let report = FuseReport {
+        voxels_updated: per_block.iter().map(|(_, f)| f.updated).sum(),
+        voxels_changed: per_block.iter().map(|(_, f)| f.changed).sum(),
         changed_blocks,
-        blocks_allocated,
-        rewritten_blocks: per_block.iter().filter(|c| c.2).count(),
-    }
+        blocks_allocated: per_block.iter().filter(|(_, f)| f.allocated).count(),
+        rewritten_blocks: per_block.iter().filter(|(_, f)| f.rewritten).count(),
+    };
+    map.restore(keys.into_iter().zip(per_block).filter_map(|(k, (b, _))| b.map(|b| (k, b))).collect());
+    report
 }
 
-fn block_observed(obs: &Observations, vol: &LocalVolume, key: BlockKey) -> bool {
-    let mut any = false;
-    for_each_voxel(vol, key, |i, _| any |= obs.get(i) != OBS_NONE);
-    any
+/// What fusion did to one block.
+#[derive(Debug, Default)]
+struct Fused {
+    updated: usize,
+    changed: usize,
+    rewritten: bool,
+    allocated: bool,
 }
 
 /// Calls `f(local linear index, offset in block)` for the block's voxels
