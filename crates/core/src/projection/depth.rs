@@ -20,7 +20,7 @@
 
 use super::cull::{norm, tile_centre};
 use super::{ProjectJob, VoxelToSensor};
-use crate::sensor::{raw_depth_m, DepthData, DepthImage, PinholeCamera, View};
+use crate::sensor::{DepthData, DepthImage, PinholeCamera, View};
 use rayon::prelude::*;
 
 /// Edge of the pyramid's finest cells, pixels.
@@ -196,14 +196,30 @@ impl<'a> DepthMiss<'a> {
 fn thresholds(job: &ProjectJob<'_>, camera: &PinholeCamera, image: &DepthImage) -> Vec<f32> {
     let w = camera.width as usize;
     let mut out = vec![0.0; w * camera.height as usize];
-    let free = |d: f32| job.free_below_m(d, &camera.range);
+    // [`ProjectJob::free_below_m`] with its conditions evaluated together,
+    // not one after another, so that a row's pixels are done in vector
+    // registers: the same values.
+    let range = camera.range;
+    let none = if job.clear_no_return { range.max_m } else { f32::MIN };
+    let margin = job.free_margin_m;
+    let free = move |d: f32, returned: bool| {
+        let accepted = returned & d.is_finite() & (d > 0.0) & (d >= range.min_m) & (d <= range.max_m);
+        if accepted {
+            d - margin
+        } else {
+            none
+        }
+    };
     match &image.data {
         DepthData::Metres(d) => out.par_chunks_mut(w).zip(d.par_chunks(w)).for_each(|(t, d)| {
-            t.iter_mut().zip(d).for_each(|(t, &d)| *t = free(d));
+            t.iter_mut().zip(d).for_each(|(t, &d)| *t = free(d, true));
         }),
+        // As `crate::sensor::raw_depth_m`: 0 is no return, else the value
+        // times the unit.
         DepthData::U16 { values, metres_per_unit } => {
+            let unit = *metres_per_unit;
             out.par_chunks_mut(w).zip(values.par_chunks(w)).for_each(|(t, v)| {
-                t.iter_mut().zip(v).for_each(|(t, &v)| *t = free(raw_depth_m(v, *metres_per_unit)));
+                t.iter_mut().zip(v).for_each(|(t, &v)| *t = free(v as f32 * unit, v != 0));
             })
         }
     }
@@ -211,21 +227,34 @@ fn thresholds(job: &ProjectJob<'_>, camera: &PinholeCamera, image: &DepthImage) 
 }
 
 /// The finest level: cells of [`CELL_PX`]² pixels (fewer at the edges).
+/// A band of [`CELL_PX`] rows at a time: the least and largest of each
+/// column over the band's rows (element by element, in vector registers),
+/// then of each cell's columns; the comparisons skip NaN as `f32::min` and
+/// `f32::max` do.
 fn finest(free_below_m: &[f32], w: usize, h: usize) -> Level {
+    debug_assert_eq!(free_below_m.len(), w * h);
     let cols = w.div_ceil(CELL_PX);
-    let rows = h.div_ceil(CELL_PX);
-    let bounds = (0..rows)
-        .into_par_iter()
-        .flat_map_iter(|row| {
-            (0..cols).map(move |col| {
-                let mut out = (f32::INFINITY, f32::NEG_INFINITY);
-                for v in row * CELL_PX..((row + 1) * CELL_PX).min(h) {
-                    for &t in &free_below_m[v * w + col * CELL_PX..v * w + ((col + 1) * CELL_PX).min(w)] {
-                        out = (out.0.min(t), out.1.max(t));
-                    }
+    let least = |a: f32, b: f32| if b < a { b } else { a };
+    let largest = |a: f32, b: f32| if b > a { b } else { a };
+    let bounds = free_below_m
+        .par_chunks(w * CELL_PX)
+        .flat_map_iter(|band| {
+            let (mut lo, mut hi) = (vec![f32::INFINITY; w], vec![f32::NEG_INFINITY; w]);
+            for row in band.chunks(w) {
+                for ((lo, hi), &t) in lo.iter_mut().zip(hi.iter_mut()).zip(row) {
+                    *lo = least(*lo, t);
+                    *hi = largest(*hi, t);
                 }
-                out
-            })
+            }
+            let cells = lo.chunks(CELL_PX).zip(hi.chunks(CELL_PX));
+            cells
+                .map(move |(lo, hi)| {
+                    (
+                        lo.iter().fold(f32::INFINITY, |a, &b| least(a, b)),
+                        hi.iter().fold(f32::NEG_INFINITY, |a, &b| largest(a, b)),
+                    )
+                })
+                .collect::<Vec<_>>()
         })
         .collect();
     Level { cell_px: CELL_PX, cols, bounds }
