@@ -760,7 +760,9 @@ unsafe fn integrate(
     // SAFETY: as in `pose`.
     let t_world_sensor = unsafe { pose(t_world_sensor) }?;
     let frame = Frame { stamp_s, t_world_sensor, measurement: measurement(m)? };
-    let s: FrameStats = m.shared.integrate_sensor(m.sensor, &frame)?;
+    // On a thread of rayon's pool, where the stages' parallel loops start
+    // at once instead of being handed over one by one.
+    let s: FrameStats = rayon::scope(|_| m.shared.integrate_sensor(m.sensor, &frame))?;
     if !stats.is_null() {
         let out = edtmap_frame_stats {
             ogm_ms: s.ogm_ms,

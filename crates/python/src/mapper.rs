@@ -80,10 +80,12 @@ impl PyMapper {
         Ok(self.shared.snapshot())
     }
 
-    /// Integrates one frame of sensor `sensor` without the GIL and
-    /// publishes the new snapshot.
+    /// Integrates one frame of sensor `sensor` without the GIL, on a
+    /// thread of rayon's pool (the stages' parallel loops then start at
+    /// once instead of being handed over one by one), and publishes the new
+    /// snapshot.
     fn integrate<'py>(&self, py: Python<'py>, sensor: usize, frame: Frame) -> PyResult<Bound<'py, PyDict>> {
-        let stats = py.detach(|| self.shared.integrate_sensor(sensor, &frame).map_err(map_err))?;
+        let stats = py.detach(|| rayon::scope(|_| self.shared.integrate_sensor(sensor, &frame)).map_err(map_err))?;
         stats_dict(py, &stats)
     }
 }
