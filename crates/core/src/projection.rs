@@ -235,17 +235,23 @@ fn mark_depth_tile(
         depth::Tile::None => {}
         depth::Tile::All => mark_all(obs, lo, hi),
         depth::Tile::Each if edge > SUBTILE => {
-            let half = edge / 2;
-            for part in 0..8 {
-                let sub_lo: [usize; 3] = [0, 1, 2].map(|k| lo[k] + if part >> k & 1 == 1 { half } else { 0 });
-                let sub_hi = [0, 1, 2].map(|k| (sub_lo[k] + half).min(hi[k]));
-                if (0..3).all(|k| sub_lo[k] < sub_hi[k]) {
-                    mark_depth_tile(obs, geom, d, sub_lo, sub_hi, half);
-                }
+            for (sub_lo, sub_hi) in halves(lo, hi, edge / 2, 3) {
+                mark_depth_tile(obs, geom, d, sub_lo, sub_hi, edge / 2);
             }
         }
         depth::Tile::Each => mark_tile(obs, geom, &Decide::Depth(d), lo, hi),
     }
+}
+
+/// The non-empty parts of the box `lo..hi` cut at `half` from `lo` along
+/// its first `axes` axes (the others whole): 2^`axes` parts at most.
+fn halves(lo: [usize; 3], hi: [usize; 3], half: usize, axes: usize) -> impl Iterator<Item = ([usize; 3], [usize; 3])> {
+    (0..1usize << axes).filter_map(move |part| {
+        let cut = |k: usize| k < axes;
+        let sub_lo = [0, 1, 2].map(|k| lo[k] + if cut(k) && part >> k & 1 == 1 { half } else { 0 });
+        let sub_hi = [0, 1, 2].map(|k| if cut(k) { (sub_lo[k] + half).min(hi[k]) } else { hi[k] });
+        (0..3).all(|k| sub_lo[k] < sub_hi[k]).then_some((sub_lo, sub_hi))
+    })
 }
 
 // [`mark_tile`] keeps a row's decisions in the bits of a `u32`.
@@ -291,13 +297,8 @@ fn mark_planar_tile(
         depth::Tile::None => {}
         depth::Tile::All => mark_slab(obs, geom, p, lo, hi),
         depth::Tile::Each if edge > SUBTILE => {
-            let half = edge / 2;
-            for part in 0..4 {
-                let sub_lo = [lo[0] + (part & 1) * half, lo[1] + (part >> 1) * half, lo[2]];
-                let sub_hi = [(sub_lo[0] + half).min(hi[0]), (sub_lo[1] + half).min(hi[1]), hi[2]];
-                if sub_lo[0] < sub_hi[0] && sub_lo[1] < sub_hi[1] {
-                    mark_planar_tile(obs, geom, p, sub_lo, sub_hi, half);
-                }
+            for (sub_lo, sub_hi) in halves(lo, hi, edge / 2, 2) {
+                mark_planar_tile(obs, geom, p, sub_lo, sub_hi, edge / 2);
             }
         }
         depth::Tile::Each => mark_tile(obs, geom, &Decide::Planar(p, span), lo, hi),
