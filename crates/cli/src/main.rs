@@ -119,21 +119,20 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     init_logs(cli.verbose);
     memory::set_max(cli.max_memory);
-    let result = match cli.command {
-        // The node's threads wait on the network; a worker of the pool must not.
+    // The node's threads wait on the network; a worker of the pool must not.
+    let on_network = matches!(cli.command, Command::Node(_));
+    let command = move || match cli.command {
+        Command::Demo(args) => demo::run(&args),
+        Command::Edt(args) => edt::run(&args),
+        Command::Run(args) => run::run(&args),
+        Command::Record(args) => record::record(&args),
         Command::Node(args) => node::run(&args),
-        command => on_pool(move || match command {
-            Command::Demo(args) => demo::run(&args),
-            Command::Edt(args) => edt::run(&args),
-            Command::Run(args) => run::run(&args),
-            Command::Record(args) => record::record(&args),
-            Command::Node(args) => node::run(&args),
-            Command::Query(args) => query::query(&args),
-            Command::Export(args) => query::export(&args),
-            Command::Info(args) => query::info(&args),
-            Command::Picture(args) => pictures::picture(&args),
-        }),
+        Command::Query(args) => query::query(&args),
+        Command::Export(args) => query::export(&args),
+        Command::Info(args) => query::info(&args),
+        Command::Picture(args) => pictures::picture(&args),
     };
+    let result = if on_network { command() } else { on_pool(command) };
     let result = match (result, output::finish()) {
         (Ok(()), Some(e)) => Err(anyhow::anyhow!("cannot write to standard output: {e}")),
         (result, _) => result,
