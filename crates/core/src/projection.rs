@@ -232,14 +232,14 @@ fn mark_depth_tile(
     edge: usize,
 ) {
     match d.tile(geom, lo, hi) {
-        depth::Tile::None => {}
-        depth::Tile::All => mark_all(obs, lo, hi),
-        depth::Tile::Each if edge > SUBTILE => {
+        Tile::None => {}
+        Tile::All => mark_all(obs, lo, hi),
+        Tile::Each if edge > SUBTILE => {
             for (sub_lo, sub_hi) in halves(lo, hi, edge / 2, 3) {
                 mark_depth_tile(obs, geom, d, sub_lo, sub_hi, edge / 2);
             }
         }
-        depth::Tile::Each => mark_tile(obs, geom, &Decide::Depth(d), lo, hi),
+        Tile::Each => mark_tile(obs, geom, &Decide::Depth(d), lo, hi),
     }
 }
 
@@ -252,6 +252,18 @@ fn halves(lo: [usize; 3], hi: [usize; 3], half: usize, axes: usize) -> impl Iter
         let sub_hi = [0, 1, 2].map(|k| if cut(k) { (sub_lo[k] + half).min(hi[k]) } else { hi[k] });
         (0..3).all(|k| sub_lo[k] < sub_hi[k]).then_some((sub_lo, sub_hi))
     })
+}
+
+/// What a tile's voxels are, decided whole from a sphere around them
+/// (a camera's pixels, a planar scan's beams).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Tile {
+    /// No voxel is a miss.
+    None,
+    /// Every voxel is a miss (a planar scan's: every voxel in its slab).
+    All,
+    /// Decide voxel by voxel.
+    Each,
 }
 
 // [`mark_tile`] keeps a row's decisions in the bits of a `u32`.
@@ -294,14 +306,14 @@ fn mark_planar_tile(
 ) {
     let (tile, span) = p.tile(geom, lo, hi);
     match tile {
-        depth::Tile::None => {}
-        depth::Tile::All => mark_slab(obs, geom, p, lo, hi),
-        depth::Tile::Each if edge > SUBTILE => {
+        Tile::None => {}
+        Tile::All => mark_slab(obs, geom, p, lo, hi),
+        Tile::Each if edge > SUBTILE => {
             for (sub_lo, sub_hi) in halves(lo, hi, edge / 2, 2) {
                 mark_planar_tile(obs, geom, p, sub_lo, sub_hi, edge / 2);
             }
         }
-        depth::Tile::Each => mark_tile(obs, geom, &Decide::Planar(p, span), lo, hi),
+        Tile::Each => mark_tile(obs, geom, &Decide::Planar(p, span), lo, hi),
     }
 }
 

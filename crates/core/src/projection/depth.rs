@@ -19,7 +19,7 @@
 //! decided whole is decided as the definition decides each of its voxels.
 
 use super::cull::{norm, tile_centre};
-use super::{ProjectJob, VoxelToSensor};
+use super::{ProjectJob, Tile, VoxelToSensor};
 use crate::sensor::{DepthData, DepthImage, PinholeCamera, View};
 use rayon::prelude::*;
 
@@ -35,17 +35,6 @@ const MAX_CELLS: usize = 4;
 const REL_SLACK: f64 = 1e-6;
 /// How far beyond the pixels a sphere projects to its box reaches, pixels.
 const PIXEL_MARGIN: f64 = 1.0;
-
-/// What a tile's voxels are, decided from its sphere.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(super) enum Tile {
-    /// No voxel is a miss.
-    None,
-    /// Every voxel is a miss.
-    All,
-    /// Decide voxel by voxel.
-    Each,
-}
 
 /// One level of the pyramid: per cell, the least and largest threshold.
 #[derive(Debug, Clone)]
