@@ -239,7 +239,7 @@ pub(crate) fn write_plys(mapper: &CliMapper, out: &Path) -> Result<Vec<PathBuf>>
     let centre = |v: VoxelIndex| v.0.map(|c| ((c as f64 + 0.5) * vs) as f32);
     let mut occupied = Vec::new();
     for (key, block) in map.occupancy().iter() {
-        for (offset, &value) in block.log_odds.iter().enumerate() {
+        for (offset, value) in block.log_odds.iter_stored() {
             if map.log_odds().state(value) == VoxelState::Occupied {
                 occupied.push(centre(key.voxel(offset)));
             }

@@ -120,7 +120,7 @@ pub(crate) fn info(args: &InfoArgs) -> Result<()> {
     }
     let (mut free, mut occupied) = (0usize, 0usize);
     for (_, b) in map.occupancy().iter() {
-        for &v in &b.log_odds {
+        for (_, v) in b.log_odds.iter_stored() {
             match map.log_odds().state(v) {
                 edtmap::VoxelState::Free => free += 1,
                 edtmap::VoxelState::Occupied => occupied += 1,

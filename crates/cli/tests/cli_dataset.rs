@@ -87,7 +87,7 @@ fn replays_the_3dmatch_frames_and_the_velodyne_pair() {
             .occupancy()
             .iter()
             .flat_map(|(_, b)| b.log_odds.iter())
-            .filter(|&&v| map.log_odds().state(v) == edtmap::VoxelState::Occupied)
+            .filter(|&v| map.log_odds().state(v) == edtmap::VoxelState::Occupied)
             .count();
         assert_eq!(ply_vertices(&out.join("occupied.ply")), occupied, "{name}");
         assert!(ply_vertices(&out.join("edt.ply")) > 1000, "{name}");

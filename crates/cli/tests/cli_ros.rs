@@ -110,7 +110,7 @@ fn occupied_x(dir: &Path) -> Vec<f64> {
     let vs = map.voxel_size_m();
     let mut xs = Vec::new();
     for (key, block) in map.occupancy().iter() {
-        for (offset, &v) in block.log_odds.iter().enumerate() {
+        for (offset, v) in block.log_odds.iter().enumerate() {
             if map.log_odds().state(v) == edtmap::VoxelState::Occupied {
                 xs.push(key.voxel(offset).centre(vs)[0]);
             }

@@ -312,7 +312,7 @@ impl IntegrationWorld {
 
     fn set(&mut self, v: VoxelIndex, occupied: bool) {
         let value = if occupied { self.lo.max } else { self.lo.min };
-        self.map.get_or_insert(v.block()).log_odds[v.offset_in_block()] = value;
+        self.map.get_or_insert(v.block()).log_odds.set(v.offset_in_block(), value);
         self.obstacles.retain(|&o| o != v);
         if occupied {
             self.obstacles.push(v);

@@ -2,7 +2,8 @@
 //! and the offset to that obstacle, in the same 8³ blocks as the
 //! occupancy (paper §IV-C), plus the parameters of its integration.
 
-use crate::{BlockKey, BlockMap, CoreError, VoxelIndex, BLOCK_VOXELS};
+use crate::layers::{Cell, Layers, LAYER_VOXELS};
+use crate::{BlockKey, BlockMap, CoreError, VoxelIndex};
 use serde::{Deserialize, Serialize};
 
 /// Squared distance of a voxel with no obstacle within the cutoff.
@@ -25,24 +26,38 @@ pub const NO_OFFSET: [i16; 3] = [i16::MIN; 3];
 /// bytes: its squared distance follows from it, and within the cutoff (at
 /// most 10 000 voxels, [`GlobalParams::cutoff`]) every component fits an
 /// `i16`. A distance that disagrees with its obstacle cannot be stored.
-#[derive(Debug, Clone, PartialEq)]
-#[repr(C)]
+///
+/// Stored by layer: a layer with no obstacle within the cutoff takes no
+/// memory once [`Self::trim`]med (a planar map's blocks hold one layer).
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct EdtBlock {
     /// Nearest obstacle less the voxel's own index, [`NO_OFFSET`] beyond
     /// the cutoff.
-    pub to_nearest: [[i16; 3]; BLOCK_VOXELS],
+    pub to_nearest: Layers<[i16; 3]>,
 }
 
-impl Default for EdtBlock {
-    fn default() -> Self {
-        EdtBlock { to_nearest: [NO_OFFSET; BLOCK_VOXELS] }
+impl Cell for [i16; 3] {
+    const EMPTY: [i16; 3] = NO_OFFSET;
+    const EMPTY_LAYER: &'static [[i16; 3]; LAYER_VOXELS] = &[NO_OFFSET; LAYER_VOXELS];
+}
+
+impl crate::BlockHeap for EdtBlock {
+    fn heap_bytes(&self) -> usize {
+        self.to_nearest.heap_bytes()
     }
 }
 
 impl EdtBlock {
     /// Whether no voxel of the block has an obstacle within the cutoff.
     pub fn is_far(&self) -> bool {
-        self.to_nearest.iter().all(|o| o[0] == i16::MIN)
+        self.to_nearest.is_empty()
+    }
+
+    /// Frees the layers with no obstacle within the cutoff; returns
+    /// whether the block is all far ([`Self::is_far`]) and so need not be
+    /// kept.
+    pub fn trim(&mut self) -> bool {
+        self.to_nearest.trim()
     }
 
     /// Squared distance of the voxel at `offset`, voxels², [`FAR_DIST_SQ`]
@@ -76,7 +91,7 @@ impl EdtBlock {
         if offset_dist_sq(o) != dist_sq {
             return Err(EntryError::Mismatch { voxel, dist_sq, nearest });
         }
-        self.to_nearest[offset] = o;
+        self.to_nearest.set(offset, o);
         Ok(())
     }
 
@@ -88,7 +103,7 @@ impl EdtBlock {
     pub fn put(&mut self, key: BlockKey, offset: usize, dist_sq: u32, nearest: VoxelIndex) {
         if let Err(e) = self.set(key, offset, dist_sq, nearest) {
             debug_assert!(false, "{e}");
-            self.to_nearest[offset] = NO_OFFSET;
+            self.to_nearest.set(offset, NO_OFFSET);
         }
     }
 }

@@ -45,7 +45,7 @@ pub fn fuse(map: &mut OccupancyMap, obs: &Observations, lo: &LogOdds) -> FuseRep
                     let block = block.get_or_insert_with(Box::default);
                     let old = block.log_odds[offset];
                     let new = lo.update(old, o);
-                    block.log_odds[offset] = new;
+                    block.log_odds.set(offset, new);
                     fused.updated += 1;
                     fused.changed += usize::from(lo.state(old) != lo.state(new));
                     fused.rewritten |= new.to_bits() != old.to_bits();

@@ -3,8 +3,8 @@
 //! update it, the queries read it, the map file stores it.
 
 use crate::{
-    BlockMap, CoreError, Cutoff, EdtMap, FixedMap, GlobalParams, LogOdds, Obstacles, OccupancyMap, OccupancyParams,
-    VoxelIndex, VoxelState,
+    CoreError, Cutoff, EdtMap, FixedMap, GlobalParams, LogOdds, Obstacles, OccupancyMap, OccupancyParams, VoxelIndex,
+    VoxelState,
 };
 
 /// The global map, as layers over one voxel grid (nvblox's layer cake):
@@ -160,12 +160,9 @@ impl GlobalMap {
         self.edt.entry(v)
     }
 
-    /// Memory held by the blocks, bytes (payloads plus key and pointer).
+    /// Memory held by the blocks, bytes ([`crate::BlockMap::bytes`]).
     pub fn bytes(&self) -> usize {
-        fn layer<B: Default>(m: &BlockMap<B>) -> usize {
-            m.len() * (std::mem::size_of::<B>() + 3 * 4 + std::mem::size_of::<usize>())
-        }
-        layer(&self.occupancy) + layer(&self.edt) + layer(&self.fixed)
+        self.occupancy.bytes() + self.edt.bytes() + self.fixed.bytes()
     }
 
     /// The lowest and highest z index of the voxels the sensors observed
@@ -173,7 +170,7 @@ impl GlobalMap {
     pub fn observed_z_range(&self) -> Option<(i32, i32)> {
         let mut range: Option<(i32, i32)> = None;
         for (key, block) in self.occupancy.iter() {
-            for (offset, &value) in block.log_odds.iter().enumerate() {
+            for (offset, value) in block.log_odds.iter_stored() {
                 if self.log_odds.state(value) != VoxelState::Unknown {
                     let z = key.voxel(offset).0[2];
                     range = Some(range.map_or((z, z), |(lo, hi)| (lo.min(z), hi.max(z))));
@@ -198,7 +195,7 @@ impl GlobalMap {
         let faces = if self.is_planar() { &FACES[..4] } else { &FACES[..] };
         let mut out = Vec::new();
         for (key, block) in self.occupancy.iter() {
-            for (offset, &value) in block.log_odds.iter().enumerate() {
+            for (offset, value) in block.log_odds.iter_stored() {
                 if self.log_odds.state(value) != VoxelState::Free {
                     continue;
                 }
@@ -231,10 +228,10 @@ mod tests {
         // A free 3 x 1 x 1 bar next to an occupied voxel, all else unknown.
         for x in 0..3 {
             let v = VoxelIndex([x, 0, 0]);
-            map.occupancy_mut().get_or_insert(v.block()).log_odds[v.offset_in_block()] = lo.min;
+            map.occupancy_mut().get_or_insert(v.block()).log_odds.set(v.offset_in_block(), lo.min);
         }
         let wall = VoxelIndex([3, 0, 0]);
-        map.occupancy_mut().get_or_insert(wall.block()).log_odds[wall.offset_in_block()] = lo.max;
+        map.occupancy_mut().get_or_insert(wall.block()).log_odds.set(wall.offset_in_block(), lo.max);
         assert_eq!(map.frontiers(), vec![VoxelIndex([0, 0, 0]), VoxelIndex([1, 0, 0]), VoxelIndex([2, 0, 0])]);
         assert_eq!(map.state(wall), VoxelState::Occupied);
         assert!(map.obstacles().contains(wall));
@@ -249,8 +246,10 @@ mod tests {
         for x in 0..6 {
             for y in 0..5 {
                 let v = VoxelIndex([x, y, 3]);
-                map.occupancy_mut().get_or_insert(v.block()).log_odds[v.offset_in_block()] =
-                    if x == 5 { lo.max } else { lo.min };
+                map.occupancy_mut()
+                    .get_or_insert(v.block())
+                    .log_odds
+                    .set(v.offset_in_block(), if x == 5 { lo.max } else { lo.min });
             }
         }
         assert_eq!(map.observed_z_range(), Some((3, 3)));
@@ -265,7 +264,7 @@ mod tests {
         // One more observed layer makes the map 3D: every free voxel of the
         // square has unknown above or below.
         let above = VoxelIndex([9, 9, 4]);
-        map.occupancy_mut().get_or_insert(above.block()).log_odds[above.offset_in_block()] = lo.max;
+        map.occupancy_mut().get_or_insert(above.block()).log_odds.set(above.offset_in_block(), lo.max);
         assert!(!map.is_planar());
         assert_eq!(map.frontiers().len(), 25);
     }

@@ -38,6 +38,7 @@ mod fuse;
 mod global_map;
 mod grid;
 mod index;
+pub mod layers;
 pub mod memory;
 mod observations;
 mod obstacles;
@@ -68,8 +69,8 @@ pub use memory::MemoryBudget;
 pub use observations::Observations;
 pub use obstacles::{FixedBlock, FixedMap, Obstacles, MAX_FIXED_BLOCKS};
 pub use occupancy::{
-    par_fill, BlockMap, LogOdds, MapStamp, OccupancyBlock, OccupancyMap, OccupancyParams, SharedBlock, OBS_HIT,
-    OBS_MISS, OBS_NONE, UNOBSERVED,
+    par_fill, BlockHeap, BlockMap, LogOdds, MapStamp, OccupancyBlock, OccupancyMap, OccupancyParams, SharedBlock,
+    OBS_HIT, OBS_MISS, OBS_NONE, UNOBSERVED,
 };
 pub use projection::{
     decide_uncertain, mark_misses, ProjectJob, VoxelToSensor, PROJ_MISS, PROJ_NOT_MISS, PROJ_UNCERTAIN,

@@ -15,6 +15,8 @@ pub struct FixedBlock {
     pub bits: [u64; 8],
 }
 
+impl crate::BlockHeap for FixedBlock {}
+
 /// Fixed obstacles: voxels that count as occupied whatever the sensors say.
 pub type FixedMap = BlockMap<FixedBlock>;
 
@@ -98,8 +100,10 @@ impl Obstacles<'_> {
             // `LogOdds::state` as one comparison per voxel (UNOBSERVED, -inf,
             // is never above the threshold), which vectorises.
             let (occupied, unknown) = (self.log_odds.occupied, self.unknown_as_occupied);
-            for (w, voxels) in out.iter_mut().zip(b.log_odds.chunks_exact(64)) {
-                *w = voxels
+            for (z, w) in out.iter_mut().enumerate() {
+                *w = b
+                    .log_odds
+                    .layer_or_empty(z)
                     .iter()
                     .enumerate()
                     .fold(0, |a, (i, &l)| a | u64::from(l > occupied || (unknown && l == UNOBSERVED)) << i);
@@ -167,9 +171,11 @@ mod tests {
         let mut fixed = FixedMap::new();
         for x in [-9, -3, 0, 5, 12] {
             let v = VoxelIndex([x, 2, -1]);
-            map.get_or_insert(v.block()).log_odds[v.offset_in_block()] = lo.max;
+            map.get_or_insert(v.block()).log_odds.set(v.offset_in_block(), lo.max);
         }
-        map.get_or_insert(VoxelIndex([1, 2, -1]).block()).log_odds[VoxelIndex([1, 2, -1]).offset_in_block()] = lo.min;
+        map.get_or_insert(VoxelIndex([1, 2, -1]).block())
+            .log_odds
+            .set(VoxelIndex([1, 2, -1]).offset_in_block(), lo.min);
         fixed.insert(VoxelIndex([7, 2, -1]));
         for unknown_as_occupied in [false, true] {
             let obs = Obstacles { occupancy: &map, log_odds: &lo, fixed: &fixed, unknown_as_occupied };

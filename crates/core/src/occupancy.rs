@@ -5,7 +5,8 @@
 //! (a hit wins over a miss, as in OctoMap), so the fused value does not
 //! depend on the order in which rays or threads touched the voxel.
 
-use crate::{BlockKey, CoreError, VoxelIndex, VoxelState, BLOCK_VOXELS};
+use crate::layers::{Cell, Layers, LAYER_VOXELS};
+use crate::{BlockKey, CoreError, VoxelIndex, VoxelState};
 use rayon::prelude::*;
 use rustc_hash::FxHashMap as HashMap;
 use serde::{Deserialize, Serialize};
@@ -132,18 +133,17 @@ impl LogOdds {
     }
 }
 
-/// One 8³ block of occupancy, voxels at [`VoxelIndex::offset_in_block`].
-#[derive(Debug, Clone, PartialEq)]
-#[repr(C)]
+/// One 8³ block of occupancy, voxels at [`VoxelIndex::offset_in_block`],
+/// stored by layer: a layer no sensor observed takes no memory.
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct OccupancyBlock {
     /// Log-odds per voxel, [`UNOBSERVED`] where never seen.
-    pub log_odds: [f32; BLOCK_VOXELS],
+    pub log_odds: Layers<f32>,
 }
 
-impl Default for OccupancyBlock {
-    fn default() -> Self {
-        OccupancyBlock { log_odds: [UNOBSERVED; BLOCK_VOXELS] }
-    }
+impl Cell for f32 {
+    const EMPTY: f32 = UNOBSERVED;
+    const EMPTY_LAYER: &'static [f32; LAYER_VOXELS] = &[UNOBSERVED; LAYER_VOXELS];
 }
 
 /// An unbounded map of blocks, allocated as they are first touched.
@@ -163,6 +163,24 @@ pub struct BlockMap<B> {
     #[allow(clippy::redundant_allocation)]
     blocks: HashMap<BlockKey, Arc<Box<B>>>,
     stamp: MapStamp,
+    /// The blocks' [`BlockHeap::heap_bytes`], summed; `None` once a block
+    /// was handed out to write in place ([`Self::get_or_insert`]), until
+    /// counted again.
+    heap: Option<usize>,
+}
+
+/// Memory a block holds beyond its own size (its allocated layers).
+pub trait BlockHeap {
+    /// Bytes allocated for the block beyond [`std::mem::size_of`] it.
+    fn heap_bytes(&self) -> usize {
+        0
+    }
+}
+
+impl BlockHeap for OccupancyBlock {
+    fn heap_bytes(&self) -> usize {
+        self.log_odds.heap_bytes()
+    }
 }
 
 /// Which map, and which version of it: [`BlockMap::stamp`]. Two stamps are
@@ -184,24 +202,25 @@ impl MapStamp {
 
 impl<B: Clone> Clone for BlockMap<B> {
     fn clone(&self) -> Self {
-        BlockMap { blocks: self.blocks.clone(), stamp: MapStamp::fresh() }
+        BlockMap { blocks: self.blocks.clone(), stamp: MapStamp::fresh(), heap: self.heap }
     }
 }
 
 impl<B: Default> Default for BlockMap<B> {
     fn default() -> Self {
-        BlockMap { blocks: HashMap::default(), stamp: MapStamp::fresh() }
+        BlockMap { blocks: HashMap::default(), stamp: MapStamp::fresh(), heap: Some(0) }
     }
 }
 
 /// The global occupancy map.
 pub type OccupancyMap = BlockMap<OccupancyBlock>;
 
-impl<B: Default + Clone> BlockMap<B> {
+impl<B: Default + Clone + BlockHeap> BlockMap<B> {
     /// The block at `key`, allocated if missing (copied first when a clone
     /// of the map shares it).
     pub fn get_or_insert(&mut self, key: BlockKey) -> &mut B {
         self.stamp.revision += 1;
+        self.heap = None;
         let block: &mut Box<B> = Arc::make_mut(self.blocks.entry(key).or_default());
         block
     }
@@ -233,14 +252,59 @@ impl<B: Default + Clone> BlockMap<B> {
     /// making the blocks writable 0.15–0.3 ms.
     pub fn take_shared(&mut self, keys: &[BlockKey]) -> Vec<Option<SharedBlock<B>>> {
         self.stamp.revision += 1;
-        keys.iter().map(|k| self.blocks.remove(k).map(SharedBlock)).collect()
+        let mut heap = self.heap_bytes();
+        let taken = keys
+            .iter()
+            .map(|k| {
+                let b = self.blocks.remove(k)?;
+                heap -= b.heap_bytes();
+                Some(SharedBlock(b))
+            })
+            .collect();
+        self.heap = Some(heap);
+        taken
     }
 
     /// Puts back blocks taken with [`Self::take_shared`] (made with
     /// [`SharedBlock::new`]).
     pub fn restore_shared(&mut self, blocks: Vec<(BlockKey, SharedBlock<B>)>) {
         self.stamp.revision += 1;
-        self.blocks.extend(blocks.into_iter().map(|(k, b)| (k, b.0)));
+        let mut heap = self.heap_bytes();
+        for (k, b) in blocks {
+            heap += b.0.heap_bytes();
+            if let Some(old) = self.blocks.insert(k, b.0) {
+                heap -= old.heap_bytes();
+            }
+        }
+        self.heap = Some(heap);
+    }
+
+    /// Drops the blocks for whose key `far` holds; returns their keys.
+    pub fn remove_where(&mut self, mut far: impl FnMut(BlockKey) -> bool) -> Vec<BlockKey> {
+        let gone: Vec<BlockKey> = self.blocks.keys().copied().filter(|&k| far(k)).collect();
+        if !gone.is_empty() {
+            self.stamp.revision += 1;
+            let mut heap = self.heap_bytes();
+            for k in &gone {
+                heap -= self.blocks.remove(k).map_or(0, |b| b.heap_bytes());
+            }
+            self.heap = Some(heap);
+        }
+        gone
+    }
+
+    /// Bytes the blocks hold: per block, its entry in the table (key and
+    /// pointer), the shared box's counts and pointer, the block and what
+    /// it allocated ([`BlockHeap`]). Kept as blocks come and go, counted
+    /// afresh after [`Self::get_or_insert`].
+    pub fn bytes(&self) -> usize {
+        let per_block = std::mem::size_of::<BlockKey>() + 4 * std::mem::size_of::<usize>() + std::mem::size_of::<B>();
+        self.len() * per_block + self.heap_bytes()
+    }
+
+    /// The blocks' [`BlockHeap::heap_bytes`], summed.
+    fn heap_bytes(&self) -> usize {
+        self.heap.unwrap_or_else(|| self.blocks.values().map(|b| b.heap_bytes()).sum())
     }
 }
 
@@ -314,18 +378,6 @@ impl<B: Default> BlockMap<B> {
         self.blocks.get(&key).map(|b| &***b)
     }
 
-    /// Drops the blocks for whose key `far` holds; returns their keys.
-    pub fn remove_where(&mut self, mut far: impl FnMut(BlockKey) -> bool) -> Vec<BlockKey> {
-        let gone: Vec<BlockKey> = self.blocks.keys().copied().filter(|&k| far(k)).collect();
-        if !gone.is_empty() {
-            self.stamp.revision += 1;
-            for k in &gone {
-                self.blocks.remove(k);
-            }
-        }
-        gone
-    }
-
     /// Every allocated block, in no particular order.
     pub fn iter(&self) -> impl Iterator<Item = (BlockKey, &B)> {
         self.blocks.iter().map(|(k, b)| (*k, &***b))
@@ -391,7 +443,7 @@ mod tests {
     #[test]
     fn take_and_restore_keep_blocks() {
         let mut m = OccupancyMap::new();
-        m.get_or_insert(BlockKey([0, 0, 0])).log_odds[3] = 1.0;
+        m.get_or_insert(BlockKey([0, 0, 0])).log_odds.set(3, 1.0);
         let taken = m.take(&[BlockKey([0, 0, 0]), BlockKey([1, 0, 0])]);
         assert_eq!(m.len(), 0);
         m.restore(taken);
@@ -403,18 +455,18 @@ mod tests {
     fn blocks_taken_shared_are_copied_only_when_a_clone_holds_them() {
         let (a, b, missing) = (BlockKey([0, 0, 0]), BlockKey([2, -1, 5]), BlockKey([9, 9, 9]));
         let mut m = OccupancyMap::new();
-        m.get_or_insert(a).log_odds[3] = 1.0;
-        m.get_or_insert(b).log_odds[7] = -2.0;
+        m.get_or_insert(a).log_odds.set(3, 1.0);
+        m.get_or_insert(b).log_odds.set(7, -2.0);
         let snapshot = m.clone();
         let before = m.stamp();
         let taken = m.take_shared(&[a, b, missing]);
         assert_eq!((m.len(), taken.iter().filter(|t| t.is_some()).count()), (0, 2));
         let mut blocks: Vec<Box<OccupancyBlock>> = taken.into_iter().map(SharedBlock::into_owned).collect();
         // The missing block is a new one, unobserved.
-        assert!(blocks[2].log_odds.iter().all(|&l| l == UNOBSERVED));
-        blocks[0].log_odds[3] = 5.0;
-        blocks[1].log_odds[7] = 9.0;
-        blocks[2].log_odds[0] = 4.0;
+        assert!(blocks[2].log_odds.iter().all(|l| l == UNOBSERVED));
+        blocks[0].log_odds.set(3, 5.0);
+        blocks[1].log_odds.set(7, 9.0);
+        blocks[2].log_odds.set(0, 4.0);
         m.restore_shared([a, b, missing].into_iter().zip(blocks.into_iter().map(SharedBlock::new)).collect());
         assert_ne!(m.stamp(), before);
         assert_eq!((m.log_odds(a.voxel(3)), m.log_odds(b.voxel(7)), m.log_odds(missing.voxel(0))), (5.0, 9.0, 4.0));
@@ -426,13 +478,13 @@ mod tests {
     fn a_clone_is_a_snapshot_that_later_writes_leave_alone() {
         let (a, b) = (BlockKey([0, 0, 0]), BlockKey([2, -1, 5]));
         let mut m = OccupancyMap::new();
-        m.get_or_insert(a).log_odds[3] = 1.0;
-        m.get_or_insert(b).log_odds[7] = -2.0;
+        m.get_or_insert(a).log_odds.set(3, 1.0);
+        m.get_or_insert(b).log_odds.set(7, -2.0);
         let snapshot = m.clone();
         // Written through both paths a frame uses: in place and taken out.
-        m.get_or_insert(a).log_odds[3] = 5.0;
+        m.get_or_insert(a).log_odds.set(3, 5.0);
         let mut taken = m.take(&[b]);
-        taken[0].1.log_odds[7] = 9.0;
+        taken[0].1.log_odds.set(7, 9.0);
         m.restore(taken);
         assert_eq!((m.log_odds(a.voxel(3)), m.log_odds(b.voxel(7))), (5.0, 9.0));
         assert_eq!((snapshot.log_odds(a.voxel(3)), snapshot.log_odds(b.voxel(7))), (1.0, -2.0));

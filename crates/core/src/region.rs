@@ -347,7 +347,7 @@ pub fn write_back_where(
             block.put(*key, offset, d, o);
         });
     });
-    taken.retain(|(_, b)| !b.is_far());
+    taken.retain_mut(|(_, b)| !b.trim());
     map.restore(taken);
     WriteBack {
         voxels_changed: per_block.iter().map(|b| b.1).sum(),
@@ -410,11 +410,11 @@ pub fn write_back_offsets(
             }
             let mut owned = SharedBlock::into_owned(block);
             if inside {
-                owned.to_nearest = values;
+                owned.to_nearest.assign(&values);
             } else {
-                for_region_voxels(p, candidates[k], |_, off| owned.to_nearest[off] = values[off]);
+                for_region_voxels(p, candidates[k], |_, off| owned.to_nearest.set(off, values[off]));
             }
-            (changed, sum, (!owned.is_far()).then(|| SharedBlock::new(owned)))
+            (changed, sum, (!owned.trim()).then(|| SharedBlock::new(owned)))
         })
         .collect();
     let changed_blocks = candidates.iter().zip(&per_block).filter(|(_, b)| b.0 > 0).map(|(k, _)| *k).collect();
@@ -520,9 +520,9 @@ mod tests {
                     continue;
                 }
                 let block = map.get_or_insert(key);
-                for o in block.to_nearest.iter_mut() {
+                for o in 0..crate::BLOCK_VOXELS {
                     // Some stored values lie beyond the cutoff.
-                    *o = if next(4) < far_share { NO_OFFSET } else { [0, 1, 2].map(|_| next(15) as i16 - 7) };
+                    block.to_nearest.set(o, if next(4) < far_share { NO_OFFSET } else { [0, 1, 2].map(|_| next(15) as i16 - 7) });
                 }
             }
             let candidates = p.region.blocks();

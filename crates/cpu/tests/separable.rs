@@ -40,7 +40,7 @@ impl World {
     fn toggle(&mut self, v: VoxelIndex) {
         let now = !self.set.contains(&v);
         let value = if now { self.lo.max } else { self.lo.min };
-        self.occ.get_or_insert(v.block()).log_odds[v.offset_in_block()] = value;
+        self.occ.get_or_insert(v.block()).log_odds.set(v.offset_in_block(), value);
         if now {
             self.set.insert(v);
         } else {

@@ -42,7 +42,7 @@ fn map_of(mask: &Grid3<bool>) -> GlobalMap {
     let (min, max) = (map.log_odds().min, map.log_odds().max);
     for (i, &o) in mask.as_slice().iter().enumerate() {
         let v = window.world(mask.coords(i));
-        map.occupancy_mut().get_or_insert(v.block()).log_odds[v.offset_in_block()] = if o { max } else { min };
+        map.occupancy_mut().get_or_insert(v.block()).log_odds.set(v.offset_in_block(), if o { max } else { min });
     }
     let batch = edt_with(mask, |&o| o, ScanLayout::default()).expect("batch");
     let stage = IntegrationStage::new(map.params(), VS).expect("valid");

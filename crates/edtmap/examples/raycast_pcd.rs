@@ -89,7 +89,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let occupied = map
         .iter()
         .flat_map(|(_, b)| b.log_odds.iter())
-        .filter(|&&v| lo.state(v) == edtmap::VoxelState::Occupied)
+        .filter(|&v| lo.state(v) == edtmap::VoxelState::Occupied)
         .count();
     let mut sorted = times.clone();
     sorted.sort_by(f64::total_cmp);

@@ -479,7 +479,7 @@ impl<B: Backend> Mapper<B> {
         }
         let mut added = 0;
         for (key, block) in prior.occupancy().iter() {
-            for (offset, &value) in block.log_odds.iter().enumerate() {
+            for (offset, value) in block.log_odds.iter().enumerate() {
                 let v = key.voxel(offset);
                 if prior.log_odds().state(value) == VoxelState::Occupied || prior.fixed_obstacles().contains(v) {
                     self.map.fixed_obstacles_mut().insert(v);

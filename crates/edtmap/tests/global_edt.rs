@@ -87,8 +87,9 @@ fn save_and_load_round_trip_bit_identical() {
     save_map(mapper.map(), &path).expect("save");
     let loaded = load_map(&path).expect("load");
     let blocks = |m: &GlobalMap| {
-        let mut occ: Vec<_> = m.occupancy().iter().map(|(k, b)| (k, b.log_odds.map(f32::to_bits))).collect();
-        let mut edt: Vec<_> = m.edt().iter().map(|(k, b)| (k, b.to_nearest)).collect();
+        let mut occ: Vec<_> =
+            m.occupancy().iter().map(|(k, b)| (k, b.log_odds.iter().map(f32::to_bits).collect::<Vec<_>>())).collect();
+        let mut edt: Vec<_> = m.edt().iter().map(|(k, b)| (k, b.to_nearest.iter().collect::<Vec<_>>())).collect();
         occ.sort_by_key(|b| b.0);
         edt.sort_by_key(|b| b.0);
         (occ, edt)
@@ -124,7 +125,12 @@ fn a_loaded_maps_voxel_size_sets_the_derived_lengths() {
     let go_on = |params: MapperParams| {
         let mut m = Mapper::with_map(sensor.clone(), params, first.map().clone()).expect("mapper");
         m.integrate_frame(&scene.frame(&sensor, 20).expect("frame")).expect("integrate");
-        let mut occ: Vec<_> = m.map().occupancy().iter().map(|(k, b)| (k, b.log_odds.map(f32::to_bits))).collect();
+        let mut occ: Vec<_> = m
+            .map()
+            .occupancy()
+            .iter()
+            .map(|(k, b)| (k, b.log_odds.iter().map(f32::to_bits).collect::<Vec<_>>()))
+            .collect();
         occ.sort_by_key(|b| b.0);
         occ
     };

@@ -25,8 +25,11 @@ fn setup(scene: &str) -> (Scene, Sensor, MapperParams) {
 
 /// Sorted blocks of both hashes of `map`, for exact comparison.
 fn snapshot(map: &GlobalMap) -> (Vec<String>, Vec<String>) {
-    let mut occ: Vec<String> =
-        map.occupancy().iter().map(|(k, b)| format!("{k:?} {:?}", b.log_odds.map(f32::to_bits))).collect();
+    let mut occ: Vec<String> = map
+        .occupancy()
+        .iter()
+        .map(|(k, b)| format!("{k:?} {:?}", b.log_odds.iter().map(f32::to_bits).collect::<Vec<_>>()))
+        .collect();
     let mut edt: Vec<String> = map.edt().iter().map(|(k, b)| format!("{k:?} {:?}", b.to_nearest)).collect();
     occ.sort();
     edt.sort();

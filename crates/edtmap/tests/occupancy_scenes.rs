@@ -158,10 +158,15 @@ fn maps_do_not_depend_on_thread_count() {
             for i in 0..6 {
                 m.integrate_frame(&scene.frame(&sensor, i * 5).expect("frame")).expect("frame");
             }
-            let mut blocks: Vec<_> =
-                m.map().occupancy().iter().map(|(k, b)| (k, b.log_odds.map(f32::to_bits))).collect();
+            let mut blocks: Vec<_> = m
+                .map()
+                .occupancy()
+                .iter()
+                .map(|(k, b)| (k, b.log_odds.iter().map(f32::to_bits).collect::<Vec<_>>()))
+                .collect();
             blocks.sort_by_key(|(k, _)| *k);
-            let mut edt: Vec<_> = m.map().edt().iter().map(|(k, b)| (k, b.to_nearest)).collect();
+            let mut edt: Vec<_> =
+                m.map().edt().iter().map(|(k, b)| (k, b.to_nearest.iter().collect::<Vec<_>>())).collect();
             edt.sort_by_key(|(k, _)| *k);
             (blocks, edt, m.local_edt().dist_sq_vox().to_vec())
         })

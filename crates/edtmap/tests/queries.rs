@@ -21,7 +21,7 @@ fn map_of(lo: [i32; 3], dims: [usize; 3], obstacle: impl Fn([f64; 3]) -> bool) -
     let mask = Grid3::from_fn(dims, |x, y, z| obstacle(window.world([x, y, z]).centre(VS))).expect("dims");
     for (i, &o) in mask.as_slice().iter().enumerate() {
         let v = window.world(mask.coords(i));
-        map.occupancy_mut().get_or_insert(v.block()).log_odds[v.offset_in_block()] = if o { max } else { min };
+        map.occupancy_mut().get_or_insert(v.block()).log_odds.set(v.offset_in_block(), if o { max } else { min });
     }
     let batch = edt_with(&mask, |&o| o, ScanLayout::default()).expect("batch");
     let stage = IntegrationStage::new(map.params(), VS).expect("valid");

@@ -70,7 +70,7 @@ fn occupied_voxels_lie_on_the_depth_points() {
     let map = mapper.map();
     let (mut occupied, mut on_points) = (0usize, 0usize);
     for (key, block) in map.occupancy().iter() {
-        for (offset, &lo) in block.log_odds.iter().enumerate() {
+        for (offset, lo) in block.log_odds.iter().enumerate() {
             if map.log_odds().state(lo) != VoxelState::Occupied {
                 continue;
             }

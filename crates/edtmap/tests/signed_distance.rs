@@ -53,7 +53,7 @@ fn mapper_of(vs: f64, lo: [i32; 3], dims: [usize; 3], obstacle: impl Fn([f64; 3]
     let mask = Grid3::from_fn(dims, |x, y, z| obstacle(window.world([x, y, z]).centre(vs))).expect("dims");
     for (i, &o) in mask.as_slice().iter().enumerate() {
         let v = window.world(mask.coords(i));
-        map.occupancy_mut().get_or_insert(v.block()).log_odds[v.offset_in_block()] = if o { max } else { min };
+        map.occupancy_mut().get_or_insert(v.block()).log_odds.set(v.offset_in_block(), if o { max } else { min });
     }
     let batch = edt_with(&mask, |&o| o, ScanLayout::default()).expect("batch");
     let stage = IntegrationStage::new(map.params(), vs).expect("valid");

@@ -258,8 +258,8 @@ impl GpuFusion {
             let items: Vec<(usize, usize)> = rewritten.iter().copied().enumerate().collect();
             blocks = edtmap_core::par_fill(items, |(k, b)| {
                 let mut block = Box::new(OccupancyBlock::default());
-                for (l, &w) in block.log_odds.iter_mut().zip(&words[k * BLOCK_VOXELS..(k + 1) * BLOCK_VOXELS]) {
-                    *l = f32::from_bits(w ^ UNOBSERVED_BITS);
+                for (o, &w) in words[k * BLOCK_VOXELS..(k + 1) * BLOCK_VOXELS].iter().enumerate() {
+                    block.log_odds.set(o, f32::from_bits(w ^ UNOBSERVED_BITS));
                 }
                 (keys[b], block)
             });

@@ -72,8 +72,8 @@ fn device_fusion_is_the_cpus_frame_after_frame() {
                 let keys: Vec<BlockKey> = cpu_map.iter().map(|(k, _)| k).collect();
                 let k = keys[next(keys.len() as u64) as usize];
                 let (o, v) = (next(512) as usize, next(100) as f32 / 10.0 - 5.0);
-                cpu_map.get_or_insert(k).log_odds[o] = v;
-                gpu_map.get_or_insert(k).log_odds[o] = v;
+                cpu_map.get_or_insert(k).log_odds.set(o, v);
+                gpu_map.get_or_insert(k).log_odds.set(o, v);
             }
             1 => {
                 let x = next(4) as i32 - 1;
@@ -85,6 +85,6 @@ fn device_fusion_is_the_cpus_frame_after_frame() {
         }
     }
     // The clamps were reached: some voxel sits at each.
-    let values: Vec<f32> = cpu_map.iter().flat_map(|(_, b)| b.log_odds.to_vec()).collect();
+    let values: Vec<f32> = cpu_map.iter().flat_map(|(_, b)| b.log_odds.iter().collect::<Vec<_>>()).collect();
     assert!(values.contains(&lo.max) && values.contains(&lo.min), "clamps never reached");
 }

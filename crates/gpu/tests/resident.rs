@@ -19,7 +19,7 @@ use edtmap_cpu::CpuBackend;
 
 /// Every block of `map`, sorted, as comparable rows.
 fn rows(map: &EdtMap) -> Vec<(BlockKey, Vec<[i16; 3]>)> {
-    let mut rows: Vec<_> = map.iter().map(|(k, b)| (k, b.to_nearest.to_vec())).collect();
+    let mut rows: Vec<_> = map.iter().map(|(k, b)| (k, b.to_nearest.iter().collect::<Vec<_>>())).collect();
     rows.sort_by_key(|r| r.0 .0);
     rows
 }

@@ -43,7 +43,7 @@
 //! use edtmap_io::mapfile::{read_map, write_map};
 //!
 //! let mut map = GlobalMap::new(0.1, OccupancyParams::default(), GlobalParams::default())?;
-//! map.occupancy_mut().get_or_insert(BlockKey([0, 0, 0])).log_odds[0] = 0.85;
+//! map.occupancy_mut().get_or_insert(BlockKey([0, 0, 0])).log_odds.set(0, 0.85);
 //! let path = std::env::temp_dir().join(format!("edtmap_doc_{}.edtmap", std::process::id()));
 //! write_map(&path, &map)?;
 //! let back = read_map(&path)?;
@@ -197,7 +197,7 @@ mod tests {
             FixedMap::new(),
         )
         .expect("valid");
-        map.occupancy_mut().get_or_insert(BlockKey([-1, 2, 3])).log_odds[7] = -0.25;
+        map.occupancy_mut().get_or_insert(BlockKey([-1, 2, 3])).log_odds.set(7, -0.25);
         map.fixed_obstacles_mut().get_or_insert(BlockKey([0, 0, 0])).bits[3] = 1 << 40;
         map
     }

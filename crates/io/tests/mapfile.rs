@@ -112,8 +112,8 @@ fn random_map(seed: u64, blocks: usize) -> MapContents {
     for i in 0..blocks {
         let key = edges.get(i).copied().unwrap_or_else(|| random_key(&mut rng));
         let block = map.occupancy.get_or_insert(key);
-        for v in block.log_odds.iter_mut() {
-            *v = if rng.random_bool(0.3) { UNOBSERVED } else { rng.random_range(lo.min..=lo.max) };
+        for o in 0..BLOCK_VOXELS {
+            block.log_odds.set(o, if rng.random_bool(0.3) { UNOBSERVED } else { rng.random_range(lo.min..=lo.max) });
         }
     }
     for i in 0..blocks / 2 {
@@ -147,7 +147,10 @@ fn assert_same(a: &MapContents, b: &MapContents) {
     assert_eq!((a.occupancy.len(), a.edt.len(), a.fixed.len()), (b.occupancy.len(), b.edt.len(), b.fixed.len()));
     for (key, block) in a.occupancy.iter() {
         let other = b.occupancy.get(key).expect("same keys");
-        assert!(block.log_odds.iter().zip(&other.log_odds).all(|(x, y)| x.to_bits() == y.to_bits()), "block {key:?}");
+        assert!(
+            block.log_odds.iter().zip(other.log_odds.iter()).all(|(x, y)| x.to_bits() == y.to_bits()),
+            "block {key:?}"
+        );
     }
     for (key, block) in a.edt.iter() {
         assert_eq!(Some(block), b.edt.get(key), "block {key:?}");
@@ -320,7 +323,7 @@ fn global_map_converts_both_ways() {
     let mut global = GlobalMap::new(VOXEL_SIZE_M, OccupancyParams::default(), params).expect("valid");
     let v = VoxelIndex([3, -4, 5]);
     let max = global.log_odds().max;
-    global.occupancy_mut().get_or_insert(v.block()).log_odds[v.offset_in_block()] = max;
+    global.occupancy_mut().get_or_insert(v.block()).log_odds.set(v.offset_in_block(), max);
     let fixed_blocks = global.fixed_obstacles().len();
     let bytes = mapfile::encode_map(&global).expect("valid");
     let back = mapfile::decode_map(&bytes).expect("round trip");
@@ -334,7 +337,7 @@ fn every_truncation_is_rejected() {
     let mut rng = StdRng::seed_from_u64(3);
     let mut map = empty_map();
     let key = random_key(&mut rng);
-    map.occupancy.get_or_insert(key).log_odds[5] = 0.5;
+    map.occupancy.get_or_insert(key).log_odds.set(5, 0.5);
     map.edt.get_or_insert(key);
     map.fixed.get_or_insert(key).bits[0] = 1;
     let bytes = encode_map(&map).expect("valid");
@@ -652,15 +655,16 @@ fn wall_map() -> MapContents {
     let (wall_y, wall_x) = (16, 0..32);
     for key in (0..4).flat_map(|x| (0..4).map(move |y| BlockKey([x, y, 0]))) {
         let block = map.occupancy.get_or_insert(key);
-        for (offset, l) in block.log_odds.iter_mut().enumerate() {
+        for offset in 0..BLOCK_VOXELS {
             let v = key.voxel(offset).0;
-            *l = if v[2] != 0 {
+            let l = if v[2] != 0 {
                 UNOBSERVED
             } else if v[1] == wall_y {
                 lo.max
             } else {
                 lo.min
             };
+            block.log_odds.set(offset, l);
         }
     }
     let r = cutoff.reach;
@@ -695,7 +699,9 @@ fn version_2_file_is_less_than_half_the_version_1_file() {
 /// voxels: those holding something other than a new block holds.
 fn stored_layers(map: &MapContents) -> usize {
     let occ = map.occupancy.iter().map(|(_, b)| {
-        (0..8).filter(|z| b.log_odds[64 * z..64 * z + 64].iter().any(|l| l.to_bits() != UNOBSERVED.to_bits())).count()
+        (0..8)
+            .filter(|z| (64 * z..64 * z + 64).map(|o| b.log_odds[o]).any(|l| l.to_bits() != UNOBSERVED.to_bits()))
+            .count()
     });
     let edt = map
         .edt
@@ -788,7 +794,7 @@ fn writer_refuses_a_map_it_could_not_read_back() {
     map.occupancy_params.prob_hit = 0.3;
     assert!(map.global().expect_err("bad prob_hit").to_string().contains("prob_hit"));
     let mut map = empty_map();
-    map.occupancy.get_or_insert(BlockKey([0, 0, 0])).log_odds[9] = f32::NAN;
+    map.occupancy.get_or_insert(BlockKey([0, 0, 0])).log_odds.set(9, f32::NAN);
     assert!(matches!(write_map(&path, &map), Err(IoError::MapFile { error: MapFileError::Corrupt(_), .. })));
     assert_eq!(fs::read_dir(dir.path()).expect("list").count(), 0, "nothing written");
 }

@@ -87,7 +87,7 @@ impl TopView {
             if z0 > hi || z0.saturating_add(side - 1) < lo {
                 continue;
             }
-            for (offset, &value) in block.log_odds.iter().enumerate() {
+            for (offset, value) in block.log_odds.iter_stored() {
                 let state = map.log_odds().state(value);
                 let v = key.voxel(offset);
                 if state == VoxelState::Unknown || !(lo..=hi).contains(&v.0[2]) {
@@ -190,7 +190,7 @@ fn voxel_distance_m(map: &GlobalMap, v: VoxelIndex) -> f32 {
 pub fn densest_layer(map: &GlobalMap) -> Option<i32> {
     let mut counts = std::collections::BTreeMap::<i32, usize>::new();
     for (key, block) in map.occupancy().iter() {
-        for (offset, &value) in block.log_odds.iter().enumerate() {
+        for (offset, value) in block.log_odds.iter_stored() {
             if map.log_odds().state(value) != VoxelState::Unknown {
                 *counts.entry(key.voxel(offset).0[2]).or_default() += 1;
             }
@@ -218,7 +218,7 @@ mod tests {
         for (voxels, value) in [(free, lo.min), (occupied, lo.max)] {
             for &v in voxels {
                 let v = VoxelIndex(v);
-                map.occupancy_mut().get_or_insert(v.block()).log_odds[v.offset_in_block()] = value;
+                map.occupancy_mut().get_or_insert(v.block()).log_odds.set(v.offset_in_block(), value);
             }
         }
         map

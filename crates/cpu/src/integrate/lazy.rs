@@ -200,8 +200,8 @@ impl LazyRegion {
 pub fn block_bounds(map: &EdtMap, key: BlockKey) -> Option<SrcBounds> {
     let block = map.get(key)?;
     let mut out: Option<SrcBounds> = None;
-    for (offset, o) in block.to_nearest.iter().enumerate() {
-        if *o == NO_OFFSET {
+    for (offset, o) in block.to_nearest.iter_stored() {
+        if o == NO_OFFSET {
             continue;
         }
         let n = block.nearest(key, offset);

@@ -248,7 +248,11 @@ fn mask_where<T>(v: &[T; BLOCK_VOXELS], hit: impl Fn(&T) -> bool) -> Mask {
 
 /// The obstacles of an EDT block: its voxels at distance 0.
 fn obstacle_bits(b: &EdtBlock) -> Mask {
-    mask_where(&b.to_nearest, |d| *d == [0; 3])
+    let mut m = [0u64; 8];
+    for (z, l) in b.to_nearest.stored() {
+        m[z] = l.iter().enumerate().fold(0, |a, (i, d)| a | u64::from(*d == [0; 3]) << i);
+    }
+    m
 }
 
 fn bit(m: &Mask, o: usize) -> bool {
@@ -413,7 +417,7 @@ fn in_layer(
                     let old = (block.dist_sq(o), block.to_nearest[o]);
                     st.visited += 1;
                     if old != new {
-                        block.to_nearest[o] = new.1;
+                        block.to_nearest.set(o, new.1);
                         out[w] |= 1 << (o % 64);
                         st.changed += 1;
                         st.same += usize::from(old.0 == new.0);
@@ -421,7 +425,7 @@ fn in_layer(
                     }
                 }
             }
-            let back = (!block.is_far()).then(|| SharedBlock::new(block));
+            let back = (!block.trim()).then(|| SharedBlock::new(block));
             (key, back, out, st)
         },
     );
@@ -467,7 +471,12 @@ trait Layer: Sync {
     fn restore(&mut self, blocks: Vec<(BlockKey, Self::Back)>);
     /// Whether the block holds nothing worth keeping (no value within the
     /// cutoff).
-    fn empty(&self, b: &Self::Block) -> bool;
+    /// Frees what the block need not keep.
+    fn empty(&self, b: &mut Self::Block) -> bool;
+    /// Asks for the block's cache lines without waiting for them.
+    fn warm(b: &Self::Block) {
+        warm(b);
+    }
     fn read(b: &Self::Block, o: usize) -> Self::Value;
     fn write(b: &mut Self::Block, o: usize, v: Self::Value);
 }
@@ -499,7 +508,7 @@ impl<T: Copy + PartialEq + Send + Sync> Layer for Cached<'_, T> {
     fn restore(&mut self, blocks: Vec<(BlockKey, Self::Back)>) {
         self.map.extend(blocks);
     }
-    fn empty(&self, b: &Self::Block) -> bool {
+    fn empty(&self, b: &mut Self::Block) -> bool {
         b.iter().all(|&t| t == self.none)
     }
     fn read(b: &Self::Block, o: usize) -> T {
@@ -531,14 +540,17 @@ impl Layer for EdtMap {
     fn restore(&mut self, blocks: Vec<(BlockKey, Self::Back)>) {
         BlockMap::restore_shared(self, blocks);
     }
-    fn empty(&self, b: &EdtBlock) -> bool {
-        b.is_far()
+    fn empty(&self, b: &mut EdtBlock) -> bool {
+        b.trim()
+    }
+    fn warm(b: &EdtBlock) {
+        b.to_nearest.prefetch();
     }
     fn read(b: &EdtBlock, o: usize) -> Out {
         (b.dist_sq(o), b.to_nearest[o])
     }
     fn write(b: &mut EdtBlock, o: usize, v: Out) {
-        b.to_nearest[o] = v.1;
+        b.to_nearest.set(o, v.1);
     }
 }
 
@@ -1091,7 +1103,7 @@ where
             // waited on one miss after another (pass z on 3dmatch-seq01
             // at 2 m: some 15-20 % of the integration).
             for b in blocks.iter() {
-                warm(&*b.1);
+                L::warm(&b.1);
             }
             // The previous pass's blocks along the task's line of blocks
             // from `from` to `to`, looked up once: along its dirty
@@ -1250,7 +1262,7 @@ where
                 st,
                 owned
                     .into_iter()
-                    .map(|(c, b, mask, changed)| (c, (!view.empty(&b)).then(|| L::give(b)), mask, changed))
+                    .map(|(c, mut b, mask, changed)| (c, (!view.empty(&mut b)).then(|| L::give(b)), mask, changed))
                     .collect(),
             )
         },

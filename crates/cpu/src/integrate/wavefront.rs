@@ -361,7 +361,7 @@ fn write_back_blocks(map: &mut EdtMap, p: &Packing, cover: &Cover, buf: &mut Laz
             changed_blocks.push(*key);
         }
     }
-    taken.retain(|(_, b)| !b.is_far());
+    taken.retain_mut(|(_, b)| !b.trim());
     map.restore(taken);
     changed_blocks.sort_unstable();
     WriteBack {

@@ -67,7 +67,7 @@ pub(super) fn check_key<B: Payload>(key: BlockKey) -> Result<(), MapFileError> {
 /// A log-odds is finite or [`edtmap_core::UNOBSERVED`] (−∞).
 fn check_log_odds(map: &OccupancyMap) -> Result<(), MapFileError> {
     for (key, block) in sorted(map) {
-        if let Some(i) = block.log_odds.iter().position(|v| v.is_nan() || *v == f32::INFINITY) {
+        if let Some(i) = block.log_odds.iter().position(|v| v.is_nan() || v == f32::INFINITY) {
             let v = key.voxel(i);
             return Err(MapFileError::Corrupt(format!(
                 "occupancy voxel {:?} holds log-odds {}",

@@ -3,7 +3,7 @@
 //! the reader reads each version's payloads.
 
 use edtmap_core::{
-    BlockKey, EdtBlock, FixedBlock, GlobalParams, OccupancyBlock, OccupancyParams, VoxelIndex, BLOCK_VOXELS,
+    BlockHeap, BlockKey, EdtBlock, FixedBlock, GlobalParams, OccupancyBlock, OccupancyParams, VoxelIndex, BLOCK_VOXELS,
     NO_OBSTACLE, NO_OFFSET, UNOBSERVED,
 };
 use serde::{Deserialize, Serialize};
@@ -32,7 +32,7 @@ pub(super) struct ParamsText {
 }
 
 /// A block type stored in a section: its name and raw little-endian payload.
-pub(super) trait Payload: Default + Clone {
+pub(super) trait Payload: Default + Clone + BlockHeap {
     /// Name of the section, for messages.
     const SECTION: &'static str;
     /// Bytes of one block's payload (the key not included), as written.
@@ -74,13 +74,13 @@ impl Payload for OccupancyBlock {
         self.log_odds.iter().for_each(|v| out.extend_from_slice(&v.to_bits().to_le_bytes()));
     }
     fn get(&mut self, _: BlockKey, _: u32, bytes: &[u8]) -> Result<(), String> {
-        for (v, c) in self.log_odds.iter_mut().zip(bytes.chunks_exact(4)) {
-            *v = f32::from_bits(le_u32(c));
+        for (o, c) in bytes.chunks_exact(4).enumerate() {
+            self.log_odds.set(o, f32::from_bits(le_u32(c)));
         }
         Ok(())
     }
     fn layer_empty(&self, z: usize) -> bool {
-        self.log_odds[64 * z..64 * z + 64].iter().all(|v| v.to_bits() == UNOBSERVED.to_bits())
+        self.log_odds.layer(z).is_none_or(|l| l.iter().all(|v| v.to_bits() == UNOBSERVED.to_bits()))
     }
 }
 
@@ -110,12 +110,12 @@ impl Payload for EdtBlock {
         }
         for (i, c) in bytes.chunks_exact(6).enumerate() {
             let o = [0, 2, 4].map(|at| i16::from_le_bytes([c[at], c[at + 1]]));
-            self.to_nearest[i] = checked_offset(key.voxel(i), o)?;
+            self.to_nearest.set(i, checked_offset(key.voxel(i), o)?);
         }
         Ok(())
     }
     fn layer_empty(&self, z: usize) -> bool {
-        self.to_nearest[64 * z..64 * z + 64].iter().all(|&o| o == NO_OFFSET)
+        self.to_nearest.layer(z).is_none_or(|l| l.iter().all(|&o| o == NO_OFFSET))
     }
 }
 
