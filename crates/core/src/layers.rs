@@ -28,6 +28,20 @@ pub trait Cell: Copy + PartialEq + Send + Sync + 'static {
     const EMPTY_LAYER: &'static [Self; LAYER_VOXELS];
 }
 
+/// An offset along one axis to the nearest obstacle, `i16::MIN` where
+/// none lies within the cutoff (a stage of the separable EDT).
+impl Cell for i16 {
+    const EMPTY: i16 = i16::MIN;
+    const EMPTY_LAYER: &'static [i16; LAYER_VOXELS] = &[i16::MIN; LAYER_VOXELS];
+}
+
+/// Offsets along two axes to the nearest obstacle, `i16::MIN` where none
+/// lies within the cutoff (a stage of the separable EDT).
+impl Cell for [i16; 2] {
+    const EMPTY: [i16; 2] = [i16::MIN; 2];
+    const EMPTY_LAYER: &'static [[i16; 2]; LAYER_VOXELS] = &[[i16::MIN; 2]; LAYER_VOXELS];
+}
+
 /// Slot of a layer not allocated.
 const ABSENT: u8 = u8::MAX;
 
