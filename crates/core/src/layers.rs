@@ -1,13 +1,12 @@
-//! A block's voxels stored by horizontal layer: only the layers holding
-//! something take memory.
+//! A block's voxels stored by horizontal layer: a block whose voxels all
+//! lie in one layer takes an eighth of the memory.
 //!
 //! A block is [`BLOCK_SIDE`]³ voxels, [`LAYERS`] layers of
-//! [`LAYER_VOXELS`] along z. A layer is allocated when a voxel of it first
-//! takes a value other than the empty one ([`Cell::EMPTY`]: never observed,
-//! no obstacle within the cutoff). A planar map's blocks hold one layer of
-//! eight, so its blocks take an eighth of a full block's memory; a 3D map's
-//! blocks at the edge of the observed space or of the cutoff keep only the
-//! layers that reach into them.
+//! [`LAYER_VOXELS`] along z. It holds nothing until a voxel first takes a
+//! value other than the empty one ([`Cell::EMPTY`]: never observed, no
+//! obstacle within the cutoff), then that voxel's layer alone, then, once a
+//! second layer is written, all eight. A planar map's blocks hold one layer
+//! of eight; a 3D map's blocks are whole arrays, read as before.
 //!
 //! Voxels are at [`crate::VoxelIndex::offset_in_block`], `x + 8 (y + 8 z)`,
 //! so layer `z` holds offsets `64 z .. 64 z + 64`.
@@ -28,36 +27,31 @@ pub trait Cell: Copy + PartialEq + Send + Sync + 'static {
     const EMPTY_LAYER: &'static [Self; LAYER_VOXELS];
 }
 
-/// An offset along one axis to the nearest obstacle, `i16::MIN` where
-/// none lies within the cutoff (a stage of the separable EDT).
-impl Cell for i16 {
-    const EMPTY: i16 = i16::MIN;
-    const EMPTY_LAYER: &'static [i16; LAYER_VOXELS] = &[i16::MIN; LAYER_VOXELS];
-}
-
-/// Offsets along two axes to the nearest obstacle, `i16::MIN` where none
-/// lies within the cutoff (a stage of the separable EDT).
-impl Cell for [i16; 2] {
-    const EMPTY: [i16; 2] = [i16::MIN; 2];
-    const EMPTY_LAYER: &'static [[i16; 2]; LAYER_VOXELS] = &[[i16::MIN; 2]; LAYER_VOXELS];
-}
-
-/// Slot of a layer not allocated.
-const ABSENT: u8 = u8::MAX;
-
-/// A block's voxels, allocated layer by layer.
+/// A block's voxels: no layer, one layer, or the whole block.
+///
+/// A block with voxels in two layers or more holds all eight, as one
+/// array: the voxels of a 3D map's blocks are then read as a plain array
+/// is, with one predictable branch, and a block grows at most twice. A
+/// planar map's blocks hold their one layer.
 #[derive(Debug, Clone)]
 pub struct Layers<T> {
-    /// Where layer `z` lies in `data`, [`ABSENT`] if not allocated.
-    slot: [u8; LAYERS],
-    /// The allocated layers, in the order they were allocated.
-    data: Vec<[T; LAYER_VOXELS]>,
+    store: Store<T>,
 }
 
-impl<T: Cell> Default for Layers<T> {
+impl<T> Default for Layers<T> {
     fn default() -> Self {
-        Layers { slot: [ABSENT; LAYERS], data: Vec::new() }
+        Layers { store: Store::Empty }
     }
+}
+
+#[derive(Debug, Clone)]
+enum Store<T> {
+    /// Every voxel empty.
+    Empty,
+    /// Layer `z` alone; the others empty.
+    One(u8, Box<[T; LAYER_VOXELS]>),
+    /// Every layer, by offset.
+    Full(Box<[T; BLOCK_VOXELS]>),
 }
 
 impl<T: Cell> PartialEq for Layers<T> {
@@ -72,7 +66,11 @@ impl<T: Cell> Index<usize> for Layers<T> {
     /// The value of the voxel at `offset` (below [`BLOCK_VOXELS`]).
     #[inline]
     fn index(&self, offset: usize) -> &T {
-        &self.layer_or_empty(offset / LAYER_VOXELS)[offset % LAYER_VOXELS]
+        match &self.store {
+            Store::Full(all) => &all[offset],
+            Store::One(z, layer) if usize::from(*z) == offset / LAYER_VOXELS => &layer[offset % LAYER_VOXELS],
+            _ => &T::EMPTY_LAYER[offset % LAYER_VOXELS],
+        }
     }
 }
 
@@ -80,9 +78,10 @@ impl<T: Cell> Layers<T> {
     /// Layer `z`, if allocated.
     #[inline]
     pub fn layer(&self, z: usize) -> Option<&[T; LAYER_VOXELS]> {
-        match self.slot[z] {
-            ABSENT => None,
-            s => Some(&self.data[usize::from(s)]),
+        match &self.store {
+            Store::Full(all) => all.as_chunks::<LAYER_VOXELS>().0.get(z),
+            Store::One(k, layer) if usize::from(*k) == z => Some(layer),
+            _ => None,
         }
     }
 
@@ -92,26 +91,43 @@ impl<T: Cell> Layers<T> {
         self.layer(z).unwrap_or(T::EMPTY_LAYER)
     }
 
-    /// Layer `z` to write, allocated (all [`Cell::EMPTY`]) if it was not.
+    /// Layer `z` (below [`LAYERS`]) to write, allocated (all
+    /// [`Cell::EMPTY`]) if it was not.
     #[inline]
     pub fn layer_mut(&mut self, z: usize) -> &mut [T; LAYER_VOXELS] {
-        if self.slot[z] == ABSENT {
-            // One layer more, not the doubling a `Vec` grows by: a planar
-            // map's blocks hold one layer for good.
-            self.data.reserve_exact(1);
-            self.slot[z] = self.data.len() as u8;
-            self.data.push(*T::EMPTY_LAYER);
+        let z = z % LAYERS;
+        match &self.store {
+            Store::Empty => self.store = Store::One(z as u8, Box::new(*T::EMPTY_LAYER)),
+            Store::One(k, layer) if usize::from(*k) != z => {
+                let mut all = Box::new([T::EMPTY; BLOCK_VOXELS]);
+                all.as_chunks_mut::<LAYER_VOXELS>().0[usize::from(*k)] = **layer;
+                self.store = Store::Full(all);
+            }
+            _ => {}
         }
-        &mut self.data[usize::from(self.slot[z])]
+        match &mut self.store {
+            Store::Full(all) => &mut all.as_chunks_mut::<LAYER_VOXELS>().0[z],
+            Store::One(_, layer) => layer,
+            Store::Empty => unreachable!("a layer was just allocated"),
+        }
     }
 
     /// Sets the voxel at `offset`; an empty value in an unallocated layer
     /// allocates nothing.
     #[inline]
     pub fn set(&mut self, offset: usize, value: T) {
-        let z = offset / LAYER_VOXELS;
-        if value != T::EMPTY || self.slot[z] != ABSENT {
-            self.layer_mut(z)[offset % LAYER_VOXELS] = value;
+        if let Store::Full(all) = &mut self.store {
+            all[offset] = value;
+        } else {
+            self.set_in_part(offset, value);
+        }
+    }
+
+    /// [`Self::set`] on a block not held whole.
+    #[inline(never)]
+    fn set_in_part(&mut self, offset: usize, value: T) {
+        if value != T::EMPTY || self.layer(offset / LAYER_VOXELS).is_some() {
+            self.layer_mut(offset / LAYER_VOXELS)[offset % LAYER_VOXELS] = value;
         }
     }
 
@@ -120,18 +136,13 @@ impl<T: Cell> Layers<T> {
         (0..LAYERS).filter_map(|z| self.layer(z).map(|l| (z, l)))
     }
 
-    /// The allocated layers, `(z, layer)`, to write, in no particular order.
-    pub fn stored_mut(&mut self) -> impl Iterator<Item = (usize, &mut [T; LAYER_VOXELS])> + '_ {
-        let mut z_of = [0; LAYERS];
-        for (z, &s) in self.slot.iter().enumerate().filter(|(_, &s)| s != ABSENT) {
-            z_of[usize::from(s)] = z;
-        }
-        self.data.iter_mut().zip(z_of).map(|(l, z)| (z, l))
-    }
-
     /// Number of allocated layers.
     pub fn stored_layers(&self) -> usize {
-        self.data.len()
+        match self.store {
+            Store::Empty => 0,
+            Store::One(..) => 1,
+            Store::Full(_) => LAYERS,
+        }
     }
 
     /// Every voxel's value, in offset order.
@@ -148,65 +159,53 @@ impl<T: Cell> Layers<T> {
     /// Sets every voxel from `values` (by offset), keeping only the layers
     /// that hold a value other than [`Cell::EMPTY`].
     pub fn assign(&mut self, values: &[T; BLOCK_VOXELS]) {
-        for (z, layer) in values.chunks_exact(LAYER_VOXELS).enumerate() {
-            if layer.iter().all(|&v| v == T::EMPTY) {
-                self.free(z);
-            } else {
-                self.layer_mut(z).copy_from_slice(layer);
-            }
+        let layers = values.as_chunks::<LAYER_VOXELS>().0;
+        let mut used = (0..LAYERS).filter(|&z| layers[z].iter().any(|&v| v != T::EMPTY));
+        match (used.next(), used.next()) {
+            (None, _) => self.store = Store::Empty,
+            (Some(z), None) => self.store = Store::One(z as u8, Box::new(layers[z])),
+            _ => match &mut self.store {
+                Store::Full(all) => **all = *values,
+                _ => self.store = Store::Full(Box::new(*values)),
+            },
         }
     }
 
     /// Whether every voxel is [`Cell::EMPTY`].
     pub fn is_empty(&self) -> bool {
-        self.data.iter().all(|l| l.iter().all(|&v| v == T::EMPTY))
+        self.stored().all(|(_, l)| l.iter().all(|&v| v == T::EMPTY))
     }
 
-    /// Frees the layers that hold only [`Cell::EMPTY`]; returns whether
-    /// none is left.
+    /// Frees the block's voxels if every one is [`Cell::EMPTY`]; returns
+    /// whether it did.
     pub fn trim(&mut self) -> bool {
-        for z in 0..LAYERS {
-            if self.layer(z).is_some_and(|l| l.iter().all(|&v| v == T::EMPTY)) {
-                self.free(z);
-            }
+        let empty = self.is_empty();
+        if empty {
+            self.store = Store::Empty;
         }
-        self.data.is_empty()
+        empty
     }
 
-    /// Frees layer `z`, which then reads as [`Cell::EMPTY`].
-    fn free(&mut self, z: usize) {
-        let s = self.slot[z];
-        if s == ABSENT {
-            return;
-        }
-        // The last layer takes the freed one's place.
-        let last = (self.data.len() - 1) as u8;
-        self.data.swap_remove(usize::from(s));
-        if let Some(moved) = self.slot.iter_mut().find(|k| **k == last) {
-            *moved = s;
-        }
-        self.slot[z] = ABSENT;
-        if self.data.is_empty() {
-            self.data = Vec::new();
-        }
-    }
-
-    /// Bytes of the allocated layers.
+    /// Bytes allocated for the voxels.
     pub fn heap_bytes(&self) -> usize {
-        self.data.capacity() * std::mem::size_of::<[T; LAYER_VOXELS]>()
+        self.stored_layers() * std::mem::size_of::<[T; LAYER_VOXELS]>()
     }
 
     /// Asks for the allocated layers' cache lines without waiting for them.
     #[inline]
     pub fn prefetch(&self) {
         #[cfg(target_arch = "x86_64")]
-        for l in &self.data {
+        {
             use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-            let p: *const i8 = std::ptr::from_ref(l).cast();
-            for i in (0..std::mem::size_of::<[T; LAYER_VOXELS]>()).step_by(64) {
+            let (p, bytes): (*const i8, usize) = match &self.store {
+                Store::Empty => return,
+                Store::One(_, l) => (std::ptr::from_ref(&**l).cast(), std::mem::size_of::<[T; LAYER_VOXELS]>()),
+                Store::Full(a) => (std::ptr::from_ref(&**a).cast(), std::mem::size_of::<[T; BLOCK_VOXELS]>()),
+            };
+            for i in (0..bytes).step_by(64) {
                 // SAFETY: a prefetch reads nothing the program sees and
-                // cannot fault (the address is inside the layer anyway);
-                // SSE is part of every x86-64.
+                // cannot fault (the address is inside the allocation
+                // anyway); SSE is part of every x86-64.
                 unsafe { _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(i)) };
             }
         }
@@ -222,8 +221,8 @@ mod tests {
         const EMPTY_LAYER: &'static [u16; LAYER_VOXELS] = &[0; LAYER_VOXELS];
     }
 
-    /// Layers agree with a plain array under any writes, and hold only the
-    /// layers with a non-empty voxel once trimmed.
+    /// Layers agree with a plain array under any writes, and hold no
+    /// layer, one, or all.
     #[test]
     fn layers_read_as_the_array_written() {
         let mut state = 0x9E37_79B9_7F4A_7C15u64;
@@ -260,18 +259,17 @@ mod tests {
             assert_eq!(layers.is_empty(), empty);
             assert_eq!(layers.trim(), empty);
             let used = plain.chunks_exact(LAYER_VOXELS).filter(|l| l.iter().any(|&v| v != 0)).count();
-            assert_eq!(layers.stored_layers(), used);
+            assert!(layers.stored_layers() >= used && [0, 1, LAYERS].contains(&layers.stored_layers()));
             assert!(layers.iter_stored().all(|(o, v)| plain[o] == v));
             assert_eq!(
                 layers.iter_stored().filter(|&(_, v)| v != 0).count(),
                 plain.iter().filter(|&&v| v != 0).count()
             );
-            let mut written: Vec<usize> = layers.stored_mut().map(|(z, _)| z).collect();
-            written.sort_unstable();
-            assert_eq!(written, layers.stored().map(|(z, _)| z).collect::<Vec<_>>());
             let mut fresh = Layers::<u16>::default();
             fresh.assign(&plain);
             assert_eq!(fresh, layers);
+            // Assigned, a block holds one layer only where one is used.
+            assert_eq!(fresh.stored_layers(), [0, 1].get(used).copied().unwrap_or(LAYERS));
         }
     }
 

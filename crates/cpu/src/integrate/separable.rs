@@ -53,7 +53,6 @@
 
 use crate::awake::{awake, share_out};
 use crate::edt::envelope::{envelope, sweep_row, EnvelopeScratch, Line};
-use edtmap_core::layers::{Cell, Layers, LAYER_VOXELS};
 use edtmap_core::{
     BlockKey, BlockMap, Cutoff, EdtBlock, EdtMap, ExactCounts, IntegrationReport, MapStamp, Obstacles, SharedBlock,
     VoxelIndex, WaveCounts, BLOCK_SIDE, BLOCK_VOXELS, FAR_DIST_SQ, NO_OFFSET, NO_SITE, UNREACHABLE_DIST_SQ,
@@ -68,9 +67,9 @@ const NONE: i16 = i16::MIN;
 const NONE2: [i16; 2] = [NONE, NONE];
 
 /// `g1` of one block: offset along x to the row's nearest obstacle.
-type G1Block = Layers<i16>;
+type G1Block = [i16; BLOCK_VOXELS];
 /// `g2` of one block: offsets along x and y to the slice's nearest obstacle.
-type G2Block = Layers<[i16; 2]>;
+type G2Block = [[i16; 2]; BLOCK_VOXELS];
 /// An entry of the global EDT (pass z's output): squared distance and the
 /// offset to the nearest obstacle, as [`EdtBlock`] holds them.
 type Out = (u32, [i16; 3]);
@@ -90,11 +89,8 @@ pub struct SeparableCache {
 impl SeparableCache {
     /// Bytes held.
     pub fn bytes(&self) -> usize {
-        fn per<T: Cell>(m: &FxHashMap<BlockKey, Box<Layers<T>>>) -> usize {
-            let entry = std::mem::size_of::<Layers<T>>() + std::mem::size_of::<BlockKey>() + 16;
-            m.values().map(|b| entry + b.heap_bytes()).sum()
-        }
-        per(&self.g1) + per(&self.g2)
+        let per = |n: usize, b: usize| n * (b + std::mem::size_of::<BlockKey>() + 16);
+        per(self.g1.len(), std::mem::size_of::<G1Block>()) + per(self.g2.len(), std::mem::size_of::<G2Block>())
     }
 
     /// Forgets everything (the next update rebuilds from the map).
@@ -242,17 +238,21 @@ type Marked = Vec<(BlockKey, Mask, Option<Box<Changed>>)>;
 /// The voxels of a block's values `v` (by offset) where `hit` holds, 64
 /// to a word (the test inlined, so it vectorises).
 #[inline]
-fn mask_where<T: Cell>(v: &Layers<T>, hit: impl Fn(&T) -> bool) -> Mask {
-    let mut m = [if hit(&T::EMPTY) { u64::MAX } else { 0 }; 8];
-    for (z, d) in v.stored() {
-        m[z] = d.iter().enumerate().fold(0, |a, (i, d)| a | u64::from(hit(d)) << i);
+fn mask_where<T>(v: &[T; BLOCK_VOXELS], hit: impl Fn(&T) -> bool) -> Mask {
+    let mut m = [0u64; 8];
+    for (w, d) in m.iter_mut().zip(v.chunks_exact(64)) {
+        *w = d.iter().enumerate().fold(0, |a, (i, d)| a | u64::from(hit(d)) << i);
     }
     m
 }
 
 /// The obstacles of an EDT block: its voxels at distance 0.
 fn obstacle_bits(b: &EdtBlock) -> Mask {
-    mask_where(&b.to_nearest, |d| *d == [0; 3])
+    let mut m = [0u64; 8];
+    for (z, l) in b.to_nearest.stored() {
+        m[z] = l.iter().enumerate().fold(0, |a, (i, d)| a | u64::from(*d == [0; 3]) << i);
+    }
+    m
 }
 
 fn bit(m: &Mask, o: usize) -> bool {
@@ -320,7 +320,7 @@ fn run_passes(
     let edt: &EdtMap = map;
     let (value1, value2) = (g1_value, g2_value);
     let (dirty1, x) = drive(
-        &mut Cached { map: g1 },
+        &mut Cached { map: g1, none: NONE },
         0,
         dirty,
         None::<&Rescan>,
@@ -332,7 +332,7 @@ fn run_passes(
     // Pass y: the columns through the g1 entries that changed.
     let g1: &FxHashMap<_, _> = g1;
     let (dirty2, y) = drive(
-        &mut Cached { map: g2 },
+        &mut Cached { map: g2, none: NONE2 },
         1,
         dirty1,
         Some(&LowerY { g1 }),
@@ -481,14 +481,15 @@ trait Layer: Sync {
     fn write(b: &mut Self::Block, o: usize, v: Self::Value);
 }
 
-/// A cache layer, [`Cell::EMPTY`] where no obstacle is within the cutoff.
+/// A cache layer, `none` where no obstacle is within the cutoff.
 struct Cached<'a, T> {
-    map: &'a mut FxHashMap<BlockKey, Box<Layers<T>>>,
+    map: &'a mut FxHashMap<BlockKey, Box<[T; BLOCK_VOXELS]>>,
+    none: T,
 }
 
-impl<T: Cell> Layer for Cached<'_, T> {
+impl<T: Copy + PartialEq + Send + Sync> Layer for Cached<'_, T> {
     const FEEDS_NEXT: bool = true;
-    type Block = Layers<T>;
+    type Block = [T; BLOCK_VOXELS];
     type Value = T;
     type Taken = Option<Box<Self::Block>>;
     type Back = Box<Self::Block>;
@@ -496,7 +497,7 @@ impl<T: Cell> Layer for Cached<'_, T> {
         keys.iter().map(|k| self.map.remove(k)).collect()
     }
     fn own(&self, t: Self::Taken) -> Box<Self::Block> {
-        t.unwrap_or_default()
+        t.unwrap_or_else(|| Box::new([self.none; BLOCK_VOXELS]))
     }
     fn give(b: Box<Self::Block>) -> Self::Back {
         b
@@ -508,16 +509,15 @@ impl<T: Cell> Layer for Cached<'_, T> {
         self.map.extend(blocks);
     }
     fn empty(&self, b: &mut Self::Block) -> bool {
-        b.trim()
+        b.iter().all(|&t| t == self.none)
     }
-    fn warm(b: &Self::Block) {
-        b.prefetch();
-    }
+    #[inline]
     fn read(b: &Self::Block, o: usize) -> T {
         b[o]
     }
+    #[inline]
     fn write(b: &mut Self::Block, o: usize, v: T) {
-        b.set(o, v);
+        b[o] = v;
     }
 }
 
@@ -548,9 +548,11 @@ impl Layer for EdtMap {
     fn warm(b: &EdtBlock) {
         b.to_nearest.prefetch();
     }
+    #[inline]
     fn read(b: &EdtBlock, o: usize) -> Out {
         (b.dist_sq(o), b.to_nearest[o])
     }
+    #[inline]
     fn write(b: &mut EdtBlock, o: usize, v: Out) {
         b.to_nearest.set(o, v.1);
     }
@@ -1816,10 +1818,10 @@ impl Scratch {
     /// it has them) along `axis` from `base` on `line` into `off` (as
     /// offsets along x and y) and `f` (their squared distances, none for
     /// none).
-    fn gather<T: Cell>(
+    fn gather<T: Copy>(
         &mut self,
-        layer: &FxHashMap<BlockKey, Box<Layers<T>>>,
-        col: Column<'_, Layers<T>>,
+        layer: &FxHashMap<BlockKey, Box<[T; BLOCK_VOXELS]>>,
+        col: Column<'_, [T; BLOCK_VOXELS]>,
         line: [i32; 3],
         axis: usize,
         base: i32,
@@ -1834,22 +1836,10 @@ impl Scratch {
                 f[range].fill(UNREACHABLE_DIST_SQ);
                 return;
             };
-            let mut put = |i: usize, e: T| {
-                let o = offsets(e);
+            for (k, i) in range.enumerate() {
+                let o = offsets(block[o0 + k * stride]);
                 off[i] = o;
                 f[i] = g2_value(o);
-            };
-            if axis < 2 {
-                // Along x and y a block's stretch of the line lies in one
-                // layer, looked up once.
-                let (cells, first) = (block.layer_or_empty(o0 / LAYER_VOXELS), o0 % LAYER_VOXELS);
-                for (k, i) in range.enumerate() {
-                    put(i, cells[first + k * stride]);
-                }
-            } else {
-                for (k, i) in range.enumerate() {
-                    put(i, block[o0 + k * stride]);
-                }
             }
         });
     }
@@ -1924,9 +1914,10 @@ impl Pass<'_> {
         s.flags.resize(n, false);
         let flags = &mut s.flags;
         by_block(line, 0, base, n, |key, o0, _, range| {
-            let (block, flip) = (edt.get(key), flips.get(&key));
+            // A row of a block lies in one layer.
+            let (layer, flip) = (edt.get(key).and_then(|b| b.to_nearest.layer(o0 / 64)), flips.get(&key));
             for (k, i) in range.enumerate() {
-                let was = block.is_some_and(|b| b.to_nearest[o0 + k] == [0; 3]);
+                let was = layer.is_some_and(|l| l[o0 % 64 + k] == [0; 3]);
                 flags[i] = was != flip.is_some_and(|m| bit(m, o0 + k));
             }
         });
