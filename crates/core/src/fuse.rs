@@ -1,6 +1,7 @@
 //! Fusion of a frame's observations into the global occupancy map, and the
 //! read-back of the local volume's states for the batch EDT.
 
+use crate::layers::LAYER_VOXELS;
 use crate::Observations;
 use crate::{
     BlockKey, CoreError, Grid3, LocalVolume, LogOdds, OccupancyBlock, OccupancyMap, SharedBlock, VoxelState,
@@ -39,16 +40,22 @@ pub fn fuse(map: &mut OccupancyMap, obs: &Observations, lo: &LogOdds) -> FuseRep
             let had = stored.is_some();
             let mut block = stored.map(|b| SharedBlock::into_owned(Some(b)));
             let mut fused = Fused::default();
-            for_each_voxel(&vol, key, |i, offset| {
-                let o = obs.get(i);
-                if o != OBS_NONE {
-                    let block = block.get_or_insert_with(Box::default);
-                    let old = block.log_odds[offset];
-                    let new = lo.update(old, o);
-                    block.log_odds.set(offset, new);
-                    fused.updated += 1;
-                    fused.changed += usize::from(lo.state(old) != lo.state(new));
-                    fused.rewritten |= new.to_bits() != old.to_bits();
+            for_each_row(&vol, key, |i, offset, len| {
+                // The row's layer, made only if a voxel of the row was seen.
+                let Some(seen) = (0..len).find(|&k| obs.get(i + k) != OBS_NONE) else {
+                    return;
+                };
+                let layer = block.get_or_insert_with(Box::default).log_odds.layer_mut(offset / LAYER_VOXELS);
+                let cells = &mut layer[offset % LAYER_VOXELS..offset % LAYER_VOXELS + len];
+                for (k, cell) in cells.iter_mut().enumerate().skip(seen) {
+                    let o = obs.get(i + k);
+                    if o != OBS_NONE {
+                        let (old, new) = (*cell, lo.update(*cell, o));
+                        *cell = new;
+                        fused.updated += 1;
+                        fused.changed += usize::from(lo.state(old) != lo.state(new));
+                        fused.rewritten |= new.to_bits() != old.to_bits();
+                    }
                 }
             });
             fused.allocated = !had && block.is_some();
@@ -76,21 +83,18 @@ struct Fused {
     allocated: bool,
 }
 
-/// Calls `f(local linear index, offset in block)` for the block's voxels
-/// inside the volume.
+/// Calls `f(local linear index, offset in block, voxels)` for each row
+/// along x of the block's voxels inside the volume.
 #[inline]
-fn for_each_voxel(vol: &LocalVolume, key: BlockKey, mut f: impl FnMut(usize, usize)) {
+fn for_each_row(vol: &LocalVolume, key: BlockKey, mut f: impl FnMut(usize, usize, usize)) {
     let [xs, ys, zs] = vol.block_span(key);
     let first = key.first_voxel().0;
+    let bx = (vol.origin.0[0] + xs.start as i32 - first[0]) as usize;
     for z in zs {
         let bz = (vol.origin.0[2] + z as i32 - first[2]) as usize;
         for y in ys.clone() {
             let by = (vol.origin.0[1] + y as i32 - first[1]) as usize;
-            let row = vol.linear([0, y, z]);
-            for x in xs.clone() {
-                let bx = (vol.origin.0[0] + x as i32 - first[0]) as usize;
-                f(row + x, bx + 8 * (by + 8 * bz));
-            }
+            f(vol.linear([xs.start, y, z]), bx + 8 * (by + 8 * bz), xs.len());
         }
     }
 }
@@ -117,9 +121,11 @@ pub fn read_states(
                 match map.get(v.block()) {
                     None => row[x..end].fill(VoxelState::Unknown),
                     Some(b) => {
+                        // A row of a block lies in one layer.
                         let base = v.offset_in_block();
-                        for (k, s) in row[x..end].iter_mut().enumerate() {
-                            *s = lo.state(b.log_odds[base + k]);
+                        let cells = &b.log_odds.layer_or_empty(base / LAYER_VOXELS)[base % LAYER_VOXELS..];
+                        for (s, &l) in row[x..end].iter_mut().zip(cells) {
+                            *s = lo.state(l);
                         }
                     }
                 }

@@ -2,6 +2,7 @@
 //! fixed obstacles the user knows about (forbidden zones, a prior map).
 
 use crate::edt_map::ForbiddenZone;
+use crate::layers::LAYER_VOXELS;
 use crate::{BlockMap, CoreError, LogOdds, OccupancyMap, VoxelIndex, VoxelState, BLOCK_SIDE, UNOBSERVED};
 
 /// Most blocks a set of fixed obstacles may span (about 200 MB).
@@ -130,8 +131,10 @@ impl Obstacles<'_> {
             match self.occupancy.get(v.block()) {
                 None => row.fill(VoxelState::Unknown.is_obstacle(self.unknown_as_occupied)),
                 Some(b) => {
-                    for (k, o) in row.iter_mut().enumerate() {
-                        *o = self.log_odds.state(b.log_odds[base + k]).is_obstacle(self.unknown_as_occupied);
+                    // A row of a block lies in one layer.
+                    let cells = &b.log_odds.layer_or_empty(base / LAYER_VOXELS)[base % LAYER_VOXELS..];
+                    for (o, &l) in row.iter_mut().zip(cells) {
+                        *o = self.log_odds.state(l).is_obstacle(self.unknown_as_occupied);
                     }
                 }
             }
