@@ -67,6 +67,14 @@ impl EdtBlock {
         offset_dist_sq(self.to_nearest[offset])
     }
 
+    /// Squared distance and offset to the nearest obstacle of the voxel at
+    /// `offset`, as [`Self::dist_sq`] and [`Self::to_nearest`] hold them.
+    #[inline]
+    pub fn stored(&self, offset: usize) -> (u32, [i16; 3]) {
+        let o = self.to_nearest[offset];
+        (offset_dist_sq(o), o)
+    }
+
     /// World index of the nearest obstacle of the voxel at `offset` of the
     /// block at `key`, [`NO_OBSTACLE`] beyond the cutoff.
     #[inline]

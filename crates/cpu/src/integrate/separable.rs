@@ -414,7 +414,7 @@ fn in_layer(
                     let e = input.map_or(NONE2, |b| b[o]);
                     let d = g2_value(e);
                     let new = if d > max { (FAR_DIST_SQ, NO_OFFSET) } else { (d, [e[0], e[1], 0]) };
-                    let old = (block.dist_sq(o), block.to_nearest[o]);
+                    let old = block.stored(o);
                     st.visited += 1;
                     if old != new {
                         block.to_nearest.set(o, new.1);
@@ -550,7 +550,7 @@ impl Layer for EdtMap {
     }
     #[inline]
     fn read(b: &EdtBlock, o: usize) -> Out {
-        (b.dist_sq(o), b.to_nearest[o])
+        b.stored(o)
     }
     #[inline]
     fn write(b: &mut EdtBlock, o: usize, v: Out) {
