@@ -221,28 +221,25 @@ mod tests {
         const EMPTY_LAYER: &'static [u16; LAYER_VOXELS] = &[0; LAYER_VOXELS];
     }
 
-    /// Layers agree with a plain array under any writes, and hold no
-    /// layer, one, or all.
-    #[test]
-    fn layers_read_as_the_array_written() {
-        let mut state = 0x9E37_79B9_7F4A_7C15u64;
-        let mut next = move |n: u64| {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            state % n
-        };
-        for _ in 0..200 {
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig { cases: 300, rng_seed: proptest::test_runner::RngSeed::Fixed(0x1A7E), ..Default::default() })]
+        /// Layers agree with a plain array under any writes, whole
+        /// assignments (of chosen layers) and trims, and hold no layer, one,
+        /// or all.
+        #[test]
+        fn layers_read_as_the_array_written(
+            ops in proptest::collection::vec((0u8..10, 0..BLOCK_VOXELS, 0u16..3, proptest::prelude::any::<u8>()), 0..40),
+        ) {
             let mut plain = [0u16; BLOCK_VOXELS];
             let mut layers = Layers::<u16>::default();
-            for _ in 0..next(40) {
-                let (o, v) = (next(BLOCK_VOXELS as u64) as usize, next(3) as u16);
-                match next(10) {
+            for (kind, o, v, mask) in ops {
+                match kind {
                     0 => {
-                        let all: Vec<u16> = (0..BLOCK_VOXELS).map(|_| next(2) as u16 * next(4) as u16).collect();
-                        let all: [u16; BLOCK_VOXELS] = all.try_into().expect("512");
-                        plain = all;
-                        layers.assign(&all);
+                        for (k, p) in plain.iter_mut().enumerate() {
+                            let used = mask >> (k / LAYER_VOXELS) & 1 == 1;
+                            *p = if used && (k * 7 + usize::from(v)) % 3 != 0 { v + 1 } else { 0 };
+                        }
+                        layers.assign(&plain);
                     }
                     1 => {
                         layers.trim();
@@ -252,24 +249,22 @@ mod tests {
                         layers.set(o, v);
                     }
                 }
-                assert!(layers.iter().eq(plain.iter().copied()));
-                assert!((0..BLOCK_VOXELS).all(|o| layers[o] == plain[o]));
+                proptest::prop_assert!(layers.iter().eq(plain.iter().copied()));
+                proptest::prop_assert!((0..BLOCK_VOXELS).all(|o| layers[o] == plain[o]));
             }
             let empty = plain.iter().all(|&v| v == 0);
-            assert_eq!(layers.is_empty(), empty);
-            assert_eq!(layers.trim(), empty);
+            proptest::prop_assert_eq!(layers.is_empty(), empty);
+            proptest::prop_assert_eq!(layers.trim(), empty);
             let used = plain.chunks_exact(LAYER_VOXELS).filter(|l| l.iter().any(|&v| v != 0)).count();
-            assert!(layers.stored_layers() >= used && [0, 1, LAYERS].contains(&layers.stored_layers()));
-            assert!(layers.iter_stored().all(|(o, v)| plain[o] == v));
-            assert_eq!(
-                layers.iter_stored().filter(|&(_, v)| v != 0).count(),
-                plain.iter().filter(|&&v| v != 0).count()
-            );
+            proptest::prop_assert!(layers.stored_layers() >= used && [0, 1, LAYERS].contains(&layers.stored_layers()));
+            proptest::prop_assert!(layers.iter_stored().all(|(o, v)| plain[o] == v));
+            let stored_nonempty = layers.iter_stored().filter(|&(_, v)| v != 0).count();
+            proptest::prop_assert_eq!(stored_nonempty, plain.iter().filter(|&&v| v != 0).count());
             let mut fresh = Layers::<u16>::default();
             fresh.assign(&plain);
-            assert_eq!(fresh, layers);
+            proptest::prop_assert_eq!(&fresh, &layers);
             // Assigned, a block holds one layer only where one is used.
-            assert_eq!(fresh.stored_layers(), [0, 1].get(used).copied().unwrap_or(LAYERS));
+            proptest::prop_assert_eq!(fresh.stored_layers(), [0, 1].get(used).copied().unwrap_or(LAYERS));
         }
     }
 
