@@ -257,7 +257,7 @@ impl<B: Default + Clone + BlockHeap> BlockMap<B> {
             .iter()
             .map(|k| {
                 let b = self.blocks.remove(k)?;
-                heap -= b.heap_bytes();
+                heap = heap.saturating_sub(b.heap_bytes());
                 Some(SharedBlock(b))
             })
             .collect();
@@ -273,7 +273,7 @@ impl<B: Default + Clone + BlockHeap> BlockMap<B> {
         for (k, b) in blocks {
             heap += b.0.heap_bytes();
             if let Some(old) = self.blocks.insert(k, b.0) {
-                heap -= old.heap_bytes();
+                heap = heap.saturating_sub(old.heap_bytes());
             }
         }
         self.heap = Some(heap);
@@ -286,7 +286,7 @@ impl<B: Default + Clone + BlockHeap> BlockMap<B> {
             self.stamp.revision += 1;
             let mut heap = self.heap_bytes();
             for k in &gone {
-                heap -= self.blocks.remove(k).map_or(0, |b| b.heap_bytes());
+                heap = heap.saturating_sub(self.blocks.remove(k).map_or(0, |b| b.heap_bytes()));
             }
             self.heap = Some(heap);
         }
@@ -415,6 +415,33 @@ pub fn par_fill<T: Send, U: Send>(items: Vec<T>, make: impl Fn(T) -> U + Sync + 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// What `bytes` counts, by brute force over the blocks.
+    fn counted(m: &OccupancyMap) -> usize {
+        let per_block = std::mem::size_of::<BlockKey>() + 4 * std::mem::size_of::<usize>();
+        m.iter()
+            .map(|(_, b)| per_block + std::mem::size_of::<OccupancyBlock>() + 256 * b.log_odds.stored_layers())
+            .sum()
+    }
+
+    #[test]
+    fn bytes_follow_the_layers_blocks_hold() {
+        let mut m = OccupancyMap::new();
+        let (a, b, c) = (BlockKey([0, 0, 0]), BlockKey([1, 0, 0]), BlockKey([0, 2, 0]));
+        m.get_or_insert(a).log_odds.set(3, 1.0);
+        m.get_or_insert(b).log_odds.set(7 + 64 * 5, -2.0);
+        assert_eq!(m.bytes(), counted(&m));
+        // A planar block holds one layer; a second layer makes it whole.
+        let mut taken: Vec<(BlockKey, Box<OccupancyBlock>)> = m.take(&[a, c]);
+        assert_eq!(m.bytes(), counted(&m));
+        taken[0].1.log_odds.set(64 * 2, 0.5);
+        taken[1].1.log_odds.set(5, 0.25);
+        m.restore(taken);
+        assert_eq!(m.bytes(), counted(&m));
+        assert_eq!(m.iter().map(|(_, b)| b.log_odds.stored_layers()).sum::<usize>(), 8 + 1 + 1);
+        m.remove_where(|k| k == b);
+        assert_eq!(m.bytes(), counted(&m));
+    }
 
     #[test]
     fn octomap_defaults_clamp_and_threshold() {
