@@ -27,8 +27,8 @@ pub const NO_OFFSET: [i16; 3] = [i16::MIN; 3];
 /// most 10 000 voxels, [`GlobalParams::cutoff`]) every component fits an
 /// `i16`. A distance that disagrees with its obstacle cannot be stored.
 ///
-/// Stored by layer: a layer with no obstacle within the cutoff takes no
-/// memory once [`Self::trim`]med (a planar map's blocks hold one layer).
+/// Stored by layer ([`Layers`]): a block whose voxels within the cutoff
+/// all lie in one layer holds that layer alone (a planar map's blocks).
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct EdtBlock {
     /// Nearest obstacle less the voxel's own index, [`NO_OFFSET`] beyond
@@ -53,9 +53,9 @@ impl EdtBlock {
         self.to_nearest.is_empty()
     }
 
-    /// Frees the layers with no obstacle within the cutoff; returns
-    /// whether the block is all far ([`Self::is_far`]) and so need not be
-    /// kept.
+    /// Frees the block's voxels if none has an obstacle within the cutoff;
+    /// returns whether it did (the block is [`Self::is_far`] and need not
+    /// be kept).
     pub fn trim(&mut self) -> bool {
         self.to_nearest.trim()
     }

@@ -134,7 +134,8 @@ impl LogOdds {
 }
 
 /// One 8³ block of occupancy, voxels at [`VoxelIndex::offset_in_block`],
-/// stored by layer: a layer no sensor observed takes no memory.
+/// stored by layer ([`Layers`]): a block observed in one layer holds that
+/// layer alone (a planar map's blocks).
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct OccupancyBlock {
     /// Log-odds per voxel, [`UNOBSERVED`] where never seen.
