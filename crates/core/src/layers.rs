@@ -194,22 +194,44 @@ impl<T: Cell> Layers<T> {
     /// Asks for the allocated layers' cache lines without waiting for them.
     #[inline]
     pub fn prefetch(&self) {
-        #[cfg(target_arch = "x86_64")]
-        {
-            use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-            let (p, bytes): (*const i8, usize) = match &self.store {
-                Store::Empty => return,
-                Store::One(_, l) => (std::ptr::from_ref(&**l).cast(), std::mem::size_of::<[T; LAYER_VOXELS]>()),
-                Store::Full(a) => (std::ptr::from_ref(&**a).cast(), std::mem::size_of::<[T; BLOCK_VOXELS]>()),
-            };
-            for i in (0..bytes).step_by(64) {
-                // SAFETY: a prefetch reads nothing the program sees and
-                // cannot fault (the address is inside the allocation
-                // anyway); SSE is part of every x86-64.
-                unsafe { _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(i)) };
-            }
+        match &self.store {
+            Store::Empty => {}
+            Store::One(_, layer) => prefetch(&**layer),
+            Store::Full(all) => prefetch(&**all),
         }
     }
+
+    /// The voxels where `hit` holds, bit `o % 64` of word `o / 64` for the
+    /// voxel at offset `o` (a layer not held as [`Cell::EMPTY`]; the test
+    /// inlined, so it vectorises).
+    #[inline]
+    pub fn mask_where(&self, hit: impl Fn(T) -> bool) -> [u64; LAYERS] {
+        let mut m = [if hit(T::EMPTY) { u64::MAX } else { 0 }; LAYERS];
+        for (z, layer) in self.stored() {
+            m[z] = layer.iter().enumerate().fold(0, |a, (i, &v)| a | u64::from(hit(v)) << i);
+        }
+        m
+    }
+}
+
+/// Asks for every cache line of `value` without waiting for them, so that
+/// blocks a task will read are loaded together rather than one miss at a
+/// time.
+#[inline]
+pub fn prefetch<T>(value: &T) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+        let p: *const i8 = std::ptr::from_ref(value).cast();
+        for i in (0..std::mem::size_of::<T>()).step_by(64) {
+            // SAFETY: a prefetch reads nothing the program sees and cannot
+            // fault (the address is inside `value` anyway); SSE is part of
+            // every x86-64.
+            unsafe { _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(i)) };
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    std::hint::black_box(value);
 }
 
 #[cfg(test)]

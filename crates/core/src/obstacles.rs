@@ -96,20 +96,13 @@ impl Obstacles<'_> {
     /// 64` for the voxel at offset `o`; two hash lookups for the whole block.
     pub fn block_bits(&self, key: crate::BlockKey) -> [u64; 8] {
         let unknown = VoxelState::Unknown.is_obstacle(self.unknown_as_occupied);
-        let mut out = [if unknown { u64::MAX } else { 0 }; 8];
-        if let Some(b) = self.occupancy.get(key) {
-            // `LogOdds::state` as one comparison per voxel (UNOBSERVED, -inf,
-            // is never above the threshold), which vectorises.
-            let (occupied, unknown) = (self.log_odds.occupied, self.unknown_as_occupied);
-            for (z, w) in out.iter_mut().enumerate() {
-                *w = b
-                    .log_odds
-                    .layer_or_empty(z)
-                    .iter()
-                    .enumerate()
-                    .fold(0, |a, (i, &l)| a | u64::from(l > occupied || (unknown && l == UNOBSERVED)) << i);
-            }
-        }
+        // `LogOdds::state` as one comparison per voxel (UNOBSERVED, -inf, is
+        // never above the threshold).
+        let occupied = self.log_odds.occupied;
+        let mut out = match self.occupancy.get(key) {
+            Some(b) => b.log_odds.mask_where(|l| l > occupied || (unknown && l == UNOBSERVED)),
+            None => [if unknown { u64::MAX } else { 0 }; 8],
+        };
         if let Some(b) = self.fixed.get(key) {
             for (w, f) in out.iter_mut().zip(&b.bits) {
                 *w |= f;

@@ -257,10 +257,12 @@ impl GpuFusion {
             let words = as_words(bytes);
             let items: Vec<(usize, usize)> = rewritten.iter().copied().enumerate().collect();
             blocks = edtmap_core::par_fill(items, |(k, b)| {
-                let mut block = Box::new(OccupancyBlock::default());
-                for (o, &w) in words[k * BLOCK_VOXELS..(k + 1) * BLOCK_VOXELS].iter().enumerate() {
-                    block.log_odds.set(o, f32::from_bits(w ^ UNOBSERVED_BITS));
+                let mut values = [UNOBSERVED; BLOCK_VOXELS];
+                for (v, &w) in values.iter_mut().zip(&words[k * BLOCK_VOXELS..(k + 1) * BLOCK_VOXELS]) {
+                    *v = f32::from_bits(w ^ UNOBSERVED_BITS);
                 }
+                let mut block = Box::new(OccupancyBlock::default());
+                block.log_odds.assign(&values);
                 (keys[b], block)
             });
         })?;

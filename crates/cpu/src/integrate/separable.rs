@@ -53,6 +53,7 @@
 
 use crate::awake::{awake, share_out};
 use crate::edt::envelope::{envelope, sweep_row, EnvelopeScratch, Line};
+use edtmap_core::layers::prefetch;
 use edtmap_core::{
     BlockKey, BlockMap, Cutoff, EdtBlock, EdtMap, ExactCounts, IntegrationReport, MapStamp, Obstacles, SharedBlock,
     VoxelIndex, WaveCounts, BLOCK_SIDE, BLOCK_VOXELS, FAR_DIST_SQ, NO_OFFSET, NO_SITE, UNREACHABLE_DIST_SQ,
@@ -248,11 +249,7 @@ fn mask_where<T>(v: &[T; BLOCK_VOXELS], hit: impl Fn(&T) -> bool) -> Mask {
 
 /// The obstacles of an EDT block: its voxels at distance 0.
 fn obstacle_bits(b: &EdtBlock) -> Mask {
-    let mut m = [0u64; 8];
-    for (z, l) in b.to_nearest.stored() {
-        m[z] = l.iter().enumerate().fold(0, |a, (i, d)| a | u64::from(*d == [0; 3]) << i);
-    }
-    m
+    b.to_nearest.mask_where(|d| d == [0; 3])
 }
 
 fn bit(m: &Mask, o: usize) -> bool {
@@ -470,12 +467,11 @@ trait Layer: Sync {
     /// says hold nothing).
     fn restore(&mut self, blocks: Vec<(BlockKey, Self::Back)>);
     /// Whether the block holds nothing worth keeping (no value within the
-    /// cutoff).
-    /// Frees what the block need not keep.
+    /// cutoff), freeing what it need not keep.
     fn empty(&self, b: &mut Self::Block) -> bool;
     /// Asks for the block's cache lines without waiting for them.
     fn warm(b: &Self::Block) {
-        warm(b);
+        prefetch(b);
     }
     fn read(b: &Self::Block, o: usize) -> Self::Value;
     fn write(b: &mut Self::Block, o: usize, v: Self::Value);
@@ -556,25 +552,6 @@ impl Layer for EdtMap {
     fn write(b: &mut EdtBlock, o: usize, v: Out) {
         b.to_nearest.set(o, v.1);
     }
-}
-
-/// Asks for every cache line of `b` without waiting for them, so that a
-/// task's blocks are loaded together rather than one miss at a time.
-#[inline]
-fn warm<T>(b: &T) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-        let p: *const i8 = std::ptr::from_ref(b).cast();
-        for i in (0..std::mem::size_of::<T>()).step_by(64) {
-            // SAFETY: a prefetch reads nothing the program sees and cannot
-            // fault (the address is inside `b` anyway); SSE is part of
-            // every x86-64.
-            unsafe { _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(i)) };
-        }
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    std::hint::black_box(b);
 }
 
 /// What one pass changed, and what it read to find it.
@@ -969,7 +946,7 @@ where
             let masks: Vec<([u8; 64], Option<&Changed>)> =
                 dirty[r.clone()].iter().map(|e| (line_bits(&e.1, axis), e.2.as_deref())).collect();
             for c in masks.iter().filter_map(|m| m.1) {
-                warm(c);
+                prefetch(c);
             }
             let mut plan = Plan { dirty: (ks[0], ks[ks.len() - 1].0[axis]), ..Plan::default() };
             // The old outputs' blocks along the task's line of blocks, as far
