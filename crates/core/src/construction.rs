@@ -6,9 +6,9 @@
 //! Both constructions write one observation per voxel per frame (a hit wins
 //! over a miss), so the fused map does not depend on thread scheduling.
 
-use crate::sensor::{Frame, Sensor, SensorRay};
+use crate::sensor::{Frame, ReturnBatch, Sensor, SensorRay, RETURN_BATCH};
 use crate::{LocalVolume, Observations, ProjectJob, OBS_HIT};
-use nalgebra::Vector3;
+use nalgebra::{Matrix3, Vector3};
 
 /// How a frame's occupancy is built.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -87,17 +87,85 @@ pub fn scatter_returns(obs: &Observations, sensor: &Sensor, frame: &Frame, rays:
     let vol = *obs.volume();
     let pose = &frame.t_world_sensor;
     let inv = 1.0 / vol.voxel_size_m;
-    let rot = pose.rotation.to_rotation_matrix().into_inner() * inv;
-    let origin = (pose.translation.vector - Vector3::from(vol.min_corner_m())) * inv;
-    let dims = vol.dims.map(|n| n as f64);
-    sensor.par_returns(&frame.measurement, rays, |local| {
-        let q = rot * Vector3::from(local) + origin;
-        // Truncation is the floor on [0, n); NaN fails the test.
-        if (0..3).all(|k| q[k] >= 0.0 && q[k] < dims[k]) {
-            let c = [0, 1, 2].map(|k| q[k] as usize);
-            obs.mark(c, vol.linear(c), OBS_HIT);
+    let to_volume = ToVolume {
+        rot: pose.rotation.to_rotation_matrix().into_inner() * inv,
+        origin: (pose.translation.vector - Vector3::from(vol.min_corner_m())) * inv,
+        // No voxel index exceeds an i32; no volume is that wide.
+        dims: vol.dims.map(|n| n.min(i32::MAX as usize) as f64),
+    };
+    sensor.par_returns(&frame.measurement, rays, |batch| {
+        let [xs, ys, zs] = to_volume.voxels(batch);
+        // Neighbouring pixels mostly share a voxel: it is marked once.
+        let mut last = [-1; 3];
+        for ((&x, &y), &z) in xs.iter().zip(&ys).zip(&zs).take(batch.len) {
+            let c = [x, y, z];
+            if c[0] >= 0 && c != last {
+                let c = c.map(|c| c as usize);
+                obs.mark(c, vol.linear(c), OBS_HIT);
+            }
+            last = c;
         }
     });
+}
+
+/// A point's voxel in a local volume: `rot · p + origin`, rounded down.
+struct ToVolume {
+    /// The sensor's rotation into the volume, in voxels.
+    rot: Matrix3<f64>,
+    /// The sensor's position in the volume, in voxels.
+    origin: Vector3<f64>,
+    /// The volume's voxels along each axis.
+    dims: [f64; 3],
+}
+
+impl ToVolume {
+    /// The voxel of each point of `batch`, by axis, `-1` on every axis for
+    /// a point outside the volume or NaN. The coordinates take nalgebra's
+    /// operations for `Matrix3 * Vector3 + Vector3` in its order (a row's
+    /// first two products summed, then the third, then the offset), so
+    /// each is the same to the bit; written out without branches so that
+    /// a batch is computed in vector registers.
+    fn voxels(&self, batch: &ReturnBatch) -> [[i32; RETURN_BATCH]; 3] {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU has AVX2, checked just above.
+            return unsafe { self.voxels_avx2(batch) };
+        }
+        self.voxels_of(batch)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn voxels_avx2(&self, batch: &ReturnBatch) -> [[i32; RETURN_BATCH]; 3] {
+        self.voxels_of(batch)
+    }
+
+    #[inline(always)]
+    fn voxels_of(&self, batch: &ReturnBatch) -> [[i32; RETURN_BATCH]; 3] {
+        let [x, y, z] = &batch.xyz;
+        let (m, o, n) = (self.rot, self.origin, self.dims);
+        let mut q = [[0f64; RETURN_BATCH]; 3];
+        for (k, q) in q.iter_mut().enumerate() {
+            let (a, b, c, o) = (m[(k, 0)], m[(k, 1)], m[(k, 2)], o[k]);
+            for i in 0..RETURN_BATCH {
+                q[i] = (a * x[i] + b * y[i]) + c * z[i] + o;
+            }
+        }
+        let mut out = [[-1; RETURN_BATCH]; 3];
+        for i in 0..RETURN_BATCH {
+            // Truncation is the floor on [0, n); NaN fails the test.
+            let inside = (q[0][i] >= 0.0 && q[0][i] < n[0])
+                & (q[1][i] >= 0.0 && q[1][i] < n[1])
+                & (q[2][i] >= 0.0 && q[2][i] < n[2]);
+            for k in 0..3 {
+                let v = if inside { q[k][i] } else { -1.0 };
+                // SAFETY: `v` is -1 or in [0, n) with n at most i32::MAX
+                // (see `dims`), so it truncates to an i32.
+                out[k][i] = unsafe { v.to_int_unchecked::<i32>() };
+            }
+        }
+        out
+    }
 }
 
 #[cfg(test)]
@@ -162,14 +230,15 @@ mod tests {
             t in proptest::array::uniform3(-2.0f64..2.0),
             origin in proptest::array::uniform3(-40i32..0),
             voxel_size_m in prop_oneof![Just(0.05), Just(0.1), 0.02f64..0.3],
-            depths in proptest::collection::vec(prop_oneof![0.0f32..6.0, (1u32..60).prop_map(|k| k as f32 * 0.1), Just(f32::NAN)], 24 * 16),
+            depths in proptest::collection::vec(prop_oneof![0.0f32..6.0, (1u32..60).prop_map(|k| k as f32 * 0.1), Just(f32::NAN)], 70 * 6),
         ) {
-            let cam = PinholeCamera { fx: 20.0, fy: 21.0, cx: 11.5, cy: 7.0, width: 24, height: 16, range: RangeLimits { min_m: 0.2, max_m: 5.0 } };
+            // Rows of 70 pixels: a whole batch and part of another.
+            let cam = PinholeCamera { fx: 40.0, fy: 21.0, cx: 34.5, cy: 2.5, width: 70, height: 6, range: RangeLimits { min_m: 0.2, max_m: 5.0 } };
             let axis = nalgebra::Vector3::from(axis);
             let rot = match nalgebra::Unit::try_new(axis, 1e-3) { Some(a) => UnitQuaternion::from_axis_angle(&a, angle), None => UnitQuaternion::identity() };
             let pose = Isometry3::from_parts(Translation3::from(nalgebra::Vector3::from(t)), rot);
             let vol = LocalVolume { origin: VoxelIndex([origin[0], origin[1], origin[2] / 2]), dims: [60, 50, 40], voxel_size_m };
-            let frame = Frame { stamp_s: 0.0, t_world_sensor: pose, measurement: Measurement::Depth(DepthImage { width: 24, height: 16, data: DepthData::Metres(depths.clone()) }) };
+            let frame = Frame { stamp_s: 0.0, t_world_sensor: pose, measurement: Measurement::Depth(DepthImage { width: 70, height: 6, data: DepthData::Metres(depths.clone()) }) };
             let obs = Observations::new(vol);
             scatter_returns(&obs, &Sensor::Depth(cam.clone()), &frame, &mut Vec::new());
             let hits: HashSet<usize> = (0..vol.len()).filter(|&i| obs.get(i) & OBS_HIT != 0).collect();
@@ -177,6 +246,30 @@ mod tests {
             prop_assert!(!maybe.is_empty() || hits.is_empty());
             prop_assert!(sure.is_subset(&hits), "returns not hit: {:?}", sure.difference(&hits).collect::<Vec<_>>());
             prop_assert!(hits.is_subset(&maybe), "hits of no return: {:?}", hits.difference(&maybe).collect::<Vec<_>>());
+        }
+
+        /// A batch's voxels are those of nalgebra's `rot * p + origin`,
+        /// rounded down, to the bit: points near voxel faces, on them, and
+        /// outside the volume or NaN (no voxel).
+        #[test]
+        fn batch_voxels_are_nalgebras(
+            axis in proptest::array::uniform3(-1.0f64..1.0),
+            angle in -3.2f64..3.2,
+            origin in proptest::array::uniform3(-30.0f64..30.0),
+            points in proptest::collection::vec(proptest::array::uniform3(prop_oneof![-40.0f64..40.0, (-400i32..400).prop_map(|k| f64::from(k) * 0.1), Just(f64::NAN)]), 1..=RETURN_BATCH),
+        ) {
+            let axis = nalgebra::Vector3::from(axis);
+            let rot = match nalgebra::Unit::try_new(axis, 1e-3) { Some(a) => UnitQuaternion::from_axis_angle(&a, angle), None => UnitQuaternion::identity() };
+            let to = ToVolume { rot: rot.to_rotation_matrix().into_inner() * 20.0, origin: Vector3::from(origin), dims: [60.0, 50.0, 40.0] };
+            let mut batch = ReturnBatch::new();
+            points.iter().for_each(|&p| batch.push(p));
+            let voxels = to.voxels(&batch);
+            for (i, p) in batch.points().enumerate() {
+                let q = to.rot * Vector3::from(p) + to.origin;
+                let inside = (0..3).all(|k| q[k] >= 0.0 && q[k] < to.dims[k]);
+                let want = if inside { [0, 1, 2].map(|k| q[k].floor() as i32) } else { [-1; 3] };
+                prop_assert_eq!([voxels[0][i], voxels[1][i], voxels[2][i]], want, "point {:?} at {:?}", p, q);
+            }
         }
     }
 }

@@ -13,7 +13,7 @@ mod points;
 mod pose;
 
 pub use lidar::{LidarScan, SpinningLidar, MAX_RINGS};
-pub use model::{SensorModel, View};
+pub use model::{ReturnBatch, SensorModel, View, RETURN_BATCH};
 pub use pinhole::{raw_depth_m, DepthData, DepthImage, PinholeCamera, MAX_IMAGE_PIXELS};
 pub use planar::{LaserScan, PlanarLidar};
 pub use points::PointSensor;
@@ -252,11 +252,12 @@ impl Sensor {
         with_frame_model!(self, m, |model, data| model.rays(data, clear_no_return, out), ())
     }
 
-    /// Calls `f` with the point of every return of a checked measurement
-    /// (sensor frame, metres), from the host's threads in any order: a
-    /// depth image's pixels row by row in parallel, other measurements
-    /// through their [`Self::rays`] (kept in `rays`).
-    pub fn par_returns(&self, m: &Measurement, rays: &mut Vec<SensorRay>, f: impl Fn([f64; 3]) + Sync) {
+    /// Calls `f` with the points of every return of a checked measurement
+    /// (sensor frame, metres), a [`ReturnBatch`] at a time, from the
+    /// host's threads in any order: a depth image's pixels row by row in
+    /// parallel, other measurements through their [`Self::rays`] (kept in
+    /// `rays`).
+    pub fn par_returns(&self, m: &Measurement, rays: &mut Vec<SensorRay>, f: impl Fn(&ReturnBatch) + Sync) {
         with_frame_model!(self, m, |model, data| model.par_returns(data, rays, f), ())
     }
 

@@ -51,22 +51,68 @@ pub trait SensorModel {
     /// `clear_no_return`.
     fn rays(&self, m: &Self::Data, clear_no_return: bool, out: &mut Vec<SensorRay>);
 
-    /// Calls `f` with the point of every return of a checked measurement
-    /// (sensor frame, metres), from the host's threads in any order; by
-    /// default through [`Self::rays`] (kept in `rays`).
-    fn par_returns(&self, m: &Self::Data, rays: &mut Vec<SensorRay>, f: impl Fn([f64; 3]) + Sync) {
+    /// Calls `f` with the points of every return of a checked measurement
+    /// (sensor frame, metres), a batch at a time, from the host's threads
+    /// in any order; by default through [`Self::rays`] (kept in `rays`).
+    fn par_returns(&self, m: &Self::Data, rays: &mut Vec<SensorRay>, f: impl Fn(&ReturnBatch) + Sync) {
         use rayon::prelude::*;
         rays.clear();
         self.rays(m, false, rays);
-        rays.par_iter()
-            .with_min_len(1024)
-            .filter(|r| r.hit)
-            .for_each(|r| f(r.dir.map(|c| c as f64 * r.range_m as f64)));
+        rays.par_chunks(RETURN_BATCH).with_min_len(16).for_each(|chunk| {
+            let mut batch = ReturnBatch::new();
+            for r in chunk.iter().filter(|r| r.hit) {
+                batch.push(r.dir.map(|c| c as f64 * r.range_m as f64));
+            }
+            f(&batch);
+        });
     }
 
     /// The measurement as projection sees it; `None` where projection
     /// cannot interpret it (ray casting only).
     fn view<'a>(&'a self, m: &'a Self::Data) -> Option<View<'a>>;
+}
+
+/// Most points a [`ReturnBatch`] holds.
+pub const RETURN_BATCH: usize = 64;
+
+/// The points of up to [`RETURN_BATCH`] returns (sensor frame, metres),
+/// one array per coordinate so that a consumer transforms a batch in
+/// vector registers. Points `0..len` are returns, except that a point
+/// with a NaN coordinate is none (a pixel with no valid depth); entries
+/// from `len` on are NaN.
+#[derive(Debug, Clone)]
+pub struct ReturnBatch {
+    /// The points' x, y and z.
+    pub xyz: [[f64; RETURN_BATCH]; 3],
+    /// How many entries are filled.
+    pub len: usize,
+}
+
+impl ReturnBatch {
+    /// A batch of no points.
+    pub fn new() -> Self {
+        ReturnBatch { xyz: [[f64::NAN; RETURN_BATCH]; 3], len: 0 }
+    }
+
+    /// Appends `p`; the caller keeps to [`RETURN_BATCH`] points.
+    #[inline]
+    pub fn push(&mut self, p: [f64; 3]) {
+        for (k, c) in p.into_iter().enumerate() {
+            self.xyz[k][self.len] = c;
+        }
+        self.len += 1;
+    }
+
+    /// The points `0..len`, NaN ones included.
+    pub fn points(&self) -> impl Iterator<Item = [f64; 3]> + '_ {
+        (0..self.len).map(|i| self.xyz.map(|c| c[i]))
+    }
+}
+
+impl Default for ReturnBatch {
+    fn default() -> Self {
+        Self::new()
+    }
 }
 
 /// A measurement laid out in a geometry that volumetric projection decides

@@ -1,6 +1,6 @@
 //! Pinhole depth camera: intrinsics and depth images.
 
-use super::{check_range, RangeLimits, SensorModel, SensorRay, View};
+use super::{check_range, RangeLimits, ReturnBatch, SensorModel, SensorRay, View, RETURN_BATCH};
 use crate::CoreError;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -58,6 +58,21 @@ impl DepthImage {
         match &self.data {
             DepthData::Metres(d) => d[i],
             DepthData::U16 { values, metres_per_unit } => raw_depth_m(values[i], *metres_per_unit),
+        }
+    }
+
+    /// Depths in metres of the pixels from index `start` on, as many as
+    /// `out` holds ([`Self::depth_m`] of each).
+    #[inline]
+    pub fn depths_m(&self, start: usize, out: &mut [f32]) {
+        let end = start + out.len();
+        match &self.data {
+            DepthData::Metres(d) => out.copy_from_slice(&d[start..end]),
+            DepthData::U16 { values, metres_per_unit } => {
+                for (o, &v) in out.iter_mut().zip(&values[start..end]) {
+                    *o = raw_depth_m(v, *metres_per_unit);
+                }
+            }
         }
     }
 
@@ -145,6 +160,50 @@ impl PinholeCamera {
         [(u as f64 - self.cx) / self.fx, (v as f64 - self.cy) / self.fy, 1.0]
     }
 
+    /// Fills `batch` with the points of the pixels from index `start` on,
+    /// one per entry of `xs` (their `(u − cx) / fx`), on a row at
+    /// `y = (v − cy) / fy`: NaN where the depth is not a valid return.
+    fn fill(&self, image: &DepthImage, start: usize, xs: &[f64], y: f64, batch: &mut ReturnBatch) {
+        let mut depths = [f32::NAN; RETURN_BATCH];
+        image.depths_m(start, &mut depths[..xs.len()]);
+        let mut x = [0.0; RETURN_BATCH];
+        x[..xs.len()].copy_from_slice(xs);
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU has AVX2, checked just above.
+            unsafe { self.points_avx2(&depths, &x, y, batch) };
+            batch.len = xs.len();
+            return;
+        }
+        self.points(&depths, &x, y, batch);
+        batch.len = xs.len();
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn points_avx2(
+        &self,
+        depths: &[f32; RETURN_BATCH],
+        x: &[f64; RETURN_BATCH],
+        y: f64,
+        batch: &mut ReturnBatch,
+    ) {
+        self.points(depths, x, y, batch)
+    }
+
+    /// A batch's points from its depths, without branches so that the
+    /// compiler keeps them in vector registers.
+    #[inline(always)]
+    fn points(&self, depths: &[f32; RETURN_BATCH], x: &[f64; RETURN_BATCH], y: f64, batch: &mut ReturnBatch) {
+        let [px, py, pz] = &mut batch.xyz;
+        for i in 0..RETURN_BATCH {
+            let d = if self.range.accepts(depths[i]) { depths[i] as f64 } else { f64::NAN };
+            px[i] = x[i] * d;
+            py[i] = y * d;
+            pz[i] = d;
+        }
+    }
+
     /// Pixel index whose centre is nearest to the projection of `p`
     /// (optical frame), if in front of the camera and inside the image.
     #[inline]
@@ -179,21 +238,22 @@ impl SensorModel for PinholeCamera {
         self.range
     }
 
-    /// Calls `f` with the point of every valid return of `image` (camera
-    /// frame, metres): pixel `(u, v)` at depth `d` is
-    /// `((u − cx) / fx · d, (v − cy) / fy · d, d)`. Rows run in parallel;
-    /// the order of the calls is unspecified.
-    fn par_returns(&self, image: &DepthImage, _rays: &mut Vec<SensorRay>, f: impl Fn([f64; 3]) + Sync) {
+    /// Calls `f` with the points of `image`'s pixels (camera frame,
+    /// metres), a batch of up to [`RETURN_BATCH`] pixels of a row at a
+    /// time: pixel `(u, v)` at depth `d` is `((u − cx) / fx · d,
+    /// (v − cy) / fy · d, d)`, and NaN where its depth is not a valid
+    /// return. Rows run in parallel; the order of the calls is
+    /// unspecified.
+    fn par_returns(&self, image: &DepthImage, _rays: &mut Vec<SensorRay>, f: impl Fn(&ReturnBatch) + Sync) {
         let xs: Vec<f64> = (0..self.width).map(|u| (u as f64 - self.cx) / self.fx).collect();
+        let width = self.width as usize;
         (0..self.height).into_par_iter().with_min_len(8).for_each(|v| {
             let y = (v as f64 - self.cy) / self.fy;
-            let row = self.width as usize * v as usize;
-            for (u, x) in xs.iter().enumerate() {
-                let d = image.depth_m(row + u);
-                if self.range.accepts(d) {
-                    let d = d as f64;
-                    f([x * d, y * d, d]);
-                }
+            let row = width * v as usize;
+            let mut batch = ReturnBatch::new();
+            for (start, xs) in (0..width).step_by(RETURN_BATCH).zip(xs.chunks(RETURN_BATCH)) {
+                self.fill(image, row + start, xs, y, &mut batch);
+                f(&batch);
             }
         });
     }
