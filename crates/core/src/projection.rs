@@ -338,8 +338,32 @@ fn mark_slab(obs: &Observations, geom: &VoxelToSensor, p: &PlanarMiss<'_>, lo: [
     }
 }
 
-/// [`mark_misses`] over the voxels `lo..hi` of one tile.
+/// [`mark_misses`] over the voxels `lo..hi` of one tile, compiled for AVX2
+/// where the CPU has it: a row's decisions then run eight voxels at a time
+/// and round down in a vector instruction, with the same results.
 fn mark_tile(obs: &Observations, geom: &VoxelToSensor, decide: &Decide<'_, '_>, lo: [usize; 3], hi: [usize; 3]) {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU has AVX2, checked just above.
+        return unsafe { mark_tile_avx2(obs, geom, decide, lo, hi) };
+    }
+    mark_tile_voxels(obs, geom, decide, lo, hi)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn mark_tile_avx2(
+    obs: &Observations,
+    geom: &VoxelToSensor,
+    decide: &Decide<'_, '_>,
+    lo: [usize; 3],
+    hi: [usize; 3],
+) {
+    mark_tile_voxels(obs, geom, decide, lo, hi)
+}
+
+#[inline(always)]
+fn mark_tile_voxels(obs: &Observations, geom: &VoxelToSensor, decide: &Decide<'_, '_>, lo: [usize; 3], hi: [usize; 3]) {
     let [nx, ny, _] = obs.volume().dims;
     for z in lo[2]..hi[2] {
         for y in lo[1]..hi[1] {

@@ -201,18 +201,36 @@ fn thresholds(job: &ProjectJob<'_>, camera: &PinholeCamera, image: &DepthImage) 
     };
     match &image.data {
         DepthData::Metres(d) => out.par_chunks_mut(w).zip(d.par_chunks(w)).for_each(|(t, d)| {
-            t.iter_mut().zip(d).for_each(|(t, &d)| *t = free(d, true));
+            vector_row(t, d, |t, d: &[f32]| t.iter_mut().zip(d).for_each(|(t, &d)| *t = free(d, true)));
         }),
         // As `crate::sensor::raw_depth_m`: 0 is no return, else the value
         // times the unit.
         DepthData::U16 { values, metres_per_unit } => {
             let unit = *metres_per_unit;
             out.par_chunks_mut(w).zip(values.par_chunks(w)).for_each(|(t, v)| {
-                t.iter_mut().zip(v).for_each(|(t, &v)| *t = free(v as f32 * unit, v != 0));
+                vector_row(t, v, |t, v: &[u16]| {
+                    t.iter_mut().zip(v).for_each(|(t, &v)| *t = free(v as f32 * unit, v != 0))
+                });
             })
         }
     }
     out
+}
+
+/// `f(out, row)`, compiled for AVX2 where the CPU has it: `f` is a loop
+/// without branches over a row, the same values either way.
+#[inline(always)]
+fn vector_row<T, F: Fn(&mut [f32], &[T])>(out: &mut [f32], row: &[T], f: F) {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        #[target_feature(enable = "avx2")]
+        unsafe fn avx2<T, F: Fn(&mut [f32], &[T])>(out: &mut [f32], row: &[T], f: F) {
+            f(out, row)
+        }
+        // SAFETY: the CPU has AVX2, checked just above.
+        return unsafe { avx2(out, row, f) };
+    }
+    f(out, row)
 }
 
 /// The finest level: cells of [`CELL_PX`]² pixels (fewer at the edges).
