@@ -184,7 +184,10 @@ impl<'a> DepthMiss<'a> {
 /// Per pixel, [`ProjectJob::free_below_m`] of its depth.
 fn thresholds(job: &ProjectJob<'_>, camera: &PinholeCamera, image: &DepthImage) -> Vec<f32> {
     let w = camera.width as usize;
-    let mut out = vec![0.0; w * camera.height as usize];
+    let n = w * camera.height as usize;
+    // Room for the threshold of "no pixel" that [`DepthMiss::new`] appends.
+    let mut out = Vec::with_capacity(n + 1);
+    out.resize(n, 0.0);
     // [`ProjectJob::free_below_m`] with its conditions evaluated together,
     // not one after another, so that a row's pixels are done in vector
     // registers: the same values.
