@@ -94,18 +94,29 @@ pub fn scatter_returns(obs: &Observations, sensor: &Sensor, frame: &Frame, rays:
         dims: vol.dims.map(|n| n.min(i32::MAX as usize) as f64),
     };
     sensor.par_returns(&frame.measurement, rays, |batch| {
-        let [xs, ys, zs] = to_volume.voxels(batch);
-        // Neighbouring pixels mostly share a voxel: it is marked once.
-        let mut last = [-1; 3];
-        for ((&x, &y), &z) in xs.iter().zip(&ys).zip(&zs).take(batch.len) {
-            let c = [x, y, z];
-            if c[0] >= 0 && c != last {
-                let c = c.map(|c| c as usize);
-                obs.mark(c, vol.linear(c), OBS_HIT);
-            }
-            last = c;
+        let Voxels { voxel, mut starts } = to_volume.voxels(batch);
+        // Neighbouring pixels mostly share a voxel: it is marked once,
+        // at the first point of each run.
+        if batch.len < RETURN_BATCH {
+            starts &= (1 << batch.len) - 1;
+        }
+        while starts != 0 {
+            let i = starts.trailing_zeros() as usize;
+            starts &= starts - 1;
+            let c = [0, 1, 2].map(|k| voxel[k][i] as usize);
+            obs.mark(c, vol.linear(c), OBS_HIT);
         }
     });
+}
+
+/// A batch's voxels ([`ToVolume::voxels`]).
+struct Voxels {
+    /// The voxel of each point, by axis; `-1` on every axis for a point
+    /// outside the volume or NaN.
+    voxel: [[i32; RETURN_BATCH]; 3],
+    /// Bit `i` set where point `i` lies in the volume and in another voxel
+    /// than point `i − 1` (or is the first): the runs' first points.
+    starts: u64,
 }
 
 /// A point's voxel in a local volume: `rot · p + origin`, rounded down.
@@ -125,7 +136,7 @@ impl ToVolume {
     /// first two products summed, then the third, then the offset), so
     /// each is the same to the bit; written out without branches so that
     /// a batch is computed in vector registers.
-    fn voxels(&self, batch: &ReturnBatch) -> [[i32; RETURN_BATCH]; 3] {
+    fn voxels(&self, batch: &ReturnBatch) -> Voxels {
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU has AVX2, checked just above.
@@ -136,12 +147,12 @@ impl ToVolume {
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    unsafe fn voxels_avx2(&self, batch: &ReturnBatch) -> [[i32; RETURN_BATCH]; 3] {
+    unsafe fn voxels_avx2(&self, batch: &ReturnBatch) -> Voxels {
         self.voxels_of(batch)
     }
 
     #[inline(always)]
-    fn voxels_of(&self, batch: &ReturnBatch) -> [[i32; RETURN_BATCH]; 3] {
+    fn voxels_of(&self, batch: &ReturnBatch) -> Voxels {
         let [x, y, z] = &batch.xyz;
         let (m, o, n) = (self.rot, self.origin, self.dims);
         let mut q = [[0f64; RETURN_BATCH]; 3];
@@ -151,7 +162,7 @@ impl ToVolume {
                 q[i] = (a * x[i] + b * y[i]) + c * z[i] + o;
             }
         }
-        let mut out = [[-1; RETURN_BATCH]; 3];
+        let mut voxel = [[-1; RETURN_BATCH]; 3];
         for i in 0..RETURN_BATCH {
             // Truncation is the floor on [0, n); NaN fails the test.
             let inside = (q[0][i] >= 0.0 && q[0][i] < n[0])
@@ -161,10 +172,15 @@ impl ToVolume {
                 let v = if inside { q[k][i] } else { -1.0 };
                 // SAFETY: `v` is -1 or in [0, n) with n at most i32::MAX
                 // (see `dims`), so it truncates to an i32.
-                out[k][i] = unsafe { v.to_int_unchecked::<i32>() };
+                voxel[k][i] = unsafe { v.to_int_unchecked::<i32>() };
             }
         }
-        out
+        let mut starts = u64::from(voxel[0][0] >= 0);
+        for i in 1..RETURN_BATCH {
+            let moved = (0..3).fold(false, |m, k| m | (voxel[k][i] != voxel[k][i - 1]));
+            starts |= u64::from(moved & (voxel[0][i] >= 0)) << i;
+        }
+        Voxels { voxel, starts }
     }
 }
 
@@ -263,12 +279,15 @@ mod tests {
             let to = ToVolume { rot: rot.to_rotation_matrix().into_inner() * 20.0, origin: Vector3::from(origin), dims: [60.0, 50.0, 40.0] };
             let mut batch = ReturnBatch::new();
             points.iter().for_each(|&p| batch.push(p));
-            let voxels = to.voxels(&batch);
+            let Voxels { voxel, starts } = to.voxels(&batch);
+            let mut last = [-1; 3];
             for (i, p) in batch.points().enumerate() {
                 let q = to.rot * Vector3::from(p) + to.origin;
                 let inside = (0..3).all(|k| q[k] >= 0.0 && q[k] < to.dims[k]);
                 let want = if inside { [0, 1, 2].map(|k| q[k].floor() as i32) } else { [-1; 3] };
-                prop_assert_eq!([voxels[0][i], voxels[1][i], voxels[2][i]], want, "point {:?} at {:?}", p, q);
+                prop_assert_eq!([voxel[0][i], voxel[1][i], voxel[2][i]], want, "point {:?} at {:?}", p, q);
+                prop_assert_eq!(starts >> i & 1 == 1, inside && want != last, "point {}", i);
+                last = want;
             }
         }
     }
