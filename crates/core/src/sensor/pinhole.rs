@@ -168,15 +168,13 @@ impl PinholeCamera {
         image.depths_m(start, &mut depths[..xs.len()]);
         let mut x = [0.0; RETURN_BATCH];
         x[..xs.len()].copy_from_slice(xs);
+        batch.len = xs.len();
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU has AVX2, checked just above.
-            unsafe { self.points_avx2(&depths, &x, y, batch) };
-            batch.len = xs.len();
-            return;
+            return unsafe { self.points_avx2(&depths, &x, y, batch) };
         }
         self.points(&depths, &x, y, batch);
-        batch.len = xs.len();
     }
 
     #[cfg(target_arch = "x86_64")]
