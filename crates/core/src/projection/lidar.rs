@@ -273,9 +273,10 @@ pub(super) fn fast_atan2(y: f64, x: f64, atan: &[f64]) -> f64 {
     let (num, den) = if ay > ax { (ax, ay) } else { (ay, ax) };
     let t = if den > 0.0 { num / den } else { 0.0 };
     let f = t * ATAN_STEPS as f64;
-    // `t` is in [0, 1] (NaN only for NaN input, which casts to 0).
-    let i = (f as usize).min(ATAN_STEPS);
-    let a = atan[i] + (f - i as f64) * (atan[i + 1] - atan[i]);
+    // `t` is in [0, 1] (NaN only for NaN input, which casts to 0); through
+    // `u32`, the casts are one instruction each.
+    let i = (f as u32).min(ATAN_STEPS as u32);
+    let a = atan[i as usize] + (f - f64::from(i)) * (atan[i as usize + 1] - atan[i as usize]);
     let a = if ay > ax { FRAC_PI_2 - a } else { a };
     let a = if x < 0.0 { PI - a } else { a };
     if y < 0.0 {

@@ -50,6 +50,9 @@ pub(super) struct PlanarMiss<'a> {
     free_below_m: Vec<f32>,
     /// Beams per turn, `2π / |increment|`.
     per_turn: f64,
+    /// `1 / increment`: a voxel's position in the sweep is a product, not
+    /// a quotient (the difference is far inside `margin`).
+    per_increment: f64,
     /// How far a guessed position in the sweep may be from the exact one,
     /// beams.
     margin: f64,
@@ -67,7 +70,8 @@ impl<'a> PlanarMiss<'a> {
         // The angle's error over the increment, and the rounding of the
         // position's arithmetic (some 1e-16 of the sweep) a million times over.
         let margin = ANGLE_ERROR_RAD / inc + 1e-10 * (per_turn + scan.angle_min_rad.abs() / inc);
-        Some(PlanarMiss { job: *job, scan, free_below_m, per_turn, margin })
+        let per_increment = 1.0 / scan.angle_increment_rad;
+        Some(PlanarMiss { job: *job, scan, free_below_m, per_turn, per_increment, margin })
     }
 
     /// The largest threshold of the scan, metres.
@@ -102,7 +106,7 @@ impl<'a> PlanarMiss<'a> {
         let half_angle = sin / (1.0 - sin * sin).sqrt() + 2.0 * ANGLE_ERROR_RAD;
         let inc = self.scan.angle_increment_rad;
         let azimuth = fast_atan2(c[1], c[0], &ATAN);
-        let centre = ((azimuth - self.scan.angle_min_rad) / inc).rem_euclid(self.per_turn);
+        let centre = ((azimuth - self.scan.angle_min_rad) * self.per_increment).rem_euclid(self.per_turn);
         let width = half_angle / inc.abs() + self.margin;
         let (first, last) = (centre - width + 0.5, centre + width + 0.5);
         if first < 1.0 || last >= self.per_turn.floor() - 1.0 || last - first > TILE_BEAMS as f64 {
@@ -194,7 +198,7 @@ impl<'a> PlanarMiss<'a> {
     #[inline]
     fn beam(&self, p: [f32; 3]) -> Option<usize> {
         let az = fast_atan2(f64::from(p[1]), f64::from(p[0]), &ATAN);
-        let rel = (az - self.scan.angle_min_rad) / self.scan.angle_increment_rad;
+        let rel = (az - self.scan.angle_min_rad) * self.per_increment;
         let m = self.margin;
         // `rem_euclid` of a position within one turn of the sweep's start:
         // itself, or one turn on; near 0 or a turn, the definition decides.
@@ -206,15 +210,17 @@ impl<'a> PlanarMiss<'a> {
             return None;
         };
         let x = wrapped + 0.5;
-        // `x` is positive: truncation is the floor, without a call to
-        // libm's `floor`.
-        let i = x as u64 as f64;
+        // `x` is positive and below a turn's beams: truncation is the
+        // floor, without a call to libm's `floor` (and through `i64`, one
+        // instruction, where `u64` takes several).
+        let k = x as i64;
+        let i = k as f64;
         if x - i < m || i + 1.0 - x < m {
             return None;
         }
-        let i = if i >= self.per_turn.floor() && (i - self.per_turn).abs() < 1.0 { 0.0 } else { i };
+        let k = if i >= self.per_turn.floor() && (i - self.per_turn).abs() < 1.0 { 0 } else { k };
         // Every index is non-negative here; one past the beams is no beam.
-        Some(if (i as usize) < self.scan.ranges.len() { i as usize } else { usize::MAX })
+        Some(usize::try_from(k).ok().filter(|&k| k < self.scan.ranges.len()).unwrap_or(usize::MAX))
     }
 }
 
