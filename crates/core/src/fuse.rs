@@ -198,12 +198,14 @@ mod tests {
         let lo = OccupancyParams::default().log_odds().expect("defaults");
         let mut map = OccupancyMap::new();
         let mut oracle: HashMap<VoxelIndex, f32> = HashMap::new();
-        let mut state = 0x2545_F491_4F6C_DD1Du64;
-        let mut next = move |n: u64| {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            state % n
+        // A fixed pseudo-random draw per voxel, frame and purpose, below `n`
+        // (splitmix64's finaliser over the packed coordinates).
+        let draw = |w: VoxelIndex, frame: i32, purpose: u64, n: u64| {
+            let packed = [w.0[0], w.0[1], w.0[2], frame].iter().fold(0, |h, &v| (h << 16) ^ (v as u16 as u64));
+            let mut z = packed.wrapping_add(0x9E37_79B9_7F4A_7C15u64.wrapping_mul(purpose));
+            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+            (z ^ (z >> 31)) % n
         };
         let mut kept = 0;
         for frame in 0..60 {
@@ -217,7 +219,8 @@ mod tests {
             // in twenty unseen and a rare flicker.
             let voxels = || (0..11).flat_map(|z| (0..19).flat_map(move |y| (0..21).map(move |x| [x, y, z])));
             for c in voxels() {
-                let o = match (vol.world(c).0[0], next(20), next(2000)) {
+                let w = vol.world(c);
+                let o = match (w.0[0], draw(w, frame, 1, 20), draw(w, frame, 2, 2000)) {
                     (_, _, 0) => OBS_HIT,
                     (_, 0, _) => OBS_NONE,
                     (12, _, _) => OBS_HIT,
