@@ -46,14 +46,10 @@ pub fn fuse(map: &mut OccupancyMap, obs: &Observations, lo: &LogOdds) -> FuseRep
         .filter_map(|key| {
             let block = view.get(key);
             let (mut updated, mut writes) = (0, false);
-            for_each_row(&vol, key, |i, offset, len| {
-                // The row's log-odds read only if a voxel of it was seen.
+            for_each_seen_row(&vol, key, obs, |i, offset, len, seen| {
                 if writes {
                     return;
                 }
-                let Some(seen) = (0..len).find(|&k| obs.get(i + k) != OBS_NONE) else {
-                    return;
-                };
                 let layer = block.map_or(f32::EMPTY_LAYER, |b| b.log_odds.layer_or_empty(offset / LAYER_VOXELS));
                 let cells = &layer[offset % LAYER_VOXELS..offset % LAYER_VOXELS + len];
                 for (k, &old) in cells.iter().enumerate().skip(seen) {
@@ -82,11 +78,8 @@ pub fn fuse(map: &mut OccupancyMap, obs: &Observations, lo: &LogOdds) -> FuseRep
             let had = stored.is_some();
             let mut block = stored.map(|b| SharedBlock::into_owned(Some(b)));
             let mut fused = Fused::default();
-            for_each_row(&vol, key, |i, offset, len| {
+            for_each_seen_row(&vol, key, obs, |i, offset, len, seen| {
                 // The row's layer, made only if a voxel of the row was seen.
-                let Some(seen) = (0..len).find(|&k| obs.get(i + k) != OBS_NONE) else {
-                    return;
-                };
                 let layer = block.get_or_insert_with(Box::default).log_odds.layer_mut(offset / LAYER_VOXELS);
                 let cells = &mut layer[offset % LAYER_VOXELS..offset % LAYER_VOXELS + len];
                 for (k, cell) in cells.iter_mut().enumerate().skip(seen) {
@@ -142,6 +135,23 @@ fn for_each_row(vol: &LocalVolume, key: BlockKey, mut f: impl FnMut(usize, usize
             f(vol.linear([xs.start, y, z]), bx + 8 * (by + 8 * bz), xs.len());
         }
     }
+}
+
+/// [`for_each_row`] of the rows with an observed voxel, with the first
+/// such voxel's place in the row: `f(local linear index, offset in block,
+/// voxels, first observed)`. A row's log-odds are read only when it has one.
+#[inline]
+fn for_each_seen_row(
+    vol: &LocalVolume,
+    key: BlockKey,
+    obs: &Observations,
+    mut f: impl FnMut(usize, usize, usize, usize),
+) {
+    for_each_row(vol, key, |i, offset, len| {
+        if let Some(seen) = (0..len).find(|&k| obs.get(i + k) != OBS_NONE) {
+            f(i, offset, len, seen);
+        }
+    });
 }
 
 /// Fills `out` with the states of `vol`'s voxels from `map`.
