@@ -2,6 +2,7 @@
 //! mapping pipeline and writes `report.json` and pictures.
 
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 use crate::sections::{self, Sections};
 use anyhow::{bail, Context, Result};
@@ -24,7 +25,7 @@ use serde_json::{json, Map};
 use crate::backend::{self, BackendArg, CliMapper};
 use crate::interrupt::{self, Interrupted, OnFirst};
 use crate::pictures::{write_plys, write_slices, write_timing_plot, SliceHeight};
-use crate::report::{median, report, FrameRecord};
+use crate::report::{median, write_report_file, FieldNames, FrameRecord};
 use crate::scenes::builtin_config;
 use crate::source::{check_kind, Failure, FailureKind, Source};
 
@@ -279,7 +280,7 @@ pub(crate) fn execute(args: &RunArgs, progress: bool) -> Result<RunOutcome> {
         header.insert("map_eval".into(), value);
     }
     let report_path = args.out.join(REPORT);
-    write_json(&report_path, &report(header, &replayed.records))?;
+    write_report_file(&report_path, &header, &replayed.records)?;
     if replayed.records.is_empty() {
         // Nothing to picture or save: an empty map must not replace a
         // good one, and a run that mapped nothing has failed.
@@ -424,6 +425,8 @@ fn replay(args: &RunArgs, setup: &Setup, mapper: &mut CliMapper, progress: bool)
     let mut truth = (Vec::new(), Vec::new());
     let mut frames = setup.source.frames(&setup.sensors, setup.frames, &setup.name);
     let batch = batch_stage(setup, mapper);
+    let sensor_names: Vec<Arc<str>> = mapper.sensors().iter().map(|s| Arc::from(s.name.as_str())).collect();
+    let (mut names, mut pairs) = (FieldNames::default(), Vec::new());
     loop {
         if let Some(signal) = interrupt::requested() {
             out.interrupted = Some(signal);
@@ -445,14 +448,18 @@ fn replay(args: &RunArgs, setup: &Setup, mapper: &mut CliMapper, progress: bool)
             }
         };
         tracing::debug!("frame {i} at {:.3} s: {:.2} ms", frame.stamp_s, stats.total_ms);
-        let mut rec = frame_record(i, &frame, &stats, mapper.map().occupancy().len(), batch);
-        rec.sensor = mapper.sensors()[s].name.clone();
+        let mut rec = frame_record(i, &frame, &stats, batch);
+        rec.sensor = Arc::clone(&sensor_names[s]);
+        pairs.clear();
+        pairs.extend(global_fields(&stats, mapper.map().occupancy().len()));
+        pairs.push(("sensor_bytes", frame.measurement.bytes() as f64));
         if let (Some(before), Some(now)) = (counted, mapper.backend().device_counters()) {
-            rec.global.extend(device_fields(now.since(before)));
+            pairs.extend(device_fields(now.since(before)));
         }
         if args.eval {
-            evaluate(&mut rec, setup, &setup.sensors[s].0.sensor, &frame, mapper, &mut truth)?;
+            evaluate(&mut rec, &mut pairs, setup, &setup.sensors[s].0.sensor, &frame, mapper, &mut truth)?;
         }
+        rec.fields = names.fields(&pairs);
         out.records.push(rec);
         bar.inc(1);
     }
@@ -520,10 +527,9 @@ fn stops_the_run(failure: &Failure, setup: &Setup) -> bool {
         || matches!(setup.source, Source::Scene(_))
 }
 
-/// The report's record of frame `index`, after which the map holds
-/// `occupancy_blocks` occupancy blocks; `batch`: whether the window's batch
-/// EDT is a stage of its own.
-fn frame_record(index: usize, frame: &Frame, stats: &FrameStats, occupancy_blocks: usize, batch: bool) -> FrameRecord {
+/// The report's record of frame `index`, its named fields still to come;
+/// `batch`: whether the window's batch EDT is a stage of its own.
+fn frame_record(index: usize, frame: &Frame, stats: &FrameStats, batch: bool) -> FrameRecord {
     FrameRecord {
         index,
         stamp_s: frame.stamp_s,
@@ -534,16 +540,16 @@ fn frame_record(index: usize, frame: &Frame, stats: &FrameStats, occupancy_block
         voxels_updated: stats.voxels_updated,
         voxels_changed: stats.voxels_changed,
         changed_blocks: stats.changed_blocks.len(),
-        global: [global_fields(stats, occupancy_blocks), vec![("sensor_bytes", frame.measurement.bytes() as f64)]]
-            .concat(),
         ..Default::default()
     }
 }
 
 /// `--eval`: occupancy scores against a scene's ground truth, and the EDT
-/// errors. Recordings have no ground truth: only the EDT is checked.
+/// errors, added to `fields`. Recordings have no ground truth: only the
+/// EDT is checked.
 fn evaluate(
     rec: &mut FrameRecord,
+    fields: &mut Vec<(&'static str, f64)>,
     setup: &Setup,
     sensor: &Sensor,
     frame: &Frame,
@@ -554,7 +560,7 @@ fn evaluate(
         let scores = score(scene, sensor, frame, mapper, truth);
         (rec.precision, rec.recall, rec.strict_recall) = (scores.precision(), scores.recall(), scores.strict_recall());
     }
-    rec.edt_errors = edt_error_fields(mapper)?;
+    fields.extend(edt_error_fields(mapper)?);
     Ok(())
 }
 
@@ -600,7 +606,7 @@ fn report_header(
                 "name": s.name,
                 "kind": s.sensor.kind(),
                 "construction": construction_of(&s.sensor, &s.ogm),
-                "frames_integrated": replayed.records.iter().filter(|r| r.sensor == s.name).count(),
+                "frames_integrated": replayed.records.iter().filter(|r| *r.sensor == *s.name).count(),
                 "frames_skipped": replayed.skipped.iter().filter(|(k, _)| *k == i).count(),
             })
         })
@@ -807,11 +813,6 @@ fn progress_bar(frames: usize, show: bool) -> ProgressBar {
         bar.set_style(style);
     }
     bar
-}
-
-fn write_json(path: &Path, value: &serde_json::Value) -> Result<()> {
-    let text = serde_json::to_string_pretty(value)? + "\n";
-    Ok(edtmap_io::files::write_atomic(path, text.as_bytes())?)
 }
 
 /// Prints the per-stage medians and what was written.
