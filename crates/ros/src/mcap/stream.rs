@@ -42,6 +42,8 @@ pub(super) struct Decoder<'a> {
     schemas: HashMap<u16, String>,
     channels: BTreeMap<u16, Channel>,
     ready: VecDeque<RawMessage>,
+    /// The zstd context, made at the first zstd chunk and kept.
+    zstd: Option<zstd::bulk::Decompressor<'static>>,
 }
 
 impl Decoder<'_> {
@@ -107,27 +109,51 @@ impl Decoder<'_> {
                 header.uncompressed_size
             ));
         }
-        if !header.compression.is_empty() {
-            return self.compressed_chunk(&header, body);
+        match header.compression.as_str() {
+            "" => self.records(&header, &data),
+            "zstd" => {
+                let records = self.unzstd(&header, &data)?;
+                self.records(&header, &records)
+            }
+            _ => self.compressed_chunk(&header, body),
         }
+    }
+
+    /// A zstd chunk's records, decoded in one call straight into a buffer
+    /// of the chunk's stated size: no streaming window beside it.
+    fn unzstd(&mut self, header: &ChunkHeader, data: &[u8]) -> Result<Vec<u8>, String> {
+        let size = header.uncompressed_size as usize;
+        let mut out = Vec::new();
+        out.try_reserve_exact(size).map_err(|_| format!("cannot allocate the chunk's {size} bytes uncompressed"))?;
+        let zstd = match &mut self.zstd {
+            Some(z) => z,
+            None => self.zstd.insert(zstd::bulk::Decompressor::new().map_err(|e| format!("zstd: {e}"))?),
+        };
+        zstd.decompress_to_buffer(data, &mut out).map_err(|e| format!("zstd data do not decode ({e})"))?;
+        Ok(out)
+    }
+
+    /// Takes the records of a chunk's uncompressed bytes, after checking
+    /// their size and CRC.
+    fn records(&mut self, header: &ChunkHeader, data: &[u8]) -> Result<(), String> {
         if data.len() as u64 != header.uncompressed_size {
             return Err(format!(
-                "the uncompressed chunk holds {} bytes but claims {}",
+                "the chunk holds {} bytes uncompressed but claims {}",
                 data.len(),
                 header.uncompressed_size
             ));
         }
-        if header.uncompressed_crc != 0 && crc32fast::hash(&data) != header.uncompressed_crc {
+        if header.uncompressed_crc != 0 && crc32fast::hash(data) != header.uncompressed_crc {
             return Err(format!("chunk CRC mismatch (expected {:08X})", header.uncompressed_crc));
         }
-        for record in split_records(&data) {
+        for record in split_records(data) {
             let (at, opcode, body) = record?;
             self.record(opcode, body).map_err(|e| format!("record at byte {at} of the chunk's records: {e}"))?;
         }
         Ok(())
     }
 
-    /// Decompresses a chunk with a `LinearReader` fed the chunk record alone
+    /// Decompresses a chunk (lz4) with a `LinearReader` fed the chunk record alone
     /// and limited to the chunk's stated sizes; it checks the CRC of the
     /// whole chunk before handing out its first record.
     fn compressed_chunk(&mut self, header: &ChunkHeader, body: &[u8]) -> Result<(), String> {
@@ -205,7 +231,8 @@ impl<'a> Stream<'a> {
                 .with_validate_data_section_crc(true)
                 .with_record_length_limit(limit),
         );
-        let decoder = Decoder { topics, schemas: HashMap::new(), channels: BTreeMap::new(), ready: VecDeque::new() };
+        let decoder =
+            Decoder { topics, schemas: HashMap::new(), channels: BTreeMap::new(), ready: VecDeque::new(), zstd: None };
         Ok(Self { path, file, file_len, reader, at: MAGIC.len() as u64, decoder, error: None, done: false })
     }
 
