@@ -6,9 +6,12 @@
 //! Both constructions write one observation per voxel per frame (a hit wins
 //! over a miss), so the fused map does not depend on thread scheduling.
 
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
+
 use crate::sensor::{Frame, ReturnBatch, Sensor, SensorRay, RETURN_BATCH};
 use crate::{LocalVolume, Observations, ProjectJob, OBS_HIT};
 use nalgebra::{Matrix3, Vector3};
+use rayon::prelude::*;
 
 /// How a frame's occupancy is built.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -85,6 +88,26 @@ pub fn project_job<'a>(
 /// of the volume; its voxel is that point rounded down.
 pub fn scatter_returns(obs: &Observations, sensor: &Sensor, frame: &Frame, rays: &mut Vec<SensorRay>) {
     let vol = *obs.volume();
+    for_each_return_voxel(&vol, sensor, frame, rays, |voxel, mut starts| {
+        while starts != 0 {
+            let i = starts.trailing_zeros() as usize;
+            starts &= starts - 1;
+            let c = [0, 1, 2].map(|k| voxel[k][i] as usize);
+            obs.mark(c, vol.linear(c), OBS_HIT);
+        }
+    });
+}
+
+/// `f(voxel, starts)` for each batch of `frame`'s returns in `vol`, in
+/// parallel: the batch's voxels by axis ([`Voxels`]) and the bits of the
+/// points that start a run of one voxel, each voxel marked once per run.
+fn for_each_return_voxel(
+    vol: &LocalVolume,
+    sensor: &Sensor,
+    frame: &Frame,
+    rays: &mut Vec<SensorRay>,
+    f: impl Fn(&[[i32; RETURN_BATCH]; 3], u64) + Sync,
+) {
     let pose = &frame.t_world_sensor;
     let inv = 1.0 / vol.voxel_size_m;
     let to_volume = ToVolume {
@@ -100,13 +123,97 @@ pub fn scatter_returns(obs: &Observations, sensor: &Sensor, frame: &Frame, rays:
         if batch.len < RETURN_BATCH {
             starts &= (1 << batch.len) - 1;
         }
-        while starts != 0 {
-            let i = starts.trailing_zeros() as usize;
-            starts &= starts - 1;
-            let c = [0, 1, 2].map(|k| voxel[k][i] as usize);
-            obs.mark(c, vol.linear(c), OBS_HIT);
-        }
+        f(&voxel, starts);
     });
+}
+
+/// The voxels of a frame's returns, found apart from the observations so
+/// that the search runs beside the projection (which marks its tiles with
+/// plain stores) and the hits are marked after it: [`scatter_returns`] in
+/// two steps, [`Self::find`] and [`Self::mark`]. Its buffer is kept from
+/// frame to frame.
+#[derive(Debug, Default)]
+pub struct Returns {
+    /// Each found voxel's coordinates, 21 bits per axis: `len` of them.
+    voxels: Vec<AtomicU64>,
+    len: AtomicUsize,
+    volume: Option<LocalVolume>,
+}
+
+/// Bits per axis of a voxel's coordinates packed in [`Returns`].
+const AXIS_BITS: u32 = 21;
+
+impl Returns {
+    /// Finds the voxels of `frame`'s returns in `vol`, for [`Self::mark`].
+    /// `false` where they cannot be kept (a volume wider than 2²¹ voxels,
+    /// or a buffer that cannot be allocated): nothing is kept then, and
+    /// [`scatter_returns`] marks them.
+    pub fn find(&mut self, vol: &LocalVolume, sensor: &Sensor, frame: &Frame, rays: &mut Vec<SensorRay>) -> bool {
+        self.volume = None;
+        *self.len.get_mut() = 0;
+        let n = frame.measurement.values();
+        if vol.dims.iter().any(|&d| d >= 1 << AXIS_BITS) || !self.room_for(n) {
+            return false;
+        }
+        let (voxels, len) = (&self.voxels[..n], &self.len);
+        let overflow = AtomicBool::new(false);
+        for_each_return_voxel(vol, sensor, frame, rays, |voxel, mut starts| {
+            let k = starts.count_ones() as usize;
+            if k == 0 {
+                return;
+            }
+            let first = len.fetch_add(k, Ordering::Relaxed);
+            let Some(slots) = voxels.get(first..first + k) else {
+                overflow.store(true, Ordering::Relaxed);
+                return;
+            };
+            for slot in slots {
+                let i = starts.trailing_zeros() as usize;
+                starts &= starts - 1;
+                let c = [0, 1, 2].map(|a| voxel[a][i] as u64);
+                slot.store(c[0] | c[1] << AXIS_BITS | c[2] << (2 * AXIS_BITS), Ordering::Relaxed);
+            }
+        });
+        // A measurement gives a return per value at most; more would be a
+        // model's mistake, and the marks fall back to the direct way.
+        if overflow.into_inner() {
+            return false;
+        }
+        self.volume = Some(*vol);
+        true
+    }
+
+    /// Room for `n` voxels, kept from frame to frame; `false` where the
+    /// allocation cannot be made.
+    fn room_for(&mut self, n: usize) -> bool {
+        if self.voxels.len() >= n {
+            return true;
+        }
+        if self.voxels.try_reserve_exact(n - self.voxels.len()).is_err() {
+            return false;
+        }
+        self.voxels.resize_with(n, || AtomicU64::new(0));
+        true
+    }
+
+    /// Marks the voxels [`Self::find`] found as hits of `obs`, whose volume
+    /// they were found in; `false` (nothing marked) for another volume or
+    /// none found.
+    pub fn mark(&self, obs: &Observations) -> bool {
+        let Some(vol) = self.volume.filter(|v| v == obs.volume()) else {
+            return false;
+        };
+        let len = self.len.load(Ordering::Relaxed).min(self.voxels.len());
+        let mask = (1u64 << AXIS_BITS) - 1;
+        self.voxels[..len].par_chunks(4096).for_each(|chunk| {
+            for v in chunk {
+                let v = v.load(Ordering::Relaxed);
+                let c = [v & mask, v >> AXIS_BITS & mask, v >> (2 * AXIS_BITS)].map(|x| x as usize);
+                obs.mark(c, vol.linear(c), OBS_HIT);
+            }
+        });
+        true
+    }
 }
 
 /// A batch's voxels ([`ToVolume::voxels`]).
@@ -194,6 +301,32 @@ mod tests {
     use proptest::test_runner::RngSeed;
     use std::collections::HashSet;
 
+    /// A volume too wide for the packed coordinates keeps nothing: the
+    /// caller marks the returns directly.
+    #[test]
+    fn returns_in_a_volume_too_wide_are_left_to_the_direct_way() {
+        let cam = PinholeCamera {
+            fx: 4.0,
+            fy: 4.0,
+            cx: 2.0,
+            cy: 2.0,
+            width: 4,
+            height: 4,
+            range: RangeLimits { min_m: 0.1, max_m: 5.0 },
+        };
+        let image = DepthImage { width: 4, height: 4, data: DepthData::Metres(vec![0.5; 16]) };
+        let frame =
+            Frame { stamp_s: 0.0, t_world_sensor: Isometry3::identity(), measurement: Measurement::Depth(image) };
+        let wide = LocalVolume { origin: VoxelIndex([-8, -8, -8]), dims: [1 << AXIS_BITS, 16, 16], voxel_size_m: 0.1 };
+        let mut returns = Returns::default();
+        assert!(!returns.find(&wide, &Sensor::Depth(cam.clone()), &frame, &mut Vec::new()));
+        let vol = LocalVolume { dims: [16, 16, 16], ..wide };
+        assert!(returns.find(&vol, &Sensor::Depth(cam), &frame, &mut Vec::new()));
+        let obs = Observations::new(vol);
+        assert!(returns.mark(&obs));
+        assert!((0..vol.len()).any(|i| obs.get(i) == OBS_HIT), "the wall at 0.5 m is hit");
+    }
+
     /// Voxels (local linear indices) of the returns, by the world point
     /// `T (ray(u, v) · d)` through nalgebra's isometry and
     /// [`VoxelIndex::containing`]: `sure` those of points at least 1e-6
@@ -256,12 +389,25 @@ mod tests {
             let vol = LocalVolume { origin: VoxelIndex([origin[0], origin[1], origin[2] / 2]), dims: [60, 50, 40], voxel_size_m };
             let frame = Frame { stamp_s: 0.0, t_world_sensor: pose, measurement: Measurement::Depth(DepthImage { width: 70, height: 6, data: DepthData::Metres(depths.clone()) }) };
             let obs = Observations::new(vol);
-            scatter_returns(&obs, &Sensor::Depth(cam.clone()), &frame, &mut Vec::new());
-            let hits: HashSet<usize> = (0..vol.len()).filter(|&i| obs.get(i) & OBS_HIT != 0).collect();
+            let sensor = Sensor::Depth(cam.clone());
+            scatter_returns(&obs, &sensor, &frame, &mut Vec::new());
+            let hits_of = |obs: &Observations| (0..vol.len()).filter(|&i| obs.get(i) & OBS_HIT != 0).collect::<HashSet<usize>>();
+            let hits = hits_of(&obs);
             let (sure, maybe) = oracle(&vol, &cam, &depths, &pose);
             prop_assert!(!maybe.is_empty() || hits.is_empty());
             prop_assert!(sure.is_subset(&hits), "returns not hit: {:?}", sure.difference(&hits).collect::<Vec<_>>());
             prop_assert!(hits.is_subset(&maybe), "hits of no return: {:?}", hits.difference(&maybe).collect::<Vec<_>>());
+            // Found first and marked after: the same hits, in the cells
+            // the observations list.
+            let (two_steps, mut returns) = (Observations::new(vol), Returns::default());
+            prop_assert!(returns.find(&vol, &sensor, &frame, &mut Vec::new()));
+            prop_assert!(returns.mark(&two_steps));
+            prop_assert_eq!(hits_of(&two_steps), hits);
+            let listed = |obs: &Observations| { let mut v = obs.observed(); v.sort_unstable(); v };
+            prop_assert_eq!(listed(&two_steps), listed(&obs));
+            // Not into another volume.
+            let other = LocalVolume { dims: [60, 50, 41], ..vol };
+            prop_assert!(!returns.mark(&Observations::new(other)));
         }
 
         /// A batch's voxels are those of nalgebra's `rot * p + origin`,

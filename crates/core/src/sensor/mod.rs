@@ -296,14 +296,28 @@ impl Measurement {
     /// values (4 or 2 bytes each), ranges (4 bytes) or points (12 bytes).
     /// What a backend has to receive at least, to compare its traffic to.
     pub fn bytes(&self) -> usize {
+        self.values()
+            * match self {
+                Measurement::Depth(d) => match &d.data {
+                    DepthData::Metres(_) => 4,
+                    DepthData::U16 { .. } => 2,
+                },
+                Measurement::Points(_) => 12,
+                Measurement::Lidar(_) | Measurement::Scan(_) => 4,
+            }
+    }
+
+    /// The measurement's values: pixels, ranges or points, each at most
+    /// one return.
+    pub fn values(&self) -> usize {
         match self {
             Measurement::Depth(d) => match &d.data {
-                DepthData::Metres(v) => 4 * v.len(),
-                DepthData::U16 { values, .. } => 2 * values.len(),
+                DepthData::Metres(v) => v.len(),
+                DepthData::U16 { values, .. } => values.len(),
             },
-            Measurement::Lidar(s) => 4 * s.ranges.len(),
-            Measurement::Points(p) => 12 * p.points.len(),
-            Measurement::Scan(s) => 4 * s.ranges.len(),
+            Measurement::Lidar(s) => s.ranges.len(),
+            Measurement::Points(p) => p.points.len(),
+            Measurement::Scan(s) => s.ranges.len(),
         }
     }
 }

@@ -6,7 +6,7 @@
 //! Both constructions write one observation per voxel per frame (a hit wins
 //! over a miss), so the fused map does not depend on thread scheduling.
 
-use edtmap_core::construction::{project_job, scatter_returns, Construction, OgmOptions};
+use edtmap_core::construction::{project_job, scatter_returns, Construction, OgmOptions, Returns};
 use edtmap_core::fixed_ray::{prepare_rays, FixedRay};
 use edtmap_core::sensor::{Frame, Sensor, SensorRay};
 use edtmap_core::{Backend, BackendError, CoreError, FuseReport, GlobalMap, LocalVolume, Observations};
@@ -17,6 +17,7 @@ pub struct OccupancyStage {
     obs: Option<Observations>,
     rays: Vec<SensorRay>,
     fixed_rays: Vec<FixedRay>,
+    returns: Returns,
 }
 
 impl OccupancyStage {
@@ -43,8 +44,18 @@ impl OccupancyStage {
             })?),
         };
         if let Some(job) = job {
-            backend.project_volume(&job, obs)?;
-            scatter_returns(obs, sensor, frame, &mut self.rays);
+            // The returns' voxels are found on another thread while the
+            // projection runs (its set-up is mostly serial), and marked
+            // after it.
+            let (returns, rays) = (&mut self.returns, &mut self.rays);
+            let mut found = false;
+            rayon::in_place_scope(|s| {
+                s.spawn(|_| found = returns.find(&volume, sensor, frame, rays));
+                backend.project_volume(&job, obs)
+            })?;
+            if !(found && returns.mark(obs)) {
+                scatter_returns(obs, sensor, frame, rays);
+            }
         } else {
             sensor.rays(&frame.measurement, opts.clear_no_return, &mut self.rays);
             let q = prepare_rays(
