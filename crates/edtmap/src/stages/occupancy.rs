@@ -58,6 +58,16 @@ impl OccupancyStage {
             }
         } else {
             sensor.rays(&frame.measurement, opts.clear_no_return, &mut self.rays);
+            // Room for a quarter more rays than this frame has: a sensor's
+            // count varies a little from frame to frame, and a buffer grown
+            // to each larger frame writes to fresh pages, which cost more
+            // than the set-up itself.
+            let want = self.rays.len();
+            if self.fixed_rays.capacity() < want {
+                self.fixed_rays.clear();
+                // Where even that cannot be had, the set-up reserves what it needs.
+                let _ = self.fixed_rays.try_reserve_exact(want + want / 4);
+            }
             let q = prepare_rays(
                 obs.volume(),
                 &frame.t_world_sensor,
