@@ -197,8 +197,8 @@ impl Returns {
     }
 
     /// Marks the voxels [`Self::find`] found as hits of `obs`, whose volume
-    /// they were found in; `false` (nothing marked) for another volume or
-    /// none found.
+    /// they were found in; `false` (nothing marked) where the last `find`
+    /// kept nothing or ran over another volume.
     pub fn mark(&self, obs: &Observations) -> bool {
         let Some(vol) = self.volume.filter(|v| v == obs.volume()) else {
             return false;
