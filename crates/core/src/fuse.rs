@@ -1,6 +1,8 @@
 //! Fusion of a frame's observations into the global occupancy map, and the
 //! read-back of the local volume's states for the batch EDT.
 
+use std::ops::ControlFlow;
+
 use crate::layers::{Cell, LAYER_VOXELS};
 use crate::Observations;
 use crate::{
@@ -45,21 +47,22 @@ pub fn fuse(map: &mut OccupancyMap, obs: &Observations, lo: &LogOdds) -> FuseRep
         .filter(|&k| obs.block_touched(k))
         .filter_map(|key| {
             let block = view.get(key);
-            let (mut updated, mut writes) = (0, false);
-            for_each_seen_row(&vol, key, obs, |i, offset, len, seen| {
-                if writes {
-                    return;
-                }
+            let mut updated = 0;
+            let writes = for_each_seen_row(&vol, key, obs, |i, offset, len, seen| {
                 let layer = block.map_or(f32::EMPTY_LAYER, |b| b.log_odds.layer_or_empty(offset / LAYER_VOXELS));
                 let cells = &layer[offset % LAYER_VOXELS..offset % LAYER_VOXELS + len];
                 for (k, &old) in cells.iter().enumerate().skip(seen) {
                     let o = obs.get(i + k);
                     if o != OBS_NONE {
                         updated += 1;
-                        writes |= lo.update(old, o).to_bits() != old.to_bits();
+                        if lo.update(old, o).to_bits() != old.to_bits() {
+                            return ControlFlow::Break(());
+                        }
                     }
                 }
-            });
+                ControlFlow::Continue(())
+            })
+            .is_break();
             match (writes, updated) {
                 (true, _) => Some((key, None)),
                 (false, 0) => None,
@@ -78,7 +81,8 @@ pub fn fuse(map: &mut OccupancyMap, obs: &Observations, lo: &LogOdds) -> FuseRep
             let had = stored.is_some();
             let mut block = stored.map(|b| SharedBlock::into_owned(Some(b)));
             let mut fused = Fused::default();
-            for_each_seen_row(&vol, key, obs, |i, offset, len, seen| {
+            // Every row: the update never breaks.
+            let _ = for_each_seen_row(&vol, key, obs, |i, offset, len, seen| {
                 // The row's layer, made only if a voxel of the row was seen.
                 let layer = block.get_or_insert_with(Box::default).log_odds.layer_mut(offset / LAYER_VOXELS);
                 let cells = &mut layer[offset % LAYER_VOXELS..offset % LAYER_VOXELS + len];
@@ -92,6 +96,7 @@ pub fn fuse(map: &mut OccupancyMap, obs: &Observations, lo: &LogOdds) -> FuseRep
                         fused.rewritten |= new.to_bits() != old.to_bits();
                     }
                 }
+                ControlFlow::Continue(())
             });
             fused.allocated = !had && block.is_some();
             (block, fused)
@@ -122,9 +127,13 @@ struct Fused {
 }
 
 /// Calls `f(local linear index, offset in block, voxels)` for each row
-/// along x of the block's voxels inside the volume.
+/// along x of the block's voxels inside the volume, until `f` breaks.
 #[inline]
-fn for_each_row(vol: &LocalVolume, key: BlockKey, mut f: impl FnMut(usize, usize, usize)) {
+fn for_each_row(
+    vol: &LocalVolume,
+    key: BlockKey,
+    mut f: impl FnMut(usize, usize, usize) -> ControlFlow<()>,
+) -> ControlFlow<()> {
     let [xs, ys, zs] = vol.block_span(key);
     let first = key.first_voxel().0;
     let bx = (vol.origin.0[0] + xs.start as i32 - first[0]) as usize;
@@ -132,26 +141,27 @@ fn for_each_row(vol: &LocalVolume, key: BlockKey, mut f: impl FnMut(usize, usize
         let bz = (vol.origin.0[2] + z as i32 - first[2]) as usize;
         for y in ys.clone() {
             let by = (vol.origin.0[1] + y as i32 - first[1]) as usize;
-            f(vol.linear([xs.start, y, z]), bx + 8 * (by + 8 * bz), xs.len());
+            f(vol.linear([xs.start, y, z]), bx + 8 * (by + 8 * bz), xs.len())?;
         }
     }
+    ControlFlow::Continue(())
 }
 
 /// [`for_each_row`] of the rows with an observed voxel, with the first
 /// such voxel's place in the row: `f(local linear index, offset in block,
-/// voxels, first observed)`. A row's log-odds are read only when it has one.
+/// voxels, first observed)`, until `f` breaks. A row's log-odds are read
+/// only when it has one.
 #[inline]
 fn for_each_seen_row(
     vol: &LocalVolume,
     key: BlockKey,
     obs: &Observations,
-    mut f: impl FnMut(usize, usize, usize, usize),
-) {
-    for_each_row(vol, key, |i, offset, len| {
-        if let Some(seen) = (0..len).find(|&k| obs.get(i + k) != OBS_NONE) {
-            f(i, offset, len, seen);
-        }
-    });
+    mut f: impl FnMut(usize, usize, usize, usize) -> ControlFlow<()>,
+) -> ControlFlow<()> {
+    for_each_row(vol, key, |i, offset, len| match (0..len).find(|&k| obs.get(i + k) != OBS_NONE) {
+        Some(seen) => f(i, offset, len, seen),
+        None => ControlFlow::Continue(()),
+    })
 }
 
 /// Fills `out` with the states of `vol`'s voxels from `map`.
