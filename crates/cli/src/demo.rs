@@ -44,6 +44,7 @@ pub(crate) fn run(args: &DemoArgs) -> Result<()> {
         dataset: None,
         ply: false,
         slice_height: None,
+        fixed_threads: false,
     };
     outln!(
         "edtmap demo: a drone flies among pillars with a 32-ring LiDAR; occupancy by volumetric projection, then the exact EDT of the 10 x 10 x 3 m volume around it, merged into the global EDT"

@@ -94,7 +94,7 @@ fn on_pool<T: Send>(job: impl FnOnce() -> T + Send) -> T {
 
 /// The main thread's stack on Linux, bytes: what the commands' code was
 /// written against.
-const MAIN_STACK_BYTES: usize = 8 << 20;
+pub(crate) const MAIN_STACK_BYTES: usize = 8 << 20;
 
 /// Keeps the memory a command frees for its next use (glibc only). glibc
 /// hands a block of 128 KiB or more back to the system as soon as it is

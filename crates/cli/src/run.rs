@@ -14,7 +14,8 @@ use edtmap::region::Region;
 use edtmap::sensor::{Frame, Sensor};
 use edtmap::stages::{Construction, OgmOptions};
 use edtmap::{
-    Connectivity, FrameStats, IntegrationMode, LocalVolume, Mapper, MapperParams, MapperSensor, VoxelIndex, VoxelState,
+    Connectivity, FrameStats, FrameThreads, IntegrationMode, LocalVolume, Mapper, MapperParams, MapperSensor,
+    VoxelIndex, VoxelState,
 };
 use edtmap_ros::config::OnError;
 use edtmap_sim::{Scene, SceneName};
@@ -95,6 +96,11 @@ pub(crate) struct RunArgs {
     /// KITTI .bin) with their poses, a ROS 1 bag, or a ROS 2 MCAP file.
     #[arg(long, value_name = "PATH")]
     pub(crate) dataset: Option<PathBuf>,
+    /// Run every frame on all of the thread pool's threads
+    /// (`RAYON_NUM_THREADS`), even while other processes keep cores busy;
+    /// by default a frame runs on as many threads as cores are left free.
+    #[arg(long)]
+    pub(crate) fixed_threads: bool,
 }
 
 /// Parses a height in metres: a finite number within a million metres.
@@ -259,13 +265,16 @@ pub(crate) fn finish(outcome: &RunOutcome) -> Result<()> {
 /// why a run stopped even if a later output fails), then the map and
 /// pictures, and last fail if the run stopped early.
 pub(crate) fn execute(args: &RunArgs, progress: bool) -> Result<RunOutcome> {
+    // Made first, so that the load is known by the first frames.
+    let threads = if args.fixed_threads { FrameThreads::fixed() } else { FrameThreads::new() };
+    let threads = threads.with_stack_size(crate::MAIN_STACK_BYTES);
     let setup = Setup::new(args)?;
     let mut mapper = open_mapper(args, &setup)?;
     prepare_out(args)?;
     let save_dir =
         args.save.as_deref().and_then(Path::parent).map(|d| if d.as_os_str().is_empty() { Path::new(".") } else { d });
     interrupt::catch(OnFirst::Finish, &[Some(args.out.as_path()), save_dir].into_iter().flatten().collect::<Vec<_>>());
-    let replayed = replay(args, &setup, &mut mapper, progress)?;
+    let replayed = replay(args, &setup, &mut mapper, threads, progress)?;
     if let Some(warning) = setup.source.pose_warning() {
         tracing::warn!("{warning}");
     }
@@ -414,7 +423,13 @@ struct Replayed {
 
 /// Integrates the frames one by one, skipping or stopping at a frame that
 /// fails as `[dataset] on_error` says (a scene's failure always stops).
-fn replay(args: &RunArgs, setup: &Setup, mapper: &mut CliMapper, progress: bool) -> Result<Replayed> {
+fn replay(
+    args: &RunArgs,
+    setup: &Setup,
+    mapper: &mut CliMapper,
+    mut threads: FrameThreads,
+    progress: bool,
+) -> Result<Replayed> {
     // A scene's time step gives a frame of each sensor; a recording's
     // frame count is its sensor messages'.
     let per_step = if matches!(setup.source, Source::Scene(_)) { setup.sensors.len() } else { 1 };
@@ -434,7 +449,8 @@ fn replay(args: &RunArgs, setup: &Setup, mapper: &mut CliMapper, progress: bool)
         }
         let Some((i, s, item)) = frames.next() else { break };
         let counted = mapper.backend().device_counters();
-        let (frame, stats) = match item.and_then(|frame| integrate(mapper, s, frame, i, &setup.name)) {
+        let done = item.and_then(|frame| threads.run(|| integrate(mapper, s, frame, i, &setup.name)));
+        let (frame, stats) = match done {
             Ok(done) => done,
             Err(failure) => {
                 bar.inc(1);
@@ -453,6 +469,7 @@ fn replay(args: &RunArgs, setup: &Setup, mapper: &mut CliMapper, progress: bool)
         pairs.clear();
         pairs.extend(global_fields(&stats, mapper.map().occupancy().len()));
         pairs.push(("sensor_bytes", frame.measurement.bytes() as f64));
+        pairs.push(("threads", threads.threads() as f64));
         if let (Some(before), Some(now)) = (counted, mapper.backend().device_counters()) {
             pairs.extend(device_fields(now.since(before)));
         }

@@ -1,6 +1,6 @@
 //! `edtmap run`'s arguments and what they put in `report.json`: negative
 //! slice heights, the default slice, `--eval` on a recording, the printed
-//! medians, the help text.
+//! medians, the threads each frame ran on, the help text.
 
 use std::path::Path;
 use std::process::Command;
@@ -193,4 +193,41 @@ fn a_scene_of_no_frames_names_the_config_key() {
     std::fs::write(&config, shipped.replace("[scene]\n", "[scene]\nframes = 0\n")).expect("write");
     let (ok, _, stderr) = edtmap(&["run", "--config", path(&config), "--out", path(dir.path())]);
     assert!(!ok && stderr.contains("[scene] frames = 0") && !stderr.contains("--frames"), "{stderr}");
+}
+
+/// Each frame says how many threads it ran on: the whole pool with
+/// `--fixed-threads`, never more than the pool without it; the saved map
+/// is the same either way.
+#[test]
+fn each_frame_reports_the_threads_it_ran_on() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let mut maps = Vec::new();
+    for fixed in [true, false] {
+        let out = dir.path().join(if fixed { "fixed" } else { "follow" });
+        let map = out.with_extension("edtmap");
+        let mut args = vec!["run", "--scene", "room", "--frames", "6", "--out", path(&out), "--save", path(&map)];
+        if fixed {
+            args.push("--fixed-threads");
+        }
+        let o = Command::new(env!("CARGO_BIN_EXE_edtmap"))
+            .args(&args)
+            .env("RAYON_NUM_THREADS", "3")
+            .output()
+            .expect("edtmap runs");
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let r = report(&out);
+        assert_eq!(r["threads"], 3);
+        let frames = r["frames"].as_array().expect("frames");
+        assert_eq!(frames.len(), 6);
+        for f in frames {
+            let t = f["threads"].as_f64().expect("threads");
+            if fixed {
+                assert_eq!(t, 3.0, "{f}");
+            } else {
+                assert!([1.0, 2.0, 3.0].contains(&t), "{f}");
+            }
+        }
+        maps.push(std::fs::read(&map).expect("map"));
+    }
+    assert!(maps[0] == maps[1], "the thread count changed the map");
 }

@@ -59,6 +59,7 @@ mod mapfile;
 mod mapper;
 mod shared;
 pub mod stages;
+mod threads;
 mod update;
 
 pub use choice::{open_backend, BackendChoice, DynBackend, OpenedBackend};
@@ -70,3 +71,4 @@ pub use error::MapError;
 pub use mapfile::{load_map, save_map};
 pub use mapper::{Cleared, FrameStats, Mapper, MapperParams, MapperSensor};
 pub use shared::{SharedMapper, Snapshot};
+pub use threads::FrameThreads;

@@ -31,7 +31,7 @@ use config::{Intrinsics, OccupiedScope, PoseType, RosSection, ServiceMapping};
 use edtmap::config::{Config, SensorKind};
 use edtmap::cpu::CpuBackend;
 use edtmap::sensor::Frame;
-use edtmap::{GlobalMap, MapError, Mapper, SharedMapper};
+use edtmap::{FrameThreads, GlobalMap, MapError, Mapper, SharedMapper};
 use edtmap_ros::config::{sensor_topics, LoneSensor};
 use edtmap_ros::msg::{CameraInfo, Message};
 use edtmap_ros::poses::SensorMessage;
@@ -752,6 +752,7 @@ fn mapping_loop(shared: &Shared, out: Outputs, rates: Rates, camera: Option<Conf
     let (mut last_esdf, mut last_occ, mut last_slice, mut last_clear) = (None, None, None, None);
     let mut cleared_blocks = 0usize;
     let mut warned = vec![false; shared.sensors.len()];
+    let mut threads = FrameThreads::new();
     loop {
         let (k, frame) = {
             let mut slots = shared.slots.lock().unwrap_or_else(PoisonError::into_inner);
@@ -786,7 +787,8 @@ fn mapping_loop(shared: &Shared, out: Outputs, rates: Rates, camera: Option<Conf
             }
         }
         let stamp_ns = (frame.stamp_s * 1e9).round() as i64;
-        let stats = match mapper.integrate_sensor_frame(k, &frame) {
+        let on: &mut Mapper = &mut mapper;
+        let stats = match threads.run(|| on.integrate_sensor_frame(k, &frame)) {
             Ok(stats) => stats,
             Err(e) if e.is_backend_failure() => return Err(e.into()),
             Err(e) => {
