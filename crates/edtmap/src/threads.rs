@@ -9,7 +9,12 @@
 //! [`FrameThreads`] watches what the other processes use (the kernel's
 //! tick counts in `/proc/stat`, less this process's own time in
 //! `/proc/self/stat`) and runs each frame on a pool of as many threads as
-//! cores are left free, never more than the pool it was made on.
+//! cores are left free, never more than the pool it was made on. Before a
+//! window of ticks has passed, the first frame goes by the threads that
+//! other processes have running or waiting for a core (`/proc/loadavg`,
+//! less this process's running threads): the fewest of four counts over a
+//! millisecond when it was made and one at the first frame. A recording
+//! of a few frames is then on its threads from the start.
 
 use std::time::{Duration, Instant};
 
@@ -27,6 +32,9 @@ pub struct FrameThreads {
     stack_bytes: Option<usize>,
     follow_load: bool,
     last: Option<Sample>,
+    /// Other processes' threads running when made, until the first frame
+    /// has used it.
+    first: Option<usize>,
     /// Smaller pools, made when first needed and kept.
     pools: Vec<(usize, rayon::ThreadPool)>,
 }
@@ -53,12 +61,13 @@ impl FrameThreads {
         let full = rayon::current_num_threads();
         let follow_load = full > 1;
         let last = if follow_load { Sample::take(Instant::now()) } else { None };
-        Self { full, now: full, stack_bytes: None, follow_load, last, pools: Vec::new() }
+        let first = if last.is_some() { others_running_steadily() } else { None };
+        Self { full, now: full, stack_bytes: None, follow_load, last, first, pools: Vec::new() }
     }
 
     /// Every frame on the whole pool, whatever the load.
     pub fn fixed() -> Self {
-        Self { follow_load: false, last: None, ..Self::new() }
+        Self { follow_load: false, last: None, first: None, ..Self::new() }
     }
 
     /// The smaller pools' threads get stacks of `bytes` (rayon's default
@@ -112,7 +121,13 @@ impl FrameThreads {
             return;
         }
         let at = Instant::now();
-        let Some(last) = &self.last else { return };
+        let Some(last) = self.last else { return };
+        if let Some(then) = self.first.take() {
+            // Both must see the load: a count may catch a passing task.
+            if let Some(now) = others_running() {
+                self.follow((last.cores as f64 - then.min(now) as f64).max(0.0));
+            }
+        }
         if at.duration_since(last.at) < WINDOW {
             return;
         }
@@ -121,13 +136,60 @@ impl FrameThreads {
             self.follow_load = false;
             return;
         };
-        if let Some(free) = next.free_cores(last) {
-            if (free - self.now as f64).abs() > HYSTERESIS {
-                self.now = threads_for(free, self.full);
-            }
+        if let Some(free) = next.free_cores(&last) {
+            self.follow(free);
         }
         self.last = Some(next);
     }
+
+    /// Moves to the threads `free` cores take, unless they are within
+    /// [`HYSTERESIS`] of the threads in use.
+    fn follow(&mut self, free: f64) {
+        if (free - self.now as f64).abs() > HYSTERESIS {
+            self.now = threads_for(free, self.full);
+        }
+    }
+}
+
+/// The fewest threads of other processes running in four counts a
+/// quarter of a millisecond apart (a millisecond in all): a process that
+/// keeps a core busy is in every count, a passing task in few.
+fn others_running_steadily() -> Option<usize> {
+    let mut fewest = others_running()?;
+    for _ in 1..4 {
+        if fewest == 0 {
+            break;
+        }
+        std::thread::sleep(Duration::from_micros(250));
+        fewest = fewest.min(others_running()?);
+    }
+    Some(fewest)
+}
+
+/// Threads of other processes running or waiting for a core now: the
+/// kernel's count of runnable threads (`/proc/loadavg`'s fourth field,
+/// `runnable/all`) less this process's threads that are running.
+fn others_running() -> Option<usize> {
+    let runnable = runnable_of(&std::fs::read_to_string("/proc/loadavg").ok()?)?;
+    let mut own = 0;
+    for task in std::fs::read_dir("/proc/self/task").ok()? {
+        // A thread that ended since the listing is not running.
+        if let Ok(stat) = std::fs::read_to_string(task.ok()?.path().join("stat")) {
+            own += usize::from(state_of(&stat) == Some('R'));
+        }
+    }
+    Some(runnable.saturating_sub(own))
+}
+
+/// The runnable threads in `/proc/loadavg` (`0.36 1.00 1.44 1/110 11774`).
+fn runnable_of(loadavg: &str) -> Option<usize> {
+    loadavg.split_whitespace().nth(3)?.split_once('/')?.0.parse().ok()
+}
+
+/// A thread's state in its `stat` file: the letter after the command's
+/// closing parenthesis.
+fn state_of(stat: &str) -> Option<char> {
+    stat.get(stat.rfind(')')? + 1..)?.trim_start().chars().next()
 }
 
 /// The threads that `free` cores take, between one and `full`.
@@ -238,6 +300,21 @@ mod tests {
         // Too short a window.
         let soon = Sample { at, busy: 1005, total: 5008, own: 100, cores: 2 };
         assert_eq!(soon.free_cores(&before), None);
+    }
+
+    #[test]
+    fn the_run_queue_and_a_threads_state_are_read() {
+        assert_eq!(runnable_of("0.36 1.00 1.44 3/110 11774\n"), Some(3));
+        assert_eq!(runnable_of("0.36 1.00 1.44"), None);
+        assert_eq!(state_of(&own(1, 1)), Some('R'));
+        assert_eq!(state_of("77 (x) y) S 1 2"), Some('S'));
+        assert_eq!(state_of("77 (x"), None);
+        // This thread runs while it counts: others never include it.
+        if let (Some(all), Some(others)) =
+            (std::fs::read_to_string("/proc/loadavg").ok().and_then(|l| runnable_of(&l)), others_running())
+        {
+            assert!(others < all.max(1), "{others} of {all}");
+        }
     }
 
     #[test]
