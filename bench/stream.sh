@@ -3,7 +3,8 @@
 # of the stage times and of the exact integration's counters (obstacle
 # voxels added and removed, EDT voxels whose distance changed and those
 # whose nearest obstacle alone changed, and per pass the entries changed,
-# rescanned and read), on 1 and 2 threads.
+# rescanned and read), on 1 and 2 threads, with the frames that ran on
+# fewer threads than asked (other processes keeping cores busy).
 #
 #   bash bench/stream.sh [--repeat N] [--cutoff M] [--threads "1 2"]
 #
@@ -87,10 +88,14 @@ counts = ["obstacles_added", "obstacles_added_apart", "obstacles_removed", "edt_
           "g1_changed", "g1_nearest_only_changed", "g2_changed", "g2_nearest_only_changed",
           "pass_x_rescanned", "pass_y_rescanned", "pass_z_rescanned", "pass_x_visited", "pass_y_visited", "pass_z_visited"]
 print("Stage times, ms, median over the frames after the first (one value per run):\n")
-print("| recording | threads | binary | frames | " + " | ".join(times) + " |")
-print("|---|---|---|---|" + "---|" * len(times))
+print("| recording | threads | binary | frames | " + " | ".join(times) + " | frames on fewer threads |")
+print("|---|---|---|---|" + "---|" * len(times) + "---|")
+# A frame's `threads` (absent from older builds' reports): fewer than the
+# pool's while other processes kept cores busy.
+fewer = lambda f, t: sum(1 for x in f if x.get("threads", int(t)) < int(t))
 for (data, t, name), runs in rows.items():
     cells = [", ".join(f"{m(f, k):.2f}" for f in runs) for k in times]
+    cells.append(", ".join(str(fewer(f, t)) for f in runs))
     print(f"| {data} | {t} | {name} | {len(runs[0])} | " + " | ".join(cells) + " |")
 print("\nCounts per frame, median over the frames after the first (the first run of each case):\n")
 print("| recording | threads | binary | " + " | ".join(f"`{k}`" for k in counts) + " |")
