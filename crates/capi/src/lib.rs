@@ -44,7 +44,7 @@ use std::cell::RefCell;
 use std::ffi::{c_char, CStr, CString};
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::Path;
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Mutex, PoisonError};
 
 use edtmap::config::{CameraFields, Config, ConstructionName, LidarFields, SensorKind, SensorSection};
 use edtmap::cpu::CpuBackend;
@@ -52,8 +52,8 @@ use edtmap::query;
 use edtmap::sensor::Sensor;
 use edtmap::sensor::{DepthData, DepthImage, Frame, LaserScan, LidarScan, Measurement, PointCloud, RangeLimits};
 use edtmap::{
-    BackendChoice, DynBackend, FrameStats, GlobalMap, GlobalParams, IntegrationMode, MapError, Mapper, MapperParams,
-    MapperSensor, PointState, SharedMapper, VolumeParams,
+    BackendChoice, DynBackend, FrameStats, FrameThreads, GlobalMap, GlobalParams, IntegrationMode, MapError, Mapper,
+    MapperParams, MapperSensor, PointState, SharedMapper, VolumeParams,
 };
 use rayon::prelude::*;
 
@@ -238,12 +238,20 @@ pub struct edtmap_mapper {
     /// Per sensor, a planar LiDAR's range limits (its section's min and
     /// max range), shared by the handles.
     scan_ranges: Arc<Mutex<Vec<RangeLimits>>>,
+    /// The threads each frame runs on (as many as cores are free), shared
+    /// by the handles.
+    threads: Arc<Mutex<FrameThreads>>,
 }
 
 impl edtmap_mapper {
     /// A handle for sensor `sensor` of the same mapper.
     fn for_sensor(&self, sensor: usize) -> edtmap_mapper {
-        edtmap_mapper { shared: Arc::clone(&self.shared), sensor, scan_ranges: Arc::clone(&self.scan_ranges) }
+        edtmap_mapper {
+            shared: Arc::clone(&self.shared),
+            sensor,
+            scan_ranges: Arc::clone(&self.scan_ranges),
+            threads: Arc::clone(&self.threads),
+        }
     }
 
     /// This handle's sensor's scan range limits.
@@ -467,7 +475,12 @@ fn mapper_on(
         None => Mapper::new_on(backend, sensor, params),
     }?;
     let shared = Arc::new(SharedMapper::new(mapper));
-    Ok(Box::new(edtmap_mapper { shared, sensor: 0, scan_ranges: Arc::new(Mutex::new(vec![scan_range])) }))
+    Ok(Box::new(edtmap_mapper {
+        shared,
+        sensor: 0,
+        scan_ranges: Arc::new(Mutex::new(vec![scan_range])),
+        threads: Arc::new(Mutex::new(FrameThreads::new())),
+    }))
 }
 
 /// A parameter of `edtmap_params` that is out of its range, named as the
@@ -761,8 +774,11 @@ unsafe fn integrate(
     let t_world_sensor = unsafe { pose(t_world_sensor) }?;
     let frame = Frame { stamp_s, t_world_sensor, measurement: measurement(m)? };
     // On a thread of rayon's pool, where the stages' parallel loops start
-    // at once instead of being handed over one by one.
-    let s: FrameStats = rayon::scope(|_| m.shared.integrate_sensor(m.sensor, &frame))?;
+    // at once instead of being handed over one by one, and on as many
+    // threads as cores are free.
+    let mut threads = m.threads.lock().unwrap_or_else(PoisonError::into_inner);
+    let s: FrameStats = threads.run(|| m.shared.integrate_sensor(m.sensor, &frame))?;
+    drop(threads);
     if !stats.is_null() {
         let out = edtmap_frame_stats {
             ogm_ms: s.ogm_ms,

@@ -83,13 +83,18 @@ impl FrameThreads {
         self.now
     }
 
-    /// Runs `op` (a frame) on as many threads as cores are free: inline on
-    /// the whole pool, or installed in a smaller pool. A smaller pool that
+    /// Runs `op` (a frame) on as many threads as cores are free: on the
+    /// whole pool, or installed in a smaller pool. A smaller pool that
     /// cannot be made leaves the frame on the whole pool.
+    ///
+    /// On the whole pool `op` runs on a thread of it: inline when the
+    /// caller is one, else handed to one (`rayon::scope`), so that the
+    /// frame's parallel loops start at once instead of each being handed
+    /// to the pool while the caller waits.
     pub fn run<R: Send>(&mut self, op: impl FnOnce() -> R + Send) -> R {
         self.look();
         if self.now == self.full {
-            return op();
+            return if rayon::current_thread_index().is_some() { op() } else { rayon::scope(|_| op()) };
         }
         let at = match self.pools.iter().position(|(n, _)| *n == self.now) {
             Some(at) => at,
@@ -325,6 +330,14 @@ mod tests {
         assert_eq!(threads_for(1.6, 2), 2);
         assert_eq!(threads_for(7.6, 2), 2);
         assert_eq!(threads_for(6.2, 16), 6);
+    }
+
+    /// A frame from outside the pool runs on a thread of it.
+    #[test]
+    fn a_frame_from_outside_the_pool_runs_on_it() {
+        let mut threads = FrameThreads::fixed();
+        let on = std::thread::spawn(move || threads.run(rayon::current_thread_index)).join().expect("joins");
+        assert!(on.is_some());
     }
 
     /// A frame run on a smaller pool runs there, on the threads chosen.

@@ -6,14 +6,15 @@
 //! of threads query while another integrates, each seeing a whole frame.
 
 use std::path::PathBuf;
-use std::sync::{Arc, Mutex, MutexGuard};
+use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 
 use edtmap::config::{Config, SensorSection};
 use edtmap::cpu::CpuBackend;
 use edtmap::query;
 use edtmap::sensor::{DepthData, DepthImage, Frame, LaserScan, LidarScan, Measurement, PointCloud, RangeLimits};
 use edtmap::{
-    Backend, BackendChoice, FrameStats, GlobalMap, MapError, Mapper, MapperSensor, PointState, SharedMapper, Snapshot,
+    Backend, BackendChoice, FrameStats, FrameThreads, GlobalMap, MapError, Mapper, MapperSensor, PointState,
+    SharedMapper, Snapshot,
 };
 use nalgebra::{Isometry3, Quaternion, Translation3};
 use numpy::{PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
@@ -65,11 +66,17 @@ pub(crate) struct PyMapper {
     /// Per sensor, the range limits of a planar LiDAR's scans (its section's
     /// min/max range).
     scan_ranges: Mutex<Vec<RangeLimits>>,
+    /// The threads each frame runs on: as many as cores are free.
+    threads: Mutex<FrameThreads>,
 }
 
 impl PyMapper {
     fn new(mapper: Mapper<DynBackend>, scan_range: RangeLimits) -> Self {
-        PyMapper { shared: SharedMapper::new(mapper), scan_ranges: Mutex::new(vec![scan_range]) }
+        PyMapper {
+            shared: SharedMapper::new(mapper),
+            scan_ranges: Mutex::new(vec![scan_range]),
+            threads: Mutex::new(FrameThreads::new()),
+        }
     }
 
     fn lock(&self) -> PyResult<MutexGuard<'_, Mapper<DynBackend>>> {
@@ -82,10 +89,14 @@ impl PyMapper {
 
     /// Integrates one frame of sensor `sensor` without the GIL, on a
     /// thread of rayon's pool (the stages' parallel loops then start at
-    /// once instead of being handed over one by one), and publishes the new
+    /// once instead of being handed over one by one) and on as many
+    /// threads as cores are free ([`FrameThreads`]), and publishes the new
     /// snapshot.
     fn integrate<'py>(&self, py: Python<'py>, sensor: usize, frame: Frame) -> PyResult<Bound<'py, PyDict>> {
-        let stats = py.detach(|| rayon::scope(|_| self.shared.integrate_sensor(sensor, &frame)).map_err(map_err))?;
+        let stats = py.detach(|| {
+            let mut threads = self.threads.lock().unwrap_or_else(PoisonError::into_inner);
+            threads.run(|| self.shared.integrate_sensor(sensor, &frame)).map_err(map_err)
+        })?;
         stats_dict(py, &stats)
     }
 }
