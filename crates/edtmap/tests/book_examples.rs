@@ -29,6 +29,29 @@ fn a_mapper_from_one_frame() -> Result<(), Box<dyn std::error::Error>> {
 }
 
 #[test]
+fn frames_on_the_cores_left_free() -> Result<(), Box<dyn std::error::Error>> {
+    // ANCHOR: threads
+    use edtmap::sensor::{Frame, Measurement, PointCloud, RangeLimits, Sensor};
+    use edtmap::{FrameThreads, Mapper, MapperParams, VoxelIndex, VoxelState};
+    use nalgebra::Isometry3;
+
+    let sensor = Sensor::Points(RangeLimits { min_m: 0.1, max_m: 20.0 });
+    let mut mapper = Mapper::new(sensor, MapperParams::for_voxel_size(0.1))?;
+    let mut threads = FrameThreads::new(); // once, then for every frame
+    let frame = Frame {
+        stamp_s: 0.0,
+        t_world_sensor: Isometry3::translation(0.0, 0.0, 1.0),
+        measurement: Measurement::Points(PointCloud { points: vec![[2.05, 0.05, 0.05]] }),
+    };
+    let stats = threads.run(|| mapper.integrate_frame(&frame))?; // on threads.threads() threads
+    assert_eq!(mapper.state(VoxelIndex([20, 0, 10])), VoxelState::Occupied);
+    // ANCHOR_END: threads
+    assert!(stats.voxels_updated >= 19);
+    assert!((1..=rayon::current_num_threads()).contains(&threads.threads()));
+    Ok(())
+}
+
+#[test]
 fn an_exact_edt_of_a_grid() -> Result<(), Box<dyn std::error::Error>> {
     // ANCHOR: batch
     use edtmap::{cpu, EdtParams, Grid3, VoxelState};
