@@ -58,16 +58,20 @@ impl FrameThreads {
     /// Frames on the current rayon pool's threads (the global pool outside
     /// one), fewer while other processes keep cores busy.
     pub fn new() -> Self {
-        let full = rayon::current_num_threads();
-        let follow_load = full > 1;
-        let last = if follow_load { Sample::take(Instant::now()) } else { None };
-        let first = if last.is_some() { others_running_steadily() } else { None };
-        Self { full, now: full, stack_bytes: None, follow_load, last, first, pools: Vec::new() }
+        Self::following(true)
     }
 
     /// Every frame on the whole pool, whatever the load.
     pub fn fixed() -> Self {
-        Self { follow_load: false, last: None, first: None, ..Self::new() }
+        Self::following(false)
+    }
+
+    fn following(load: bool) -> Self {
+        let full = rayon::current_num_threads();
+        let follow_load = load && full > 1;
+        let last = if follow_load { Sample::take(Instant::now()) } else { None };
+        let first = if last.is_some() { others_running_steadily() } else { None };
+        Self { full, now: full, stack_bytes: None, follow_load, last, first, pools: Vec::new() }
     }
 
     /// The smaller pools' threads get stacks of `bytes` (rayon's default
@@ -94,7 +98,7 @@ impl FrameThreads {
     pub fn run<R: Send>(&mut self, op: impl FnOnce() -> R + Send) -> R {
         self.look();
         if self.now == self.full {
-            return if rayon::current_thread_index().is_some() { op() } else { rayon::scope(|_| op()) };
+            return on_pool(op);
         }
         let at = match self.pools.iter().position(|(n, _)| *n == self.now) {
             Some(at) => at,
@@ -111,7 +115,7 @@ impl FrameThreads {
                     Err(e) => {
                         tracing::debug!("a pool of {} threads: {e}; the frame runs on all {}", self.now, self.full);
                         self.now = self.full;
-                        return op();
+                        return on_pool(op);
                     }
                 }
             }
@@ -195,6 +199,16 @@ fn runnable_of(loadavg: &str) -> Option<usize> {
 /// closing parenthesis.
 fn state_of(stat: &str) -> Option<char> {
     stat.get(stat.rfind(')')? + 1..)?.trim_start().chars().next()
+}
+
+/// Runs `op` on a thread of the current pool: inline on one, else handed
+/// to one.
+fn on_pool<R: Send>(op: impl FnOnce() -> R + Send) -> R {
+    if rayon::current_thread_index().is_some() {
+        op()
+    } else {
+        rayon::scope(|_| op())
+    }
 }
 
 /// The threads that `free` cores take, between one and `full`.
