@@ -145,10 +145,11 @@ impl FrameThreads {
             self.follow_load = false;
             return;
         };
+        // Too few ticks to say: the window grows until there are enough.
         if let Some(free) = next.free_cores(&last) {
             self.follow(free);
+            self.last = Some(next);
         }
-        self.last = Some(next);
     }
 
     /// Moves to the threads `free` cores take, unless they are within
@@ -266,7 +267,7 @@ impl Sample {
     /// `None` for too few ticks to say.
     fn free_cores(&self, before: &Sample) -> Option<f64> {
         let total = self.total.checked_sub(before.total)?;
-        if total < 5 * self.cores as u64 {
+        if total < 4 * self.cores as u64 {
             return None;
         }
         let busy = self.busy.saturating_sub(before.busy);
@@ -316,8 +317,8 @@ mod tests {
         assert!((free(after(180, 60)) - 0.8).abs() < 1e-9);
         // Both cores taken by others.
         assert!(free(after(200, 0)).abs() < 1e-9);
-        // Too short a window.
-        let soon = Sample { at, busy: 1005, total: 5008, own: 100, cores: 2 };
+        // Too short a window (fewer than 4 ticks a core).
+        let soon = Sample { at, busy: 1005, total: 5007, own: 100, cores: 2 };
         assert_eq!(soon.free_cores(&before), None);
     }
 
