@@ -30,7 +30,8 @@ pub struct FrameThreads {
     now: usize,
     /// Stack size of the smaller pools' threads.
     stack_bytes: Option<usize>,
-    follow_load: bool,
+    /// The load when last looked at; `None` for a count that follows no
+    /// load (fixed, one thread, or no `/proc`).
     last: Option<Sample>,
     /// Other processes' threads running when made, until the first frame
     /// has used it.
@@ -68,10 +69,9 @@ impl FrameThreads {
 
     fn following(load: bool) -> Self {
         let full = rayon::current_num_threads();
-        let follow_load = load && full > 1;
-        let last = if follow_load { Sample::take(Instant::now()) } else { None };
+        let last = if load && full > 1 { Sample::take(Instant::now()) } else { None };
         let first = if last.is_some() { others_running_steadily() } else { None };
-        Self { full, now: full, stack_bytes: None, follow_load, last, first, pools: Vec::new() }
+        Self { full, now: full, stack_bytes: None, last, first, pools: Vec::new() }
     }
 
     /// The smaller pools' threads get stacks of `bytes` (rayon's default
@@ -126,11 +126,8 @@ impl FrameThreads {
     /// Sets the thread count from the load since the last look, once a
     /// window has passed.
     fn look(&mut self) {
-        if !self.follow_load {
-            return;
-        }
-        let at = Instant::now();
         let Some(last) = self.last else { return };
+        let at = Instant::now();
         if let Some(then) = self.first.take() {
             // Both must see the load: a count may catch a passing task.
             if let Some(now) = others_running() {
@@ -142,7 +139,7 @@ impl FrameThreads {
         }
         let Some(next) = Sample::take(at) else {
             // `/proc` went away: stay where we are.
-            self.follow_load = false;
+            self.last = None;
             return;
         };
         // Too few ticks to say: the window grows until there are enough.
